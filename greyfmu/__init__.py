@@ -1,0 +1,1 @@
+"""greyfmu: grey models, advanced process controllers and plants as plain numerical classes."""
