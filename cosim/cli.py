@@ -1,0 +1,171 @@
+"""``cosim``: run, validate, inspect and pack SSP systems of FMI 2.0 Co-Simulation FMUs.
+
+Exit status: 0 done, 1 the run failed (results up to the last good step are
+kept), 2 the input is wrong (nothing was run).  No traceback unless --debug.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .errors import CosimError, RunError, SetupError
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="cosim", description=__doc__.splitlines()[0])
+    p.add_argument("--debug", action="store_true", help="show Python tracebacks")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def common(sp):
+        sp.add_argument("path", help="scenario folder (SystemStructure.ssd), .ssd file or .ssp archive")
+        sp.add_argument("--fmu-dir", action="append", default=[], metavar="DIR",
+                        help="folder to look in for FMUs the scenario does not carry (repeatable)")
+        sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+
+    run = sub.add_parser("run", help="run a system and write CSV results (and a plot)")
+    common(run)
+    run.add_argument("--start", type=float, help="start time [s] (default: DefaultExperiment or 0)")
+    run.add_argument("--stop", type=float, help="stop time [s] (default: DefaultExperiment)")
+    run.add_argument("--step", type=float, help="communication step [s] (default: SSD annotation)")
+    run.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="default: jacobi")
+    run.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
+                     help="parameter set applied last, names 'component.variable' (repeatable)")
+    run.add_argument("--output", "-o", metavar="CSV", help="result CSV (default: results/<name>.csv)")
+    run.add_argument("--plot", metavar="PNG", help="write a plot of --signals")
+    run.add_argument("--signals", nargs="+", metavar="GLOB",
+                     help="signals to plot, one panel per argument; 'a,b' overlays a and b in one panel "
+                          "(default: every output)")
+    run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+
+    validate = sub.add_parser("validate", help="check a system without running it")
+    common(validate)
+
+    info = sub.add_parser("info", help="list components, connections and parameters")
+    common(info)
+
+    pack = sub.add_parser("pack", help="pack a scenario folder into a standard .ssp archive")
+    common(pack)
+    pack.add_argument("-o", "--output", required=True, metavar="X.ssp")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        return {"run": _run, "validate": _validate, "info": _info, "pack": _pack}[args.command](args)
+    except SetupError as e:
+        if args.debug:
+            raise
+        print(f"cosim: error: {e}", file=sys.stderr)
+        return 2
+    except RunError as e:
+        if args.debug:
+            raise
+        print(f"cosim: the run failed: {e}", file=sys.stderr)
+        return 1
+    except CosimError as e:
+        if args.debug:
+            raise
+        print(f"cosim: error: {e}", file=sys.stderr)
+        return 2
+
+
+def _run(args) -> int:
+    from .results import plot
+    from .simulation import prepare, run, select
+
+    prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
+                       algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir)
+    try:
+        structure = prepared.plan.structure
+        name = structure.name or Path(args.path).stem
+        output = Path(args.output or Path("results") / f"{name}.csv")
+        outputs = [f"{c}.{v.name}" for c, vs in prepared.plan.outputs.items() for v in vs]
+        inputs = [f"{c}.{v.name}" for c, vs in prepared.plan.inputs.items() for v in vs]
+        panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
+                  else [[n] for n in outputs])
+        grid = prepared.grid
+        print(f"cosim: {name}: {len(structure.components)} FMUs, {len(prepared.plan.routes)} connections, "
+              f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
+              f"{prepared.algorithm}")
+        try:
+            result, metadata = run(prepared, output=output, progress=not args.quiet)
+        except RunError:
+            print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
+            raise
+    finally:
+        prepared.close()
+    if metadata["status"] == "discarded":
+        print(f"cosim: warning: {metadata['message']}", file=sys.stderr)
+    print(f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
+    if args.plot:
+        png = plot(result, panels, args.plot, title=name)
+        print(f"cosim: plot: {png}")
+    return 0
+
+
+def _validate(args) -> int:
+    from .simulation import prepare
+
+    prepared = _prepare_without_grid(args, prepare)
+    plan = prepared.plan
+    print(f"cosim: {args.path}: valid — {len(plan.fmus)} FMUs, {len(plan.routes)} connections, "
+          f"{len(plan.start_values)} parameter values; step {prepared.grid.step:g} s ({prepared.step_source})")
+    prepared.close()
+    return 0
+
+
+def _prepare_without_grid(args, prepare):
+    """validate/info/pack need no step: fall back to a placeholder grid when the SSD has none."""
+    try:
+        return prepare(args.path, fmu_dirs=args.fmu_dir)
+    except SetupError as e:
+        if not e.detail.startswith(("no step size", "no stop time")):
+            raise
+        return prepare(args.path, fmu_dirs=args.fmu_dir, step_size=1.0, stop_time=1.0)
+
+
+def _info(args) -> int:
+    from .simulation import prepare
+
+    prepared = _prepare_without_grid(args, prepare)
+    plan = prepared.plan
+    s = plan.structure
+    print(f"system {s.name!r} ({s.ssd_file})")
+    print(f"  experiment: start {s.start_time}, stop {s.stop_time}, step {s.step_size} "
+          f"({s.step_size_source or 'none in the SSD'}), algorithm {s.algorithm or 'jacobi'}")
+    print("components:")
+    for name, desc in plan.fmus.items():
+        print(f"  {name}: {desc.path.name} (FMI {desc.md.fmiVersion}, {desc.md.generationTool}, "
+              f"GUID {desc.md.guid})")
+        for v in plan.inputs[name] + plan.outputs[name]:
+            print(f"    {v.causality:6} {v.type:7} {v.name}" + (f" [{v.unit}]" if v.unit else ""))
+    print("connections:")
+    for r in plan.routes:
+        tf = f" (x{r.factor:g} {r.offset:+g})" if (r.factor, r.offset) != (1.0, 0.0) else ""
+        print(f"  {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}{tf}")
+    print("parameters:")
+    for sv in plan.start_values:
+        print(f"  {sv.component}.{sv.variable.name} = {sv.value}  ({sv.origin})")
+    if plan.feedthrough_sequence:
+        print("direct feedthrough resolved at each step in the order: " + ", ".join(plan.feedthrough_sequence))
+    prepared.close()
+    return 0
+
+
+def _pack(args) -> int:
+    from .pack import pack
+    from .simulation import prepare
+
+    prepared = _prepare_without_grid(args, prepare)
+    try:
+        out = pack(prepared.plan, Path(args.output))
+    finally:
+        prepared.close()
+    print(f"cosim: packed {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,181 @@
+"""FMUs as the master sees them: their model description, checked, and live instances.
+
+`describe` reads and checks a model description (FMI 2.0, Co-Simulation, a
+GUID); `Instance` wraps fmpy's `FMU2Slave` and exposes the raw ctypes FMI
+functions the execution calls on preallocated arrays, plus the log messages
+the FMU sent (kept so a failure can be explained).
+"""
+from __future__ import annotations
+
+import collections
+import ctypes
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import fmpy
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+from fmpy.model_description import ModelDescription, ModelVariable
+
+from .errors import SetupError, did_you_mean
+
+STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+
+
+@dataclass
+class FMUDescription:
+    """A checked FMI 2.0 Co-Simulation model description."""
+    path: Path
+    md: ModelDescription
+    variables: dict[str, ModelVariable]
+    #: For each output: the inputs it depends on at the same instant (FMI 2.0 ModelStructure).
+    #: An output without a ``dependencies`` attribute depends on every input (FMI 2.0 §2.2.8).
+    output_dependencies: dict[str, list[str]]
+
+    @property
+    def inputs(self) -> list[str]:
+        return [v.name for v in self.md.modelVariables if v.causality == "input"]
+
+    def variable(self, name: str, where: str, file: str) -> ModelVariable:
+        try:
+            return self.variables[name]
+        except KeyError:
+            raise SetupError(f"the FMU {self.path.name} has no variable '{name}'.", file=file,
+                             element=where, variable=name,
+                             hint=did_you_mean(name, self.variables)) from None
+
+
+_cache: dict[Path, FMUDescription] = {}
+
+
+def describe(path: Path, where: str, file: str) -> FMUDescription:
+    """Read and check an FMU's model description; ``where``/``file`` say who refers to it."""
+    path = path.resolve()
+    if path in _cache and _cache[path].path.stat().st_mtime == path.stat().st_mtime:
+        return _cache[path]
+    try:
+        md = fmpy.read_model_description(str(path), validate=True)
+    except Exception as e:  # fmpy raises several types for unreadable or invalid FMUs
+        raise SetupError(f"cannot read the model description of {path.name}: {e}", file=file,
+                         element=where) from None
+    if md.fmiVersion != "2.0":
+        raise SetupError(f"{path.name} is an FMI {md.fmiVersion} FMU; this master runs FMI 2.0 "
+                         "Co-Simulation FMUs.", file=file, element=where)
+    if md.coSimulation is None:
+        raise SetupError(f"{path.name} has no Co-Simulation interface (Model Exchange only); this master "
+                         "runs Co-Simulation FMUs.", file=file, element=where)
+    if not md.guid or not md.guid.strip():
+        raise SetupError(f"{path.name} has an empty GUID in its modelDescription.xml; an FMU without a GUID "
+                         "cannot be instantiated.", file=file, element=where)
+    variables = {v.name: v for v in md.modelVariables}
+    inputs = [v.name for v in md.modelVariables if v.causality == "input"]
+    deps: dict[str, list[str]] = {}
+    for unknown in md.outputs:
+        if unknown.dependencies is None:
+            deps[unknown.variable.name] = list(inputs)
+        else:
+            deps[unknown.variable.name] = [d.name for d in unknown.dependencies if d.causality == "input"]
+    for v in md.modelVariables:
+        if v.causality == "output" and v.name not in deps:
+            deps[v.name] = list(inputs)
+    desc = FMUDescription(path=path, md=md, variables=variables, output_dependencies=deps)
+    _cache[path] = desc
+    return desc
+
+
+def unit_of(v: ModelVariable) -> str | None:
+    if v.unit:
+        return v.unit
+    return v.declaredType.unit if v.declaredType is not None and v.declaredType.unit else None
+
+
+#: Log messages by instance name.  fmpy's native logger proxy (which formats the printf
+#: arguments) keeps one Python logger for the whole process, so one logger dispatches.
+_LOG_TARGETS: dict[str, collections.deque] = {}
+_CALLBACKS: list[fmi2CallbackFunctions] = []
+
+
+def _log(env, instance_name, status, category, message) -> None:
+    name = instance_name.decode("utf-8", "replace") if instance_name else ""
+    text = message.decode("utf-8", "replace") if message else ""
+    cat = category.decode("utf-8", "replace") if category else ""
+    target = _LOG_TARGETS.get(name)
+    if target is not None:
+        target.append(f"[{STATUS.get(status, status)}] {cat}: {text}".strip())
+
+
+def _callbacks() -> fmi2CallbackFunctions:
+    """The process-wide FMI callbacks, created once and kept alive for every instance."""
+    if not _CALLBACKS:
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(_log)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
+        try:
+            from fmpy.logging import addLoggerProxy
+            addLoggerProxy(ctypes.byref(callbacks))
+        except OSError:  # no native proxy for this platform: messages arrive unformatted
+            pass
+        _CALLBACKS.append(callbacks)
+    return _CALLBACKS[0]
+
+
+class Instance:
+    """One live FMU instance with raw FMI 2.0 functions for the hot loop."""
+
+    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
+        self.name = name
+        self.desc = desc
+        self.messages: collections.deque[str] = collections.deque(maxlen=20)
+        md = desc.md
+        self.slave = FMU2Slave(guid=md.guid, unzipDirectory=unzip_dir,
+                               modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        _LOG_TARGETS[name] = self.messages
+        raw = self.slave._functions
+        self.do_step = raw["fmi2DoStep"]
+        self.get = {"Real": raw["fmi2GetReal"], "Integer": raw["fmi2GetInteger"],
+                    "Boolean": raw["fmi2GetBoolean"]}
+        self.set = {"Real": raw["fmi2SetReal"], "Integer": raw["fmi2SetInteger"],
+                    "Boolean": raw["fmi2SetBoolean"]}
+        self.component = None
+
+    def instantiate(self) -> None:
+        try:
+            self.slave.instantiate(callbacks=_callbacks(), loggingOn=True)
+        except Exception as e:
+            raise SetupError(f"fmi2Instantiate failed for {self.desc.path.name} (GUID {self.desc.md.guid}): {e}."
+                             + self.last_messages(), element=f"component '{self.name}'") from None
+        self.component = self.slave.component
+
+    def last_messages(self) -> str:
+        return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
+
+    def free(self) -> None:
+        if self.component is not None:
+            try:
+                self.slave.terminate()
+            except Exception:  # an FMU in an error state may refuse fmi2Terminate; it is freed anyway
+                pass
+            self.slave.fmi2FreeInstance(self.component)
+            self.component = None
+        self.slave.freeLibrary()
+        if _LOG_TARGETS.get(self.name) is self.messages:
+            del _LOG_TARGETS[self.name]
+
+
+class Unzipped:
+    """Extracts each FMU file once per run into a temporary folder."""
+
+    def __init__(self) -> None:
+        self._tmp = tempfile.TemporaryDirectory(prefix="cosim-fmu-")
+        self._dirs: dict[Path, str] = {}
+
+    def __call__(self, path: Path) -> str:
+        path = path.resolve()
+        if path not in self._dirs:
+            self._dirs[path] = fmpy.extract(str(path), unzipdir=str(Path(self._tmp.name) / f"{len(self._dirs)}"))
+        return self._dirs[path]
+
+    def cleanup(self) -> None:
+        self._tmp.cleanup()

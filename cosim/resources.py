@@ -1,0 +1,64 @@
+"""Find the FMU file behind each component's ``source``.
+
+A component names its FMU as ``resources/<Name>.fmu`` (the SSP archive
+convention).  The file is looked for, in order:
+
+1. relative to the SSD (inside an ``.ssp`` archive, or the scenario's own
+   ``resources/`` folder) — a user's third-party FMU dropped into a scenario;
+2. by FMU providers: packages that build FMUs register a function under the
+   entry-point group ``cosim.fmu_providers``; it is called with the FMU name and
+   returns a path (building the FMU first if it is missing or stale) or None.
+   greyfmu registers one, so ``cosim run ssp/pid_fopdt`` builds what it needs.
+   The master never imports such a package by name;
+3. in the folders given with ``--fmu-dir``.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from importlib.metadata import entry_points
+from pathlib import Path, PurePosixPath
+
+from .errors import SetupError
+from .ssp import Component, SystemStructure, resolve_uri
+
+Provider = Callable[[str], "Path | None"]
+
+
+def providers() -> list[Provider]:
+    return [ep.load() for ep in entry_points(group="cosim.fmu_providers")]
+
+
+def locate_fmus(structure: SystemStructure, fmu_dirs: Sequence[Path] = (),
+                use_providers: bool = True) -> None:
+    """Set ``fmu_path`` on every component, or raise naming what was looked at."""
+    found_providers = providers() if use_providers else []
+    for comp in structure.components.values():
+        comp.fmu_path = _locate(comp, structure, fmu_dirs, found_providers)
+
+
+def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path],
+            found_providers: list[Provider]) -> Path:
+    where = f"ssd:Component '{comp.name}' (line {comp.line})"
+    if not comp.source:
+        raise SetupError("the component has no source attribute naming its FMU.",
+                         file=str(structure.ssd_file), element=where)
+    looked: list[str] = []
+    direct = resolve_uri(comp.source, structure.base_dir)
+    if direct.is_file():
+        return direct
+    looked.append(str(direct))
+    name = PurePosixPath(comp.source).name
+    for provide in found_providers:
+        path = provide(name)
+        if path is not None:
+            return Path(path)
+    if found_providers:
+        looked.append("the FMU providers (" + ", ".join(p.__module__ for p in found_providers) + ")")
+    for d in fmu_dirs:
+        candidate = Path(d) / name
+        if candidate.is_file():
+            return candidate
+        looked.append(str(candidate))
+    raise SetupError(f"the FMU file '{comp.source}' was not found; looked at " + "; ".join(looked) + ".",
+                     file=str(structure.archive or structure.ssd_file), element=where,
+                     hint="Put the FMU in the scenario's resources/ folder or pass --fmu-dir FOLDER.")

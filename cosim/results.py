@@ -1,0 +1,37 @@
+"""Results on disk: read a result CSV, plot chosen signals (matplotlib, Agg backend)."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+
+def read(path: str | Path) -> np.ndarray:
+    """Read a result CSV into a structured array (``fmpy.util.read_csv`` format)."""
+    from fmpy.util import read_csv
+    return read_csv(str(path))
+
+
+def plot(result: np.ndarray, panels: Sequence[Sequence[str]], path: str | Path, title: str | None = None) -> Path:
+    """One subplot per panel, the panel's signals overlaid against time, written as a PNG."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(8, 1.8 + 1.8 * len(panels)),
+                             squeeze=False)
+    for ax, names in zip(axes[:, 0], panels):
+        for name in names:
+            ax.plot(result["time"], result[name], lw=1.2, label=name)
+        ax.legend(loc="best", fontsize="small")
+        ax.grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("time [s]")
+    if title:
+        axes[0, 0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,163 @@
+"""The run as a user asks for it: read, locate, validate, then execute and record.
+
+`prepare` does everything that can fail before an FMU is instantiated;
+`simulate` runs a prepared system and returns the samples as a NumPy structured
+array (like ``fmpy.simulate_fmu``), writing them to a CSV as it goes if asked.
+"""
+from __future__ import annotations
+
+import fnmatch
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import ssp
+from .errors import RunError, SetupError, did_you_mean
+from .execution import ALGORITHMS, Execution, Grid
+from .graph import Plan, build_plan
+from .observers import CsvSink, MemorySink, Recorder
+from .resources import locate_fmus
+
+
+@dataclass
+class Prepared:
+    plan: Plan
+    grid: Grid
+    algorithm: str
+    step_source: str
+
+    def close(self) -> None:
+        self.plan.structure.close()
+
+
+def prepare(path: str | Path, *, start_time: float | None = None, stop_time: float | None = None,
+            step_size: float | None = None, algorithm: str | None = None,
+            parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
+            use_providers: bool = True) -> Prepared:
+    """Read and validate a system; nothing is instantiated."""
+    structure = ssp.load(path)
+    try:
+        extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
+        locate_fmus(structure, [Path(d) for d in fmu_dirs], use_providers=use_providers)
+        plan = build_plan(structure, extra)
+        file = str(structure.ssd_file)
+        start = start_time if start_time is not None else (structure.start_time or 0.0)
+        stop = stop_time if stop_time is not None else structure.stop_time
+        if stop is None:
+            raise SetupError("no stop time: the SSD has no ssd:DefaultExperiment stopTime; pass --stop.", file=file)
+        if step_size is not None:
+            step, source = step_size, "command line"
+        elif structure.step_size is not None:
+            step, source = structure.step_size, structure.step_size_source
+        else:
+            raise SetupError(
+                "no step size: pass --step, or add one to ssd:DefaultExperiment/ssd:Annotations — ours "
+                f"(<ssc:Annotation type=\"{ssp.GREYFMU_ANNOTATION}\"><greyfmu:Simulation "
+                f"xmlns:greyfmu=\"{ssp.GREYFMU_NS}\" stepSize=\"0.1\"/></ssc:Annotation>), OSP's "
+                "osp:FixedStepAlgorithm baseStepSize or OpenModelica's oms:FixedStepMaster stepSize.",
+                file=file, element="ssd:DefaultExperiment")
+        algo = algorithm or structure.algorithm or "jacobi"
+        if algo not in ALGORITHMS:
+            raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
+        return Prepared(plan, Grid(start, stop, step), algo, source)
+    except BaseException:
+        structure.close()
+        raise
+
+
+def simulate(path: str | Path, *, start_time: float | None = None, stop_time: float | None = None,
+             step_size: float | None = None, algorithm: str | None = None,
+             parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
+             output: str | Path | None = None, progress: bool = False,
+             use_providers: bool = True) -> np.ndarray:
+    """Run an SSP system and return every connector at every communication point.
+
+    The result is a structured array with a ``time`` field and one field per
+    connector named ``component.variable``.  With ``output`` the samples are
+    also written to that CSV as the run goes (metadata in ``<output>.json``).
+    A failed run raises `RunError` with the samples so far in ``error.result``
+    (and on disk when ``output`` is given).
+    """
+    prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
+                       algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
+                       use_providers=use_providers)
+    try:
+        result, metadata = run(prepared, output=output, progress=progress)
+    finally:
+        prepared.close()
+    if metadata["status"] == "discarded":
+        warnings.warn(metadata["message"], RuntimeWarning, stacklevel=2)
+    return result
+
+
+def run(prepared: Prepared, *, output: str | Path | None = None,
+        progress: bool = False) -> tuple[np.ndarray, dict]:
+    """Execute a prepared system; returns the samples and the run's metadata."""
+    memory = MemorySink()
+    sinks: list = [memory] + ([CsvSink(output)] if output is not None else [])
+    execution = Execution(prepared.plan, prepared.grid, prepared.algorithm)
+    recorder = None
+    bar = None
+    try:
+        execution.instantiate()
+        names, arrays = execution.recorder_sources()
+        recorder = Recorder(names, arrays, _ssd_order(prepared.plan, names), sinks)
+        execution.initialize()
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=prepared.grid.steps, delay=1.0, unit="step", leave=False,
+                       desc=prepared.plan.structure.name or "cosim")
+        execution.run(recorder, bar)
+    except RunError as e:
+        execution.status = "failed"
+        execution.message = str(e)
+        if recorder is not None:
+            recorder.close(_metadata(prepared, execution))
+        e.result = memory.array() if recorder is not None else None
+        raise
+    except BaseException as e:
+        execution.status = "failed"
+        execution.message = f"{type(e).__name__}: {e}"
+        if recorder is not None:
+            recorder.close(_metadata(prepared, execution))
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+        execution.close()
+    metadata = _metadata(prepared, execution)
+    recorder.close(metadata)
+    return memory.array(), metadata
+
+
+def _ssd_order(plan: Plan, names: list[str]) -> list[str]:
+    """Columns component by component in SSD order, connectors as each component lists them."""
+    order = []
+    for comp_name, comp in plan.structure.components.items():
+        for conn in comp.connectors:
+            full = f"{comp_name}.{conn}"
+            if full in names:
+                order.append(full)
+    return order
+
+
+def _metadata(prepared: Prepared, execution: Execution) -> dict:
+    meta = execution.metadata()
+    meta["system"] = str(prepared.plan.structure.archive or prepared.plan.structure.ssd_file)
+    meta["step_size_source"] = prepared.step_source
+    return meta
+
+
+def select(names: Sequence[str], patterns: Sequence[str]) -> list[str]:
+    """Names matching any glob pattern, in the order of ``names``; an unmatched pattern is an error."""
+    chosen = []
+    for pattern in patterns:
+        matched = [n for n in names if fnmatch.fnmatchcase(n, pattern)]
+        if not matched:
+            raise SetupError(f"no signal matches '{pattern}'.", element="--signals",
+                             hint=did_you_mean(pattern, names) or f"Signals: {', '.join(names[:12])}.")
+        chosen += [n for n in matched if n not in chosen]
+    return chosen

@@ -1,0 +1,247 @@
+"""Bad input: each gets one clear message naming file, element and variable, and exit status 2.
+
+All FMUs here are real: OpenModelica exports from gemseo-fmu and pythonfmu test FMUs built
+from tests/fmus/.
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import cosim
+from cosim.cli import main
+from peers import gemseo_fmu_dir
+from ssdgen import ssd_text, write_system
+from testfmus import build_test_fmus
+
+PLANT = {"plant": ("Mass_Damper.fmu", {"f": "input", "y": "output"})}
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    built = build_test_fmus(tmp_path_factory.mktemp("testfmus"))
+    g = gemseo_fmu_dir()
+    built.update({name: g / f"{name}.fmu" for name in ("Mass_Damper", "add", "ramp", "FMU3Model")})
+    return built
+
+
+def _system(tmp_path, fmus, components, connections, **kw) -> Path:
+    files = {f: fmus[Path(f).stem] for f, _ in components.values()}
+    return write_system(tmp_path / "sys", files, ssd_text("t", components, connections, **kw))
+
+
+def _cli_error(capsys, *argv) -> str:
+    code = main(list(argv))
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "Traceback" not in err
+    return err
+
+
+def _ramp_plant(tmp_path, fmus, connections, extra=None):
+    comps = {"src": ("ramp.fmu", {"out": "output"}), **PLANT, **(extra or {})}
+    return _system(tmp_path, fmus, comps, connections)
+
+
+def test_xml_not_well_formed_names_line_and_column(tmp_path, fmus, capsys):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace("</ssd:Elements>", "</ssd:Element>"))
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "SystemStructure.ssd" in err and "not well formed at line" in err and "column" in err
+
+
+def test_unknown_component_suggests_the_closest(tmp_path, fmus, capsys):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plantt", "f")])
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "unknown component 'plantt'" in err and "Did you mean 'plant'" in err and "line" in err
+
+
+def test_unknown_connector_suggests_the_closest(tmp_path, fmus, capsys):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "outt", "plant", "f")])
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "no connector 'outt'" in err and "'out'" in err and "variable 'outt'" in err
+
+
+def test_connector_missing_from_the_fmu(tmp_path, fmus, capsys):
+    comps = {"src": ("ramp.fmu", {"out": "output", "speed": "output"}), **PLANT}
+    folder = _system(tmp_path, fmus, comps, [("src", "out", "plant", "f")])
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "ramp.fmu has no variable 'speed'" in err and "ssd:Connector 'speed'" in err
+
+
+def test_output_to_output(tmp_path, fmus, capsys):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "y")])
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "output wired to output" in err and "src.out" in err and "plant.y" in err
+
+
+def test_input_to_input(tmp_path, fmus, capsys):
+    comps = {"a": ("add.fmu", {"u1": "input", "u2": "input", "y": "output"}), **PLANT}
+    folder = _system(tmp_path, fmus, comps, [("a", "u1", "plant", "f")])
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "input wired to input" in err and "a.u1" in err and "plant.f" in err
+
+
+def test_input_driven_twice(tmp_path, fmus, capsys):
+    comps = {"src": ("ramp.fmu", {"out": "output"}), "src2": ("ramp.fmu", {"out": "output"}), **PLANT}
+    folder = _system(tmp_path, fmus, comps, [("src", "out", "plant", "f"), ("src2", "out", "plant", "f")])
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "plant.f is driven by two connections" in err and "variable 'f'" in err
+
+
+def test_boolean_wired_to_real(tmp_path, fmus, capsys):
+    comps = {"sw": ("BoolSource.fmu", {"on": "output"}), **PLANT}
+    folder = _system(tmp_path, fmus, comps, [("sw", "on", "plant", "f")])
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "Boolean output sw.on wired to Real input plant.f" in err
+
+
+def test_missing_fmu_file(tmp_path, fmus, capsys):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    (folder / "resources" / "Mass_Damper.fmu").unlink()
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "'resources/Mass_Damper.fmu' was not found" in err and "ssd:Component 'plant'" in err
+
+
+def test_fmu_with_a_wrong_guid(tmp_path, fmus, capsys):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    fmu = folder / "resources" / "Mass_Damper.fmu"
+    _rewrite_model_description(fmu, lambda xml: xml.replace('guid="{', 'guid="{0'))
+    err = _cli_error(capsys, "run", str(folder), "-q", "-o", str(tmp_path / "r.csv"))
+    assert "fmi2Instantiate failed for Mass_Damper.fmu" in err and "Wrong GUID" in err
+
+
+def test_fmu_with_an_empty_guid(tmp_path, fmus, capsys):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    import re
+    _rewrite_model_description(folder / "resources" / "Mass_Damper.fmu",
+                               lambda xml: re.sub(r'guid="\{[^}]*\}"', 'guid=""', xml))
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "empty GUID" in err
+
+
+def test_fmi3_fmu_is_refused(tmp_path, fmus, capsys):
+    comps = {"m": ("FMU3Model.fmu", {}), **PLANT}
+    folder = _system(tmp_path, fmus, comps, [])
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "FMU3Model.fmu is an FMI 3.0 FMU" in err and "ssd:Component 'm'" in err
+
+
+@pytest.mark.parametrize("member", ["../evil.txt", "/etc/evil.txt"])
+def test_ssp_member_escaping_the_archive(tmp_path, fmus, capsys, member):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    ssp = tmp_path / "bad.ssp"
+    with zipfile.ZipFile(ssp, "w") as z:
+        z.write(folder / "SystemStructure.ssd", "SystemStructure.ssd")
+        z.writestr(member, "x")
+    err = _cli_error(capsys, "validate", str(ssp))
+    assert "bad.ssp" in err and ("escapes the archive" in err or "absolute path" in err)
+    assert not (tmp_path / "evil.txt").exists()
+
+
+def test_parameter_outside_min_max(tmp_path, fmus, capsys):
+    comps = {"src": ("ramp.fmu", {"out": "output"}), **PLANT}
+    folder = _system(tmp_path, fmus, comps, [("src", "out", "plant", "f")],
+                     parameters={"plant": {"mass.m": -1.0}})
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "value -1.0 is outside the variable's range [0.0, None]" in err and "variable 'mass.m'" in err
+
+
+def test_parameter_that_does_not_exist(tmp_path, fmus, capsys):
+    comps = {"src": ("ramp.fmu", {"out": "output"}), **PLANT}
+    folder = _system(tmp_path, fmus, comps, [("src", "out", "plant", "f")],
+                     parameters={"plant": {"mass.mm": 2.0}})
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "no variable 'mass.mm'" in err and "Did you mean 'mass.m'" in err
+
+
+@pytest.mark.parametrize("argv, text", [(["--step", "0"], "step size must be a positive number"),
+                                        (["--step", "-0.1"], "step size must be a positive number"),
+                                        (["--stop", "-1"], "is not after the start time")])
+def test_bad_grid(tmp_path, fmus, capsys, argv, text):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    err = _cli_error(capsys, "run", str(folder), "-q", *argv)
+    assert text in err
+
+
+def test_no_step_size_anywhere(tmp_path, fmus, capsys):
+    comps = {"src": ("ramp.fmu", {"out": "output"}), **PLANT}
+    folder = write_system(tmp_path / "s", {"ramp.fmu": fmus["ramp"], "Mass_Damper.fmu": fmus["Mass_Damper"]},
+                          ssd_text("t", comps, [("src", "out", "plant", "f")], step=None))
+    err = _cli_error(capsys, "run", str(folder), "-q")
+    assert "no step size" in err and "--step" in err and "FixedStepAlgorithm" in err
+
+
+def test_unsupported_features_are_refused(tmp_path, fmus, capsys):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace(
+        "</ssd:Elements>", '<ssd:System name="inner"/></ssd:Elements>'))
+    err = _cli_error(capsys, "validate", str(folder))
+    assert "nested systems are not supported" in err and "line" in err
+
+
+def test_fmu_failing_mid_run_keeps_results(tmp_path, fmus, capsys):
+    comps = {"f": ("Failing.fmu", {"u": "input", "y": "output"}), **PLANT}
+    folder = _system(tmp_path, fmus, comps, [("f", "y", "plant", "f")], stop=1.0, step=0.001,
+                     parameters={"f": {"fail_time": 0.25}})
+    csv = tmp_path / "out.csv"
+    code = main(["run", str(folder), "-q", "-o", str(csv)])
+    err = capsys.readouterr().err
+    assert code == 1 and "Traceback" not in err
+    assert "component 'f' (Failing.fmu)" in err and "fmi2DoStep returned Fatal at t = 0.25" in err
+    assert "refusing the step from t = 0.25" in err and "results up to the last good step kept in" in err
+    from cosim.results import read
+    res = read(csv)
+    assert res["time"][-1] == pytest.approx(0.25) and len(res) == 251
+    assert res["f.y"][-1] == pytest.approx(0.25)
+    import json
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    assert meta["status"] == "failed" and meta["last_time"] == pytest.approx(0.25)
+
+
+def test_discard_ends_the_run_cleanly_at_the_last_good_time(tmp_path, fmus, capsys):
+    comps = {"f": ("Failing.fmu", {"u": "input", "y": "output"})}
+    folder = _system(tmp_path, fmus, comps, [], stop=1.0, step=0.1,
+                     parameters={"f": {"fail_time": 0.3, "raise_error": 0}})
+    csv = tmp_path / "out.csv"
+    assert main(["run", str(folder), "-q", "-o", str(csv)]) == 0
+    out = capsys.readouterr()
+    assert "Discard" in out.err and "last good time 0.3" in out.err
+    from cosim.results import read
+    assert list(read(csv)["time"]) == pytest.approx([0, 0.1, 0.2, 0.3])
+    import json
+    assert json.loads(csv.with_suffix(".json").read_text())["status"] == "discarded"
+
+
+def test_api_failure_carries_partial_results(tmp_path, fmus):
+    comps = {"f": ("Failing.fmu", {"u": "input", "y": "output"})}
+    folder = _system(tmp_path, fmus, comps, [], stop=1.0, step=0.1, parameters={"f": {"fail_time": 0.5}})
+    with pytest.raises(cosim.RunError) as err:
+        cosim.simulate(folder)
+    assert err.value.component == "f" and err.value.time == pytest.approx(0.5)
+    assert list(err.value.result["f.y"]) == pytest.approx([0, 0.1, 0.2, 0.3, 0.4, 0.5])
+
+
+def test_console_script_has_no_traceback(tmp_path, fmus):
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plantt", "f")])
+    proc = subprocess.run([sys.executable, "-m", "cosim.cli", "validate", str(folder)], capture_output=True,
+                          text=True)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr and "plantt" in proc.stderr
+    proc = subprocess.run([sys.executable, "-m", "cosim.cli", "--debug", "validate", str(folder)],
+                          capture_output=True, text=True)
+    assert proc.returncode != 0 and "Traceback" in proc.stderr
+
+
+def _rewrite_model_description(fmu: Path, change) -> None:
+    with zipfile.ZipFile(fmu) as z:
+        members = {i.filename: z.read(i.filename) for i in z.infolist()}
+    members["modelDescription.xml"] = change(members["modelDescription.xml"].decode()).encode()
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in members.items():
+            z.writestr(name, data)
