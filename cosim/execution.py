@@ -194,12 +194,17 @@ class Execution:
             call()
         except Exception as e:
             inst = self.instances[comp]
+            status = getattr(e, "status", None)
+            if status is not None and status >= 3:
+                inst.failed = STATUS.get(status, "Fatal")
             raise RunError(f"{what} failed at t = {t:g}: {e}.{inst.last_messages()}", time=t, component=comp,
                            element=f"component '{comp}' ({inst.desc.path.name})") from None
 
     def _check(self, status: int, comp: str, t: float, what: str) -> None:
         if status > FMI_WARNING:
             inst = self.instances[comp]
+            if status >= 3:
+                inst.failed = STATUS.get(status, "Fatal")
             raise RunError(f"{what} returned {STATUS.get(status, status)} at t = {t:g}.{inst.last_messages()}",
                            time=t, component=comp, status=status,
                            element=f"component '{comp}' ({inst.desc.path.name})")
@@ -301,7 +306,6 @@ class Execution:
         for inst in self.instances.values():
             inst.free()
         self.instances.clear()
-        self._unzipped.cleanup()
 
     def metadata(self) -> dict:
         return {

@@ -139,43 +139,61 @@ class Instance:
         self.set = {"Real": raw["fmi2SetReal"], "Integer": raw["fmi2SetInteger"],
                     "Boolean": raw["fmi2SetBoolean"]}
         self.component = None
+        self.failed: str | None = None
 
-    def instantiate(self) -> None:
+    def instantiate(self, log_all: bool = False) -> None:
+        """Instantiate with logging on; unless ``log_all``, only the FMI 2.0 status categories
+        (logStatusWarning, logStatusError, ...) the FMU declares are enabled, so an FMU that logs
+        every call (OpenModelica's logFmi2Call) does not slow the run down."""
         try:
             self.slave.instantiate(callbacks=_callbacks(), loggingOn=True)
         except Exception as e:
             raise SetupError(f"fmi2Instantiate failed for {self.desc.path.name} (GUID {self.desc.md.guid}): {e}."
                              + self.last_messages(), element=f"component '{self.name}'") from None
         self.component = self.slave.component
+        status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
+        if not log_all and status_categories:
+            self.slave.setDebugLogging(True, status_categories)
 
     def last_messages(self) -> str:
         return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
 
     def free(self) -> None:
-        if self.component is not None:
-            try:
-                self.slave.terminate()
-            except Exception:  # an FMU in an error state may refuse fmi2Terminate; it is freed anyway
-                pass
+        """End the instance as the FMI 2.0 state machine allows after its last status:
+        terminate and free after OK/Warning/Discard, only free after Error, nothing after
+        Fatal ("it is not possible to call any other function", FMI 2.0 §2.1.3; freeing a
+        pythonfmu instance after Fatal corrupted the interpreter's memory here)."""
+        if self.component is not None and self.failed != "Fatal":
+            if self.failed is None:
+                try:
+                    self.slave.terminate()
+                except Exception:  # fmi2Terminate refused: the instance is still freed
+                    pass
             self.slave.fmi2FreeInstance(self.component)
-            self.component = None
-        self.slave.freeLibrary()
+        self.component = None
         if _LOG_TARGETS.get(self.name) is self.messages:
             del _LOG_TARGETS[self.name]
 
 
 class Unzipped:
-    """Extracts each FMU file once per run into a temporary folder."""
+    """Extracts each FMU file once per process (keyed by path, size and mtime).
 
-    def __init__(self) -> None:
-        self._tmp = tempfile.TemporaryDirectory(prefix="cosim-fmu-")
-        self._dirs: dict[Path, str] = {}
+    Shared libraries are never unloaded: a pythonfmu FMU leaves Python objects
+    that point into its library, and unloading it made the garbage collector
+    crash later in the process.  Extracting once keeps the same library path, so
+    repeated runs reuse the loaded library instead of loading new copies.
+    """
+
+    _tmp: tempfile.TemporaryDirectory | None = None
+    _dirs: dict[tuple, str] = {}
 
     def __call__(self, path: Path) -> str:
         path = path.resolve()
-        if path not in self._dirs:
-            self._dirs[path] = fmpy.extract(str(path), unzipdir=str(Path(self._tmp.name) / f"{len(self._dirs)}"))
-        return self._dirs[path]
-
-    def cleanup(self) -> None:
-        self._tmp.cleanup()
+        stat = path.stat()
+        key = (path, stat.st_size, stat.st_mtime_ns)
+        if key not in Unzipped._dirs:
+            if Unzipped._tmp is None:
+                Unzipped._tmp = tempfile.TemporaryDirectory(prefix="cosim-fmu-")
+            target = Path(Unzipped._tmp.name) / str(len(Unzipped._dirs))
+            Unzipped._dirs[key] = fmpy.extract(str(path), unzipdir=str(target))
+        return Unzipped._dirs[key]

@@ -4,6 +4,7 @@
 ``raise_error`` = 1: do_step raises, which pythonfmu reports as fmi2Fatal.
 """
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu.enums import Fmi2Status
 
 
 class Failing(Fmi2Slave):
@@ -24,7 +25,7 @@ class Failing(Fmi2Slave):
 
     def do_step(self, current_time, step_size):
         if current_time + step_size > self.fail_time + 1e-12:
-            self.log(f"refusing the step from t = {current_time}")
+            self.log(f"refusing the step from t = {current_time}", Fmi2Status.error)
             if self.raise_error:
                 raise RuntimeError(f"failing on purpose at t = {current_time}")
             return False
