@@ -1,0 +1,60 @@
+"""PID controller FMU: a thin wrapper around greyfmu.control.PID."""
+
+from typing import Any
+
+from pythonfmu import DefaultExperiment, Fmi2Variability
+
+from _slave import REQUIREMENTS, GreyfmuSlave
+from greyfmu.control import PID as PIDController
+from greyfmu.signals import SampleClock
+
+
+class PID(GreyfmuSlave):
+    description = (
+        "Sampled ideal (ISA) PID u = Kc[e + (1/Ti)∫e dt + Td de/dt], e = r - y, with derivative on the "
+        "measurement filtered by Td/N (backward Euler), output and rate limits, conditional-integration "
+        "anti-windup and the integral modes (2.10)-(2.12) of the thesis. Sampled at Ts with zero-order hold: "
+        "do_step(t, h) computes every sample instant t0 + k*Ts in [t, t+h) from the inputs set at t, and u is "
+        "the last sample's output (u0 before the first sample); no direct feedthrough. Defaults: Simulation 2.1 "
+        "at its low operating point (Kc = 1.6069/0.2). " + REQUIREMENTS
+    )
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=100.0, step_size=0.1)
+    output_dependencies = {"u": [], "e": []}
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.parameter("Kc", 8.0345, "Controller gain (1.6069/Kp with Kp = 0.2)")
+        self.parameter("Ti", 7.1713, "Integral time", unit="s")
+        self.parameter("Td", 1.5363, "Derivative time (0 disables the derivative term)", unit="s", minimum=0.0)
+        self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N")
+        self.parameter("Ts", 0.1, "Sample time", unit="s")
+        self.parameter("u_min", -1e10, "Lower output limit")
+        self.parameter("u_max", 1e10, "Upper output limit")
+        self.parameter("du_max", 0.0, "Output rate limit in units of u per second (0 = none)", minimum=0.0)
+        self.parameter(
+            "integral_mode", 3, "Integral mode: 1 = (2.10), 2 = (2.11), 3 = (2.12) of the thesis", minimum=1, maximum=3
+        )
+        self.parameter("u0", 0.0, "Initial output (bias): the integral starts here, so u = u0 while e = 0")
+        self.input("r", 0.0, "Set-point")
+        self.input("y", 0.0, "Measured process output")
+        self.output("u", "Controller output, held between samples", lambda: self.pid.u, variability=Fmi2Variability.discrete)
+        self.output("e", "Control error r - y at the last sample", lambda: self.pid.e, variability=Fmi2Variability.discrete)
+
+    def build(self) -> None:
+        self.pid = PIDController(
+            self.Kc,
+            self.Ti,
+            self.Td,
+            self.Ts,
+            N=self.N,
+            u_min=self.u_min,
+            u_max=self.u_max,
+            du_max=self.du_max,
+            integral_mode=self.integral_mode,
+            u0=self.u0,
+        )
+        self.clock = SampleClock(self.Ts, self.experiment_start)
+
+    def advance(self, t: float, h: float) -> None:
+        for _ in self.clock.samples_in(t, h):
+            self.pid.step(self.r, self.y)

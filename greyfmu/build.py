@@ -1,0 +1,169 @@
+"""Build the FMUs of ``fmus/`` with pythonfmu and repair what pythonfmu 0.7.0 writes wrong.
+
+Each ``fmus/<Name>.py`` becomes ``<out_dir>/<Name>.fmu`` (FMI 2.0 Co-Simulation) with the
+``greyfmu`` package and ``fmus/_slave.py`` embedded as resources.  The archive's
+modelDescription.xml is then post-processed:
+
+- every output must have ``initial="exact"`` and a start value (the build fails otherwise);
+- ``ModelStructure/Outputs/Unknown`` gets ``dependencies`` from the slave class's
+  ``output_dependencies`` (pythonfmu omits it, which means "depends on every input");
+- ``UnitDefinitions`` declares every unit the variables use.
+
+``dependenciesKind`` is not written: absent, it means "dependent", which is all the
+slaves can promise in general.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import zipfile
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from xml.etree import ElementTree
+
+from pythonfmu.builder import FmuBuilder, get_model_class
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+REPOSITORY_ROOT = PACKAGE_DIR.parent
+FMU_SOURCES = REPOSITORY_ROOT / "fmus"
+SLAVE_BASE = FMU_SOURCES / "_slave.py"
+DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
+
+BASE_UNITS: dict[str, dict[str, str]] = {"s": {"s": "1"}}
+"""SI base-unit exponents of the units the slaves use, for ``UnitDefinitions``."""
+
+
+class BuildError(RuntimeError):
+    """An FMU could not be built or its model description is not what the FMI standard needs."""
+
+
+class UnknownFmuError(ValueError):
+    """A requested FMU name has no ``fmus/<Name>.py``."""
+
+
+def fmu_names() -> list[str]:
+    """Names of the FMUs that can be built: the ``fmus/*.py`` files not starting with ``_``."""
+    if not FMU_SOURCES.is_dir():
+        raise BuildError(
+            f"no fmus/ folder next to the greyfmu package (looked for {FMU_SOURCES}); "
+            "greyfmu build needs a source checkout installed with `pip install -e .`"
+        )
+    return sorted(path.stem for path in FMU_SOURCES.glob("*.py") if not path.name.startswith("_"))
+
+
+def build_fmus(
+    names: Iterable[str] | None = None,
+    out_dir: str | Path | None = None,
+    force: bool = False,
+    echo: Callable[[str], None] | None = None,
+) -> list[Path]:
+    """Build the named FMUs (all when ``names`` is None) into ``out_dir`` (default build/fmus).
+
+    An FMU newer than all its sources (its script, ``fmus/_slave.py``, every greyfmu
+    module) is kept unless ``force``.  ``echo`` receives one line per FMU.  Returns the
+    FMU paths in the order of ``names``.
+    """
+    available = fmu_names()
+    requested = available if names is None else list(names)
+    unknown = [name for name in requested if name not in available]
+    if unknown:
+        raise UnknownFmuError(f"unknown FMU {', '.join(unknown)}; valid names: {', '.join(available)}")
+    out_dir = DEFAULT_OUT_DIR if out_dir is None else Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    newest_common_source = max(path.stat().st_mtime for path in [SLAVE_BASE, *PACKAGE_DIR.rglob("*.py")])
+    paths = []
+    for name in requested:
+        script = FMU_SOURCES / f"{name}.py"
+        fmu = out_dir / f"{name}.fmu"
+        newest_source = max(newest_common_source, script.stat().st_mtime)
+        if not force and fmu.is_file() and fmu.stat().st_mtime > newest_source:
+            status = "up to date"
+        else:
+            _build_one(script, fmu)
+            status = "built"
+        if echo is not None:
+            echo(f"{name}: {status} ({fmu})")
+        paths.append(fmu)
+    return paths
+
+
+def provide_fmu(file_name: str) -> Path | None:
+    """FMU provider for the co-simulation master (entry point ``cosim.fmu_providers``).
+
+    Given a file name such as ``"PID.fmu"``, return the FMU in build/fmus, building it
+    first if it is missing or stale; None if it is not one of ours or there is no
+    ``fmus/`` folder to build from (a non-editable install).
+    """
+    name = Path(file_name)
+    if name.suffix != ".fmu" or not FMU_SOURCES.is_dir() or name.stem not in fmu_names():
+        return None
+    return build_fmus([name.stem])[0]
+
+
+def _build_one(script: Path, fmu: Path) -> None:
+    with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
+        staged_package = Path(temp) / "package" / PACKAGE_DIR.name
+        shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        built = FmuBuilder.build_FMU(
+            script,
+            dest=Path(temp) / "fmu",
+            project_files=[staged_package, SLAVE_BASE],
+            needsExecutionTool="false",
+        )
+        slave_class = get_model_class(script)  # build_FMU put fmus/ on sys.path and imported it
+        partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
+        _rewrite_model_description(Path(built), partial, slave_class.output_dependencies)
+        os.replace(partial, fmu)
+
+
+def _rewrite_model_description(source: Path, target: Path, output_dependencies: dict[str, list[str]]) -> None:
+    with zipfile.ZipFile(source) as archive:
+        entries = {info.filename: archive.read(info) for info in archive.infolist()}
+    root = ElementTree.fromstring(entries["modelDescription.xml"])
+    model = root.get("modelName")
+    _declare_output_dependencies(root, model, output_dependencies)
+    _declare_units(root, model)
+    ElementTree.indent(root)
+    entries["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
+    with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+
+
+def _declare_output_dependencies(root: ElementTree.Element, model: str, output_dependencies: dict[str, list[str]]) -> None:
+    variables = root.findall("ModelVariables/ScalarVariable")
+    index_of = {variable.get("name"): position for position, variable in enumerate(variables, start=1)}
+    inputs = {variable.get("name") for variable in variables if variable.get("causality") == "input"}
+    outputs = [variable for variable in variables if variable.get("causality") == "output"]
+    output_names = {variable.get("name") for variable in outputs}
+    if set(output_dependencies) != output_names:
+        raise BuildError(
+            f"{model}: output_dependencies names {sorted(output_dependencies)}, "
+            f"but the outputs are {sorted(output_names)}"
+        )
+    for variable in outputs:
+        name = variable.get("name")
+        if variable.get("initial") != "exact" or variable[0].get("start") is None:
+            raise BuildError(f'{model}: output {name} needs initial="exact" and a start value')
+        not_inputs = [dependency for dependency in output_dependencies[name] if dependency not in inputs]
+        if not_inputs:
+            raise BuildError(f"{model}: output {name} depends on {not_inputs}, which are not inputs ({sorted(inputs)})")
+    for unknown in root.findall("ModelStructure/Outputs/Unknown"):
+        name = variables[int(unknown.get("index")) - 1].get("name")
+        unknown.set("dependencies", " ".join(str(index_of[dependency]) for dependency in output_dependencies[name]))
+
+
+def _declare_units(root: ElementTree.Element, model: str) -> None:
+    used = sorted({unit for unit in (node.get("unit") for node in root.iter("Real")) if unit is not None})
+    if not used:
+        return
+    unknown = [unit for unit in used if unit not in BASE_UNITS]
+    if unknown:
+        raise BuildError(f"{model}: units {unknown} are not in greyfmu.build.BASE_UNITS; add their SI base units there")
+    definitions = ElementTree.Element("UnitDefinitions")
+    for unit in used:
+        ElementTree.SubElement(ElementTree.SubElement(definitions, "Unit", name=unit), "BaseUnit", BASE_UNITS[unit])
+    position = list(root).index(root.find("CoSimulation")) + 1
+    root.insert(position, definitions)

@@ -1,0 +1,169 @@
+"""Sampled ideal (ISA) PID with the three integral modes of the thesis, §2.3.2, (2.10)-(2.12)."""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+
+
+class IntegralMode(IntEnum):
+    """How the integral term follows a change of Kc or Ti (thesis §2.3.2).
+
+    With constant gains the three are the same controller.  The thesis recommends
+    METHOD1 when only the plant's time constant or dead time varies, METHOD2/METHOD3
+    when its gain varies, and METHOD3 as the general-purpose trade-off.
+    """
+
+    METHOD1 = 1
+    """(2.10): I(k) = I(k−1) + Kc(k)·Ts/Ti(k)·e(k): the historic integral output is kept."""
+    METHOD2 = 2
+    """(2.11): the accumulated ∫e is kept; the integral output is rescaled by Kc(k)/Ti(k)."""
+    METHOD3 = 3
+    """(2.12): the accumulated ∫e/Ti is kept; the integral output is rescaled by Kc(k)."""
+
+
+def integral_step(
+    mode: IntegralMode | int,
+    I_prev: float,
+    e: float,
+    Kc: float,
+    Ti: float,
+    Kc_prev: float,
+    Ti_prev: float,
+    Ts: float,
+) -> float:
+    """Integral output I(k) from I(k−1), the error e(k) and the gains at k and k−1 (sample time Ts).
+
+    The thesis writes the laws for Ts = 1; with a sample time Ts each error sample adds
+    the rectangle Ts·e(k):
+
+    - METHOD1 (2.10): I(k) = I(k−1) + Kc(k)·Ts/Ti(k)·e(k)
+    - METHOD2 (2.11): I1(k−1) = I(k−1) / (Kc(k−1)/Ti(k−1)),  I(k) = Kc(k)/Ti(k)·(I1(k−1) + Ts·e(k))
+    - METHOD3 (2.12): I1(k−1) = I(k−1) / Kc(k−1),           I(k) = Kc(k)·(I1(k−1) + Ts·e(k)/Ti(k))
+
+    The §2.3.2 example (I(k) = 60, Kc 4.5 → 5, Ti 15 → 10, e = 1, Ts = 1) gives
+    60.5, 100.5 and 67.1667 (the thesis prints 90.5 and 67.15; see tests/test_pid.py).
+    Gain-scheduled controllers call this with the gains of the previous and the current sample.
+    """
+    mode = IntegralMode(mode)
+    if mode is IntegralMode.METHOD1:
+        return I_prev + Kc * Ts / Ti * e
+    if mode is IntegralMode.METHOD2:
+        I1_prev = I_prev / (Kc_prev / Ti_prev)
+        return (Kc / Ti) * (I1_prev + Ts * e)
+    I1_prev = I_prev / Kc_prev
+    return Kc * (I1_prev + Ts * e / Ti)
+
+
+def _check_gains(Kc: float, Ti: float, Td: float) -> None:
+    if not (math.isfinite(Kc) and Kc != 0.0):
+        raise ValueError(f"PID: controller gain Kc must be a finite nonzero number, got {Kc}")
+    if not (math.isfinite(Ti) and Ti > 0.0):
+        raise ValueError(f"PID: integral time Ti must be a finite number > 0, got {Ti}")
+    if not (math.isfinite(Td) and Td >= 0.0):
+        raise ValueError(f"PID: derivative time Td must be a finite number >= 0, got {Td}")
+
+
+class PID:
+    """Discrete ideal PID ``u = Kc·[e + (1/Ti)∫e dt + Td·de/dt]``, ``e = r − y`` (thesis (2.6a)).
+
+    ``step(r, y)`` is one sample k (sample time Ts):
+
+    - ``P(k) = Kc·e(k)``
+    - ``I(k) = integral_step(mode, I(k−1), e(k), Kc(k), Ti(k), Kc(k−1), Ti(k−1), Ts)``, (2.10)-(2.12)
+    - ``D(k)``: derivative on the measurement (−y, no kick on set-point steps) through the
+      filter ``1/(1 + s·Td/N)``, discretised by backward Euler with ``Tf = Td/N``:
+      ``D(k) = [Tf·D(k−1) − Kc·Td·(y(k) − y(k−1))] / (Tf + Ts)``.  Backward Euler is stable
+      and free of ringing for every Tf ≥ 0 (Tustin rings when Tf < Ts/2); its response to a
+      step Δy has exactly the area ``−Kc·Td·Δy`` of the continuous term; ``Td = 0`` gives D ≡ 0.
+    - ``u(k)`` = ``P + I + D`` limited to ``u(k−1) ± du_max·Ts`` (rate limit, ``du_max`` in
+      units per second, 0 or inf = none), then to ``[u_min, u_max]`` (the limits win).
+
+    Anti-windup by conditional integration: when the output is limited and this sample's
+    integral increment points further beyond the limit, the increment is dropped (the
+    mode's rescaling for a gain change still applies) and u is recomputed.
+
+    Bumpless start: the integral starts at the bias ``u0`` and the first sample takes
+    y(k−1) = y(k), so the output holds u0 while e = 0.  The bias is part of the integral
+    (the thesis's "historic output"), so METHOD2/METHOD3 rescale it when the gains change.
+
+    ``set_gains`` changes Kc, Ti, Td for the next sample (gain scheduling); that sample's
+    integral law sees the gains of the previous sample as Kc(k−1), Ti(k−1).
+    """
+
+    def __init__(
+        self,
+        Kc: float,
+        Ti: float,
+        Td: float = 0.0,
+        Ts: float = 1.0,
+        *,
+        N: float = 10.0,
+        u_min: float = -math.inf,
+        u_max: float = math.inf,
+        du_max: float = 0.0,
+        integral_mode: IntegralMode | int = IntegralMode.METHOD3,
+        u0: float = 0.0,
+    ) -> None:
+        _check_gains(Kc, Ti, Td)
+        if not (math.isfinite(Ts) and Ts > 0.0):
+            raise ValueError(f"PID: sample time Ts must be a finite number > 0, got {Ts}")
+        if not N > 0.0:
+            raise ValueError(f"PID: derivative filter factor N must be > 0, got {N}")
+        if not u_min <= u_max:
+            raise ValueError(f"PID: output limits need u_min <= u_max, got u_min = {u_min}, u_max = {u_max}")
+        if not du_max >= 0.0:
+            raise ValueError(f"PID: rate limit du_max must be >= 0 (0 = none), got {du_max}")
+        if not (math.isfinite(u0) and u_min <= u0 <= u_max):
+            raise ValueError(f"PID: initial output u0 must lie in [u_min, u_max] = [{u_min}, {u_max}], got {u0}")
+        self.Ts = Ts
+        self.N = N
+        self.u_min = u_min
+        self.u_max = u_max
+        self.du_max = du_max
+        self.integral_mode = IntegralMode(integral_mode)
+        self.u0 = u0
+        self._initial_gains = (Kc, Ti, Td)
+        self._du_per_sample = du_max * Ts if du_max > 0.0 else math.inf
+        self.reset()
+
+    def reset(self) -> None:
+        """Return to the state right after construction (initial gains, output u0)."""
+        self.Kc, self.Ti, self.Td = self._initial_gains
+        self._Kc_prev, self._Ti_prev = self.Kc, self.Ti
+        self.u = self.u0
+        self.e = 0.0
+        self.I = self.u0
+        self.D = 0.0
+        self._y_prev: float | None = None
+
+    def set_gains(self, Kc: float, Ti: float, Td: float) -> None:
+        """Use the gains Kc, Ti, Td from the next sample on."""
+        _check_gains(Kc, Ti, Td)
+        self.Kc, self.Ti, self.Td = Kc, Ti, Td
+
+    def step(self, r: float, y: float) -> float:
+        """One sample: set-point r, measurement y; returns the controller output u(k)."""
+        e = r - y
+        y_prev = y if self._y_prev is None else self._y_prev
+        Tf = self.Td / self.N
+        D = (Tf * self.D - self.Kc * self.Td * (y - y_prev)) / (Tf + self.Ts)
+        P = self.Kc * e
+        I = self._integral(e)
+        v = P + I + D
+        u = self._limit(v)
+        if u != v:
+            I_held = self._integral(0.0)
+            if (v - u) * (I - I_held) > 0.0:
+                I = I_held
+                u = self._limit(P + I + D)
+        self.e, self.u, self.I, self.D, self._y_prev = e, u, I, D, y
+        self._Kc_prev, self._Ti_prev = self.Kc, self.Ti
+        return u
+
+    def _integral(self, e: float) -> float:
+        return integral_step(self.integral_mode, self.I, e, self.Kc, self.Ti, self._Kc_prev, self._Ti_prev, self.Ts)
+
+    def _limit(self, v: float) -> float:
+        v = min(max(v, self.u - self._du_per_sample), self.u + self._du_per_sample)
+        return min(max(v, self.u_min), self.u_max)

@@ -1,0 +1,13 @@
+"""Shared fixtures."""
+
+from pathlib import Path
+
+import pytest
+
+from greyfmu.build import build_fmus
+
+
+@pytest.fixture(scope="session")
+def built_fmus() -> dict[str, Path]:
+    """All FMUs of fmus/, built once per session into build/fmus (kept if up to date)."""
+    return {path.stem: path for path in build_fmus()}

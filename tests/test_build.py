@@ -1,0 +1,252 @@
+"""greyfmu build: the FMUs validate, declare the agreed interface and simulate correctly."""
+
+import math
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu
+
+from greyfmu.build import (
+    BuildError,
+    UnknownFmuError,
+    _rewrite_model_description,
+    build_fmus,
+    fmu_names,
+    provide_fmu,
+)
+from greyfmu.cli import main
+
+INTERFACE = {
+    # name: (parameters, inputs, outputs -> same-instant input dependencies)
+    "PID": (
+        ["Kc", "Ti", "Td", "N", "Ts", "u_min", "u_max", "du_max", "integral_mode", "u0"],
+        ["r", "y"],
+        {"u": [], "e": []},
+    ),
+    "FOPDT": (["K", "T", "tau", "y0"], ["u", "d"], {"y": []}),
+    "Step": (["t_step", "initial", "final"], [], {"y": []}),
+    "Ramp": (["start_time", "slope", "initial", "final"], [], {"y": []}),
+    "Pulse": (["amplitude", "start_time", "width", "period", "offset"], [], {"y": []}),
+    "BandLimitedWhiteNoise": (["power", "Ts", "seed"], [], {"y": []}),
+    "FirstOrderFilter": (["K", "T", "y0"], ["u"], {"y": []}),
+    "Sum": (["k1", "k2", "k3"], ["u1", "u2", "u3"], {"y": ["u1", "u2", "u3"]}),
+    "Gain": (["k"], ["u"], {"y": ["u"]}),
+}
+TIME_PARAMETERS = {"Ti", "Td", "Ts", "T", "tau", "t_step", "start_time", "width", "period"}
+
+
+def variables_by_causality(model_description, causality):
+    return [v for v in model_description.modelVariables if v.causality == causality]
+
+
+def test_every_fmu_is_built(built_fmus):
+    assert sorted(built_fmus) == sorted(INTERFACE) == fmu_names()
+
+
+@pytest.mark.parametrize("name", sorted(INTERFACE))
+def test_fmu_passes_fmpy_validation(built_fmus, name):
+    assert validate_fmu(str(built_fmus[name])) == []
+
+
+@pytest.mark.parametrize("name", sorted(INTERFACE))
+def test_fmu_declares_the_agreed_interface(built_fmus, name):
+    parameters, inputs, dependencies = INTERFACE[name]
+    md = read_model_description(str(built_fmus[name]))
+    assert [v.name for v in variables_by_causality(md, "parameter")] == parameters
+    assert [v.name for v in variables_by_causality(md, "input")] == inputs
+    assert [v.name for v in variables_by_causality(md, "output")] == list(dependencies)
+    assert md.coSimulation.needsExecutionTool is False
+    assert md.defaultExperiment.stopTime is not None and md.defaultExperiment.stepSize is not None
+    assert "Requires Python 3.10+ with numpy and scipy" in md.description
+    for variable in md.modelVariables:
+        assert variable.description
+        assert (variable.unit == "s") == (variable.name in TIME_PARAMETERS), variable.name
+    for output in variables_by_causality(md, "output"):
+        assert output.initial == "exact" and output.start is not None
+
+
+@pytest.mark.parametrize("name", sorted(INTERFACE))
+def test_output_dependencies_are_written_as_declared(built_fmus, name):
+    md = read_model_description(str(built_fmus[name]))
+    declared = INTERFACE[name][2]
+    assert {u.variable.name: [d.name for d in u.dependencies] for u in md.outputs} == declared
+
+
+def test_default_parameters_are_simulation_2_1_at_the_low_operating_point(built_fmus):
+    def starts(name):
+        md = read_model_description(str(built_fmus[name]))
+        return {v.name: float(v.start) for v in variables_by_causality(md, "parameter")}
+
+    assert {k: starts("FOPDT")[k] for k in ("K", "T", "tau")} == {"K": 0.2, "T": 20.0, "tau": 4.0}
+    pid = starts("PID")
+    assert pid["Kc"] == pytest.approx(1.6069 / 0.2, abs=1e-12)
+    assert (pid["Ti"], pid["Td"], pid["N"], pid["Ts"], pid["integral_mode"]) == (7.1713, 1.5363, 10.0, 0.1, 3.0)
+    assert (pid["u_min"], pid["u_max"], pid["du_max"], pid["u0"]) == (-1e10, 1e10, 0.0, 0.0)
+
+
+def test_second_build_skips_everything(built_fmus):
+    before = {name: path.stat().st_mtime_ns for name, path in built_fmus.items()}
+    lines = []
+    paths = build_fmus(echo=lines.append)
+    assert paths == [built_fmus[name] for name in fmu_names()]
+    assert len(lines) == len(paths) and all("up to date" in line for line in lines)
+    assert {path.stem: path.stat().st_mtime_ns for path in paths} == before
+
+
+@pytest.mark.parametrize("name", sorted(INTERFACE))
+def test_fmu_simulates_from_its_default_experiment(built_fmus, name):
+    result = simulate_fmu(str(built_fmus[name]))
+    assert result["time"][-1] == pytest.approx(100.0)
+    for output in INTERFACE[name][2]:
+        assert np.all(np.isfinite(result[output]))
+
+
+def test_fmus_run_in_a_fresh_python_with_only_their_embedded_greyfmu(built_fmus, tmp_path):
+    """`fmpy simulate` in another process, outside the repository: the FMUs are self-contained."""
+    script = (
+        "import sys, fmpy\n"
+        "for path in sys.argv[1:]:\n"
+        "    fmpy.simulate_fmu(path)\n"
+        "print(sys.modules['greyfmu'].__file__)\n"
+    )
+    env = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
+    completed = subprocess.run(
+        [sys.executable, "-c", script, *map(str, built_fmus.values())],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert completed.returncode == 0, completed.stderr
+    assert "resources" in completed.stdout
+
+
+@pytest.mark.parametrize("step_size", [0.1, 0.3, 0.7])
+def test_fopdt_fmu_reproduces_the_analytic_step_response(built_fmus, step_size):
+    K, T, tau, y0, t_step, u0, u1 = 0.2, 20.0, 4.0, 0.5, 1.0, 2.5, 4.0
+    signal = np.array(
+        [(0.0, u0, 0.0), (t_step, u0, 0.0), (t_step, u1, 0.0), (60.0, u1, 0.0)],
+        dtype=[("time", float), ("u", float), ("d", float)],
+    )
+    result = simulate_fmu(
+        str(built_fmus["FOPDT"]),
+        stop_time=60.0,
+        step_size=step_size,
+        output_interval=step_size,
+        start_values={"y0": y0},
+        input=signal,
+    )
+    t = result["time"]
+    elapsed = np.maximum(t - t_step - tau, 0.0)
+    expected = y0 + K * (u1 - u0) * -np.expm1(-elapsed / T)
+    assert np.max(np.abs(result["y"] - expected)) < 1e-12
+
+
+def test_pid_fmu_gives_the_p_plus_i_output_and_holds_it_between_samples(built_fmus):
+    Kc, Ti, Ts, u0 = 8.0345, 7.1713, 0.1, 0.2
+    result = simulate_fmu(
+        str(built_fmus["PID"]),
+        stop_time=1.0,
+        step_size=0.025,
+        output_interval=0.025,
+        start_values={"r": 1.0, "y": 0.25, "u0": u0},
+    )
+    e = 0.75
+    for t, u, error in zip(result["time"], result["u"], result["e"]):
+        samples_taken = math.ceil(t / Ts - 1e-9)  # sample instants in [0, t)
+        if samples_taken == 0:
+            assert (u, error) == (u0, 0.0)
+        else:
+            assert u == pytest.approx(u0 + Kc * e * (1 + samples_taken * Ts / Ti), abs=1e-12)
+            assert error == e
+
+
+def instantiate(fmu_path, tmp_path, start_time=0.0, **parameters):
+    md = read_model_description(str(fmu_path))
+    unzipped = tmp_path / fmu_path.stem
+    shutil.unpack_archive(fmu_path, unzipped, "zip")
+    fmu = FMU2Slave(
+        guid=md.guid, unzipDirectory=str(unzipped), modelIdentifier=md.coSimulation.modelIdentifier, instanceName="test"
+    )
+    fmu.instantiate(loggingOn=True)
+    fmu.setupExperiment(startTime=start_time)
+    refs = {v.name: v.valueReference for v in md.modelVariables}
+    fmu.enterInitializationMode()
+    for name, value in parameters.items():
+        fmu.setReal([refs[name]], [value])
+    return fmu, refs
+
+
+def test_source_output_after_initialisation_uses_the_set_parameters_and_start_time(built_fmus, tmp_path):
+    fmu, refs = instantiate(built_fmus["Step"], tmp_path, start_time=5.0, t_step=5.0, initial=-1.0, final=2.0)
+    assert fmu.getReal([refs["y"]]) == [2.0]  # already in initialisation mode
+    fmu.exitInitializationMode()
+    assert fmu.getReal([refs["y"]]) == [2.0]
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+def test_sum_is_direct_feedthrough(built_fmus, tmp_path):
+    fmu, refs = instantiate(built_fmus["Sum"], tmp_path, k2=-1.0)
+    fmu.exitInitializationMode()
+    fmu.setReal([refs["u1"], refs["u2"], refs["u3"]], [3.0, 1.0, 0.5])
+    assert fmu.getReal([refs["y"]]) == [2.5]
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+def test_non_finite_input_is_an_error_naming_the_variable(built_fmus, tmp_path, capsys):
+    fmu, refs = instantiate(built_fmus["PID"], tmp_path)
+    fmu.exitInitializationMode()
+    fmu.doStep(0.0, 0.1)
+    fmu.setReal([refs["r"]], [math.nan])
+    with pytest.raises(Exception, match="fmi2DoStep"):
+        fmu.doStep(0.1, 0.1)
+    assert "input r = nan" in capsys.readouterr().out
+    fmu.freeInstance()
+
+
+def test_fmu_provider_for_the_master_returns_our_fmus_only(built_fmus):
+    assert provide_fmu("FOPDT.fmu") == built_fmus["FOPDT"]
+    assert provide_fmu("Mass_Damper.fmu") is None
+    assert provide_fmu("FOPDT") is None
+
+
+def test_unknown_fmu_name_is_refused_with_the_valid_names(capsys):
+    assert main(["build", "NoSuchFmu"]) == 2
+    message = capsys.readouterr().err
+    assert "NoSuchFmu" in message and "FOPDT" in message and "PID" in message
+    with pytest.raises(UnknownFmuError):
+        build_fmus(["NoSuchFmu"])
+
+
+def test_cli_reports_each_fmu_and_the_output_folder(built_fmus, capsys):
+    assert main(["build", "Gain", "Sum"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("Gain: up to date") and lines[1].startswith("Sum: up to date")
+    assert str(built_fmus["Gain"].parent) in lines[2]
+
+
+def test_rewrite_refuses_an_output_without_a_declared_dependency_list(built_fmus, tmp_path):
+    with pytest.raises(BuildError, match="output_dependencies"):
+        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {})
+
+
+def test_rewrite_refuses_an_output_without_initial_exact(built_fmus, tmp_path):
+    broken = tmp_path / "broken.fmu"
+    with zipfile.ZipFile(built_fmus["Gain"]) as source, zipfile.ZipFile(broken, "w") as target:
+        for info in source.infolist():
+            data = source.read(info)
+            if info.filename == "modelDescription.xml":
+                data = data.replace(b'initial="exact"', b"")
+            target.writestr(info, data)
+    with pytest.raises(BuildError, match="initial"):
+        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]})
