@@ -36,6 +36,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--signals", nargs="+", metavar="GLOB",
                      help="signals to plot, one panel per argument; 'a,b' overlays a and b in one panel "
                           "(default: every output)")
+    run.add_argument("--fmu-log", choices=["errors", "all", "off"], default="errors",
+                     help="FMU log messages kept to explain a failure: the FMUs' status categories "
+                          "(default), every category, or none (fastest)")
     run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
     validate = sub.add_parser("validate", help="check a system without running it")
@@ -90,7 +93,7 @@ def _run(args) -> int:
               f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
               f"{prepared.algorithm}")
         try:
-            result, metadata = run(prepared, output=output, progress=not args.quiet)
+            result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log)
         except RunError:
             print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
             raise

@@ -60,6 +60,10 @@ class Grid:
     def time(self, k: int) -> float:
         return self.stop if k >= self.steps else self.start + k * self.step
 
+    def times(self) -> list[float]:
+        """t_0 .. t_n as Python floats (t_k = start + k·h, the last one clamped to stop)."""
+        return [self.time(k) for k in range(self.steps + 1)]
+
 
 class _Typed:
     """Outputs (Y) and inputs (U) of one FMI type for all components, in ctypes memory."""
@@ -120,19 +124,21 @@ class _Typed:
 class Execution:
     """One run of a plan on a grid with an algorithm, feeding a recorder."""
 
-    def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi"):
+    def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi", fmu_log: str = "errors"):
         if algorithm not in ALGORITHMS:
             raise SetupError(f"unknown algorithm '{algorithm}'; choose one of {', '.join(ALGORITHMS)}.",
                              element="algorithm")
         self.plan = plan
         self.grid = grid
         self.algorithm = algorithm
+        self.fmu_log = fmu_log
         self.order = list(plan.structure.components)
         self.typed = [_Typed(plan, t, self.order) for t in TYPES
                       if any(v.type == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
         self.instances: dict[str, Instance] = {}
         self._unzipped = Unzipped()
         self.last_time = grid.start
+        self.loop_seconds = 0.0
         self.status = "not started"
         self.message = ""
 
@@ -143,7 +149,7 @@ class Execution:
             desc = self.plan.fmus[name]
             inst = Instance(name, desc, self._unzipped(desc.path))
             self.instances[name] = inst
-            inst.instantiate()
+            inst.instantiate(self.fmu_log)
         self._compile_calls()
 
     def _compile_calls(self) -> None:
@@ -164,8 +170,8 @@ class Execution:
                                             ty.pointer(ty.Ubuf, start)))
                     self._get_inputs[comp].append((inst.get[ty.type_name], inst.component, vr, n,
                                                    ty.pointer(ty.Ubuf, start)))
-        self._all_get = [(c, call) for c in self.order for call in self._get[c]]
-        self._all_set = [(c, call) for c in self.order for call in self._set[c]]
+        self._all_get = [call + (c,) for c in self.order for call in self._get[c]]
+        self._all_set = [call + (c,) for c in self.order for call in self._set[c]]
 
     def initialize(self) -> None:
         t0, stop = self.grid.start, self.grid.stop
@@ -212,23 +218,23 @@ class Execution:
     # ----------------------------------------------------------------- exchange
 
     def _exchange(self, t: float) -> None:
-        check = self._check
-        for comp, (fn, c, vr, n, ptr) in self._all_get:
+        """Read outputs, settle direct feedthrough in dependency order, route, set inputs."""
+        for fn, c, vr, n, ptr, comp in self._all_get:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
-                check(s, comp, t, "fmi2Get")
+                self._check(s, comp, t, "fmi2Get")
         for comp in self.plan.feedthrough_sequence:
             self._route_into(comp, t)
             for fn, c, vr, n, ptr in self._get[comp]:
                 s = fn(c, vr, n, ptr)
                 if s > FMI_WARNING:
-                    check(s, comp, t, "fmi2Get")
+                    self._check(s, comp, t, "fmi2Get")
         for ty in self.typed:
             ty.route()
-        for comp, (fn, c, vr, n, ptr) in self._all_set:
+        for fn, c, vr, n, ptr, comp in self._all_set:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
-                check(s, comp, t, "fmi2Set")
+                self._check(s, comp, t, "fmi2Set")
 
     def _route_into(self, comp: str, t: float) -> None:
         for ty in self.typed:
@@ -258,35 +264,47 @@ class Execution:
         stride = max(1, n_steps // 200)
         recorder.record(grid.start)
         self.status = "running"
-        for k in range(n_steps):
-            t = grid.time(k)
-            t_next = grid.time(k + 1)
-            h = t_next - t
-            if gauss_seidel:
-                for name, do_step, c in gs:
-                    self._route_into(name, t)
-                    s = do_step(c, t, h, 1)
-                    if s:
-                        if self._step_status(s, name, t):
+        started = _time.perf_counter()
+        try:
+            self._loop(recorder, progress, steppers, gs, gauss_seidel, n_steps, stride)
+        finally:
+            self.loop_seconds = _time.perf_counter() - started
+
+    def _loop(self, recorder, progress, steppers, gs, gauss_seidel, n_steps, stride) -> None:
+        times = self.grid.times()
+        exchange, record = self._exchange, recorder.record
+        for block in range(0, n_steps, stride):
+            for k in range(block, min(block + stride, n_steps)):
+                t = times[k]
+                t_next = times[k + 1]
+                h = t_next - t
+                if gauss_seidel:
+                    if self._gauss_seidel_step(gs, t, h, t_next):
+                        return
+                else:
+                    for name, do_step, c in steppers:
+                        s = do_step(c, t, h, 1)
+                        if s and self._step_status(s, name, t):
                             return
-                    for fn, cc, vr, n, ptr in self._get[name]:
-                        s = fn(cc, vr, n, ptr)
-                        if s > FMI_WARNING:
-                            self._check(s, name, t_next, "fmi2Get")
-            else:
-                for name, do_step, c in steppers:
-                    s = do_step(c, t, h, 1)
-                    if s:
-                        if self._step_status(s, name, t):
-                            return
-            self._exchange(t_next)
-            recorder.record(t_next)
-            self.last_time = t_next
-            if progress is not None and (k + 1) % stride == 0:
-                progress.update(stride)
-        if progress is not None:
-            progress.update(n_steps - progress.n)
+                exchange(t_next)
+                record(t_next)
+                self.last_time = t_next
+            if progress is not None:
+                progress.update(min(block + stride, n_steps) - block)
         self.status = "completed"
+
+    def _gauss_seidel_step(self, gs, t: float, h: float, t_next: float) -> bool:
+        """Each FMU in dependency order: inputs from the freshest outputs, step, read outputs."""
+        for name, do_step, c in gs:
+            self._route_into(name, t)
+            s = do_step(c, t, h, 1)
+            if s and self._step_status(s, name, t):
+                return True
+            for fn, cc, vr, n, ptr in self._get[name]:
+                s = fn(cc, vr, n, ptr)
+                if s > FMI_WARNING:
+                    self._check(s, name, t_next, "fmi2Get")
+        return False
 
     def _step_status(self, status: int, comp: str, t: float) -> bool:
         """True when the run must end cleanly (discard); raises on error; False on warning."""
@@ -314,6 +332,7 @@ class Execution:
             "feedthrough_sequence": self.plan.feedthrough_sequence,
             "start_time": self.grid.start, "stop_time": self.grid.stop, "step_size": self.grid.step,
             "status": self.status, "last_time": self.last_time, "message": self.message,
+            "steps": self.grid.steps, "loop_seconds": self.loop_seconds,
             "components": {name: {"fmu": str(d.path), "guid": d.md.guid, "generation_tool": d.md.generationTool}
                            for name, d in self.plan.fmus.items()},
             "parameters": {f"{sv.component}.{sv.variable.name}": sv.value for sv in self.plan.start_values},

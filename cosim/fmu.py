@@ -20,6 +20,7 @@ from fmpy.model_description import ModelDescription, ModelVariable
 
 from .errors import SetupError, did_you_mean
 
+FMU_LOG_LEVELS = ("errors", "all", "off")
 STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 
 
@@ -141,18 +142,22 @@ class Instance:
         self.component = None
         self.failed: str | None = None
 
-    def instantiate(self, log_all: bool = False) -> None:
-        """Instantiate with logging on; unless ``log_all``, only the FMI 2.0 status categories
-        (logStatusWarning, logStatusError, ...) the FMU declares are enabled, so an FMU that logs
-        every call (OpenModelica's logFmi2Call) does not slow the run down."""
+    def instantiate(self, fmu_log: str = "errors") -> None:
+        """Instantiate.  ``fmu_log``: "errors" (default) turns logging on with only the FMI 2.0
+        status categories the FMU declares (logStatusWarning, logStatusError, ...), so an FMU
+        that logs every call (OpenModelica's logFmi2Call) does not slow the run; "all" turns
+        every category on; "off" turns logging off (fastest: pythonfmu FMUs then skip their
+        log queue, but a failing FMU's own explanation is lost)."""
+        if fmu_log not in FMU_LOG_LEVELS:
+            raise SetupError(f"unknown FMU log level '{fmu_log}'; choose one of {', '.join(FMU_LOG_LEVELS)}.")
         try:
-            self.slave.instantiate(callbacks=_callbacks(), loggingOn=True)
+            self.slave.instantiate(callbacks=_callbacks(), loggingOn=fmu_log != "off")
         except Exception as e:
             raise SetupError(f"fmi2Instantiate failed for {self.desc.path.name} (GUID {self.desc.md.guid}): {e}."
                              + self.last_messages(), element=f"component '{self.name}'") from None
         self.component = self.slave.component
         status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
-        if not log_all and status_categories:
+        if fmu_log == "errors" and status_categories:
             self.slave.setDebugLogging(True, status_categories)
 
     def last_messages(self) -> str:
@@ -162,7 +167,9 @@ class Instance:
         """End the instance as the FMI 2.0 state machine allows after its last status:
         terminate and free after OK/Warning/Discard, only free after Error, nothing after
         Fatal ("it is not possible to call any other function", FMI 2.0 §2.1.3; freeing a
-        pythonfmu instance after Fatal corrupted the interpreter's memory here)."""
+        pythonfmu instance after Fatal corrupted the interpreter's memory here).  The shared
+        library is released with the instance (a library that stays loaded past interpreter
+        shutdown can run its destructors against a finalised Python)."""
         if self.component is not None and self.failed != "Fatal":
             if self.failed is None:
                 try:
@@ -170,19 +177,15 @@ class Instance:
                 except Exception:  # fmi2Terminate refused: the instance is still freed
                     pass
             self.slave.fmi2FreeInstance(self.component)
+            self.slave.freeLibrary()
         self.component = None
         if _LOG_TARGETS.get(self.name) is self.messages:
             del _LOG_TARGETS[self.name]
 
 
 class Unzipped:
-    """Extracts each FMU file once per process (keyed by path, size and mtime).
-
-    Shared libraries are never unloaded: a pythonfmu FMU leaves Python objects
-    that point into its library, and unloading it made the garbage collector
-    crash later in the process.  Extracting once keeps the same library path, so
-    repeated runs reuse the loaded library instead of loading new copies.
-    """
+    """Extracts each FMU file once per process (keyed by path, size and mtime), so repeated
+    runs of the same system (tests, sweeps, benchmarks) do not unzip again."""
 
     _tmp: tempfile.TemporaryDirectory | None = None
     _dirs: dict[tuple, str] = {}

@@ -72,20 +72,21 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
              step_size: float | None = None, algorithm: str | None = None,
              parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
              output: str | Path | None = None, progress: bool = False,
-             use_providers: bool = True) -> np.ndarray:
+             use_providers: bool = True, fmu_log: str = "errors") -> np.ndarray:
     """Run an SSP system and return every connector at every communication point.
 
     The result is a structured array with a ``time`` field and one field per
     connector named ``component.variable``.  With ``output`` the samples are
     also written to that CSV as the run goes (metadata in ``<output>.json``).
     A failed run raises `RunError` with the samples so far in ``error.result``
-    (and on disk when ``output`` is given).
+    (and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
+    collected to explain a failure ("errors", "all" or "off"; see `cosim.fmu.Instance`).
     """
     prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
                        use_providers=use_providers)
     try:
-        result, metadata = run(prepared, output=output, progress=progress)
+        result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log)
     finally:
         prepared.close()
     if metadata["status"] == "discarded":
@@ -93,12 +94,12 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     return result
 
 
-def run(prepared: Prepared, *, output: str | Path | None = None,
-        progress: bool = False) -> tuple[np.ndarray, dict]:
+def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
+        fmu_log: str = "errors") -> tuple[np.ndarray, dict]:
     """Execute a prepared system; returns the samples and the run's metadata."""
     memory = MemorySink()
     sinks: list = [memory] + ([CsvSink(output)] if output is not None else [])
-    execution = Execution(prepared.plan, prepared.grid, prepared.algorithm)
+    execution = Execution(prepared.plan, prepared.grid, prepared.algorithm, fmu_log)
     recorder = None
     bar = None
     try:
