@@ -186,7 +186,7 @@ def validate_schema(tree: etree._ElementTree, schema_file: str, display: str) ->
         _schemas[schema_file] = etree.XMLSchema(file=str(xsd))
     schema = _schemas[schema_file]
     if not schema.validate(tree):
-        errors = [f"line {err.line}: {err.message}" for err in list(schema.error_log)[:5]]
+        errors = [f"line {err.line}: {err.message.rstrip('.')}" for err in list(schema.error_log)[:5]]
         raise SetupError("does not conform to the SSP 1.0 schema ("
                          f"{schema_file}): " + "; ".join(errors) + ".", file=display)
 
