@@ -47,6 +47,24 @@ def _parser() -> argparse.ArgumentParser:
     info = sub.add_parser("info", help="list components, connections and parameters")
     common(info)
 
+    metrics = sub.add_parser("metrics", help="IAE, ISE, ITAE, overshoot, rise and settling time of a result")
+    metrics.add_argument("result", help="result CSV written by cosim run")
+    metrics.add_argument("--signal", required=True, help="controlled variable, e.g. plant.y")
+    metrics.add_argument("--setpoint", required=True, help="setpoint signal, e.g. setpoint.y")
+    metrics.add_argument("--t0", type=float, help="start of the measurement (default: the setpoint's last change)")
+    metrics.add_argument("--t1", type=float, help="end of the measurement (default: the end of the run)")
+    metrics.add_argument("--band", type=float, default=0.02, help="settling band, fraction of the step (0.02)")
+    metrics.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    metrics.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+
+    compare = sub.add_parser("compare", help="check that two results agree within tolerances (exit 1 if not)")
+    compare.add_argument("reference", help="reference result CSV")
+    compare.add_argument("candidate", help="result CSV to check")
+    compare.add_argument("--rtol", type=float, default=1e-6)
+    compare.add_argument("--atol", type=float, default=1e-9)
+    compare.add_argument("--signals", nargs="+", metavar="GLOB", help="signals to compare (default: all)")
+    compare.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+
     pack = sub.add_parser("pack", help="pack a scenario folder into a standard .ssp archive")
     common(pack)
     pack.add_argument("-o", "--output", required=True, metavar="X.ssp")
@@ -56,7 +74,8 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return {"run": _run, "validate": _validate, "info": _info, "pack": _pack}[args.command](args)
+        return {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
+                "compare": _compare}[args.command](args)
     except SetupError as e:
         if args.debug:
             raise
@@ -168,6 +187,52 @@ def _pack(args) -> int:
         prepared.close()
     print(f"cosim: packed {out}")
     return 0
+
+
+def _read_result(path: str):
+    from .results import read
+
+    if not Path(path).is_file():
+        raise SetupError("no such result file.", file=path)
+    try:
+        return read(path)
+    except (ValueError, IndexError) as e:
+        raise SetupError(f"not a result CSV readable by fmpy.util.read_csv ({e}).", file=path) from None
+
+
+def _metrics(args) -> int:
+    import json
+
+    from .metrics import METRICS, step_metrics
+    from .simulation import select
+
+    result = _read_result(args.result)
+    names = [n for n in result.dtype.names if n != "time"]
+    y, r = (select(names, [name])[0] for name in (args.signal, args.setpoint))
+    m = step_metrics(result["time"], result[y], result[r], t0=args.t0, t1=args.t1, band=args.band)
+    if args.json:
+        print(json.dumps(m))
+    else:
+        units = {"overshoot": "%", "rise_time": "s", "settling_time": "s"}
+        print(f"{y} following {r} ({args.result}):")
+        for key in METRICS:
+            print(f"  {key:14} {m[key]:.6g} {units.get(key, '')}".rstrip())
+    return 0
+
+
+def _compare(args) -> int:
+    from .metrics import compare
+    from .simulation import select
+
+    a, b = _read_result(args.reference), _read_result(args.candidate)
+    signals = select([n for n in a.dtype.names if n != "time"], args.signals) if args.signals else None
+    diffs = compare(a, b, signals=signals, rtol=args.rtol, atol=args.atol)
+    failed = [d for d in diffs if not d.ok]
+    for d in diffs:
+        print(f"  {'ok  ' if d.ok else 'DIFF'} {d.signal}: max |diff| {d.max_abs:.3g}, max rel {d.max_rel:.3g}")
+    print(f"cosim: {len(diffs) - len(failed)} of {len(diffs)} signals agree within rtol {args.rtol:g}, "
+          f"atol {args.atol:g}")
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -1,0 +1,94 @@
+"""cosim metrics and cosim compare, checked on responses with known closed forms."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cosim.cli import main
+from cosim.metrics import compare, step_metrics
+
+
+def first_order(T=5.0, t0=2.0, dt=1e-3, stop=80.0):
+    t = np.arange(0, stop + dt / 2, dt)
+    r = np.where(t >= t0, 1.0, 0.0)
+    y = np.where(t >= t0, 1 - np.exp(-(t - t0) / T), 0.0)
+    return t, y, r
+
+
+def test_first_order_step_has_the_textbook_values():
+    """e = exp(-s/T): IAE = T, ISE = T/2, ITAE = T^2; rise 10-90 % = T ln 9; 2 % settling = T ln 50."""
+    t, y, r = first_order()
+    m = step_metrics(t, y, r)
+    assert m["IAE"] == pytest.approx(5.0, rel=1e-4)
+    assert m["ISE"] == pytest.approx(2.5, rel=1e-4)
+    assert m["ITAE"] == pytest.approx(25.0, rel=1e-4)
+    assert m["overshoot"] == 0.0
+    assert m["rise_time"] == pytest.approx(5 * math.log(9), abs=2e-3)
+    assert m["settling_time"] == pytest.approx(5 * math.log(50), abs=2e-3)
+
+
+def test_underdamped_overshoot_matches_the_second_order_formula():
+    zeta, wn, dt = 0.3, 2.0, 1e-3
+    t = np.arange(0, 30, dt)
+    wd = wn * math.sqrt(1 - zeta ** 2)
+    y = 1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta ** 2) * np.sin(wd * t))
+    r = np.ones_like(t)
+    m = step_metrics(t, y, r, t0=0.0)
+    assert m["overshoot"] == pytest.approx(100 * math.exp(-zeta * math.pi / math.sqrt(1 - zeta ** 2)), rel=1e-4)
+
+
+def test_window_and_disturbance_only_runs():
+    t, y, r = first_order()
+    windowed = step_metrics(t, y, r, t1=12.0)
+    assert windowed["IAE"] == pytest.approx(5 * (1 - math.exp(-2)), rel=1e-4)
+    assert math.isnan(windowed["settling_time"])          # not settled by t1
+    flat = step_metrics(t, y, np.ones_like(t), t0=0.0)
+    assert math.isnan(flat["overshoot"]) and math.isnan(flat["rise_time"])
+
+
+def _csv(path, t, **signals):
+    names = ["time", *signals]
+    rows = np.column_stack([t, *signals.values()])
+    with open(path, "w") as f:
+        f.write(",".join(f'"{n}"' for n in names) + "\n")
+        np.savetxt(f, rows, fmt="%.17g", delimiter=",")
+    return str(path)
+
+
+def test_compare_cli_exit_codes(tmp_path, capsys):
+    t, y, r = first_order(stop=10.0)
+    a = _csv(tmp_path / "a.csv", t, **{"plant.y": y, "setpoint.y": r})
+    b = _csv(tmp_path / "b.csv", t, **{"plant.y": y * (1 + 1e-9), "setpoint.y": r})
+    c = _csv(tmp_path / "c.csv", t, **{"plant.y": y + 1e-3, "setpoint.y": r})
+    assert main(["compare", a, b]) == 0
+    assert main(["compare", a, c]) == 1
+    out = capsys.readouterr().out
+    assert "DIFF plant.y: max |diff| 0.001" in out and "1 of 2 signals agree" in out
+    assert main(["compare", a, c, "--atol", "2e-3"]) == 0
+    assert main(["compare", a, c, "--signals", "setpoint.*"]) == 0
+    d = _csv(tmp_path / "d.csv", t[:-1], **{"plant.y": y[:-1], "setpoint.y": r[:-1]})
+    assert main(["compare", a, d]) == 2
+    assert "time grids differ" in capsys.readouterr().err
+
+
+def test_metrics_cli_on_a_real_run(tmp_path, capsys):
+    csv = tmp_path / "r.csv"
+    assert main(["run", "ssp/pid_fopdt", "-q", "-o", str(csv), "--stop", "150"]) == 0
+    capsys.readouterr()
+    assert main(["metrics", str(csv), "--signal", "plant.y", "--setpoint", "setpoint.y", "--json"]) == 0
+    import json
+    m = json.loads(capsys.readouterr().out)
+    assert 30 < m["overshoot"] < 37 and 0 < m["settling_time"] < 140
+    assert main(["metrics", str(csv), "--signal", "plant.yy", "--setpoint", "setpoint.y"]) == 2
+    assert "no signal matches 'plant.yy'" in capsys.readouterr().err
+
+
+def test_compare_function_names_missing_signals():
+    t, y, r = first_order(stop=1.0)
+    a = np.empty(len(t), dtype=[("time", float), ("plant.y", float)])
+    a["time"], a["plant.y"] = t, y
+    with pytest.raises(Exception) as err:
+        compare(a, a, signals=["plant.z"])
+    assert "plant.y" in str(err.value)
