@@ -44,7 +44,7 @@ def test_window_and_disturbance_only_runs():
     windowed = step_metrics(t, y, r, t1=12.0)
     assert windowed["IAE"] == pytest.approx(5 * (1 - math.exp(-2)), rel=1e-4)
     assert math.isnan(windowed["settling_time"])          # not settled by t1
-    flat = step_metrics(t, y, np.ones_like(t), t0=0.0)
+    flat = step_metrics(t, y, np.ones_like(t), t0=10.0)   # setpoint unchanged: a disturbance run
     assert math.isnan(flat["overshoot"]) and math.isnan(flat["rise_time"])
 
 
