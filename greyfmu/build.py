@@ -31,7 +31,15 @@ FMU_SOURCES = REPOSITORY_ROOT / "fmus"
 SLAVE_BASE = FMU_SOURCES / "_slave.py"
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
 
-BASE_UNITS: dict[str, dict[str, str]] = {"s": {"s": "1"}}
+BASE_UNITS: dict[str, dict[str, str]] = {
+    "s": {"s": "1"},
+    "%": {"factor": "0.01"},
+    "%/s": {"s": "-1", "factor": "0.01"},
+    "MW": {"kg": "1", "m": "2", "s": "-3", "factor": "1e6"},
+    "mm": {"m": "1", "factor": "0.001"},
+    "kg/m3": {"kg": "1", "m": "-3"},
+    "kgf/cm2": {"kg": "1", "m": "-1", "s": "-2", "factor": "98066.5"},
+}
 """SI base-unit exponents of the units the slaves use, for ``UnitDefinitions``."""
 
 
