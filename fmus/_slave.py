@@ -175,8 +175,15 @@ class GreyfmuSlave(Fmi2Slave):
             raise ValueError(f"{type(self).__name__}: variable name {name!r} collides with an attribute of the slave")
 
     def _ensure_built(self) -> None:
+        """Build from the current parameters; invalid parameters are logged (status error, with the
+        greyfmu message naming the parameter) before the exception, which pythonfmu turns into
+        fmi2Fatal, reaches the master."""
         if not self._built:
-            self.build()
+            try:
+                self.build()
+            except (ValueError, ArithmeticError) as error:
+                self.log(f"{self.instance_name}: invalid parameters: {error}", Fmi2Status.error)
+                raise
             self._built = True
 
     def _error(self, message: str) -> bool:
