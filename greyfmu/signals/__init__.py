@@ -17,3 +17,7 @@ __all__ = [
     "Sum",
     "time_reached",
 ]
+
+from greyfmu.signals.lookup import LookupTable
+
+__all__ += ["LookupTable"]
