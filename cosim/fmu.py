@@ -7,14 +7,17 @@ the FMU sent (kept so a failure can be explained).
 """
 from __future__ import annotations
 
+import atexit
 import collections
 import ctypes
+import os
+import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import fmpy
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+from fmpy.fmi2 import (FMU2Slave, printLogMessage, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 from fmpy.model_description import ModelDescription, ModelVariable
 
@@ -92,7 +95,8 @@ def unit_of(v: ModelVariable) -> str | None:
 
 
 #: Log messages by instance name.  fmpy's native logger proxy (which formats the printf
-#: arguments) keeps one Python logger for the whole process, so one logger dispatches.
+#: arguments) keeps one Python logger for the whole process, so one logger dispatches, and
+#: passes messages of instances that are not ours to fmpy's default printer.
 _LOG_TARGETS: dict[str, collections.deque] = {}
 _CALLBACKS: list[fmi2CallbackFunctions] = []
 
@@ -104,6 +108,8 @@ def _log(env, instance_name, status, category, message) -> None:
     target = _LOG_TARGETS.get(name)
     if target is not None:
         target.append(f"[{STATUS.get(status, status)}] {cat}: {text}".strip())
+    else:  # an FMU run by plain fmpy in the same process: fmpy's own default (print)
+        printLogMessage(env, instance_name, status, category, message)
 
 
 def _callbacks() -> fmi2CallbackFunctions:
@@ -167,9 +173,7 @@ class Instance:
         """End the instance as the FMI 2.0 state machine allows after its last status:
         terminate and free after OK/Warning/Discard, only free after Error, nothing after
         Fatal ("it is not possible to call any other function", FMI 2.0 §2.1.3; freeing a
-        pythonfmu instance after Fatal corrupted the interpreter's memory here).  The shared
-        library is released with the instance (a library that stays loaded past interpreter
-        shutdown can run its destructors against a finalised Python)."""
+        pythonfmu instance after Fatal corrupted the interpreter's memory here)."""
         if self.component is not None and self.failed != "Fatal":
             if self.failed is None:
                 try:
@@ -177,10 +181,57 @@ class Instance:
                 except Exception:  # fmi2Terminate refused: the instance is still freed
                     pass
             self.slave.fmi2FreeInstance(self.component)
+            release_pythonfmu_state(self.slave.dll)
             self.slave.freeLibrary()
         self.component = None
         if _LOG_TARGETS.get(self.name) is self.messages:
             del _LOG_TARGETS[self.name]
+
+
+def release_pythonfmu_state(library: ctypes.CDLL) -> bool:
+    """Empty the interpreter state a pythonfmu 0.7.0 library keeps, before it is unloaded.
+
+    Such a library keeps its state in a static ``std::shared_ptr`` that the C++ runtime
+    destroys when the library is unloaded (or at exit) and that the library's
+    ``__attribute__((destructor))`` then assigns ``nullptr`` again (pythonfmu-export
+    ``PySlaveInstance.cpp``, ``onLibraryUnload``): the second release writes into freed
+    memory, and glibc aborts the process with "corrupted double-linked list" when that memory
+    was reused (seen here in test runs and ``fmpy simulate`` processes).  Calling the
+    library's exported ``finalizePythonInterpreter`` first empties the pointer, so both later
+    releases are no-ops.  In a Python host the state holds nothing an instance still uses
+    (the next instantiation makes a new one).  Returns whether the library is such a one.
+    """
+    release = getattr(library, "finalizePythonInterpreter", None)
+    if release is None:
+        return False
+    release()
+    return True
+
+
+def release_pythonfmu_libraries() -> list[str]:
+    """At exit: `release_pythonfmu_state` for every pythonfmu library still loaded (found
+    in /proc/self/maps and opened with RTLD_NOLOAD, so nothing new is loaded)."""
+    released: list[str] = []
+    try:
+        maps = Path("/proc/self/maps").read_text().splitlines()
+    except OSError:
+        return released
+    for line in maps:
+        parts = line.split(None, 5)
+        path = parts[5].strip().removesuffix(" (deleted)") if len(parts) == 6 else ""
+        if not path.endswith(".so") or path in released:
+            continue
+        try:
+            library = ctypes.CDLL(path, mode=os.RTLD_NOLOAD)
+        except OSError:
+            continue
+        if release_pythonfmu_state(library):
+            released.append(path)
+    return released
+
+
+if sys.platform.startswith("linux"):
+    atexit.register(release_pythonfmu_libraries)
 
 
 class Unzipped:

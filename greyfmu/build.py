@@ -39,6 +39,9 @@ BASE_UNITS: dict[str, dict[str, str]] = {
     "mm": {"m": "1", "factor": "0.001"},
     "kg/m3": {"kg": "1", "m": "-3"},
     "kgf/cm2": {"kg": "1", "m": "-1", "s": "-2", "factor": "98066.5"},
+    "rad/s": {"rad": "1", "s": "-1"},
+    "MPa": {"kg": "1", "m": "-1", "s": "-2", "factor": "1e6"},
+    "kg/s": {"kg": "1", "s": "-1"},
 }
 """SI base-unit exponents of the units the slaves use, for ``UnitDefinitions``."""
 

@@ -18,3 +18,23 @@ def built_fmus() -> dict[str, Path]:
 def _repository_root() -> None:
     """Scenario paths in the tests (ssp/...) are relative to the repository root."""
     os.chdir(Path(__file__).resolve().parents[1])
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _release_pythonfmu_state_before_fmpy_unloads() -> None:
+    """Tests also run our FMUs through fmpy.simulate_fmu, which unloads each library when it
+    is done: empty pythonfmu 0.7.0's static interpreter state first, as cosim does (see
+    cosim.fmu.release_pythonfmu_state: otherwise the unload can corrupt the heap)."""
+    from fmpy.fmi1 import _FMU
+
+    from cosim.fmu import release_pythonfmu_state
+
+    unload = _FMU.freeLibrary
+
+    def free_library(self):
+        release_pythonfmu_state(self.dll)
+        unload(self)
+
+    _FMU.freeLibrary = free_library
+    yield
+    _FMU.freeLibrary = unload

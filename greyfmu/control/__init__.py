@@ -3,3 +3,38 @@
 from greyfmu.control.pid import PID, IntegralMode, integral_step
 
 __all__ = ["PID", "IntegralMode", "integral_step"]
+
+from greyfmu.control.sopdt_predictive import (
+    ControlLaw,
+    SOPDTDesign,
+    SOPDTPredictive,
+    free_response,
+    horizon_length,
+    law_weights,
+    sampling_time_range,
+    sopdt_design,
+)
+
+__all__ += [
+    "ControlLaw",
+    "SOPDTDesign",
+    "SOPDTPredictive",
+    "free_response",
+    "horizon_length",
+    "law_weights",
+    "sampling_time_range",
+    "sopdt_design",
+]
+
+from greyfmu.control.scheduled_pid import GainScheduledPID
+from greyfmu.control.scheduling import ITAE, GainSchedule, Gains, Interpolation, OperatingPoint, ScheduleError
+
+__all__ += ["GainScheduledPID", "GainSchedule", "Gains", "ITAE", "Interpolation", "OperatingPoint", "ScheduleError"]
+
+from greyfmu.control.grey_pi import GrayPredictivePI  # noqa: E402
+
+__all__ += ["GrayPredictivePI"]
+
+from greyfmu.control.digital_pi import DigitalPI, DigitalPIDesign, design_digital_pi  # noqa: E402
+
+__all__ += ["DigitalPI", "DigitalPIDesign", "design_digital_pi"]

@@ -4,3 +4,23 @@ from greyfmu.plants.delay import DelayLine
 from greyfmu.plants.fopdt import FOPDT
 
 __all__ = ["DelayLine", "FOPDT"]
+
+from greyfmu.plants.third_order import ThirdOrderPlant
+
+__all__ += ["ThirdOrderPlant"]
+
+from greyfmu.plants.boiler_turbine import BoilerTurbine, OperatingPoint, equilibrium, scheduled_pressure
+
+__all__ += ["BoilerTurbine", "OperatingPoint", "equilibrium", "scheduled_pressure"]
+
+from greyfmu.plants.scheduled_fopdt import PiecewiseParameter, ScheduledFOPDT
+
+__all__ += ["PiecewiseParameter", "ScheduledFOPDT"]
+
+from greyfmu.plants.second_order import SecondOrder  # noqa: E402
+
+__all__ += ["SecondOrder"]
+
+from greyfmu.plants.stochastic_lti import StochasticLTI  # noqa: E402
+
+__all__ += ["StochasticLTI"]

@@ -1,0 +1,62 @@
+"""Grey predictive PI FMU: a thin wrapper around greyfmu.control.GrayPredictivePI."""
+
+from typing import Any
+
+from pythonfmu import DefaultExperiment, Fmi2Variability
+
+from _slave import REQUIREMENTS, GreyfmuSlave
+from greyfmu.control import GrayPredictivePI as Controller
+from greyfmu.signals import SampleClock
+
+
+class GrayPredictivePI(GreyfmuSlave):
+    description = (
+        "Error-prediction-based grey predictive PI (thesis 000_*, §3.2, Fig. 3.14, (3.29)): the error e = r - y plus "
+        "the bias B goes through a moving-window GM(1,1) predictor (n samples every m-th sample, LDISPI §3.1.6); the "
+        "PI of the PID FMU (integral modes (2.10)-(2.12), limits, anti-windup) acts on the predicted error e_hat, ph "
+        "seconds ahead when |a| > a_min, the estimated current error otherwise (§4.2). Sampled at Ts with zero-order "
+        "hold, no direct feedthrough. Defaults: ph = 25 s, B = 50, a_min = 0.035 of §4.2; Kc, Ti for "
+        "1/((1+30s)(1+5s)). " + REQUIREMENTS
+    )
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=300.0, step_size=1.0)
+    output_dependencies = {"u": [], "e": [], "e_hat": [], "a": [], "mode": []}
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.parameter("Kc", 2.0, "Controller gain")
+        self.parameter("Ti", 20.0, "Integral time", unit="s")
+        self.parameter("Ts", 1.0, "Sample time", unit="s")
+        self.parameter("n", 4, "Grey window length (>= 3; the thesis uses 4-6)", minimum=3)
+        self.parameter("m", 5, "LDISPI data interval: every m-th error sample enters the window", minimum=1)
+        self.parameter("ph", 25.0, "Prediction horizon", unit="s", minimum=0.0)
+        self.parameter("B", 50.0, "Bias keeping e + B positive (3.29b)", minimum=0.0)
+        self.parameter("a_min", 0.035, "Predict only when |a| > a_min, else estimate the current error", minimum=0.0)
+        self.parameter("u_min", -1e10, "Lower output limit")
+        self.parameter("u_max", 1e10, "Upper output limit")
+        self.parameter("du_max", 0.0, "Output rate limit in units of u per second (0 = none)", minimum=0.0)
+        self.parameter(
+            "integral_mode", 3, "Integral mode: 1 = (2.10), 2 = (2.11), 3 = (2.12) of the thesis", minimum=1, maximum=3
+        )
+        self.parameter("u0", 0.0, "Initial output (bias): the integral starts here")
+        self.input("r", 0.0, "Set-point")
+        self.input("y", 0.0, "Measured process output")
+        discrete = Fmi2Variability.discrete
+        self.output("u", "Controller output, held between samples", lambda: self.controller.u, variability=discrete)
+        self.output("e", "Control error r - y at the last sample", lambda: self.controller.e, variability=discrete)
+        self.output("e_hat", "Predicted error the PI acted on at the last sample", lambda: self.controller.e_hat,
+                    variability=discrete)
+        self.output("a", "GM(1,1) development coefficient a(i) of the last fit", lambda: self.controller.predictor.a,
+                    variability=discrete)
+        self.output("mode", "0 filling, 1 estimated, 2 predicted, 3 fallback (no valid model)",
+                    lambda: float(self.controller.mode), variability=discrete)
+
+    def build(self) -> None:
+        self.controller = Controller(
+            self.Kc, self.Ti, self.Ts, n=self.n, m=self.m, ph=self.ph, B=self.B, a_min=self.a_min,
+            u_min=self.u_min, u_max=self.u_max, du_max=self.du_max, integral_mode=self.integral_mode, u0=self.u0,
+        )
+        self.clock = SampleClock(self.Ts, self.experiment_start)
+
+    def advance(self, t: float, h: float) -> None:
+        for _ in self.clock.samples_in(t, h):
+            self.controller.step(self.r, self.y)

@@ -1,0 +1,48 @@
+"""State-space digital PI for MIMO stochastic plants with input delay (Zhou, Shieh, Liu & Wang,
+Can. J. Chem. Eng. 84 (2006)): discretisation with a fractional input delay, augmentation,
+LQR with poles in a disc (Lee & Lee 1986), static decoupling, Kalman innovation observer."""
+
+from greyfmu.control.digital_pi.augment import AugmentedPlant, augment_delay, cascade_pi
+from greyfmu.control.digital_pi.controller import DigitalPI
+from greyfmu.control.digital_pi.decoupling import static_decoupling, static_gain
+from greyfmu.control.digital_pi.design import (
+    DigitalPIDesign,
+    closed_loop,
+    design_digital_pi,
+    reference_dc_gain,
+    stationary_variances,
+)
+from greyfmu.control.digital_pi.disc_lqr import dlqr_disc
+from greyfmu.control.digital_pi.discretize import ContinuousPlant, DelayTerm, DiscretePlant, c2d, integral_expm, split_delay
+from greyfmu.control.digital_pi.errors import DesignError
+from greyfmu.control.digital_pi.observer import continuous_noise_gain, innovation_observer, kalman_innovation
+from greyfmu.control.digital_pi.parameters import MAX_CHANNELS, MAX_ORDER, design_parameters, write_design_ssv
+
+__all__ = [
+    "MAX_CHANNELS",
+    "MAX_ORDER",
+    "AugmentedPlant",
+    "ContinuousPlant",
+    "DelayTerm",
+    "DesignError",
+    "DigitalPI",
+    "DigitalPIDesign",
+    "DiscretePlant",
+    "augment_delay",
+    "c2d",
+    "cascade_pi",
+    "closed_loop",
+    "continuous_noise_gain",
+    "design_digital_pi",
+    "design_parameters",
+    "dlqr_disc",
+    "innovation_observer",
+    "integral_expm",
+    "kalman_innovation",
+    "reference_dc_gain",
+    "split_delay",
+    "static_decoupling",
+    "static_gain",
+    "stationary_variances",
+    "write_design_ssv",
+]

@@ -1,0 +1,44 @@
+"""Write SSP 1.0 parameter sets (``.ssv``) from Python values, and name matrix entries as FMI scalars.
+
+FMI 2.0 has no array variables, so a matrix M is passed as scalars ``M_i_j`` (1-based).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+SSV_NAMESPACE = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+
+
+def matrix_parameters(name: str, matrix: np.ndarray, skip_zeros: bool = True) -> dict[str, float]:
+    """``{"name_i_j": M[i-1, j-1]}``; zeros are skipped by default (the FMUs' start values are 0)."""
+    matrix = np.atleast_2d(np.asarray(matrix, dtype=float))
+    return {f"{name}_{i + 1}_{j + 1}": float(value) for (i, j), value in np.ndenumerate(matrix)
+            if value != 0.0 or not skip_zeros}
+
+
+def write_parameter_set(path: str | Path, name: str, values: dict[str, float | int], comment: str = "",
+                        prefix: str | None = None) -> Path:
+    """Write ``values`` (an ``int`` becomes ``ssv:Integer``, everything else ``ssv:Real`` with 17
+    significant digits) as the parameter set ``name``; ``prefix`` makes names ``prefix.variable``
+    (a system-level set for ``cosim run --param-set``)."""
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>']
+    if comment:
+        lines.append(f"<!-- {comment.replace('--', '- -')} -->")
+    lines.append(f'<ssv:ParameterSet xmlns:ssv="{SSV_NAMESPACE}" version="1.0" name={quoteattr(name)}>')
+    lines.append("  <ssv:Parameters>")
+    for variable, value in values.items():
+        full = f"{prefix}.{variable}" if prefix else variable
+        if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+            element = f'<ssv:Integer value="{int(value)}"/>'
+        else:
+            element = f'<ssv:Real value="{float(value):.17g}"/>'
+        lines.append(f"    <ssv:Parameter name={quoteattr(full)}>{element}</ssv:Parameter>")
+    lines.append("  </ssv:Parameters>")
+    lines.append("</ssv:ParameterSet>")
+    path = Path(path)
+    path.write_text("\n".join(lines) + "\n")
+    return path

@@ -1,0 +1,143 @@
+"""Simulations 2.1-2.5 of the thesis (§2.3) run as SSP scenarios through cosim on the real FMUs.
+
+Each test names the figure whose conclusion it checks.  The thesis gives neither the set-point
+values nor the disturbance sizes; the scenarios' README.md files say what we chose.  Where a
+conclusion of the chapter does not hold here, the test asserts what we see and says so.
+"""
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+
+import cosim
+from cosim.metrics import step_metrics
+from greyfmu.control import GainSchedule, Interpolation, OperatingPoint
+
+SSP = Path(__file__).resolve().parents[1] / "ssp"
+CASES = (1, 2, 3)
+
+
+@lru_cache(maxsize=None)
+def run(simulation: str, *sets: str, stop_time: float) -> np.ndarray:
+    folder = SSP / simulation
+    return cosim.simulate(folder, stop_time=stop_time, parameter_sets=[folder / f"{name}.ssv" for name in sets])
+
+
+def setpoint_metrics(simulation: str, *sets: str, stop_time: float = 400.0) -> dict[str, float]:
+    result = run(simulation, *sets, stop_time=stop_time)
+    return step_metrics(result["time"], result["plant.y"], result["setpoint.y"], t0=10.0)
+
+
+@pytest.mark.parametrize("name", ["GainScheduledPID", "ScheduledFOPDT"])
+def test_fmus_validate_and_declare_units(built_fmus, name):
+    assert validate_fmu(str(built_fmus[name])) == []
+    md = read_model_description(str(built_fmus[name]))
+    units = {v.name: v.unit for v in md.modelVariables}
+    assert "Requires Python 3.10+ with numpy and scipy" in md.description
+    assert all(v.description for v in md.modelVariables)
+    if name == "GainScheduledPID":
+        seconds = {"Ts", "Ti", "Td", "T", "tau"} | {f"{p}_{i}" for p in ("Ti", "Td") for i in range(1, 9)}
+    else:
+        seconds = {"T", "tau", "D", "dt"} | {f"{p}_{k}" for p in ("T", "tau") for k in ("lo", "hi", "a")}
+    assert {n for n, unit in units.items() if unit == "s"} == seconds
+    assert all(not u.dependencies for u in md.outputs)  # no direct feedthrough
+
+
+def test_unsorted_table_is_refused_naming_the_parameter(tmp_path):
+    bad = tmp_path / "bad.ssv"
+    bad.write_text(
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" '
+        'name="bad"><ssv:Parameters><ssv:Parameter name="controller.W_2"><ssv:Real value="0.5"/></ssv:Parameter>'
+        "</ssv:Parameters></ssv:ParameterSet>\n"
+    )
+    with pytest.raises(cosim.RunError, match="W_2 = 0.5 does not exceed W_1 = 0.76"):
+        cosim.simulate(SSP / "gs_sim2_3", stop_time=1.0, parameter_sets=[bad])
+
+
+def test_scheduled_gains_are_recorded_for_the_figure_2_3_curves():
+    """Figure 2.3(b) from a run: the Kc output is MFGS's Kc at the output y one sample earlier (Jacobi, Ts = h)."""
+    result = run("gs_sim2_3", "case2", "mfgs", stop_time=400.0)
+    schedule = GainSchedule(
+        [OperatingPoint(0.76, 1.4805, 7.1713, 1.5363), OperatingPoint(7.0, 0.1185, 7.1713, 1.5363)], Interpolation.MFGS
+    )
+    expected = np.array([schedule(y).Kc for y in result["plant.y"][:-1]])
+    np.testing.assert_allclose(result["controller.Kc"][1:], expected, rtol=1e-12)
+    itae = run("gs_sim2_3", "case2", "itae", stop_time=400.0)
+    np.testing.assert_allclose(itae["controller.Kc"][1:], 0.2961 / itae["plant.Kp"][:-1], rtol=1e-3)
+
+
+# --- Simulation 2.1 (Figure 2.1): process gain varies, Kc = 1.6069/Kp(y) -------------------------------------
+
+
+def test_sim_2_1_integral_mode_2_10_overshoots_when_the_gain_grows():
+    """Figure 2.1(a): with (2.10) the overshoot is "unacceptable compared with its response at y < 0.76";
+    (2.11) and (2.12) offset the gain change by rescaling the integral output."""
+    low = {m: setpoint_metrics("gs_sim2_1", "step_low", f"mode{m}", stop_time=300.0) for m in (1, 2, 3)}
+    up = {m: setpoint_metrics("gs_sim2_1", "step_up", f"mode{m}", stop_time=300.0) for m in (1, 2, 3)}
+    # Below y = 0.76 the gains are constant and the three modes are one controller.
+    assert low[1]["IAE"] == pytest.approx(low[3]["IAE"], rel=1e-9) == pytest.approx(low[2]["IAE"], rel=1e-9)
+    # The thesis states an overshoot below 20 % there; ours is 33 % (discrete PID, derivative on y, see pid_fopdt).
+    assert low[1]["overshoot"] == pytest.approx(33.2, abs=1.0)
+    # With Ti constant, (2.11) and (2.12) rescale the integral identically.
+    assert up[2]["IAE"] == pytest.approx(up[3]["IAE"], rel=1e-9)
+    assert up[3]["overshoot"] == pytest.approx(low[3]["overshoot"], abs=2.0)  # Kc·Kp constant: same response
+    assert up[1]["overshoot"] > 10 * up[3]["overshoot"] and up[1]["overshoot"] > 100.0
+
+
+# --- Simulation 2.2 (Figure 2.2): dead time varies, ITAE gains of tau(y(t - D)) -------------------------------
+
+
+@pytest.mark.parametrize("direction", ["step_up", "step_down"])
+def test_sim_2_2_integral_modes_2_11_2_12_are_more_damped(direction):
+    """Figure 2.2: (2.11) and (2.12) "have much over-damped step responses at both directions of y";
+    (2.12) lies between (2.10) and (2.11) (the chapter's trade-off)."""
+    m = {k: setpoint_metrics("gs_sim2_2", direction, f"mode{k}", stop_time=600.0) for k in (1, 2, 3)}
+    assert m[2]["rise_time"] > m[3]["rise_time"] > m[1]["rise_time"]
+    assert m[2]["overshoot"] <= m[1]["overshoot"] and m[3]["overshoot"] <= m[1]["overshoot"]
+
+
+# --- Simulations 2.3-2.5 (Figures 2.4, 2.6, 2.8, 2.11, 2.13): ITAE vs MFGS vs FGS1 vs FGS2 ----------------------
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_3_gain_varies_mfgs_overshoots_less_than_fgs(case):
+    """Figure 2.4(a): FGS1 and FGS2 "have unacceptable over-shoots"; MFGS is the definite selection (§2.3.4, 1)."""
+    m = {law: setpoint_metrics("gs_sim2_3", f"case{case}", law) for law in ("mfgs", "fgs1", "fgs2")}
+    assert m["fgs1"] == m["fgs2"]  # Ti and Td are the same at both points: (2.6) and (2.7) coincide
+    assert m["mfgs"]["overshoot"] < m["fgs1"]["overshoot"] - 25.0
+
+
+def test_sim_2_3_disturbance_rejection_is_not_worse_with_fgs_here():
+    """Figure 2.4(b),(c) say FGS1/FGS2 reject the ±d steps worse than MFGS.  Here (d = 0.5 at y = 4) the larger
+    FGS gain rejects them with a smaller IAE and peak: we record this (CASE 1) rather than tune towards it."""
+    results = {law: run("gs_sim2_3", "case1", law, stop_time=1200.0) for law in ("mfgs", "fgs1")}
+    iae = {}
+    for law, result in results.items():
+        t, e = result["time"], result["setpoint.y"] - result["plant.y"]
+        for start in (400.0, 800.0):
+            window = (t >= start) & (t <= start + 400.0)
+            iae[law, start] = float(np.sum(np.abs(e[window])) * 0.1)
+    for start in (400.0, 800.0):
+        assert iae["fgs1", start] < iae["mfgs", start]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_4_time_constant_varies_fgs_settle_faster_than_mfgs(case):
+    """Figures 2.6, 2.8: FGS1 and FGS2 are the better selection; MFGS is more damped (§2.3.4, 2)."""
+    m = {law: setpoint_metrics("gs_sim2_4", f"case{case}", law) for law in ("mfgs", "fgs1", "fgs2")}
+    assert m["fgs1"]["settling_time"] < m["mfgs"]["settling_time"]
+    assert m["fgs2"]["settling_time"] < m["mfgs"]["settling_time"]
+    assert m["mfgs"]["overshoot"] < min(m["fgs1"]["overshoot"], m["fgs2"]["overshoot"])
+    assert m["mfgs"]["rise_time"] > max(m["fgs1"]["rise_time"], m["fgs2"]["rise_time"])
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_5_dead_time_varies_overshoot_mfgs_fgs2_fgs1(case):
+    """Figures 2.11, 2.13: "FGS1 has the largest over-shoot ..., FGS2 has larger ones, and MFGS has the least"."""
+    m = {law: setpoint_metrics("gs_sim2_5", f"case{case}", law) for law in ("mfgs", "fgs1", "fgs2")}
+    assert m["mfgs"]["overshoot"] <= m["fgs2"]["overshoot"] < m["fgs1"]["overshoot"]

@@ -1,0 +1,96 @@
+"""The grey scenarios (ssp/grey_*) run by the master on the real FMUs: thesis 000_* §3.1.5-§3.2, paper 002_*."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import cosim
+from cosim.metrics import step_metrics
+
+
+def crossing(time: np.ndarray, x: np.ndarray, level: float, after: float, rising: bool = True) -> float:
+    """First time at or after ``after`` that x reaches ``level``."""
+    keep = time >= after
+    hits = np.flatnonzero(x[keep] >= level if rising else x[keep] <= level)
+    return float(time[keep][hits[0]]) if hits.size else float("nan")
+
+
+def lead(result: np.ndarray, level: float, after: float, rising: bool = True) -> float:
+    t = result["time"]
+    return crossing(t, result["process.y"], level, after, rising) - crossing(t, result["predictor.x_hat"], level, after, rising)
+
+
+@pytest.mark.parametrize("case, overshoot", [("", False), ("ph30.ssv", False), ("ph40.ssv", True)])
+def test_simulation_3_3_first_order_prediction(case, overshoot):
+    """Simulation 3.3, Figs. 3.4-3.6: the prediction leads 1/(40s+1) by more on the rise than on the fall (the
+    thesis: about 34 s and 26 s at ph = 20 s; ours at 70 % of the step: 32 s and 25 s), and at ph = 40 s it
+    overshoots on the rise only (Corollary 3.2: r > 1 rising, r < 1 falling)."""
+    r = cosim.simulate("ssp/grey_sim33", parameter_sets=[f"ssp/grey_sim33/{case}"] if case else [])
+    t, x_hat = r["time"], r["predictor.x_hat"]
+    up, down = lead(r, 2.7, 250), lead(r, 2.3, 470, rising=False)
+    assert 20 <= up and 20 <= down and up > down
+    rise = x_hat[(t > 250) & (t < 470)].max()
+    assert bool(rise > 3.1) == overshoot
+    assert x_hat[t > 470].min() > 1.99  # no overshoot on the way down
+    assert abs(r["predictor.a"][t == 240][0]) < 1e-3 and abs(r["predictor.a"][t == 252][0]) > 1.0 / 40 / 10
+
+
+@pytest.mark.parametrize("case, start, lead_up", [("", 320, 36), ("case2.ssv", 600, 24)])
+def test_simulation_3_4_second_order_prediction(case, start, lead_up):
+    """Simulation 3.4, Figs. 3.7/3.8: real (ph = 40 s) and complex (ph = 30 s) poles; the prediction leads the
+    process at mid-step, by more on the rise than on the fall."""
+    r = cosim.simulate("ssp/grey_sim34", parameter_sets=[f"ssp/grey_sim34/{case}"] if case else [])
+    up = lead(r, 2.5, start)
+    down = lead(r, 2.5, start + (220 if not case else 400), rising=False)
+    assert up == pytest.approx(lead_up, abs=2) and 0 < down < up
+
+
+def test_simulations_3_5_to_3_7_noise_sensitivity():
+    """Figs. 3.9-3.11: with Ts = 1 s, n = 4 the prediction amplifies the filtered noise (3.27c); Ts = 5 s and
+    LDISPI (Ts = 1 s, m = 5) reduce it alike, LDISPI answering the step earlier than Ts = 5 s."""
+    r = cosim.simulate("ssp/grey_noise")
+    t, y = r["time"], r["process.y"]
+    settled = t > 550
+    spread = {name: np.std(r[f"{name}.x_hat"][settled] - y[settled]) for name in ("grey_1s", "grey_5s", "ldispi")}
+    noise = np.std(r["measurement.y"][settled] - y[settled])
+    assert spread["grey_1s"] > 5 * noise
+    assert spread["grey_1s"] > 2 * spread["ldispi"] and spread["grey_1s"] > 2 * spread["grey_5s"]
+    assert crossing(t, r["ldispi.x_hat"], 0.5, 320) < crossing(t, r["grey_5s.x_hat"], 0.5, 320) < crossing(t, y, 0.5, 320)
+
+
+@pytest.fixture(scope="module")
+def pi_vs_grey():
+    return cosim.simulate("ssp/grey_pi_vs_pi")
+
+
+def test_grey_pi_and_pi_reach_the_setpoint_without_offset(pi_vs_grey):
+    """Theorem 3.5: the grey predictive PI settles at r like the PI (mean over 300-400 s, before the load pulse)."""
+    r = pi_vs_grey
+    quiet = (r["time"] > 300) & (r["time"] < 400)
+    for plant in ("pi_plant", "grey_plant"):
+        assert np.mean(r[f"{plant}.y"][quiet]) == pytest.approx(1.0, abs=5e-3)
+
+
+def test_grey_pi_versus_pi_metrics(pi_vs_grey):
+    """Same Kc/Ti: the grey PI rises faster with a smaller IAE and a larger overshoot; its output is as noisy
+    as the PI's (the thesis's §4.4 claim: a properly designed grey PI has about PI's noise sensitivity)."""
+    r = pi_vs_grey
+    t, quiet = r["time"], (r["time"] > 250) & (r["time"] < 400)
+    pi = step_metrics(t, r["pi_plant.y"], r["setpoint.y"], t0=20, t1=400, band=0.05)
+    grey = step_metrics(t, r["grey_plant.y"], r["setpoint.y"], t0=20, t1=400, band=0.05)
+    assert grey["rise_time"] < 0.6 * pi["rise_time"] and grey["IAE"] < pi["IAE"]
+    assert grey["overshoot"] > pi["overshoot"]
+    assert np.std(r["grey_pi.u"][quiet]) < 1.2 * np.std(r["pi.u"][quiet])
+    assert set(np.unique(r["grey_pi.mode"])) <= {0.0, 1.0, 2.0}
+
+
+@pytest.mark.parametrize("case, ks, wn, zeta", [("", 2.0, 0.1, 0.5), ("overdamped.ssv", 0.5, 0.05, 2.0)])
+def test_gm3t1_identification_scenario(case, ks, wn, zeta):
+    """GM(3/t,1) (002_* (4), (12)-(16)) on the simulated step response at ω_n·Ts = 0.05 and 0.025: k_s within 2 %,
+    ω_n and ζ within 10 % (measured: −0.2 %, −1.2 %, −4.1 % under-damped; −0.1 %, −2.4 %, −2.9 % over-damped)."""
+    r = cosim.simulate("ssp/grey_gm3t1", parameter_sets=[f"ssp/grey_gm3t1/{case}"] if case else [])
+    assert r["identifier.valid"][0] == 0.0 and r["identifier.valid"][-1] == 1.0
+    assert r["identifier.ks"][-1] == pytest.approx(ks, rel=0.02)
+    assert r["identifier.wn"][-1] == pytest.approx(wn, rel=0.10)
+    assert r["identifier.zeta"][-1] == pytest.approx(zeta, rel=0.10)

@@ -1,0 +1,167 @@
+"""Scenarios of Cîrtoaje et al. (seed 001_*) through the master on the real FMUs: the paper's findings measured.
+
+Loop: setpoint 0 → 1 at 40 s, load −0.2 on the plant input at 2500 s, 0 … 5000 s, step 2 s.
+"""
+
+import math
+import xml.etree.ElementTree as ElementTree
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu
+
+import cosim
+from cosim.metrics import step_metrics
+from greyfmu.control.scheduling import ITAE
+
+SSP = Path(__file__).resolve().parent.parent / "ssp"
+NOMINAL, NMP, PID_LOOP = SSP / "sopdt_nominal", SSP / "sopdt_nmp", SSP / "sopdt_pid_itae"
+SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
+
+
+def simulate(scenario, case=None):
+    return cosim.simulate(scenario, parameter_sets=[] if case is None else [scenario / case])
+
+
+def setpoint_metrics(result):
+    return step_metrics(result["time"], result["plant.y"], result["setpoint.y"], t0=40.0, t1=2500.0)
+
+
+def error_peak(result, start, stop):
+    window = (result["time"] >= start) & (result["time"] <= stop)
+    return float(np.max(np.abs(result["setpoint.y"][window] - result["plant.y"][window])))
+
+
+def unstable(result):
+    """The oscillation grows: the error's late peak (after the load has settled in a stable loop) exceeds the early one."""
+    return error_peak(result, 4000.0, 5000.0) > 1.2 * error_peak(result, 1000.0, 2500.0)
+
+
+def settled(result, band=0.02):
+    return error_peak(result, 4500.0, 5000.0) < band
+
+
+@pytest.fixture(scope="module")
+def nominal():
+    return simulate(NOMINAL)
+
+
+def test_nominal_run_tracks_the_setpoint_and_rejects_the_load(nominal):
+    r = nominal
+    assert r["time"][-1] == 5000.0 and len(r) == 2501
+    assert r["plant.y"][r["time"] <= 40.0 + 90.0 + 2.0].max() == 0.0  # dead time 90 s after the first move at 40 s + 2 s
+    m = setpoint_metrics(r)
+    assert 20.0 < m["overshoot"] < 32.0  # measured 25.8 % (the paper prints no number)
+    assert settled(r) and not unstable(r)
+    assert r["controller.u"][-1] == pytest.approx(1.0 / 1.2 + 0.2, abs=2e-3)  # offset-free: u = r/K − d
+    assert (r["controller.m"][-1], r["controller.N"][-1]) == (2.0, 17.0)  # printed: m = 2, N = 17
+
+
+def test_too_small_X_k_destabilises_and_a_larger_one_stabilises_and_slows(nominal):
+    """Figs. 3-4.  Loss of stability between X_k = 1.0 and 1.1 (ρ = 1 at X_k = 1.073, docs/sopdt_tables.md)."""
+    small, large = simulate(NOMINAL, "fig03_xk_1.0.ssv"), simulate(NOMINAL, "fig04_xk_3.0.ssv")
+    assert unstable(small)
+    assert settled(large)
+    m_nominal, m_large = setpoint_metrics(nominal), setpoint_metrics(large)
+    assert m_large["rise_time"] > 1.5 * m_nominal["rise_time"]  # 368 s against 188 s
+    assert m_large["overshoot"] < 1.0 < m_nominal["overshoot"]
+
+
+def test_response_gets_faster_as_X_p_goes_to_1(nominal):
+    """Fig. 10: rise time 408 s (X_p = 0.2), 188 s (0.6), 154 s (1.0)."""
+    runs = (simulate(NOMINAL, "fig10_xp_0.2.ssv"), nominal, simulate(NOMINAL, "fig10_xp_1.0.ssv"))
+    rise = [setpoint_metrics(r)["rise_time"] for r in runs]
+    assert rise[0] > rise[1] > rise[2]
+
+
+@pytest.mark.parametrize("case", ["fig06_xd_0.5.ssv", "fig07_xd_3.2.ssv", "fig08_xt_2.0.ssv"])
+def test_too_small_or_too_large_X_d_and_too_large_X_t_destabilise(case):
+    """Figs. 6-8: the loop is stable for X_d in 0.89 … 3.11 (m = 2 … 6) and X_t up to 1.47 only."""
+    assert unstable(simulate(NOMINAL, case))
+
+
+def test_xi_1_gives_the_best_response(nominal):
+    """Fig. 9: 'the best response is obtained for maximum value of ξ'."""
+    assert setpoint_metrics(simulate(NOMINAL, "fig09_xi_1.0.ssv"))["IAE"] < setpoint_metrics(nominal)["IAE"]
+
+
+def test_reference_trajectory_smooths_the_approach(nominal):
+    """Fig. 5: with T_ref = 200 s the overshoot drops from 25.8 % to 9.9 %, the loop stays alike."""
+    r = simulate(NOMINAL, "fig05_tref_200.ssv")
+    assert settled(r) and setpoint_metrics(r)["overshoot"] < setpoint_metrics(nominal)["overshoot"]
+
+
+def test_law_15_needs_a_larger_X_k():
+    r = simulate(NOMINAL, "law15_xk_3.0.ssv")
+    assert settled(r) and not unstable(r)
+
+
+def test_non_minimum_phase_process_is_stabilised_by_a_large_X_k():
+    """Fig. 11: T4 = 60 s.  Unstable at X_k = 1.5, stable above X_k = 1.628 (ρ = 1), well damped at 4."""
+    assert unstable(simulate(NMP, "fig11_xk_1.5.ssv"))
+    r = simulate(NMP)
+    assert settled(r)
+    assert setpoint_metrics(r)["overshoot"] < 10.0
+    after_move = (r["time"] > 130.0) & (r["time"] < 300.0)
+    assert r["plant.y"][after_move].min() < -0.01  # the inverse response of the zero at +1/60
+
+
+def test_itae_pid_comparison_uses_the_rule_2_8():
+    values = {p.get("name"): float(p[0].get("value")) for p in ElementTree.parse(PID_LOOP / "pid.ssv").iter(f"{SSV}Parameter")}
+    gains = ITAE(A=0.35)(1.2, 200.0, 90.0)
+    assert (values["Kc"], values["Ti"], values["Td"]) == pytest.approx(tuple(gains), rel=1e-9)
+    full = {p.get("name"): float(p[0].get("value")) for p in ElementTree.parse(PID_LOOP / "itae_full.ssv").iter(f"{SSV}Parameter")}
+    assert full["controller.Kc"] == pytest.approx(ITAE()(1.2, 200.0, 90.0).Kc, rel=1e-9)
+    pid = simulate(PID_LOOP)
+    assert settled(pid)
+    assert unstable(simulate(PID_LOOP, "itae_full.ssv"))  # the rule's A = 1.357 (Kc = 2.41) is too strong here
+
+
+# --- the FMUs alone ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["SOPDTPredictive", "ThirdOrderPlant"])
+def test_fmu_passes_fmpy_validation(built_fmus, name):
+    assert validate_fmu(str(built_fmus[name])) == []
+
+
+@pytest.fixture
+def controller_fmu(built_fmus, tmp_path):
+    path = built_fmus["SOPDTPredictive"]
+    description = read_model_description(path)
+    refs = {v.name: v.valueReference for v in description.modelVariables}
+    fmu = FMU2Slave(
+        guid=description.guid,
+        unzipDirectory=extract(path, tmp_path),
+        modelIdentifier=description.coSimulation.modelIdentifier,
+        instanceName="c",
+    )
+    fmu.instantiate(loggingOn=True)
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    yield fmu, refs, description
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+def test_operator_changes_are_tunable_and_redesign_the_controller(controller_fmu):
+    fmu, refs, description = controller_fmu
+    variability = {v.name: v.variability for v in description.modelVariables}
+    assert all(variability[name] == "tunable" for name in ("K", "T0", "tau", "xi", "X_k", "X_t", "X_d", "X_p"))
+    fmu.setReal([refs["r"]], [1.0])
+    for k in range(3):
+        fmu.doStep(40.0 * k, 40.0)
+    fmu.setReal([refs["tau"]], [130.0])  # the operator changes τ: m = [130/40] = 3, N = [(130 + 600)/40] = 18
+    fmu.doStep(120.0, 40.0)
+    assert fmu.getReal([refs["m"], refs["N"]]) == [3.0, 18.0]
+    fmu.setReal([refs["K"]], [-1.0])  # refused with a logged warning; the old value stays
+    assert fmu.getReal([refs["K"]]) == [1.2]
+    fmu.doStep(160.0, 40.0)
+    u = fmu.getReal([refs["u"]])[0]
+    fmu.setReal([refs["y"]], [math.nan])  # a missing measurement holds u (warning logged)
+    fmu.doStep(200.0, 40.0)
+    assert fmu.getReal([refs["u"]])[0] == u
