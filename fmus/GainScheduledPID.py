@@ -53,13 +53,8 @@ class GainScheduledPID(GreyfmuSlave):
             self.parameter(name, value, f"ITAE constant {name} of (2.8) (law = 4 only)")
         self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N")
         self.parameter("Ts", 0.1, "Sample time", unit="s")
-        self.parameter("u_min", -1e10, "Lower output limit")
-        self.parameter("u_max", 1e10, "Upper output limit")
-        self.parameter("du_max", 0.0, "Output rate limit in units of u per second (0 = none)", minimum=0.0)
-        self.parameter(
-            "integral_mode", 3, "Integral mode: 1 = (2.10), 2 = (2.11), 3 = (2.12) of the thesis", minimum=1, maximum=3
-        )
-        self.parameter("u0", 0.0, "Initial output (bias): the integral starts here, so u = u0 while e = 0")
+        self.output_limit_parameters()
+        self.integral_parameters()
         self.input("r", 0.0, "Set-point")
         self.input("y", 0.0, "Measured process output")
         self.input("W", 0.0, "Scheduling variable (process output, set-point or exogenous signal; laws 0-3)")

@@ -31,13 +31,8 @@ class GrayPredictivePI(GreyfmuSlave):
         self.parameter("ph", 25.0, "Prediction horizon", unit="s", minimum=0.0)
         self.parameter("B", 50.0, "Bias keeping e + B positive (3.29b)", minimum=0.0)
         self.parameter("a_min", 0.035, "Predict only when |a| > a_min, else estimate the current error", minimum=0.0)
-        self.parameter("u_min", -1e10, "Lower output limit")
-        self.parameter("u_max", 1e10, "Upper output limit")
-        self.parameter("du_max", 0.0, "Output rate limit in units of u per second (0 = none)", minimum=0.0)
-        self.parameter(
-            "integral_mode", 3, "Integral mode: 1 = (2.10), 2 = (2.11), 3 = (2.12) of the thesis", minimum=1, maximum=3
-        )
-        self.parameter("u0", 0.0, "Initial output (bias): the integral starts here")
+        self.output_limit_parameters()
+        self.integral_parameters()
         self.input("r", 0.0, "Set-point")
         self.input("y", 0.0, "Measured process output")
         discrete = Fmi2Variability.discrete

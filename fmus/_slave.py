@@ -97,6 +97,19 @@ class GreyfmuSlave(Fmi2Slave):
             )
         )
 
+    def output_limit_parameters(self) -> None:
+        """u_min, u_max, du_max: the output limits of every controller FMU (greyfmu.control.PID's)."""
+        self.parameter("u_min", -1e10, "Lower output limit")
+        self.parameter("u_max", 1e10, "Upper output limit")
+        self.parameter("du_max", 0.0, "Output rate limit in units of u per second (0 = none)", minimum=0.0)
+
+    def integral_parameters(self) -> None:
+        """integral_mode and u0 of the PI(D) controller FMUs: the thesis's (2.10)-(2.12)."""
+        self.parameter(
+            "integral_mode", 3, "Integral mode: 1 = (2.10), 2 = (2.11), 3 = (2.12) of the thesis", minimum=1, maximum=3
+        )
+        self.parameter("u0", 0.0, "Initial output (bias): the integral starts here, so u = u0 while e = 0")
+
     def input(self, name: str, start: float, description: str, unit: str | None = None) -> None:
         """Declare a continuous Real input."""
         self._claim(name)
