@@ -38,3 +38,45 @@ __all__ += ["GrayPredictivePI"]
 from greyfmu.control.digital_pi import DigitalPI, DigitalPIDesign, design_digital_pi  # noqa: E402
 
 __all__ += ["DigitalPI", "DigitalPIDesign", "design_digital_pi"]
+
+from greyfmu.control.gpc import CARIMA, GPC, Bounds, diophantine, prediction, smoothed_reference, solve_moves
+from greyfmu.control.osmm import (
+    OSMMGPC,
+    ARXStructure,
+    boiler_groups,
+    choose_group,
+    identify_group_models,
+    regulating_efficiency,
+)
+from greyfmu.control.ts_fuzzy import (
+    Antecedent,
+    FuzzyRLS,
+    TSModel,
+    antecedent_from_partition,
+    batch_wls,
+    fuzzy_c_means,
+    gustafson_kessel,
+)
+
+__all__ += [
+    "CARIMA",
+    "GPC",
+    "Bounds",
+    "diophantine",
+    "prediction",
+    "smoothed_reference",
+    "solve_moves",
+    "OSMMGPC",
+    "ARXStructure",
+    "boiler_groups",
+    "choose_group",
+    "identify_group_models",
+    "regulating_efficiency",
+    "Antecedent",
+    "FuzzyRLS",
+    "TSModel",
+    "antecedent_from_partition",
+    "batch_wls",
+    "fuzzy_c_means",
+    "gustafson_kessel",
+]

@@ -21,3 +21,7 @@ __all__ = [
 from greyfmu.signals.lookup import LookupTable
 
 __all__ += ["LookupTable"]
+
+from greyfmu.signals.prbs import PRBS
+
+__all__ += ["PRBS"]

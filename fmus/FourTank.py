@@ -1,0 +1,46 @@
+"""Four-tank benchmark FMU: a thin wrapper around greyfmu.plants.FourTank."""
+
+from typing import Any
+
+from pythonfmu import DefaultExperiment, Fmi2Variability
+
+from _slave import REQUIREMENTS, GreyfmuSlave
+from greyfmu.plants import FourTank as FourTankPlant
+from greyfmu.plants import equilibrium_levels
+from greyfmu.signals import SampleClock
+
+
+class FourTank(GreyfmuSlave):
+    description = (
+        "Two-input four-tank benchmark of Pan, Shen & Luh (2012), (40), as the discrete map (41)-(42) the paper "
+        "prints (forward Euler of (40) at the sample period Ts): after step k_change the input coefficients ramp "
+        "as 1 - ramp (k - k_change) and the delay of h3, h4 on h1, h2 steps from 1 to 'delay' samples "
+        "(DelayLine). The map advances at every sample instant t0 + k Ts in [t, t+h) with u1, u2 read at t "
+        "(zero-order hold); levels are held between samples; no direct feedthrough. Dimensionless levels and "
+        "flows. Initial levels: the equilibrium of (40) for u1 = u2 = u0. " + REQUIREMENTS
+    )
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=1500.0, step_size=1.0)
+    output_dependencies = {"h1": [], "h2": [], "h3": [], "h4": []}
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.parameter("Ts", 1.0, "Sample period of the map (41)-(42)", unit="s")
+        self.parameter("k_change", 500, "Step at which the ramp and the delay change start ((41)-(42))", minimum=0)
+        self.parameter("ramp", 0.0005, "Slope of the input-coefficient ramp per step ((41)-(42))")
+        self.parameter("delay", 450, "Input delay after k_change, in steps ((41)-(42))", minimum=1)
+        self.parameter("time_varying", 1, "1 = apply the changes (41)-(42), 0 = the time-invariant (40)", minimum=0, maximum=1)
+        self.parameter("u0", 0.7, "Inputs whose equilibrium sets the initial levels")
+        self.input("u1", 0.7, "Input flow 1 (into tank 3)")
+        self.input("u2", 0.7, "Input flow 2 (into tank 4)")
+        for i in range(1, 5):
+            self.output(f"h{i}", f"Level of tank {i}", lambda i=i: float(self.plant.h[i - 1]), variability=Fmi2Variability.discrete)
+
+    def build(self) -> None:
+        self.plant = FourTankPlant(
+            equilibrium_levels(self.u0, self.u0), self.Ts, self.k_change, self.ramp, self.delay, bool(self.time_varying)
+        )
+        self.clock = SampleClock(self.Ts, self.experiment_start)
+
+    def advance(self, t: float, h: float) -> None:
+        for _ in self.clock.samples_in(t, h):
+            self.plant.step(self.u1, self.u2)

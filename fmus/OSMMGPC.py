@@ -1,0 +1,111 @@
+"""OSMM-GPC controller FMU (2 header pressures, 3 boilers), also the fixed-pair GPC; wraps greyfmu.control.OSMMGPC."""
+
+import copy
+import functools
+import logging
+from typing import Any
+
+import numpy as np
+from pythonfmu import DefaultExperiment, Fmi2Variability
+from pythonfmu.enums import Fmi2Status
+
+from _slave import REQUIREMENTS, GreyfmuSlave
+from greyfmu.control import OSMMGPC as OSMMController
+from greyfmu.control import ARXStructure, Bounds, TSModel, boiler_groups, identify_group_models
+from greyfmu.plants import SteamHeader, excitation_run
+from greyfmu.signals import SampleClock
+
+METHODS = {1: "global", 2: "local", 3: "mixed"}
+
+
+@functools.lru_cache(maxsize=4)
+def initial_models(Ts: float, duration: float, rules: int) -> tuple[tuple[TSModel, ...], ...]:
+    """Initial TS models of the three groups: one open-loop random-firing run of the default
+    greyfmu.plants.SteamHeader per group (the group's boilers excited), GK clustering + local WLS."""
+    structure = ARXStructure(2, 2)
+    models = []
+    for g, boilers in enumerate(boiler_groups(3, 2)):
+        Y, M = excitation_run(SteamHeader(), boilers, duration, Ts, seed=g)
+        models.append(tuple(identify_group_models(Y, M, boilers, structure, rules)))
+    return tuple(models)
+
+
+class _FmuLog(logging.Handler):
+    """Forwards greyfmu warnings (fallbacks) to the FMU logger."""
+
+    def __init__(self, slave: GreyfmuSlave) -> None:
+        super().__init__(logging.WARNING)
+        self.slave = slave
+        slave.stepping = False
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if self.slave.stepping:
+            self.slave.log(f"{self.slave.instance_name}: {record.getMessage()}", Fmi2Status.warning)
+
+
+class OSMMGPC(GreyfmuSlave):
+    description = (
+        "OSMM-GPC of Pan, Shen & Luh (2012), §4: every sample, update the Takagi-Sugeno ARX models of the "
+        "C(3,2) boiler groups by MFRLS (our reconstruction), compute the regulating efficiencies (31) "
+        "(unit-consistent form, see greyfmu.control.osmm) and choose the best group (32), solve the 2x2 "
+        "constrained GPC (34)-(39) on the active model (33) and add the moves to the chosen boilers; the third "
+        "boiler holds its firing. group = 1, 2, 3 fixes the pair (1,2), (1,3), (2,3): a plain GPC with the same "
+        "adaptive models. Initial TS models are identified at initialisation from open-loop runs of "
+        "greyfmu.plants.SteamHeader (default parameters; about 5 s). Sampled at Ts with zero-order hold; no "
+        "direct feedthrough. Needs the QP solver daqp on the target Python besides numpy/scipy. " + REQUIREMENTS
+    )
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=4500.0, step_size=1.0)
+    output_dependencies = {"u1": [], "u2": [], "u3": [], "active_group": []}
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.parameter("Ts", 10.0, "Sample time", unit="s")
+        self.parameter("N1", 1, "Minimum costing horizon", minimum=1)
+        self.parameter("N2", 20, "Maximum costing horizon", minimum=1)
+        self.parameter("Nu", 5, "Control horizon", minimum=1)
+        self.parameter("output_weight", 1.0, "Output-error weight lambda(j) of (34)", minimum=0.0)
+        self.parameter("move_weight", 1.0, "Move weight Q(j) of (34)", minimum=0.0)
+        self.parameter("alpha", 0.0, "Reference smoothing a of (36)", minimum=0.0, maximum=0.999)
+        self.parameter("M_min", 0.3, "Lowest firing M_min of (35) (p.u.)")
+        self.parameter("M_max", 1.2, "Highest firing M_max of (35) (p.u.)")
+        self.parameter("dM_max", 0.05, "Largest firing move per sample |dM| of (35) (p.u.)", minimum=0.0)
+        self.parameter("M0", 0.75, "Initial firing of every boiler (p.u.)")
+        self.parameter("group", 0, "0 = OSMM scheduling; 1, 2, 3 = fixed pair (1,2), (1,3), (2,3)", minimum=0, maximum=3)
+        self.parameter("adapt", 1, "1 = on-line estimation of the TS models, 0 = frozen initial models", minimum=0, maximum=1)
+        self.parameter("method", 3, "1 = global FRLS, 2 = local FRLS, 3 = MFRLS", minimum=1, maximum=3)
+        self.parameter("forgetting", 1.0, "Forgetting factor in (0, 1]", minimum=0.0, maximum=1.0)
+        self.parameter("omega", 0.01, "Initial covariance C(0) = omega I of the estimators", minimum=0.0)
+        self.parameter("rules", 3, "Rules per TS model", minimum=1)
+        self.parameter("identification_time", 3000.0, "Length of each open-loop identification run", unit="s")
+        self.input("r1", 8.75, "Set-point of P_m2", unit="MPa")
+        self.input("r2", 8.75, "Set-point of P_m4", unit="MPa")
+        self.input("y1", 8.75, "Measured P_m2", unit="MPa")
+        self.input("y2", 8.75, "Measured P_m4", unit="MPa")
+        for i in (1, 2, 3):
+            self.output(f"u{i}", f"Firing demand M_{i} of boiler {i} (p.u.)", lambda i=i: float(self.controller.M[i - 1]),
+                        variability=Fmi2Variability.discrete)
+        self.output("active_group", "Chosen group: 1 = (1,2), 2 = (1,3), 3 = (2,3)", lambda: float(self.controller.group + 1),
+                    variability=Fmi2Variability.discrete)
+
+    def build(self) -> None:
+        models = copy.deepcopy([list(row) for row in initial_models(self.Ts, self.identification_time, self.rules)])
+        self.controller = OSMMController(
+            boiler_groups(3, 2), models, ARXStructure(2, 2), np.full(3, self.M0), self.N1, self.N2, self.Nu,
+            self.output_weight, self.move_weight, self.alpha,
+            Bounds(self.M_min, self.M_max, -self.dM_max, self.dM_max),
+            fixed_group=None if self.group == 0 else self.group - 1, adapt=bool(self.adapt),
+            method=METHODS[self.method], forgetting=self.forgetting, omega=self.omega,
+        )
+        self.clock = SampleClock(self.Ts, self.experiment_start)
+        if not hasattr(self, "_handler"):
+            self._handler = _FmuLog(self)
+            for name in ("greyfmu.control.gpc", "greyfmu.control.osmm", "greyfmu.control.ts_fuzzy"):
+                logging.getLogger(name).addHandler(self._handler)
+
+    def advance(self, t: float, h: float) -> None:
+        self.stepping = True  # only this instance's warnings reach its logger
+        try:
+            for _ in self.clock.samples_in(t, h):
+                self.controller.step([self.r1, self.r2], [self.y1, self.y2])
+        finally:
+            self.stepping = False

@@ -1,0 +1,175 @@
+"""Parallel-coursing utility units with a header (PUUH): 3 boilers, 2 turbines, 2 header segments.
+
+Pan, Shen & Luh (2012) (seed 003), §2 and §5.2; the paper's simulator (its ref. [11]) is not
+available, so this is OUR lumped model, ``recovered-models.md`` §8, with two changes said there
+and here: (1) each boiler has its own load-dependent efficiency curve, so the marginal steam per
+unit fuel differs between boilers and changes with load (what OSMM scheduling exploits);
+(2) the boiler-outlet and tie-pipe flows are linear in the pressure drop (secant conductances
+at rated flow) instead of square-root laws, which removes the non-smooth zero-flow point of
+the tie pipe and its stiffness (§8's numerical note).  Units MPa, kg/s, s.
+
+Boiler B1 feeds segment 1 (pressure P_m2, turbine T1), B3 segment 2 (P_m4, T2), and B2, in
+the middle of the header as in the paper's Fig. 1 (B1–T1–B2–T2–B3), feeds both through two
+outlets of half the conductance each; a tie pipe joins the segments.  (§8 put B1 and B2 on
+the same segment, which makes the pair (1, 2) unable to set P_m2 and P_m4 independently.)  Per boiler i (firing demand u_i in p.u. of rated firing):
+
+    τ_f dq_i/dt  = u_i − q_i                               firing lag
+    τ_g dw_gi/dt = w_N q_i η_i(q_i)/η_ref − w_gi             steam generation
+    C_b dP_bi/dt = w_gi − w_si,   w_si = G_s (P_bi − P_seg(i))   (B2: G_s/2 to each segment)
+    η_i(q) = η_max,i − c_i (q − q*_i)²                      efficiency curve
+    F_i = F_N q_i                                           fuel consumption [kg/s]
+
+Header: C_h dP_s/dt = Σ_i→s w_si − w_ts ∓ w_link, w_link = G_l (P_1 − P_2); turbines
+w_tj = K_tj v_j P_seg(j) (valve opening v_j as a fraction).  K_t1, K_t2 are set so that the
+design point (all boilers at 0.75 p.u., both valves at 50 %, both segments at 8.75 MPa) has no
+tie flow.  Fixed-step RK4 with sub-steps of at most ``max_substep`` (0.25 s; the fastest mode, a
+header node, is about −6.3 s⁻¹) over each caller step; inputs held over the step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+@dataclass(frozen=True)
+class HeaderParameters:
+    """Design values (RECONSTRUCTED, recovered-models.md §8 adapted: see the module docstring)."""
+
+    w_N: float = 61.0  # rated steam flow per boiler [kg/s] (paper §5.2)
+    F_N: float = 7.2  # fuel at rated firing [kg/s]; 3 boilers at 0.75 p.u. burn 16.2 kg/s (Table 3's scale)
+    eta_ref: float = 0.9
+    eta_max: tuple[float, float, float] = (0.92, 0.88, 0.90)
+    q_star: tuple[float, float, float] = (0.95, 0.85, 0.75)
+    curvature: tuple[float, float, float] = (0.05, 0.05, 0.3)
+    tau_f: float = 15.0  # [s]
+    tau_g: float = 60.0  # [s]
+    C_b: float = 1400.0  # [kg/MPa]
+    C_h: float = 100.0  # [kg/MPa]
+    G_s: float = 244.0  # boiler outlet conductance [kg/s/MPa] (61 kg/s at 0.25 MPa)
+    G_l: float = 120.0  # tie-pipe conductance [kg/s/MPa]
+    P_set: float = 8.75  # design header pressure [MPa]
+    q_design: float = 0.75
+    v_design: float = 0.5
+
+    def efficiency(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(self.eta_max) - np.asarray(self.curvature) * (q - np.asarray(self.q_star)) ** 2
+
+    def steam(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Steady steam generation w_N q η(q)/η_ref of each boiler."""
+        return self.w_N * q * self.efficiency(q) / self.eta_ref
+
+    def marginal_steam(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """d(steam)/d(fuel) of each boiler [kg steam / kg fuel]: what regulating efficiency tracks."""
+        qs, c = np.asarray(self.q_star), np.asarray(self.curvature)
+        return self.w_N / (self.eta_ref * self.F_N) * (self.efficiency(q) - 2.0 * c * q * (q - qs))
+
+    def turbine_constants(self) -> tuple[float, float]:
+        """K_t1, K_t2 [kg/s/MPa per unit opening] balancing the design point without tie flow."""
+        w = self.steam(np.full(3, self.q_design))
+        return (w[0] + 0.5 * w[1]) / (self.v_design * self.P_set), (w[2] + 0.5 * w[1]) / (self.v_design * self.P_set)
+
+
+@dataclass
+class SteamHeader:
+    """State x = [q_1..3, w_g1..3, P_b1..3, P_1, P_2]; starts at the equilibrium for ``u0``, ``v0``."""
+
+    params: HeaderParameters = field(default_factory=HeaderParameters)
+    u0: ArrayLike | None = None
+    v0: ArrayLike = (0.5, 0.5)
+    max_substep: float = 0.25
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.max_substep) and self.max_substep > 0.0):
+            raise ValueError(f"SteamHeader: max_substep must be a finite number > 0, got {self.max_substep}")
+        self.K_t = np.array(self.params.turbine_constants())
+        u0 = np.full(3, self.params.q_design) if self.u0 is None else np.asarray(self.u0, dtype=float)
+        self.x0 = self.equilibrium(u0, np.asarray(self.v0, dtype=float))
+        self.reset()
+
+    def reset(self) -> None:
+        self.x = self.x0.copy()
+
+    def equilibrium(self, u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Steady state for firing u and valves v (linear in the pressures once the steam is known)."""
+        p = self.params
+        w = p.steam(u)
+        k1, k2 = self.K_t * v
+        # segment balances: w1 + w2/2 = k1 P1 + G_l (P1 − P2); w3 + w2/2 = k2 P2 − G_l (P1 − P2)
+        M = np.array([[k1 + p.G_l, -p.G_l], [-p.G_l, k2 + p.G_l]])
+        P1, P2 = np.linalg.solve(M, [w[0] + 0.5 * w[1], w[2] + 0.5 * w[1]])
+        seg = np.array([P1, 0.5 * (P1 + P2), P2])
+        return np.concatenate([u, w, seg + w / p.G_s, [P1, P2]])
+
+    def derivative(self, x: NDArray[np.float64], u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+        p = self.params
+        q, w_g, P_b, P1, P2 = x[0:3], x[3:6], x[6:9], x[9], x[10]
+        w_s = p.G_s * (P_b - np.array([P1, 0.5 * (P1 + P2), P2]))
+        half2_1 = 0.5 * p.G_s * (P_b[1] - P1)  # B2's flow into segment 1 (the rest goes to segment 2)
+        link = p.G_l * (P1 - P2)
+        w_t = self.K_t * v * np.array([P1, P2])
+        return np.concatenate(
+            [
+                (u - q) / p.tau_f,
+                (p.steam(np.maximum(q, 0.0)) - w_g) / p.tau_g,
+                (w_g - w_s) / p.C_b,
+                [(w_s[0] + half2_1 - w_t[0] - link) / p.C_h, (w_s[2] + w_s[1] - half2_1 - w_t[1] + link) / p.C_h],
+            ]
+        )
+
+    def advance(self, h: float, u: ArrayLike, v: ArrayLike) -> None:
+        """Integrate over a step of length h with firing demands u (p.u.) and valve openings v (fraction)."""
+        if h < 0.0:
+            raise ValueError(f"SteamHeader: step h must be >= 0, got {h}")
+        u, v = np.asarray(u, dtype=float), np.clip(np.asarray(v, dtype=float), 0.0, None)
+        if h == 0.0:
+            return
+        n = max(1, math.ceil(h / self.max_substep - 1e-9))
+        dt = h / n
+        x = self.x
+        for _ in range(n):
+            k1 = self.derivative(x, u, v)
+            k2 = self.derivative(x + 0.5 * dt * k1, u, v)
+            k3 = self.derivative(x + 0.5 * dt * k2, u, v)
+            k4 = self.derivative(x + dt * k3, u, v)
+            x = x + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        self.x = x
+
+    @property
+    def pressures(self) -> NDArray[np.float64]:
+        """Header pressures [P_m2, P_m4] in MPa."""
+        return self.x[9:11].copy()
+
+    @property
+    def fuel(self) -> NDArray[np.float64]:
+        """Fuel consumption of each boiler [kg/s]."""
+        return self.params.F_N * self.x[0:3]
+
+
+def excitation_run(
+    plant: SteamHeader, boilers: tuple[int, ...], duration: float, Ts: float, hold: float = 120.0, low: float = 0.6,
+    high: float = 1.0, seed: int = 0,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Open-loop identification experiment: random firing levels in [low, high] held ``hold`` s on
+    ``boilers`` (the others at their design firing), valves at their design opening.
+
+    Returns the header pressures Y (N × 2) and firing demands M (N × 3) sampled every ``Ts``:
+    Y[k] is measured at t_k, M[k] applied over [t_k, t_k + Ts).
+    """
+    rng = np.random.default_rng(seed)
+    samples = int(round(duration / Ts))
+    per_hold = max(1, int(round(hold / Ts)))
+    M = np.tile(plant.x0[0:3], (samples, 1))
+    for boiler in boilers:
+        levels = rng.uniform(low, high, size=samples // per_hold + 1)
+        M[:, boiler] = np.repeat(levels, per_hold)[:samples]
+    Y = np.empty((samples, 2))
+    plant.reset()
+    v = np.asarray(plant.v0, dtype=float)
+    for k in range(samples):
+        Y[k] = plant.pressures
+        plant.advance(Ts, M[k], v)
+    return Y, M

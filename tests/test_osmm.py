@@ -1,0 +1,107 @@
+"""OSMM scheduling: regulating efficiency (31), choice (32), active model (33), the OSMM-GPC step (§4)."""
+
+import logging
+
+import numpy as np
+import pytest
+
+from greyfmu.control.gpc import CARIMA, Bounds
+from greyfmu.control.osmm import OSMMGPC, ARXStructure, boiler_groups, choose_group, regulating_efficiency
+from greyfmu.control.ts_fuzzy import Antecedent, TSModel
+from greyfmu.plants import HeaderParameters, SteamHeader
+
+# A linear 3-boiler, 2-pressure plant: y_j(k) = a y_j(k−1) + Σ_i b_ji M_i(k−1) + c_j.
+A_POLE = 0.9
+GAINS = np.array([[0.30, 0.10, 0.05], [0.05, 0.10, 0.20]])  # b_ji; boiler 1 and 3 strongest
+C = 0.875 - GAINS.sum(axis=1) * 0.75  # steady state y = 8.75 at M = 0.75
+
+
+def exact_models(groups):
+    """One-rule TS models of each group equal to the plant with the third boiler's effect in the affine term."""
+    antecedent = Antecedent.from_widths([[0.75, 0.75]], [[1.0, 1.0]])
+    models = []
+    for group in groups:
+        other = [i for i in range(3) if i not in group][0]
+        rows = []
+        for j in range(2):
+            rows.append(TSModel(antecedent, [[A_POLE, *GAINS[j, list(group)], C[j] + GAINS[j, other] * 0.75]]))
+        models.append(rows)
+    return models
+
+
+def test_groups_are_the_combinations():
+    assert boiler_groups(3, 2) == [(0, 1), (0, 2), (1, 2)]
+
+
+def test_regulating_efficiency_formula_and_singular_denominator():
+    model = CARIMA([[1.0, -0.9], [1.0, -0.5]], [[[0.1], [0.2]], [[0.3], [0.1]]])
+    assert regulating_efficiency(model) == pytest.approx((0.3 / 0.1) + (0.4 / 0.5))
+    assert regulating_efficiency(model, [1.0, 0.0]) == pytest.approx(3.0)
+    integrating = CARIMA([[1.0, -1.0], [1.0, -0.5]], [[[0.1], [0.2]], [[0.3], [0.1]]])
+    assert np.isnan(regulating_efficiency(integrating))
+    no_gain = CARIMA([[1.0, -0.9], [1.0, -0.5]], [[[0.1], [-0.1]], [[0.3], [0.1]]])  # Σ_l B(1) = 0: (31) as printed is singular
+    assert np.isnan(regulating_efficiency(no_gain))
+
+
+def test_choice_excludes_singular_groups(caplog):
+    with caplog.at_level(logging.WARNING):
+        assert choose_group([1.0, np.nan, 0.5], previous=2) == 0
+        assert choose_group([np.nan, np.nan, np.nan], previous=2) == 2
+    assert "excluded" in caplog.text
+
+
+def test_active_model_is_the_fuzzy_blend():
+    antecedent = Antecedent.from_widths([[0.0], [1.0]], [[0.3], [0.3]])
+    model = TSModel(antecedent, [[0.5, 1.0, 0.0], [0.7, 3.0, 0.0]])
+    controller = OSMMGPC([(0,)], [[model]], ARXStructure(1, 1), [0.5])
+    carima = controller.active_model(0)
+    assert carima.A[0][1] == pytest.approx(-0.6) and carima.B[0][0][0] == pytest.approx(2.0)  # λ = (½, ½) at z = 0.5
+
+
+def simulate(controller, steps=300, disturbance=0.02):
+    """Plant from its steady state y = 8.75; a load disturbance on output 1 after step 50."""
+    y = np.full(2, 8.75)
+    M = np.full(3, 0.75)
+    history = []
+    for k in range(steps):
+        y = A_POLE * y + GAINS @ M + C - (np.array([disturbance, 0.0]) if k > 50 else 0.0)
+        M = controller.step([8.75, 8.75], y)
+        history.append((y.copy(), M.copy(), controller.group, controller.last_path))
+    return history
+
+
+def test_osmm_picks_most_efficient_pair_holds_the_other_and_respects_bounds():
+    groups = boiler_groups(3, 2)
+    bounds = Bounds(0.5, 1.0, -0.02, 0.02)
+    controller = OSMMGPC(groups, exact_models(groups), ARXStructure(1, 1), [0.75] * 3, move_weight=0.5, bounds=bounds, adapt=False)
+    history = simulate(controller)
+    efficiencies = [regulating_efficiency(controller.active_model(g)) for g in range(3)]
+    assert controller.group == int(np.argmax(efficiencies)) == 1  # boilers 1 and 3 have the largest gains
+    M = np.array([h[1] for h in history])
+    assert np.all(M[:, 1] == 0.75)  # boiler 2, never chosen, holds its firing
+    assert np.all(M >= 0.5 - 1e-9) and np.all(M <= 1.0 + 1e-9)
+    assert np.all(np.abs(np.diff(M, axis=0)) <= 0.02 + 1e-9)
+    assert np.all(np.isfinite(M))
+    assert np.allclose(history[-1][0], 8.75, atol=1e-3)  # the disturbance is rejected
+
+
+def test_osmm_with_fixed_pair_and_adaptation_stays_finite():
+    groups = boiler_groups(3, 2)
+    controller = OSMMGPC(groups, exact_models(groups), ARXStructure(1, 1), [0.75] * 3, bounds=Bounds(0.5, 1.0, -0.02, 0.02),
+                         fixed_group=0, adapt=True, omega=0.01)
+    history = simulate(controller)
+    M = np.array([h[1] for h in history])
+    assert np.all(M[:, 2] == 0.75) and np.all(np.isfinite(M))
+    assert {h[2] for h in history} == {0}
+
+
+def test_header_plant_efficiency_ordering_behind_the_papers_switching():
+    """§5.2: boiler 1 most efficient throughout; boiler 3 better than 2 at first, 2 better once 3 is loaded.
+    Our header's efficiency curves are built to have this ordering of marginal steam per fuel."""
+    p = HeaderParameters()
+    design = p.marginal_steam(np.full(3, 0.75))
+    assert design[0] > design[2] > design[1]
+    loaded3 = p.marginal_steam(np.array([0.9, 0.75, 0.9]))
+    assert loaded3[1] > loaded3[2]
+    plant = SteamHeader()
+    assert np.allclose(plant.pressures, 8.75) and plant.fuel.sum() == pytest.approx(16.2)  # Table 3's firing scale
