@@ -104,13 +104,12 @@ def stable_intervals(parameter: str, grid: np.ndarray, T4: float = 0.0) -> list[
     """Maximal runs of the grid on which the loop is stable (grid resolution)."""
     stable = [spectral_radius({parameter: value}, T4) < 1.0 for value in grid]
     runs, start = [], None
-    for value, ok in zip(grid, stable):
+    for i, (value, ok) in enumerate(zip(grid, stable)):
         if ok and start is None:
             start = value
         if not ok and start is not None:
-            runs.append((start, previous))
+            runs.append((start, grid[i - 1]))
             start = None
-        previous = value
     if start is not None:
         runs.append((start, grid[-1]))
     return runs

@@ -29,7 +29,7 @@ class StochasticLTI:
                  Q_eta: np.ndarray | None = None, noise_period: float = 1.0, seed: int = 0, t0: float = 0.0,
                  x0: np.ndarray | None = None) -> None:
         self.A, self.B, self.C, self.V = (np.atleast_2d(np.asarray(M, dtype=float)) for M in (A, B, C, V))
-        n, m, p = self.A.shape[0], self.B.shape[1], self.C.shape[0]
+        n, p = self.A.shape[0], self.C.shape[0]
         if self.A.shape != (n, n) or self.B.shape[0] != n or self.C.shape[1] != n or self.V.shape != (n, p):
             raise ValueError(f"StochasticLTI: shapes do not fit: A {self.A.shape}, B {self.B.shape}, "
                              f"C {self.C.shape}, V {self.V.shape}")

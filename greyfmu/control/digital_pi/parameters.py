@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 
 from greyfmu.control.digital_pi.design import DigitalPIDesign
 from greyfmu.control.digital_pi.errors import DesignError
