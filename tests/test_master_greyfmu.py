@@ -135,3 +135,12 @@ def test_info_lists_components_connections_and_parameters(capsys):
     out = capsys.readouterr().out
     assert "controller: PID.fmu (FMI 2.0, PythonFMU" in out
     assert "controller.u -> plant.u" in out and "controller.Kc = 8.0345" in out and "controller.ssv" in out
+
+
+def test_progress_bar_on_runs_longer_than_a_second(tmp_path, capsys):
+    """60 000 steps take well over a second: the bar appears on stderr (and not with --quiet)."""
+    args = ["run", SCENARIO, "--step", "0.005", "-o", str(tmp_path / "r.csv")]
+    assert main(args) == 0
+    assert "step/s" in capsys.readouterr().err
+    assert main(args + ["--quiet"]) == 0
+    assert "step/s" not in capsys.readouterr().err
