@@ -85,11 +85,8 @@ class GainScheduledPID(GreyfmuSlave):
             schedule,
             self.Ts,
             N=self.N,
-            u_min=self.u_min,
-            u_max=self.u_max,
-            du_max=self.du_max,
-            integral_mode=self.integral_mode,
-            u0=self.u0,
+            **self.output_limits(),
+            **self.integral_options(),
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)
 

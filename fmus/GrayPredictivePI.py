@@ -48,7 +48,7 @@ class GrayPredictivePI(GreyfmuSlave):
     def build(self) -> None:
         self.controller = Controller(
             self.Kc, self.Ti, self.Ts, n=self.n, m=self.m, ph=self.ph, B=self.B, a_min=self.a_min,
-            u_min=self.u_min, u_max=self.u_max, du_max=self.du_max, integral_mode=self.integral_mode, u0=self.u0,
+            **self.output_limits(), **self.integral_options(),
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)
 

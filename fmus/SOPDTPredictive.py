@@ -88,9 +88,7 @@ class SOPDTPredictive(GreyfmuSlave):
             X_p=self.X_p,
             law=self.law,
             T_ref=self.T_ref,
-            u_min=self.u_min,
-            u_max=self.u_max,
-            du_max=self.du_max,
+            **self.output_limits(),
             u0=self.u0,
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)

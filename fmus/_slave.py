@@ -103,6 +103,14 @@ class GreyfmuSlave(Fmi2Slave):
         self.parameter("u_max", 1e10, "Upper output limit")
         self.parameter("du_max", 0.0, "Output rate limit in units of u per second (0 = none)", minimum=0.0)
 
+    def output_limits(self) -> dict[str, float]:
+        """The values of `output_limit_parameters`, as keyword arguments of the greyfmu controllers."""
+        return {"u_min": self.u_min, "u_max": self.u_max, "du_max": self.du_max}
+
+    def integral_options(self) -> dict[str, float | int]:
+        """The values of `integral_parameters`, as keyword arguments of the greyfmu controllers."""
+        return {"integral_mode": self.integral_mode, "u0": self.u0}
+
     def integral_parameters(self) -> None:
         """integral_mode and u0 of the PI(D) controller FMUs: the thesis's (2.10)-(2.12)."""
         self.parameter(
