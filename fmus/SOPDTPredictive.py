@@ -3,10 +3,10 @@
 import math
 from typing import Any
 
-from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Variability
+from pythonfmu import DefaultExperiment, Fmi2Variability
 from pythonfmu.enums import Fmi2Status
 
-from _slave import REQUIREMENTS, GreyfmuSlave, RealVariable
+from _slave import REQUIREMENTS, GreyfmuSlave
 from greyfmu.control import SOPDTPredictive as SOPDTPredictiveController
 from greyfmu.signals import SampleClock
 
@@ -51,29 +51,10 @@ class SOPDTPredictive(GreyfmuSlave):
 
     def tunable(self, name: str, start: float, description: str, unit: str | None = None) -> None:
         """Declare a tunable Real parameter; set during the run, it re-runs the off-line design (paper §2)."""
-        self._claim(name)
-        setattr(self, name, start)
+        self.parameter(name, start, description, unit=unit, retune=self._retune)
 
-        def setter(value: float) -> None:
-            if self._built:  # a running controller: re-design now; before that, build() reads the attribute
-                try:
-                    self.controller.retune(**{name: value})
-                except ValueError as refusal:
-                    self.log(f"{self.instance_name}: {refusal}; {name} stays {getattr(self, name)}", Fmi2Status.warning)
-                    return
-            setattr(self, name, value)
-
-        self.register_variable(
-            RealVariable(
-                name,
-                start=start,
-                description=description,
-                causality=Fmi2Causality.parameter,
-                variability=Fmi2Variability.tunable,
-                setter=setter,
-                type_attributes={} if unit is None else {"unit": unit},
-            )
-        )
+    def _retune(self, name: str, value: float) -> None:
+        self.controller.retune(**{name: value})
 
     def build(self) -> None:
         self.controller = SOPDTPredictiveController(

@@ -75,14 +75,29 @@ class GreyfmuSlave(Fmi2Slave):
         unit: str | None = None,
         minimum: float | None = None,
         maximum: float | None = None,
+        retune: Callable[[str, float], None] | None = None,
     ) -> None:
-        """Declare a fixed parameter; an ``int`` start makes it an FMI Integer."""
+        """Declare a parameter; an ``int`` start makes it an FMI Integer.
+
+        Without ``retune`` it is fixed: setting it makes the next use rebuild the greyfmu
+        objects.  With ``retune`` it is tunable: set during a run, ``retune(name, value)``
+        applies it to the running objects; a ValueError from it refuses the value (logged as a
+        warning, the old value stays; raising into pythonfmu would be fmi2Fatal).
+        """
         self._claim(name)
         setattr(self, name, start)
 
         def setter(value: float | int) -> None:
+            if retune is None or not self._built:
+                setattr(self, name, value)
+                self._built = False
+                return
+            try:
+                retune(name, value)
+            except ValueError as refusal:
+                self.log(f"{self.instance_name}: {refusal}; {name} stays {getattr(self, name)}", Fmi2Status.warning)
+                return
             setattr(self, name, value)
-            self._built = False
 
         variable_type = IntegerVariable if isinstance(start, int) else RealVariable
         self.register_variable(
@@ -91,7 +106,7 @@ class GreyfmuSlave(Fmi2Slave):
                 start=start,
                 description=description,
                 causality=Fmi2Causality.parameter,
-                variability=Fmi2Variability.fixed,
+                variability=Fmi2Variability.fixed if retune is None else Fmi2Variability.tunable,
                 setter=setter,
                 type_attributes=_type_attributes(unit, minimum, maximum),
             )
