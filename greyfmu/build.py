@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 import tempfile
 import zipfile
 from collections.abc import Callable, Iterable
@@ -110,7 +111,12 @@ def provide_fmu(file_name: str) -> Path | None:
     name = Path(file_name)
     if name.suffix != ".fmu" or not FMU_SOURCES.is_dir() or name.stem not in fmu_names():
         return None
-    return build_fmus([name.stem])[0]
+
+    def report(line: str) -> None:
+        if ": built" in line:
+            print(f"greyfmu: {line}", file=sys.stderr)
+
+    return build_fmus([name.stem], echo=report)[0]
 
 
 def _build_one(script: Path, fmu: Path) -> None:
