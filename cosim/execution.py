@@ -85,7 +85,7 @@ class _Typed:
         in_index = {(c, v.name): i for i, (c, v) in enumerate(ins)}
         routes = [r for r in plan.routes if r.src_var.type == type_name]
         self.routes_into: dict[str | None, tuple] = {None: self._routing(routes, out_index, in_index)}
-        for comp in set(plan.feedthrough_sequence) | set(order):
+        for comp in order:  # feedthrough and Gauss–Seidel route into one component at a time
             self.routes_into[comp] = self._routing([r for r in routes if r.dst == comp], out_index, in_index)
         self.ctype = ctype
 

@@ -37,10 +37,6 @@ class FMUDescription:
     #: An output without a ``dependencies`` attribute depends on every input (FMI 2.0 §2.2.8).
     output_dependencies: dict[str, list[str]]
 
-    @property
-    def inputs(self) -> list[str]:
-        return [v.name for v in self.md.modelVariables if v.causality == "input"]
-
     def variable(self, name: str, where: str, file: str) -> ModelVariable:
         try:
             return self.variables[name]
