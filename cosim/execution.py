@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import RunError, SetupError
-from .fmu import STATUS, Instance, Unzipped
+from .fmu import STATUS, Instance, Unzipped, open_instance
 from .graph import Plan
 from .observers import Recorder
 
@@ -147,7 +147,7 @@ class Execution:
     def instantiate(self) -> None:
         for name in self.order:
             desc = self.plan.fmus[name]
-            inst = Instance(name, desc, self._unzipped(desc.path))
+            inst = open_instance(name, desc, self._unzipped(desc.path))
             self.instances[name] = inst
             inst.instantiate(self.fmu_log)
         self._compile_calls()
@@ -176,23 +176,19 @@ class Execution:
     def initialize(self) -> None:
         t0, stop = self.grid.start, self.grid.stop
         for name, inst in self.instances.items():
-            self._guard(name, t0, "fmi2SetupExperiment", lambda: inst.slave.setupExperiment(startTime=t0,
-                                                                                            stopTime=stop))
+            self._guard(name, t0, "setting up the experiment", lambda: inst.setup_experiment(t0, stop))
         for sv in self.plan.start_values:
             inst = self.instances[sv.component]
-            setter = {"Real": inst.slave.setReal, "Integer": inst.slave.setInteger,
-                      "Boolean": inst.slave.setBoolean, "String": inst.slave.setString}[sv.variable.type]
-            value = sv.value.encode() if sv.variable.type == "String" else sv.value
             self._guard(sv.component, t0, f"setting {sv.variable.name} = {sv.value} (from {sv.origin})",
-                        lambda: setter([sv.variable.valueReference], [value]))
+                        lambda: inst.set_start(sv.variable, sv.value))
         for name, inst in self.instances.items():
-            self._guard(name, t0, "fmi2EnterInitializationMode", inst.slave.enterInitializationMode)
+            self._guard(name, t0, "entering initialization mode", inst.enter_initialization_mode)
         for comp in self.order:  # unconnected inputs keep the FMU's (or the binding's) start value
             for call in self._get_inputs[comp]:
                 self._check(call[0](*call[1:]), comp, t0, "fmi2Get (inputs)")
         self._exchange(t0)
         for name, inst in self.instances.items():
-            self._guard(name, t0, "fmi2ExitInitializationMode", inst.slave.exitInitializationMode)
+            self._guard(name, t0, "exiting initialization mode", inst.exit_initialization_mode)
         self._exchange(t0)
 
     def _guard(self, comp: str, t: float, what: str, call) -> None:

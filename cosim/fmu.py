@@ -1,9 +1,13 @@
 """FMUs as the master sees them: their model description, checked, and live instances.
 
-`describe` reads and checks a model description (FMI 2.0, Co-Simulation, a
-GUID); `Instance` wraps fmpy's `FMU2Slave` and exposes the raw ctypes FMI
-functions the execution calls on preallocated arrays, plus the log messages
-the FMU sent (kept so a failure can be explained).
+`describe` reads and checks a model description and decides which interface
+the master drives (`FMUDescription.kind`): an FMI 2.0 Co-Simulation FMU
+(``fmi2-cs``), an FMI 3.0 Co-Simulation FMU (``fmi3-cs``, cosim.fmi3) or an
+FMI 2.0 Model Exchange FMU integrated by the master (``fmi2-me``, cosim.me).
+`open_instance` returns the matching instance.  Every instance offers the
+same small interface to the execution (see `Instance`): raw ctypes-callable
+``do_step``/``get``/``set`` for the hot loop and a handful of set-up calls,
+plus the log messages the FMU sent (kept so a failure can be explained).
 """
 from __future__ import annotations
 
@@ -27,15 +31,26 @@ FMU_LOG_LEVELS = ("errors", "all", "off")
 STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 
 
+#: SSP 1.0 Component ``implementation`` values (SystemStructureDescription.xsd).
+IMPLEMENTATIONS = ("any", "CoSimulation", "ModelExchange")
+
+
 @dataclass
 class FMUDescription:
-    """A checked FMI 2.0 Co-Simulation model description."""
+    """A checked model description and the interface the master drives it through."""
     path: Path
     md: ModelDescription
     variables: dict[str, ModelVariable]
     #: For each output: the inputs it depends on at the same instant (FMI 2.0 ModelStructure).
     #: An output without a ``dependencies`` attribute depends on every input (FMI 2.0 §2.2.8).
     output_dependencies: dict[str, list[str]]
+    #: "fmi2-cs", "fmi3-cs" or "fmi2-me"
+    kind: str = "fmi2-cs"
+
+    @property
+    def model_identifier(self) -> str:
+        interface = self.md.modelExchange if self.kind == "fmi2-me" else self.md.coSimulation
+        return interface.modelIdentifier
 
     def variable(self, name: str, where: str, file: str) -> ModelVariable:
         try:
@@ -46,25 +61,23 @@ class FMUDescription:
                              hint=did_you_mean(name, self.variables)) from None
 
 
-_cache: dict[Path, FMUDescription] = {}
+_cache: dict[tuple[Path, str], FMUDescription] = {}
 
 
-def describe(path: Path, where: str, file: str) -> FMUDescription:
-    """Read and check an FMU's model description; ``where``/``file`` say who refers to it."""
+def describe(path: Path, where: str, file: str, implementation: str = "any") -> FMUDescription:
+    """Read and check an FMU's model description; ``where``/``file`` say who refers to it and
+    ``implementation`` is the SSD Component's choice of interface (SSP 1.0: any,
+    CoSimulation, ModelExchange; "any" prefers Co-Simulation when the FMU has both)."""
     path = path.resolve()
-    if path in _cache and _cache[path].path.stat().st_mtime == path.stat().st_mtime:
-        return _cache[path]
+    key = (path, implementation)
+    if key in _cache and _cache[key].path.stat().st_mtime == path.stat().st_mtime:
+        return _cache[key]
     try:
         md = fmpy.read_model_description(str(path), validate=True)
     except Exception as e:  # fmpy raises several types for unreadable or invalid FMUs
         raise SetupError(f"cannot read the model description of {path.name}: {e}", file=file,
                          element=where) from None
-    if md.fmiVersion != "2.0":
-        raise SetupError(f"{path.name} is an FMI {md.fmiVersion} FMU; this master runs FMI 2.0 "
-                         "Co-Simulation FMUs.", file=file, element=where)
-    if md.coSimulation is None:
-        raise SetupError(f"{path.name} has no Co-Simulation interface (Model Exchange only); this master "
-                         "runs Co-Simulation FMUs.", file=file, element=where)
+    kind = _kind(md, path, implementation, where, file)
     if not md.guid or not md.guid.strip():
         raise SetupError(f"{path.name} has an empty GUID in its modelDescription.xml; an FMU without a GUID "
                          "cannot be instantiated.", file=file, element=where)
@@ -79,9 +92,46 @@ def describe(path: Path, where: str, file: str) -> FMUDescription:
     for v in md.modelVariables:
         if v.causality == "output" and v.name not in deps:
             deps[v.name] = list(inputs)
-    desc = FMUDescription(path=path, md=md, variables=variables, output_dependencies=deps)
-    _cache[path] = desc
+    desc = FMUDescription(path=path, md=md, variables=variables, output_dependencies=deps, kind=kind)
+    _cache[key] = desc
     return desc
+
+
+def _kind(md: ModelDescription, path: Path, implementation: str, where: str, file: str) -> str:
+    """The interface the master drives: the SSD's ``implementation`` if the FMU has it, else
+    Co-Simulation when present, else Model Exchange (FMI 2.0 only)."""
+    if implementation not in IMPLEMENTATIONS:
+        raise SetupError(f"implementation='{implementation}' is not one of {', '.join(IMPLEMENTATIONS)} "
+                         "(SSP 1.0 Component).", file=file, element=where)
+    if md.fmiVersion not in ("2.0", "3.0"):
+        raise SetupError(f"{path.name} is an FMI {md.fmiVersion} FMU; this master runs FMI 2.0 and 3.0 FMUs.",
+                         file=file, element=where)
+    has_cs, has_me = md.coSimulation is not None, md.modelExchange is not None
+    if implementation == "CoSimulation" and not has_cs:
+        raise SetupError(f"implementation='CoSimulation' but {path.name} has no Co-Simulation interface.",
+                         file=file, element=where)
+    if implementation == "ModelExchange" and not has_me:
+        raise SetupError(f"implementation='ModelExchange' but {path.name} has no Model Exchange interface.",
+                         file=file, element=where)
+    use_me = implementation == "ModelExchange" or (implementation == "any" and not has_cs)
+    if md.fmiVersion == "3.0":
+        if use_me:
+            raise SetupError(f"{path.name} would run through its FMI 3.0 Model Exchange interface; this master "
+                             "hosts Model Exchange FMUs of FMI 2.0 and FMI 3.0 Co-Simulation FMUs.",
+                             file=file, element=where)
+        return "fmi3-cs"
+    return "fmi2-me" if use_me else "fmi2-cs"
+
+
+def open_instance(name: str, desc: FMUDescription, unzip_dir: str) -> "Instance":
+    """The live instance for ``desc.kind`` (not yet instantiated)."""
+    if desc.kind == "fmi3-cs":
+        from .fmi3 import FMI3Instance
+        return FMI3Instance(name, desc, unzip_dir)
+    if desc.kind == "fmi2-me":
+        from .me import MEInstance
+        return MEInstance(name, desc, unzip_dir)
+    return Instance(name, desc, unzip_dir)
 
 
 def unit_of(v: ModelVariable) -> str | None:
@@ -125,7 +175,19 @@ def _callbacks() -> fmi2CallbackFunctions:
 
 
 class Instance:
-    """One live FMU instance with raw FMI 2.0 functions for the hot loop."""
+    """One live FMI 2.0 Co-Simulation instance with raw FMI functions for the hot loop.
+
+    The interface every instance kind offers the execution:
+
+    * ``do_step(component, t, h, no_prior_state) -> status`` and, per exchange type
+      ("Real", "Integer", "Boolean"), ``get[type](component, vrs, n, values) -> status`` and
+      ``set[type](...)``: called with ctypes arrays of value references and values
+      (c_double for Real, c_int for Integer and Boolean, as fmi2 declares them);
+    * ``component`` (the handle passed back to those calls), ``failed`` (the FMI status name
+      after an Error/Fatal, else None), ``messages``;
+    * ``instantiate``, ``setup_experiment``, ``set_start``, ``enter_initialization_mode``,
+      ``exit_initialization_mode``, ``free`` (these raise on a status above Warning).
+    """
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
         self.name = name
@@ -133,7 +195,7 @@ class Instance:
         self.messages: collections.deque[str] = collections.deque(maxlen=20)
         md = desc.md
         self.slave = FMU2Slave(guid=md.guid, unzipDirectory=unzip_dir,
-                               modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+                               modelIdentifier=desc.model_identifier, instanceName=name)
         _LOG_TARGETS[name] = self.messages
         raw = self.slave._functions
         self.do_step = raw["fmi2DoStep"]
@@ -161,6 +223,24 @@ class Instance:
         status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
         if fmu_log == "errors" and status_categories:
             self.slave.setDebugLogging(True, status_categories)
+
+    def setup_experiment(self, start: float, stop: float) -> None:
+        self.slave.setupExperiment(startTime=start, stopTime=stop)
+
+    def set_start(self, variable: ModelVariable, value: float | int | bool | str) -> None:
+        """Set a parameter or start value before initialisation (FMI 2.0 §2.2.7)."""
+        vr = [variable.valueReference]
+        if variable.type == "String":
+            self.slave.setString(vr, [str(value).encode()])
+        else:
+            {"Real": self.slave.setReal, "Integer": self.slave.setInteger,
+             "Boolean": self.slave.setBoolean}[variable.type](vr, [value])
+
+    def enter_initialization_mode(self) -> None:
+        self.slave.enterInitializationMode()
+
+    def exit_initialization_mode(self) -> None:
+        self.slave.exitInitializationMode()
 
     def last_messages(self) -> str:
         return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
