@@ -7,6 +7,15 @@
 The master runs any FMU (it never imports the packages that built them).
 """
 from .errors import CosimError, RunError, SetupError
-from .simulation import prepare, simulate
 
 __all__ = ["simulate", "prepare", "CosimError", "SetupError", "RunError"]
+
+
+def __getattr__(name: str):
+    """`simulate` and `prepare` are imported on first use (PEP 562), so that a submodule that
+    needs no FMU machinery stays cheap to import: the pytest plugin `cosim.pytest_plugin` is
+    loaded into every pytest session of anyone who installs the package."""
+    if name in ("simulate", "prepare"):
+        from . import simulation
+        return getattr(simulation, name)
+    raise AttributeError(f"module 'cosim' has no attribute {name!r}")

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from .errors import CosimError, RunError, SetupError
+from .safeio import parse_size, unpack_limit
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -21,6 +22,8 @@ def _parser() -> argparse.ArgumentParser:
         sp.add_argument("path", help="scenario folder (SystemStructure.ssd), .ssd file or .ssp archive")
         sp.add_argument("--fmu-dir", action="append", default=[], metavar="DIR",
                         help="folder to look in for FMUs the scenario does not carry (repeatable)")
+        sp.add_argument("--max-unpacked", metavar="SIZE", help="most an .ssp archive may expand to, e.g. 4G "
+                        "(default: $COSIM_MAX_UNPACKED_BYTES or 2G)")
         sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
 
     run = sub.add_parser("run", help="run a system and write CSV results (and a plot)")
@@ -31,7 +34,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="default: jacobi")
     run.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                      help="parameter set applied last, names 'component.variable' (repeatable)")
-    run.add_argument("--output", "-o", metavar="CSV", help="result CSV (default: results/<name>.csv)")
+    run.add_argument("--output", "-o", metavar="FILE",
+                     help="result CSV, or Parquet for a .parquet name (default: results/<name>.csv)")
     run.add_argument("--plot", metavar="PNG", help="write a plot of --signals")
     run.add_argument("--signals", nargs="+", metavar="GLOB",
                      help="signals to plot, one panel per argument; 'a,b' overlays a and b in one panel "
@@ -63,19 +67,50 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--rtol", type=float, default=1e-6)
     compare.add_argument("--atol", type=float, default=1e-9)
     compare.add_argument("--signals", nargs="+", metavar="GLOB", help="signals to compare (default: all)")
+    compare.add_argument("--tolerance", action="append", default=[], metavar="GLOB=RTOL,ATOL",
+                         help="tolerances of the signals matching GLOB, e.g. 'plant.y=1e-6,1e-9' (repeatable; "
+                              "the most specific match wins, others get --rtol/--atol)")
     compare.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
 
     pack = sub.add_parser("pack", help="pack a scenario folder into a standard .ssp archive")
     common(pack)
     pack.add_argument("-o", "--output", required=True, metavar="X.ssp")
+
+    sweep = sub.add_parser("sweep", help="run every combination of parameter values (and seeds) in parallel")
+    common(sweep)
+    sweep.add_argument("--set", action="append", default=[], metavar="NAME=V1,V2", dest="sets",
+                       help="values of a parameter 'component.variable', typed by the FMU variable; an item "
+                            "START:STOP:COUNT is COUNT values evenly spaced (repeatable; the product is run)")
+    sweep.add_argument("--seeds", metavar="1..20|1,5,9",
+                       help="seeds, one run per seed and combination, set on every parameter named 'seed'")
+    sweep.add_argument("--seed-parameter", action="append", default=[], metavar="COMP.VAR",
+                       help="the parameter(s) --seeds sets (default: every component's 'seed')")
+    sweep.add_argument("--metrics", nargs="+", default=[], metavar="SIGNAL:SETPOINT",
+                       help="step metrics per run (IAE, ISE, ITAE, overshoot, rise and settling time), "
+                            "e.g. plant.y:setpoint.y")
+    sweep.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
+                       help="parameter set applied to every run before the swept values (repeatable)")
+    sweep.add_argument("--start", type=float, help="start time [s] (default: DefaultExperiment or 0)")
+    sweep.add_argument("--stop", type=float, help="stop time [s] (default: DefaultExperiment)")
+    sweep.add_argument("--step", type=float, help="communication step [s] (default: SSD annotation)")
+    sweep.add_argument("--workers", type=int, metavar="N", help="processes of the local pool (default: one per core)")
+    sweep.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on a Dask distributed cluster (tcp://host:8786), or 'local:N' for a local "
+                            "Dask cluster of N worker processes")
+    sweep.add_argument("--output", "-o", metavar="DIR",
+                       help="folder for sweep.csv, sweep.parquet and runs/ (default: results/<name>_sweep)")
+    sweep.add_argument("--force", action="store_true", help="rerun runs already done")
+    sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
-                "compare": _compare}[args.command](args)
+        limit = getattr(args, "max_unpacked", None)
+        with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None):
+            return {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
+                    "compare": _compare, "sweep": _sweep}[args.command](args)
     except SetupError as e:
         if args.debug:
             raise
@@ -104,6 +139,7 @@ def _run(args) -> int:
         name = structure.name or Path(args.path).stem
         output = Path(args.output or Path("results") / f"{name}.csv")
         outputs = [f"{c}.{v.name}" for c, vs in prepared.plan.outputs.items() for v in vs]
+        outputs += list(structure.system_outputs)
         inputs = [f"{c}.{v.name}" for c, vs in prepared.plan.inputs.items() for v in vs]
         panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
                   else [[n] for n in outputs])
@@ -112,7 +148,8 @@ def _run(args) -> int:
               f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
               f"{prepared.algorithm}")
         try:
-            result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log)
+            result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
+                                   keep=[n for panel in panels for n in panel] if args.plot else [])
         except RunError:
             print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
             raise
@@ -149,6 +186,7 @@ def _prepare_without_grid(args, prepare):
 
 
 def _info(args) -> int:
+    from .me import solver_settings
     from .simulation import prepare
 
     prepared = _prepare_without_grid(args, prepare)
@@ -157,10 +195,20 @@ def _info(args) -> int:
     print(f"system {s.name!r} ({s.ssd_file})")
     print(f"  experiment: start {s.start_time}, stop {s.stop_time}, step {s.step_size} "
           f"({s.step_size_source or 'none in the SSD'}), algorithm {s.algorithm or 'jacobi'}")
+    if s.hierarchy is not None and (s.hierarchy.systems or s.hierarchy.connectors):
+        print(f"hierarchy (names are paths relative to the root system '{s.system_name}'):")
+        _print_system(s.hierarchy, 1)
+        for o in s.system_outputs.values():
+            tf = f" (x{o.factor:g} {o.offset:+g})" if (o.factor, o.offset) != (1.0, 0.0) else ""
+            print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}")
     print("components:")
     for name, desc in plan.fmus.items():
         print(f"  {name}: {desc.path.name} (FMI {desc.md.fmiVersion}, {desc.md.generationTool}, "
               f"GUID {desc.md.guid})")
+        solver = solver_settings(desc, s.components[name].solver) if desc.kind == "fmi2-me" else None
+        print(f"    interface {desc.kind} (implementation=\"{s.components[name].implementation}\")"
+              + (f", integrated by the master: {solver.method}, rtol {solver.rtol:g}, max step "
+                 f"{solver.as_dict()['max_step']}" if solver else ""))
         for v in plan.inputs[name] + plan.outputs[name]:
             print(f"    {v.causality:6} {v.type:7} {v.name}" + (f" [{v.unit}]" if v.unit else ""))
     print("connections:")
@@ -174,6 +222,16 @@ def _info(args) -> int:
         print("direct feedthrough resolved at each step in the order: " + ", ".join(plan.feedthrough_sequence))
     prepared.close()
     return 0
+
+
+def _print_system(node, depth: int) -> None:
+    """One line per system (with its connectors) and per component, indented by depth."""
+    connectors = ", ".join(f"{c.kind} {c.name}" for c in node.connectors)
+    print("  " * depth + f"{node.path or node.name} (system{': ' + connectors if connectors else ''})")
+    for comp in node.components:
+        print("  " * (depth + 1) + comp)
+    for sub in node.systems:
+        _print_system(sub, depth + 1)
 
 
 def _pack(args) -> int:
@@ -221,18 +279,43 @@ def _metrics(args) -> int:
 
 
 def _compare(args) -> int:
-    from .metrics import compare
+    from .metrics import compare, parse_tolerance
     from .simulation import select
 
     a, b = _read_result(args.reference), _read_result(args.candidate)
     signals = select([n for n in a.dtype.names if n != "time"], args.signals) if args.signals else None
-    diffs = compare(a, b, signals=signals, rtol=args.rtol, atol=args.atol)
+    tolerances = dict(parse_tolerance(text) for text in args.tolerance)
+    diffs = compare(a, b, signals=signals, rtol=args.rtol, atol=args.atol, tolerances=tolerances)
     failed = [d for d in diffs if not d.ok]
     for d in diffs:
         print(f"  {'ok  ' if d.ok else 'DIFF'} {d.signal}: max |diff| {d.max_abs:.3g}, max rel {d.max_rel:.3g}")
+        if not d.ok:
+            print(f"       {d.describe()}")
     print(f"cosim: {len(diffs) - len(failed)} of {len(diffs)} signals agree within rtol {args.rtol:g}, "
           f"atol {args.atol:g}")
     return 1 if failed else 0
+
+
+def _sweep(args) -> int:
+    from .sweep import parse_seeds, parse_set, sweep
+
+    sets = dict(parse_set(text) for text in args.sets)
+    seeds = parse_seeds(args.seeds) if args.seeds else []
+    if not sets and not seeds:
+        raise SetupError("nothing to sweep: give --set NAME=V1,V2 and/or --seeds.", element="cosim sweep")
+    if args.workers is not None and args.workers < 1:
+        raise SetupError(f"--workers {args.workers}: give at least 1.", element="--workers")
+    output = Path(args.output or Path("results") / f"{Path(args.path).stem}_sweep")
+    result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
+                   parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
+                   step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
+                   executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
+    for row in result.failed:
+        print(f"cosim: run {row['run_id']} failed: {row['message']}", file=sys.stderr)
+    print(f"cosim: sweep: {len(result.rows)} runs ({result.ran} run now, {result.skipped} already done and "
+          f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}, results in "
+          f"{output / 'runs'}")
+    return 1 if result.failed else 0
 
 
 if __name__ == "__main__":

@@ -29,11 +29,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import RunError, SetupError
-from .fmu import STATUS, Instance, Unzipped, open_instance
+from .fmu import STATUS, FMUDescription, Instance, Unzipped, exchange_type, open_instance
 from .graph import Plan
+from .me import solver_settings
 from .observers import Recorder
 
-TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int}
+#: exchange types (`cosim.fmu.exchange_type`) and their buffers' C types, as fmi2 declares them
+TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p}
 ALGORITHMS = ("jacobi", "gauss-seidel")
 FMI_WARNING, FMI_DISCARD = 1, 2
 
@@ -66,24 +68,32 @@ class Grid:
 
 
 class _Typed:
-    """Outputs (Y) and inputs (U) of one FMI type for all components, in ctypes memory."""
+    """Outputs (Y) and inputs (U) of one exchange type for all components, in ctypes memory.
+
+    Strings (char*) are not numbers: they are routed by a Python loop over the pairs of
+    buffer positions, never transformed, and not recorded (the recorder and the CSV hold
+    numeric signals only).  An FMU's string is valid only until its next FMI call (FMI 2.0
+    §2.1.7), so every string get is followed by a copy into memory the buffer owns (`get_call`).
+    """
 
     def __init__(self, plan: Plan, type_name: str, order: list[str]):
         ctype = TYPES[type_name]
         self.type_name = type_name
-        outs = [(c, v) for c in order for v in plan.outputs[c] if v.type == type_name]
-        ins = [(c, v) for c in order for v in plan.inputs[c] if v.type == type_name]
+        self.strings = type_name == "String"
+        outs = [(c, v) for c in order for v in plan.outputs[c] if exchange_type(v) == type_name]
+        ins = [(c, v) for c in order for v in plan.inputs[c] if exchange_type(v) == type_name]
         self.out_names = [f"{c}.{v.name}" for c, v in outs]
         self.in_names = [f"{c}.{v.name}" for c, v in ins]
         self.Ybuf = (ctype * max(1, len(outs)))()
         self.Ubuf = (ctype * max(1, len(ins)))()
-        self.Y = np.ctypeslib.as_array(self.Ybuf)[:len(outs)]
-        self.U = np.ctypeslib.as_array(self.Ubuf)[:len(ins)]
+        if not self.strings:
+            self.Y = np.ctypeslib.as_array(self.Ybuf)[:len(outs)]
+            self.U = np.ctypeslib.as_array(self.Ubuf)[:len(ins)]
         self.out_slices = self._slices(outs, order)
         self.in_slices = self._slices(ins, order)
         out_index = {(c, v.name): i for i, (c, v) in enumerate(outs)}
         in_index = {(c, v.name): i for i, (c, v) in enumerate(ins)}
-        routes = [r for r in plan.routes if r.src_var.type == type_name]
+        routes = [r for r in plan.routes if exchange_type(r.src_var) == type_name]
         self.routes_into: dict[str | None, tuple] = {None: self._routing(routes, out_index, in_index)}
         for comp in order:  # feedthrough and Gauss–Seidel route into one component at a time
             self.routes_into[comp] = self._routing([r for r in routes if r.dst == comp], out_index, in_index)
@@ -112,13 +122,31 @@ class _Typed:
         src, dst, factor, offset, identity = self.routes_into[comp]
         if len(src) == 0:
             return
-        if identity:
+        if self.strings:
+            Y, U = self.Ybuf, self.Ubuf
+            for i, j in zip(src.tolist(), dst.tolist()):
+                U[j] = Y[i]
+        elif identity:
             self.U[dst] = self.Y[src]
         else:
             self.U[dst] = self.Y[src] * factor + offset
 
     def pointer(self, buf, start: int):
         return ctypes.cast(ctypes.addressof(buf) + start * ctypes.sizeof(self.ctype), ctypes.POINTER(self.ctype))
+
+    def get_call(self, get, buf, start: int, n: int):
+        """The get function for the hot loop: ``get`` itself for numbers; for strings, ``get``
+        followed by copying the n strings into ``buf`` (reading a c_char_p item copies the
+        bytes, writing it back makes the array keep them)."""
+        if not self.strings:
+            return get
+
+        def get_owned(component, vrs, count, values) -> int:
+            status = get(component, vrs, count, values)
+            for i in range(start, start + n):
+                buf[i] = buf[i]
+            return status
+        return get_owned
 
 
 class Execution:
@@ -134,7 +162,7 @@ class Execution:
         self.fmu_log = fmu_log
         self.order = list(plan.structure.components)
         self.typed = [_Typed(plan, t, self.order) for t in TYPES
-                      if any(v.type == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
+                      if any(exchange_type(v) == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
         self.instances: dict[str, Instance] = {}
         self._unzipped = Unzipped()
         self.last_time = grid.start
@@ -148,6 +176,8 @@ class Execution:
         for name in self.order:
             desc = self.plan.fmus[name]
             inst = open_instance(name, desc, self._unzipped(desc.path))
+            if desc.kind == "fmi2-me":  # integrated by the master: the component's solver settings
+                inst.settings = solver_settings(desc, self.plan.structure.components[name].solver)
             self.instances[name] = inst
             inst.instantiate(self.fmu_log)
         self._compile_calls()
@@ -162,14 +192,14 @@ class Execution:
                 inst = self.instances[comp]
                 start, n, vr = ty.out_slices[comp]
                 if n:
-                    self._get[comp].append((inst.get[ty.type_name], inst.component, vr, n,
-                                            ty.pointer(ty.Ybuf, start)))
+                    self._get[comp].append((ty.get_call(inst.get[ty.type_name], ty.Ybuf, start, n),
+                                            inst.component, vr, n, ty.pointer(ty.Ybuf, start)))
                 start, n, vr = ty.in_slices[comp]
                 if n:
                     self._set[comp].append((inst.set[ty.type_name], inst.component, vr, n,
                                             ty.pointer(ty.Ubuf, start)))
-                    self._get_inputs[comp].append((inst.get[ty.type_name], inst.component, vr, n,
-                                                   ty.pointer(ty.Ubuf, start)))
+                    self._get_inputs[comp].append((ty.get_call(inst.get[ty.type_name], ty.Ubuf, start, n),
+                                                   inst.component, vr, n, ty.pointer(ty.Ubuf, start)))
         self._all_get = [call + (c,) for c in self.order for call in self._get[c]]
         self._all_set = [call + (c,) for c in self.order for call in self._set[c]]
 
@@ -207,6 +237,8 @@ class Execution:
             inst = self.instances[comp]
             if status >= 3:
                 inst.failed = STATUS.get(status, "Fatal")
+            if inst.desc.kind == "fmi3-cs":  # the call names are written as fmi2's in the hot loop
+                what = what.replace("fmi2", "fmi3", 1)
             raise RunError(f"{what} returned {STATUS.get(status, status)} at t = {t:g}.{inst.last_messages()}",
                            time=t, component=comp, status=status,
                            element=f"component '{comp}' ({inst.desc.path.name})")
@@ -245,6 +277,8 @@ class Execution:
     def recorder_sources(self) -> tuple[list[str], list[np.ndarray]]:
         names, arrays = [], []
         for ty in self.typed:
+            if ty.strings:
+                continue
             names += ty.out_names + ty.in_names
             arrays += [ty.Y, ty.U]
         return names, arrays
@@ -309,7 +343,8 @@ class Execution:
         inst = self.instances[comp]
         if status == FMI_DISCARD:
             self.status = "discarded"
-            self.message = (f"component '{comp}' ({inst.desc.path.name}) returned Discard from fmi2DoStep at "
+            step = "fmi3DoStep" if inst.desc.kind == "fmi3-cs" else "fmi2DoStep"
+            self.message = (f"component '{comp}' ({inst.desc.path.name}) returned Discard from {step} at "
                             f"t = {t:g}; the run ended at the last good time {self.last_time:g}."
                             f"{inst.last_messages()}")
             return True
@@ -321,6 +356,12 @@ class Execution:
             inst.free()
         self.instances.clear()
 
+    def _component_metadata(self, name: str, d: FMUDescription) -> dict:
+        meta = {"fmu": str(d.path), "guid": d.md.guid, "generation_tool": d.md.generationTool, "interface": d.kind}
+        if d.kind == "fmi2-me":  # integrated by the master (cosim.me)
+            meta["solver"] = solver_settings(d, self.plan.structure.components[name].solver).as_dict()
+        return meta
+
     def metadata(self) -> dict:
         return {
             "algorithm": self.algorithm,
@@ -329,8 +370,7 @@ class Execution:
             "start_time": self.grid.start, "stop_time": self.grid.stop, "step_size": self.grid.step,
             "status": self.status, "last_time": self.last_time, "message": self.message,
             "steps": self.grid.steps, "loop_seconds": self.loop_seconds,
-            "components": {name: {"fmu": str(d.path), "guid": d.md.guid, "generation_tool": d.md.generationTool}
-                           for name, d in self.plan.fmus.items()},
+            "components": {name: self._component_metadata(name, d) for name, d in self.plan.fmus.items()},
             "parameters": {f"{sv.component}.{sv.variable.name}": sv.value for sv in self.plan.start_values},
             "finished_at": _time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         }

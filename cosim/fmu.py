@@ -15,17 +15,20 @@ import atexit
 import collections
 import ctypes
 import os
+import re
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import fmpy
+from attrs import define, field as attrs_field
 from fmpy.fmi2 import (FMU2Slave, printLogMessage, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 from fmpy.model_description import ModelDescription, ModelVariable
 
 from .errors import SetupError, did_you_mean
+from .safeio import extract_archive
 
 FMU_LOG_LEVELS = ("errors", "all", "off")
 STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
@@ -52,13 +55,83 @@ class FMUDescription:
         interface = self.md.modelExchange if self.kind == "fmi2-me" else self.md.coSimulation
         return interface.modelIdentifier
 
+    #: Array elements named by connectors (``vector[2]``), by the value reference the master
+    #: gives them (not the FMU's; cosim.fmi3 maps it back to the array and the index).
+    elements: dict[int, ArrayElement] = field(default_factory=dict)
+
     def variable(self, name: str, where: str, file: str) -> ModelVariable:
-        try:
-            return self.variables[name]
-        except KeyError:
-            raise SetupError(f"the FMU {self.path.name} has no variable '{name}'.", file=file,
-                             element=where, variable=name,
-                             hint=did_you_mean(name, self.variables)) from None
+        """The variable called ``name``, or the element ``name`` names of an FMI 3.0 array."""
+        var = self.variables.get(name)
+        if var is not None:
+            return var
+        match = _ELEMENT.fullmatch(name)
+        if match is not None and match.group(1) in self.variables and self.variables[match.group(1)].dimensions:
+            return self._element(self.variables[match.group(1)], match.group(2), name, where, file)
+        raise SetupError(f"the FMU {self.path.name} has no variable '{name}'.", file=file,
+                         element=where, variable=name, hint=did_you_mean(name, self.variables))
+
+    def _element(self, array: ModelVariable, index_text: str, name: str, where: str, file: str) -> ArrayElement:
+        """One element of a one-dimensional FMI 3.0 array, 1-based as in Modelica and in the
+        FMI 2.0 structured names of scalarised arrays (``x[1]`` is the first element)."""
+        known = next((e for e in self.elements.values() if e.name == name), None)
+        if known is not None:
+            return known
+        if len(array.dimensions) != 1 or array.type == "String":
+            raise SetupError(f"'{array.name}' is a {len(array.dimensions)}-dimensional {array.type} array; only "
+                             "elements of one-dimensional numeric and Boolean arrays can be connected.",
+                             file=file, element=where, variable=name)
+        size = _dimension_size(array.dimensions[0])
+        if not index_text.strip().isdigit() or not 1 <= int(index_text) <= size:
+            raise SetupError(f"'{index_text}' is not an element of {array.name}, an array of {size} values in "
+                             f"{self.path.name}; elements are numbered {array.name}[1] .. {array.name}[{size}].",
+                             file=file, element=where, variable=name)
+        used = {v.valueReference for v in self.md.modelVariables} | set(self.elements)
+        vr = 0xFFFFFFFF
+        while vr in used:
+            vr -= 1
+        element = ArrayElement(name=name, valueReference=vr, type=array.type, description=array.description,
+                               causality=array.causality, variability=array.variability, initial=array.initial,
+                               declaredType=array.declaredType, unit=array.unit, min=array.min, max=array.max,
+                               array=array, index=int(index_text) - 1, size=size)
+        self.elements[vr] = element
+        for deps in self.output_dependencies.values():  # an input element is known as its array
+            if array.name in deps:
+                deps.append(name)
+        if array.name in self.output_dependencies:  # an output element depends on what its array does
+            self.output_dependencies[name] = list(self.output_dependencies[array.name])
+        return element
+
+
+@define(eq=False)
+class ArrayElement(ModelVariable):
+    """One element of an FMI 3.0 array variable, exchanged as a scalar of its own."""
+    array: ModelVariable = attrs_field(default=None, repr=False)
+    #: 0-based position in the array's values (FMI 3.0 serialises arrays row-major, §2.4.7.5)
+    index: int = 0
+    size: int = 1
+
+
+_ELEMENT = re.compile(r"(.+)\[([^\]]*)\]")
+
+
+def _dimension_size(dimension) -> int:
+    """A Dimension's extent: its ``start``, or the start of the structural parameter it names."""
+    if dimension.start is not None:
+        return int(dimension.start)
+    return int(dimension.variable.start)
+
+
+#: The exchange types of the master (the FMI 2.0 type names) for the FMI types it connects.
+_EXCHANGE_TYPES = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String",
+                   "Float64": "Real", "Int32": "Integer"}
+
+
+def exchange_type(variable: ModelVariable) -> str | None:
+    """How the master exchanges ``variable``: "Real" (C double), "Integer" (C int), "Boolean"
+    or "String", for FMI 2.0 variables of those types and FMI 3.0 Float64, Int32, Boolean and
+    String; None for the types it does not connect (FMI 2.0 Enumeration, FMI 3.0 Float32,
+    Int8..UInt64 but Int32, Enumeration, Binary, Clock)."""
+    return _EXCHANGE_TYPES.get(variable.type)
 
 
 _cache: dict[tuple[Path, str], FMUDescription] = {}
@@ -180,9 +253,9 @@ class Instance:
     The interface every instance kind offers the execution:
 
     * ``do_step(component, t, h, no_prior_state) -> status`` and, per exchange type
-      ("Real", "Integer", "Boolean"), ``get[type](component, vrs, n, values) -> status`` and
-      ``set[type](...)``: called with ctypes arrays of value references and values
-      (c_double for Real, c_int for Integer and Boolean, as fmi2 declares them);
+      ("Real", "Integer", "Boolean", "String"), ``get[type](component, vrs, n, values) -> status``
+      and ``set[type](...)``: called with ctypes arrays of value references and values
+      (c_double for Real, c_int for Integer and Boolean, char* for String, as fmi2 declares them);
     * ``component`` (the handle passed back to those calls), ``failed`` (the FMI status name
       after an Error/Fatal, else None), ``messages``;
     * ``instantiate``, ``setup_experiment``, ``set_start``, ``enter_initialization_mode``,
@@ -200,9 +273,9 @@ class Instance:
         raw = self.slave._functions
         self.do_step = raw["fmi2DoStep"]
         self.get = {"Real": raw["fmi2GetReal"], "Integer": raw["fmi2GetInteger"],
-                    "Boolean": raw["fmi2GetBoolean"]}
+                    "Boolean": raw["fmi2GetBoolean"], "String": raw["fmi2GetString"]}
         self.set = {"Real": raw["fmi2SetReal"], "Integer": raw["fmi2SetInteger"],
-                    "Boolean": raw["fmi2SetBoolean"]}
+                    "Boolean": raw["fmi2SetBoolean"], "String": raw["fmi2SetString"]}
         self.component = None
         self.failed: str | None = None
 
@@ -246,22 +319,33 @@ class Instance:
         return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
 
     def free(self) -> None:
-        """End the instance as the FMI 2.0 state machine allows after its last status:
-        terminate and free after OK/Warning/Discard, only free after Error, nothing after
-        Fatal ("it is not possible to call any other function", FMI 2.0 §2.1.3; freeing a
-        pythonfmu instance after Fatal corrupted the interpreter's memory here)."""
-        if self.component is not None and self.failed != "Fatal":
-            if self.failed is None:
-                try:
-                    self.slave.terminate()
-                except Exception:  # fmi2Terminate refused: the instance is still freed
-                    pass
-            self.slave.fmi2FreeInstance(self.component)
-            release_pythonfmu_state(self.slave.dll)
-            self.slave.freeLibrary()
-        self.component = None
+        end_instance(self, lambda: self.slave.fmi2FreeInstance(self.component))
         if _LOG_TARGETS.get(self.name) is self.messages:
             del _LOG_TARGETS[self.name]
+
+
+def end_instance(inst, free_instance) -> None:
+    """End an instance as the FMI state machine allows after its last status: terminate and
+    free after OK/Warning/Discard, only free after Error, nothing after Fatal ("it is not
+    possible to call any other function", FMI 2.0 §2.1.3, FMI 3.0 §2.3.1; freeing a pythonfmu
+    instance after Fatal corrupted the interpreter's memory here).  Then release the pythonfmu
+    interpreter state (`release_pythonfmu_state`), unload the library and forget the FMU's
+    ``resources`` folder, which pythonfmu and pythonfmu3 put on the host's ``sys.path`` at
+    every instantiation and never take off: our FMUs embed a copy of ``greyfmu`` there, and a
+    later ``import greyfmu.build`` in this process (or in a worker spawned from it, which
+    inherits ``sys.path``) would find that copy instead of the installed package."""
+    if inst.component is not None and inst.failed != "Fatal":
+        if inst.failed is None:
+            try:
+                inst.slave.terminate()
+            except Exception:  # terminate refused: the instance is still freed
+                pass
+        free_instance()
+        release_pythonfmu_state(inst.slave.dll)
+        inst.slave.freeLibrary()
+    inst.component = None
+    resources = os.path.join(inst.slave.unzipDirectory, "resources")
+    sys.path[:] = [entry for entry in sys.path if os.path.normpath(entry) != os.path.normpath(resources)]
 
 
 def release_pythonfmu_state(library: ctypes.CDLL) -> bool:
@@ -312,7 +396,9 @@ if sys.platform.startswith("linux"):
 
 class Unzipped:
     """Extracts each FMU file once per process (keyed by path, size and mtime), so repeated
-    runs of the same system (tests, sweeps, benchmarks) do not unzip again."""
+    runs of the same system (tests, sweeps, benchmarks) do not unzip again.  FMUs are
+    archives from elsewhere: `cosim.safeio.extract_archive` checks member names, the
+    compression ratio and the expanded size (the `--max-unpacked` limit) as it extracts."""
 
     _tmp: tempfile.TemporaryDirectory | None = None
     _dirs: dict[tuple, str] = {}
@@ -325,5 +411,7 @@ class Unzipped:
             if Unzipped._tmp is None:
                 Unzipped._tmp = tempfile.TemporaryDirectory(prefix="cosim-fmu-")
             target = Path(Unzipped._tmp.name) / str(len(Unzipped._dirs))
-            Unzipped._dirs[key] = fmpy.extract(str(path), unzipdir=str(target))
+            target.mkdir()
+            extract_archive(path, target, required="modelDescription.xml")  # size, names, ratio checked
+            Unzipped._dirs[key] = str(target)
         return Unzipped._dirs[key]

@@ -14,16 +14,29 @@ from dataclasses import dataclass, field
 from fmpy.model_description import ModelVariable
 
 from .errors import SetupError, did_you_mean
-from .fmu import FMUDescription, describe, unit_of
+from .flatten import bind_system_connectors
+from .fmu import ArrayElement, FMUDescription, describe, exchange_type, unit_of
+from .me import check_model_exchange
 from .ssp import Connection, ParameterValue, SystemStructure
+from .units import (
+    IDENTITY,
+    Affine,
+    SystemUnits,
+    UnitScope,
+    check_agree,
+    conversion,
+    fmu_units,
+    then,
+)
 
-SUPPORTED_TYPES = ("Real", "Integer", "Boolean")
 SETTABLE_CAUSALITIES = ("parameter", "input")
 
 
 @dataclass
 class Route:
-    """One connection, resolved: output (src) to input (dst), with its linear transformation."""
+    """One connection, resolved: output (src) to input (dst); ``factor``/``offset`` map the
+    source FMU's value to the destination FMU's value: the unit conversion and the
+    LinearTransformation composed (see `_route_map`)."""
     src: str
     src_var: ModelVariable
     dst: str
@@ -60,11 +73,16 @@ class Plan:
 def build_plan(structure: SystemStructure, extra_parameters: list[ParameterValue] = ()) -> Plan:
     """Check the structure against the FMUs (already located) and order it."""
     file = str(structure.ssd_file)
-    fmus = {name: describe(comp.fmu_path, f"ssd:Component '{name}' (line {comp.line})", file)
+    fmus = {name: describe(comp.fmu_path, f"ssd:Component '{name}' (line {comp.line})", file,
+                           comp.implementation)
             for name, comp in structure.components.items()}
-    outputs, inputs = _check_connectors(structure, fmus)
-    routes = _check_connections(structure, fmus)
-    start_values = _check_parameters(structure, fmus, list(extra_parameters))
+    check_model_exchange(structure, fmus)
+    units = SystemUnits(structure.units, {name: fmu_units(desc.md.unitDefinitions, desc.path.name)
+                                          for name, desc in fmus.items()}, file)
+    outputs, inputs = _check_connectors(structure, fmus, units)
+    routes = _check_connections(structure, fmus, units)
+    start_values = _check_parameters(structure, fmus, list(extra_parameters), units)
+    _check_system_outputs(structure, outputs)
     order = _variable_order(structure, fmus, routes, outputs)
     feedthrough = _feedthrough_sequence(order, fmus, routes)
     return Plan(structure=structure, fmus=fmus, routes=routes, start_values=start_values,
@@ -74,7 +92,7 @@ def build_plan(structure: SystemStructure, extra_parameters: list[ParameterValue
 
 # --------------------------------------------------------------------------- connectors
 
-def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription]):
+def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
     file = str(structure.ssd_file)
     outputs: dict[str, list[ModelVariable]] = {}
     inputs: dict[str, list[ModelVariable]] = {}
@@ -87,15 +105,13 @@ def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription
             if conn.kind in ("input", "output") and var.causality != conn.kind:
                 raise SetupError(f"declared kind='{conn.kind}' but the FMU {desc.path.name} declares it "
                                  f"causality='{var.causality}'.", file=file, element=where, variable=conn.name)
-            if conn.type is not None and conn.type != var.type:
+            if var.causality in ("input", "output"):
+                _check_exchangeable(desc, var, where, file)
+            if conn.type is not None and conn.type != exchange_type(var):
                 raise SetupError(f"declared as {conn.type} but the FMU {desc.path.name} declares {var.type}.",
                                  file=file, element=where, variable=conn.name)
-            if var.causality in ("input", "output") and var.type not in SUPPORTED_TYPES:
-                raise SetupError(f"{var.type} connectors are not supported (Real, Integer, Boolean are).",
-                                 file=file, element=where, variable=conn.name)
-            if conn.unit is not None and unit_of(var) is not None and conn.unit != unit_of(var):
-                raise SetupError(f"declared unit '{conn.unit}' differs from the FMU's '{unit_of(var)}'; unit "
-                                 "conversion is not implemented.", file=file, element=where, variable=conn.name)
+            if exchange_type(var) == "Real":  # FMI 2.0 Real, FMI 3.0 Float64: the types with a unit
+                _connector_unit(units, name, var, conn.unit, where, file)  # refuses a different dimension
             if var.causality == "output":
                 outputs[name].append(var)
             elif var.causality == "input":
@@ -103,7 +119,20 @@ def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription
     return outputs, inputs
 
 
-def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescription]):
+def _check_exchangeable(desc: FMUDescription, var: ModelVariable, where: str, file: str) -> None:
+    """Refuse a connector the exchange cannot carry: a type without an exchange type
+    (`cosim.fmu.exchange_type`) or a whole FMI 3.0 array (SSP 1.0 connectors are scalars;
+    one element is named as ``vector[1]``, see `FMUDescription.variable`)."""
+    if exchange_type(var) is None:
+        raise SetupError(f"{var.name} has the type {var.type} in {desc.path.name}; connectors of that type are "
+                         "not supported (FMI 2.0 Real, Integer, Boolean, String and FMI 3.0 Float64, Int32, "
+                         "Boolean, String are).", file=file, element=where, variable=var.name)
+    if var.dimensions:
+        raise SetupError(f"{var.name} is an array in {desc.path.name}; a connector carries one element, "
+                         f"named {var.name}[1] for the first one.", file=file, element=where, variable=var.name)
+
+
+def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
     file = str(structure.ssd_file)
     routes: list[Route] = []
     driven: dict[tuple[str, str], Connection] = {}
@@ -126,24 +155,79 @@ def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescriptio
             bad = a if a.causality not in ("input", "output") else b
             raise SetupError(f"'{bad.name}' has causality '{bad.causality}'; only outputs wired to inputs "
                              "are supported.", file=file, element=where, variable=bad.name)
-        if sv.type != dv.type:
+        if exchange_type(sv) != exchange_type(dv):
             raise SetupError(f"{sv.type} output {src}.{sv.name} wired to {dv.type} input {dst}.{dv.name}; "
                              "both ends must have the same type.", file=file, element=where)
-        if c.has_transformation and sv.type != "Real":
+        if c.has_transformation and exchange_type(sv) != "Real":
             raise SetupError("a LinearTransformation applies to Real connections only; "
                              f"this one is {sv.type}.", file=file, element=where)
-        us, ud = unit_of(sv), unit_of(dv)
-        if us and ud and us != ud and not c.suppress_unit_conversion:
-            raise SetupError(f"units differ ({src}.{sv.name} in '{us}', {dst}.{dv.name} in '{ud}') and unit "
-                             "conversion is not implemented; add suppressUnitConversion=\"true\" with an "
-                             "ssc:LinearTransformation that converts.", file=file, element=where)
         key = (dst, dv.name)
         if key in driven:
             raise SetupError(f"input {dst}.{dv.name} is driven by two connections (the other: "
                              f"{driven[key].describe()}).", file=file, element=where, variable=dv.name)
         driven[key] = c
-        routes.append(Route(src, sv, dst, dv, c.factor, c.offset))
+        factor, offset = (_route_map(structure, units, c, (src, sv), (dst, dv), where)
+                          if exchange_type(sv) == "Real" else (c.factor, c.offset))
+        routes.append(Route(src, sv, dst, dv, factor, offset))
     return routes
+
+
+def _connector_unit(units: SystemUnits, comp: str, var: ModelVariable, declared: str | None, where: str,
+                    file: str) -> tuple[str | None, UnitScope, Affine, Affine]:
+    """A Real connector's unit, where its name is looked up, and the maps from the FMU variable's
+    unit to the connector's unit and back.
+
+    The FMU variable's unit (`unit_of`) is what the FMU computes in; an SSD ``ssc:Real unit``
+    that names another unit of the same dimension makes the SSD connector a view of the
+    variable in that unit: connections convert from and to the connector's unit (and a
+    LinearTransformation with suppressUnitConversion works on the connector's values), while
+    the FMU is still set and read, and results recorded, in its own unit.  When only one of
+    the two is given it is the connector's unit (an SSD may so give a unit to an FMU variable
+    without one); when neither is, the connector has no unit and is never converted.
+    """
+    own = unit_of(var)
+    if declared is None or own is None or declared == own:
+        scope = units.for_connector(comp) if declared else units.for_variable(comp)
+        return declared or own, scope, IDENTITY, IDENTITY
+    kw = {"file": file, "element": where, "variable": var.name}
+    view = units.for_connector(comp).resolve(declared, **kw)
+    fmu = units.for_variable(comp).resolve(own, **kw)
+    context = f"the SSD declares unit '{declared}' where the FMU declares '{own}'; "
+    return declared, units.for_connector(comp), conversion(fmu, view, context, **kw), conversion(view, fmu, **kw)
+
+
+def _route_map(structure: SystemStructure, units: SystemUnits, c: Connection, source: tuple[str, ModelVariable],
+               target: tuple[str, ModelVariable], where: str) -> Affine:
+    """The affine map from the source FMU's value to the target FMU's value on a Real connection.
+
+    SSP 1.0 (SystemStructureDescription.xsd Connection, SystemStructureCommon.xsd
+    LinearTransformation): the value is converted from the start connector's unit to the end
+    connector's unit first, then target = factor·source + offset; with
+    ``suppressUnitConversion="true"`` only the LinearTransformation applies.  Around that sit
+    the connector views (`_connector_unit`).  The composition is one factor and one offset,
+    so the exchange costs the same as a plain LinearTransformation.  No conversion when a
+    connector has no unit (FMI 2.0 §2.2.7: a variable without a unit is not checked) or both
+    ends name the same unit.
+    """
+    file = str(structure.ssd_file)
+    (src, sv), (dst, dv) = source, target
+    src_name, src_scope, to_src_view, _ = _connector_unit(
+        units, src, sv, structure.components[src].connectors[sv.name].unit, where, file)
+    dst_name, dst_scope, _, from_dst_view = _connector_unit(
+        units, dst, dv, structure.components[dst].connectors[dv.name].unit, where, file)
+    convert = IDENTITY
+    if src_name and dst_name and not c.suppress_unit_conversion:
+        if src_name == dst_name:
+            a, b = src_scope.find(src_name), dst_scope.find(dst_name)
+            if a is not None and b is not None:
+                check_agree({src_name: a}, {dst_name: b}, file=file, element=where)
+        else:
+            kw = {"file": file, "element": where, "variable": dv.name}
+            convert = conversion(src_scope.resolve(src_name, **kw), dst_scope.resolve(dst_name, **kw),
+                                 f"{src}.{sv.name} is in '{src_name}' and {dst}.{dv.name} in '{dst_name}': ",
+                                 **kw, hint="Correct one of the units, or add suppressUnitConversion=\"true\" "
+                                 "with an ssc:LinearTransformation that maps the values.")
+    return then(then(then(to_src_view, convert), (c.factor, c.offset)), from_dst_view)
 
 
 def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], element: str, connector: str,
@@ -165,18 +249,39 @@ def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], eleme
     return fmus[element].variable(connector, where, file)
 
 
+def _check_system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVariable]]) -> None:
+    """Each root-system output connector is an alias of a recorded component output (cosim.flatten)."""
+    file = str(structure.ssd_file)
+    for out in structure.system_outputs.values():
+        where = f"ssd:Connector '{out.name}' of the root system (line {out.line})"
+        var = next((v for v in outputs[out.component] if v.name == out.connector), None)
+        if var is None:
+            raise SetupError(f"it is driven by {out.component}.{out.connector}, which is not an output "
+                             "connector of that component.", file=file, element=where, variable=out.name)
+        if (out.factor, out.offset) != (1.0, 0.0) and exchange_type(var) != "Real":
+            raise SetupError(f"a LinearTransformation applies to Real connections only; "
+                             f"{out.component}.{out.connector} is {var.type}.", file=file, element=where,
+                             variable=out.name)
+        if any(f"{c}.{v.name}" == out.name for c, vs in outputs.items() for v in vs):
+            raise SetupError(f"the name clashes with the component output {out.name} in the results.",
+                             file=file, element=where, variable=out.name)
+
+
 # --------------------------------------------------------------------------- parameters
 
 def _check_parameters(structure: SystemStructure, fmus: dict[str, FMUDescription],
-                      extra: list[ParameterValue]) -> list[StartValue]:
-    """Component bindings, then system bindings, then extra (command-line) sets: later wins."""
+                      extra: list[ParameterValue], units: SystemUnits) -> list[StartValue]:
+    """Component bindings, then system bindings (inner systems first), then extra (command-line)
+    sets: later wins.  Values naming an undriven system connector go to what it feeds (cosim.flatten)."""
     resolved: dict[tuple[str, str], StartValue] = {}
     for name, comp in structure.components.items():
         for p in comp.parameters:
-            _apply_parameter(resolved, name, p.name, p, fmus[name])
-    for p in list(structure.parameters) + extra:
+            _apply_parameter(resolved, name, p.name, p, fmus[name], units)
+    system_values = bind_system_connectors(structure.open_connectors, structure.driven_connectors,
+                                           list(structure.parameters) + extra, str(structure.ssd_file))
+    for p in system_values:
         comp_name, var_name = _split_system_name(structure, p)
-        _apply_parameter(resolved, comp_name, var_name, p, fmus[comp_name])
+        _apply_parameter(resolved, comp_name, var_name, p, fmus[comp_name], units)
     return list(resolved.values())
 
 
@@ -186,10 +291,11 @@ def _split_system_name(structure: SystemStructure, p: ParameterValue) -> tuple[s
             return comp, p.name[len(comp) + 1:]
     raise SetupError(f"system-level parameter '{p.name}' does not start with a component name "
                      "('component.variable').", file=p.file, element=f"ssv:Parameter (line {p.line})",
-                     variable=p.name, hint=did_you_mean(p.name.split(".")[0], structure.components))
+                     variable=p.name, hint=did_you_mean(p.name.rpartition(".")[0], structure.components))
 
 
-def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue, desc: FMUDescription) -> None:
+def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue, desc: FMUDescription,
+                     units: SystemUnits) -> None:
     where = f"ssv:Parameter '{p.name}' (line {p.line}) for component '{comp}'"
     var = desc.variable(var_name, where, p.file)
     if var.causality not in SETTABLE_CAUSALITIES or var.variability == "constant":
@@ -197,21 +303,45 @@ def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue
                          "only parameters and inputs (non-constant) can be given values.",
                          file=p.file, element=where, variable=var_name)
     value = _coerce(p, var, where)
-    if var.type == "Real" or var.type == "Integer":
+    origin = f"{p.file}:{p.line}"
+    if exchange_type(var) == "Real" and p.unit is not None and unit_of(var) not in (None, p.unit):
+        value = _convert_value(p, var, comp, value, where, units)
+        origin += f", given as {p.value:g} {p.unit}"
+    if exchange_type(var) in ("Real", "Integer"):
         lo = float(var.min) if var.min is not None else None
         hi = float(var.max) if var.max is not None else None
         if (lo is not None and value < lo) or (hi is not None and value > hi):
             raise SetupError(f"value {value} is outside the variable's range [{var.min}, {var.max}] "
                              f"declared by {desc.path.name}.", file=p.file, element=where, variable=var_name)
-    resolved[(comp, var_name)] = StartValue(comp, var, value, f"{p.file}:{p.line}")
+    resolved[(comp, var_name)] = StartValue(comp, var, value, origin)
+
+
+def _convert_value(p: ParameterValue, var: ModelVariable, comp: str, value: float, where: str,
+                   units: SystemUnits) -> float:
+    """A value given in another unit (``ssv:Real unit``), in the FMU variable's unit: FMUs are
+    set in their own units (FMI 2.0 §2.2.7).  A value whose unit is not given, or a variable
+    without a unit, is set as it is."""
+    kw = {"file": p.file, "element": where, "variable": var.name}
+    given = units.for_value(comp, p.units, file=p.file, element=where).resolve(p.unit, **kw)
+    own = units.for_variable(comp).resolve(unit_of(var), **kw)
+    a, b = conversion(given, own, f"the value is given in '{p.unit}' and {comp}.{var.name} is in "
+                      f"'{unit_of(var)}': ", **kw)
+    return a * value + b
 
 
 def _coerce(p: ParameterValue, var: ModelVariable, where: str):
-    if var.type == p.type:
+    kind = exchange_type(var)
+    if kind is None or var.dimensions or isinstance(var, ArrayElement):
+        what = "arrays and their elements" if kind is not None else f"{var.type} variables"
+        raise SetupError(f"{what} cannot be given values by this master ({var.name} is "
+                         f"{'an array' if kind else var.type}); it sets scalars of the FMI 2.0 types Real, "
+                         "Integer, Boolean, String and the FMI 3.0 types Float64, Int32, Boolean, String.",
+                         file=p.file, element=where, variable=var.name)
+    if kind == p.type:
         return p.value
-    if var.type == "Real" and p.type == "Integer":
+    if kind == "Real" and p.type == "Integer":
         return float(p.value)
-    if var.type == "Integer" and p.type == "Real" and float(p.value).is_integer():
+    if kind == "Integer" and p.type == "Real" and float(p.value).is_integer():
         return int(p.value)
     raise SetupError(f"a {p.type} value ({p.value}) is given for a {var.type} variable.", file=p.file,
                      element=where, variable=var.name)

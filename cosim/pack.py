@@ -12,7 +12,8 @@ from pathlib import Path, PurePosixPath
 
 from .errors import SetupError
 from .graph import Plan
-from .ssp import SSD_NAME, check_member_name
+from .safeio import check_member_name
+from .ssp import SSD_NAME
 
 
 def pack(plan: Plan, output: Path) -> Path:

@@ -19,6 +19,7 @@ from importlib.metadata import entry_points
 from pathlib import Path, PurePosixPath
 
 from .errors import SetupError
+from .safeio import is_file
 from .ssp import Component, SystemStructure, resolve_uri
 
 Provider = Callable[[str], "Path | None"]
@@ -44,7 +45,7 @@ def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path
                          file=str(structure.ssd_file), element=where)
     looked: list[str] = []
     direct = resolve_uri(comp.source, structure.base_dir)
-    if direct.is_file():
+    if is_file(direct):
         return direct
     looked.append(str(direct))
     name = PurePosixPath(comp.source).name
@@ -56,7 +57,7 @@ def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path
         looked.append("the FMU providers (" + ", ".join(p.__module__ for p in found_providers) + ")")
     for d in fmu_dirs:
         candidate = Path(d) / name
-        if candidate.is_file():
+        if is_file(candidate):
             return candidate
         looked.append(str(candidate))
     raise SetupError(f"the FMU file '{comp.source}' was not found; looked at " + "; ".join(looked) + ".",

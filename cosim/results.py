@@ -1,4 +1,4 @@
-"""Results on disk: read a result CSV, plot chosen signals (matplotlib, Agg backend)."""
+"""Results on disk: read and write result CSVs, plot chosen signals (matplotlib, Agg backend)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -11,6 +11,20 @@ def read(path: str | Path) -> np.ndarray:
     """Read a result CSV into a structured array (``fmpy.util.read_csv`` format)."""
     from fmpy.util import read_csv
     return read_csv(str(path))
+
+
+def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = None) -> Path:
+    """Write ``time`` and the named fields (default: all) as a CSV in the format of
+    `cosim.observers.CsvSink` (quoted header, 17 significant digits, so a float64 reads back
+    bit for bit)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    columns = ["time"] + [n for n in (names if names is not None else result.dtype.names) if n != "time"]
+    rows = np.column_stack([result[n] for n in columns]) if len(result) else np.empty((0, len(columns)))
+    with open(path, "w", newline="\n") as f:
+        f.write(",".join(f'"{n}"' for n in columns) + "\n")
+        np.savetxt(f, rows, fmt="%.17g", delimiter=",")
+    return path
 
 
 def plot(result: np.ndarray, panels: Sequence[Sequence[str]], path: str | Path, title: str | None = None) -> Path:

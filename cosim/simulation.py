@@ -17,8 +17,10 @@ import numpy as np
 from . import ssp
 from .errors import RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
+from .flatten import SystemOutput
+from .fmu import unit_of
 from .graph import Plan, build_plan
-from .observers import CsvSink, MemorySink, Recorder
+from .observers import MemorySink, Recorder, file_sink
 from .resources import locate_fmus
 
 
@@ -76,8 +78,11 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     """Run an SSP system and return every connector at every communication point.
 
     The result is a structured array with a ``time`` field and one field per
-    connector named ``component.variable``.  With ``output`` the samples are
-    also written to that CSV as the run goes (metadata in ``<output>.json``).
+    connector named ``component.variable`` (in a nested system the component is
+    its path relative to the root system, ``loop.controller.u``), plus one per
+    output connector of the root system, under its own name.  With ``output`` the samples are
+    also written to that CSV (or Parquet file, by its suffix) as the run goes
+    (metadata in ``<output>.json``).
     A failed run raises `RunError` with the samples so far in ``error.result``
     (and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
     collected to explain a failure ("errors", "all" or "off"; see `cosim.fmu.Instance`).
@@ -95,10 +100,17 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
 
 
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
-        fmu_log: str = "errors") -> tuple[np.ndarray, dict]:
-    """Execute a prepared system; returns the samples and the run's metadata."""
-    memory = MemorySink()
-    sinks: list = [memory] + ([CsvSink(output)] if output is not None else [])
+        fmu_log: str = "errors", keep: Sequence[str] | None = None) -> tuple[np.ndarray, dict]:
+    """Execute a prepared system; returns the samples and the run's metadata.
+
+    ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
+    CSV (`cosim.observers.file_sink`).  ``keep``: the signals the returned array holds besides
+    ``time`` (None: all); a long run streamed to ``output`` keeps only what it needs in memory.
+    """
+    memory = MemorySink(keep)
+    sinks: list = [memory] + ([file_sink(output)] if output is not None else [])
+    if prepared.plan.structure.system_outputs:
+        sinks = [SystemOutputColumns(list(prepared.plan.structure.system_outputs.values()), sinks)]
     execution = Execution(prepared.plan, prepared.grid, prepared.algorithm, fmu_log)
     recorder = None
     bar = None
@@ -147,9 +159,60 @@ def _ssd_order(plan: Plan, names: list[str]) -> list[str]:
 
 def _metadata(prepared: Prepared, execution: Execution) -> dict:
     meta = execution.metadata()
-    meta["system"] = str(prepared.plan.structure.archive or prepared.plan.structure.ssd_file)
+    structure = prepared.plan.structure
+    meta["system"] = str(structure.archive or structure.ssd_file)
+    # result names are paths relative to this system (loop.ctrl.u for component ctrl of subsystem loop)
+    meta["root_system"] = structure.system_name
+    if structure.system_outputs:
+        meta["system_outputs"] = {o.name: f"{o.factor:.17g} * {o.component}.{o.connector} + {o.offset:.17g}"
+                                  for o in structure.system_outputs.values()}
     meta["step_size_source"] = prepared.step_source
+    meta["units"] = _units(prepared.plan)
     return meta
+
+
+def _units(plan: Plan) -> dict[str, str | None]:
+    """Each recorded connector's unit: its FMU variable's own (values are recorded as the FMU
+    computes or receives them, after any unit conversion of the connection), else the unit the
+    SSD connector gives a variable without one (cosim.graph._connector_unit); None: no unit."""
+    components = plan.structure.components
+    return {f"{comp}.{v.name}": unit_of(v) or _declared_unit(components.get(comp), v.name)
+            for comp in plan.outputs for v in plan.outputs[comp] + plan.inputs[comp]}
+
+
+def _declared_unit(component: ssp.Component | None, connector: str) -> str | None:
+    declared = component.connectors.get(connector) if component is not None else None
+    return declared.unit if declared is not None else None
+
+
+class SystemOutputColumns:
+    """A sink wrapper that appends the root system's output connectors to every chunk.
+
+    Each is ``factor · (the driving component output's column) + offset``
+    (`cosim.flatten.SystemOutput`), computed per chunk, not in the stepping loop.
+    """
+
+    def __init__(self, outputs: list[SystemOutput], sinks: list):
+        self.outputs = outputs
+        self.sinks = sinks
+        self.columns = np.empty(0, dtype=np.intp)
+        self.factor = np.array([o.factor for o in outputs])
+        self.offset = np.array([o.offset for o in outputs])
+
+    def open(self, names: list[str]) -> None:
+        self.columns = np.array([names.index(f"{o.component}.{o.connector}") for o in self.outputs],
+                                dtype=np.intp)
+        for sink in self.sinks:
+            sink.open(names + [o.name for o in self.outputs])
+
+    def write(self, rows: np.ndarray) -> None:
+        rows = np.hstack([rows, rows[:, self.columns] * self.factor + self.offset])
+        for sink in self.sinks:
+            sink.write(rows)
+
+    def close(self, metadata: dict) -> None:
+        for sink in self.sinks:
+            sink.close(metadata)
 
 
 def select(names: Sequence[str], patterns: Sequence[str]) -> list[str]:

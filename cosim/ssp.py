@@ -3,8 +3,12 @@
 The reader is strict.  It checks well-formedness (with line and column), the
 SSP 1.0 XML schema (the XSDs shipped with fmpy), and refuses, with a message,
 every SSP feature this master does not implement (parameter mappings, signal
-dictionaries, nested systems, system-level connectors, non-FMU components,
-Boolean/Integer/Enumeration mapping transformations) instead of ignoring it.
+dictionaries, non-FMU components, Boolean/Integer/Enumeration mapping
+transformations) instead of ignoring it.  Nested systems and system-level
+connectors are read here (`_read_system`) and flattened by `cosim.flatten`
+into components named by their path (``loop.ctrl``) and direct connections.
+Files and archives are opened through `cosim.safeio`: no XML entities or DTDs,
+archives checked and size-limited before and while they are extracted.
 
 Parameter precedence follows SSP 1.0 (SystemStructureDescription.xsd,
 ParameterBindings): later bindings win at the same level, the system level beats
@@ -13,14 +17,19 @@ the component level, and a parameter set given on the command line beats both.
 from __future__ import annotations
 
 import tempfile
-import zipfile
-from dataclasses import dataclass, field
-from pathlib import Path, PurePosixPath
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING
 from urllib.parse import unquote, urlparse
 
 from lxml import etree
 
 from .errors import SetupError
+from .safeio import extract_archive, is_file, parse_xml
+from .units import BASE_UNITS, Unit, check_definition, make_unit
+
+if TYPE_CHECKING:
+    from .flatten import OpenConnector, RawSystem, SystemNode, SystemOutput
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -35,6 +44,10 @@ GREYFMU_NS = "urn:greyfmu:ssp:simulation:1.0"
 #: Vendor annotations read for the step size, as other SSP tools write them.
 OSP_ANNOTATION = "com.opensimulationplatform"
 OMS_ANNOTATION = "org.openmodelica"
+#: Our own annotation on a Component (its ssd:Annotations): how the master integrates a Model
+#: Exchange FMU (cosim.me), ``<greyfmu:Solver rtol="1e-8" maxStep="0.001"/>``.
+SOLVER_ANNOTATION = "org.greyfmu.solver"
+SOLVER_NS = "urn:greyfmu:ssp:solver:1.0"
 
 FMU_MIME = "application/x-fmu-sharedlibrary"
 VALUE_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration", "Binary")
@@ -58,6 +71,10 @@ class ParameterValue:
     value: float | int | bool | str
     file: str
     line: int
+    #: ``ssv:Real unit``: the unit ``value`` is given in (None: the FMU variable's own)
+    unit: str | None = None
+    #: the ``ssv:Units`` of the parameter set that holds the value (SSP 1.0 ParameterSet)
+    units: dict[str, Unit] = field(default_factory=dict, repr=False)
 
 
 @dataclass
@@ -68,23 +85,41 @@ class Component:
     connectors: dict[str, Connector] = field(default_factory=dict)
     parameters: list[ParameterValue] = field(default_factory=list)
     fmu_path: Path | None = None
+    #: SSP 1.0 Component ``implementation``: "any", "CoSimulation" or "ModelExchange" (the
+    #: interface the master drives; cosim.fmu.describe checks the FMU has it)
+    implementation: str = "any"
+    #: the component's ``org.greyfmu.solver`` annotation, for a Model Exchange FMU
+    solver: SolverOptions | None = None
+
+
+@dataclass
+class SolverOptions:
+    """``org.greyfmu.solver``: settings for integrating a Model Exchange FMU (None: the default)."""
+    rtol: float | None
+    max_step: float | None
+    #: the SSD file and the annotation element, for messages
+    file: str
+    element: str
 
 
 @dataclass
 class Connection:
-    start_element: str
+    #: None, before flattening only, where the connection names a connector of its own system
+    start_element: str | None
     start_connector: str
-    end_element: str
+    end_element: str | None
     end_connector: str
     factor: float
     offset: float
     has_transformation: bool
     suppress_unit_conversion: bool
     line: int
+    #: for a connection resolved through system connectors: its lines and the connectors on the way
+    via: str = ""
 
     def describe(self) -> str:
         return (f"connection {self.start_element}.{self.start_connector} -> "
-                f"{self.end_element}.{self.end_connector} (line {self.line})")
+                f"{self.end_element}.{self.end_connector} ({self.via or f'line {self.line}'})")
 
 
 @dataclass
@@ -101,8 +136,18 @@ class SystemStructure:
     step_size: float | None
     step_size_source: str | None
     algorithm: str | None
+    #: the SSD's top-level ``ssd:Units`` (SSP 1.0 SystemStructureDescription.xsd)
+    units: dict[str, Unit] = field(default_factory=dict)
     archive: Path | None = None
     _tmp: tempfile.TemporaryDirectory | None = field(default=None, repr=False)
+    #: the systems as nested in the SSD (cosim.flatten), for `cosim info`
+    hierarchy: SystemNode | None = None
+    #: root-system output connectors: recorded under their name, aliases of component outputs
+    system_outputs: dict[str, SystemOutput] = field(default_factory=dict)
+    #: undriven system connectors feeding inputs or parameters: they need a ParameterBinding value
+    open_connectors: dict[str, OpenConnector] = field(default_factory=dict)
+    #: paths of the system connectors a connection drives (they cannot also be given a value)
+    driven_connectors: set[str] = field(default_factory=set)
 
     def close(self) -> None:
         if self._tmp is not None:
@@ -112,8 +157,12 @@ class SystemStructure:
 
 # --------------------------------------------------------------------------- files
 
-def load(path: str | Path) -> SystemStructure:
-    """Read a scenario folder, a ``.ssd`` file or an ``.ssp`` archive."""
+def load(path: str | Path, max_unpacked_bytes: int | None = None) -> SystemStructure:
+    """Read a scenario folder, a ``.ssd`` file or an ``.ssp`` archive.
+
+    ``max_unpacked_bytes`` limits what an archive may expand to (default: the
+    environment variable COSIM_MAX_UNPACKED_BYTES, else 2 GiB; see `cosim.safeio`).
+    """
     path = Path(path)
     if not path.exists():
         raise SetupError("no such file or folder.", file=str(path),
@@ -126,59 +175,30 @@ def load(path: str | Path) -> SystemStructure:
                              hint=(f"It has {', '.join(found)}: pass that file instead." if found else None))
         return _read_ssd(ssd)
     if path.suffix.lower() == ".ssp":
-        return _read_archive(path)
+        return _read_archive(path, max_unpacked_bytes)
     if path.suffix.lower() == ".ssd":
         return _read_ssd(path)
     raise SetupError("not an SSP system structure (expected a folder, a .ssd or an .ssp).", file=str(path))
 
 
-def _read_archive(path: Path) -> SystemStructure:
+def _read_archive(path: Path, max_unpacked_bytes: int | None = None) -> SystemStructure:
+    """Extract the archive (checked and size-limited, see `cosim.safeio`) and read its SSD."""
+    tmp = tempfile.TemporaryDirectory(prefix="cosim-ssp-")
     try:
-        archive = zipfile.ZipFile(path)
-    except zipfile.BadZipFile as e:
-        raise SetupError(f"not a zip archive ({e}).", file=str(path)) from None
-    with archive:
-        for info in archive.infolist():
-            check_member_name(info.filename, path)
-        names = archive.namelist()
-        if SSD_NAME not in names:
-            raise SetupError(f"the archive has no {SSD_NAME} at its root.", file=str(path),
-                             hint=f"Members: {', '.join(names[:10])}.")
-        tmp = tempfile.TemporaryDirectory(prefix="cosim-ssp-")
-        archive.extractall(tmp.name)
-    structure = _read_ssd(Path(tmp.name) / SSD_NAME, display=f"{path}!{SSD_NAME}")
+        extract_archive(path, Path(tmp.name), max_unpacked_bytes, required=SSD_NAME)
+        structure = _read_ssd(Path(tmp.name) / SSD_NAME, display=f"{path}!{SSD_NAME}")
+    except BaseException:
+        tmp.cleanup()
+        raise
     structure.archive = path
     structure._tmp = tmp
     return structure
 
 
-def check_member_name(name: str, archive: Path) -> None:
-    """Refuse archive members that are absolute or escape the archive (``../``)."""
-    posix = PurePosixPath(name.replace("\\", "/"))
-    if posix.is_absolute() or (len(name) > 1 and name[1] == ":"):
-        raise SetupError(f"archive member '{name}' has an absolute path; SSP members must be relative.",
-                         file=str(archive))
-    if ".." in posix.parts:
-        raise SetupError(f"archive member '{name}' escapes the archive ('..'); refusing to extract it.",
-                         file=str(archive))
-
-
-def parse_xml(path: Path, display: str | None = None) -> etree._ElementTree:
-    """Parse with line numbers; a file that is not well formed names line and column."""
-    try:
-        return etree.parse(str(path), etree.XMLParser(remove_comments=True))
-    except etree.XMLSyntaxError as e:
-        line, col = e.position if e.position else (e.lineno, 0)
-        raise SetupError(f"XML is not well formed at line {line}, column {col}: {e.msg}.",
-                         file=display or str(path)) from None
-    except OSError as e:
-        raise SetupError(f"cannot read the file ({e}).", file=display or str(path)) from None
-
-
 _schemas: dict[str, etree.XMLSchema] = {}
 
 
-def validate_schema(tree: etree._ElementTree, schema_file: str, display: str) -> None:
+def validate_schema(tree: etree._ElementTree | etree._Element, schema_file: str, display: str) -> None:
     """Validate against an SSP 1.0 XSD; the first errors are reported with their lines."""
     if schema_file not in _schemas:
         import fmpy.ssp
@@ -203,21 +223,11 @@ def _read_ssd(path: Path, display: str | None = None) -> SystemStructure:
     validate_schema(tree, "SystemStructureDescription.xsd", display)
     _refuse_unsupported(root, display)
 
+    from .flatten import flatten  # flatten builds on this module's dataclasses
+
     system = root.find("ssd:System", NS)
     base_dir = path.parent
-    components: dict[str, Component] = {}
-    elements = system.find("ssd:Elements", NS)
-    for el in (elements if elements is not None else []):
-        if not isinstance(el.tag, str):
-            continue
-        comp = _read_component(el, base_dir, display)
-        if comp.name in components:
-            raise SetupError(f"two components are named '{comp.name}'.", file=display,
-                             element=f"ssd:Component (line {el.sourceline})")
-        components[comp.name] = comp
-
-    connections = [_read_connection(c, display) for c in system.iterfind("ssd:Connections/ssd:Connection", NS)]
-    parameters = _read_bindings(system, base_dir, display)
+    flat = flatten(_read_system(system, base_dir, display), display)
 
     start = stop = None
     experiment = root.find("ssd:DefaultExperiment", NS)
@@ -226,28 +236,64 @@ def _read_ssd(path: Path, display: str | None = None) -> SystemStructure:
         stop = _float_attr(experiment, "stopTime", display)
     step, step_source, algorithm = _read_step_annotations(root, display)
     return SystemStructure(name=root.get("name"), system_name=system.get("name"), ssd_file=path,
-                           base_dir=base_dir, components=components, connections=connections,
-                           parameters=parameters, start_time=start, stop_time=stop, step_size=step,
-                           step_size_source=step_source, algorithm=algorithm)
+                           base_dir=base_dir, components=flat.components, connections=flat.connections,
+                           parameters=flat.parameters, start_time=start, stop_time=stop, step_size=step,
+                           step_size_source=step_source, algorithm=algorithm,
+                           units=read_units(root.find("ssd:Units", NS), display),
+                           hierarchy=flat.hierarchy, system_outputs=flat.system_outputs,
+                           open_connectors=flat.open_connectors, driven_connectors=flat.driven_connectors)
 
 
 def _refuse_unsupported(root: etree._Element, display: str) -> None:
     refused = [
-        ("ssd:System/ssd:Elements/ssd:System", "nested systems are not supported by this master yet"),
-        ("ssd:System/ssd:Elements/ssd:SignalDictionaryReference", "signal dictionaries are not supported"),
-        ("ssd:System/ssd:SignalDictionaries", "signal dictionaries are not supported"),
+        (".//ssd:Elements/ssd:SignalDictionaryReference", "signal dictionaries are not supported"),
+        (".//ssd:System/ssd:SignalDictionaries", "signal dictionaries are not supported"),
         (".//ssd:ParameterMapping", "parameter mappings (.ssm) are not supported; rename the parameters in the .ssv"),
         (".//ssc:BooleanMappingTransformation", "Boolean mapping transformations are not supported"),
         (".//ssc:IntegerMappingTransformation", "Integer mapping transformations are not supported"),
         (".//ssc:EnumerationMappingTransformation", "Enumeration mapping transformations are not supported"),
-        ("ssd:System/ssd:Connectors/ssd:Connector",
-         "system-level connectors are not supported (they only matter for nested systems)"),
     ]
     for xpath, why in refused:
         found = root.find(xpath, NS)
         if found is not None:
             raise SetupError(why + ".", file=display,
                              element=f"{etree.QName(found).localname} (line {found.sourceline})")
+
+
+def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSystem:
+    """One ``ssd:System`` and, recursively, the systems in its ``ssd:Elements``, with local names.
+
+    Element names are unique within their system (SSP 1.0, TElement name); geometry and
+    annotations of the system are not read.
+    """
+    from .flatten import RawSystem
+
+    name = system.get("name")
+    connectors: dict[str, Connector] = {}
+    for c in system.iterfind("ssd:Connectors/ssd:Connector", NS):
+        conn = _read_connector(c)
+        if conn.name in connectors:
+            raise SetupError(f"connector '{conn.name}' is declared twice.", file=display,
+                             element=f"ssd:System '{name}' (line {system.sourceline})", variable=conn.name)
+        connectors[conn.name] = conn
+    raw = RawSystem(name=name, line=system.sourceline, connectors=connectors, components={}, systems={},
+                    connections=[], parameters=_read_bindings(system, base_dir, display))
+    elements = system.find("ssd:Elements", NS)
+    for el in (elements if elements is not None else []):
+        if not isinstance(el.tag, str):
+            continue
+        local = etree.QName(el).localname
+        element_name = el.get("name")
+        if element_name in raw.components or element_name in raw.systems:
+            raise SetupError(f"two elements of system '{name}' are named '{element_name}'.", file=display,
+                             element=f"ssd:{local} (line {el.sourceline})")
+        if local == "System":
+            raw.systems[element_name] = _read_system(el, base_dir, display)
+        else:
+            raw.components[element_name] = _read_component(el, base_dir, display)
+        raw.elements.append(element_name)
+    raw.connections = [_read_connection(c, display) for c in system.iterfind("ssd:Connections/ssd:Connection", NS)]
+    return raw
 
 
 def _read_component(el: etree._Element, base_dir: Path, display: str) -> Component:
@@ -257,18 +303,41 @@ def _read_component(el: etree._Element, base_dir: Path, display: str) -> Compone
     if ctype != FMU_MIME:
         raise SetupError(f"component type '{ctype}' is not supported; only FMUs ({FMU_MIME}).",
                          file=display, element=where)
-    implementation = el.get("implementation", "any")
-    if implementation == "ModelExchange":
-        raise SetupError("implementation='ModelExchange' is not supported; this master runs "
-                         "Co-Simulation FMUs.", file=display, element=where)
-    comp = Component(name=name, source=el.get("source"), line=el.sourceline)
+    comp = Component(name=name, source=el.get("source"), line=el.sourceline,
+                     implementation=el.get("implementation", "any"))
     for c in el.iterfind("ssd:Connectors/ssd:Connector", NS):
         conn = _read_connector(c)
         if conn.name in comp.connectors:
             raise SetupError(f"connector '{conn.name}' is declared twice.", file=display, element=where)
         comp.connectors[conn.name] = conn
     comp.parameters = _read_bindings(el, base_dir, display)
+    comp.solver = _read_solver_annotation(el, display)
     return comp
+
+
+def _read_solver_annotation(component: etree._Element, display: str) -> SolverOptions | None:
+    """A Component's ``org.greyfmu.solver`` annotation: one greyfmu:Solver element with
+    ``rtol`` and/or ``maxStep`` (positive numbers); anything else is refused."""
+    for ann in component.iterfind("ssd:Annotations/ssc:Annotation", NS):
+        if ann.get("type") != SOLVER_ANNOTATION:
+            continue
+        where = f"ssc:Annotation type='{SOLVER_ANNOTATION}' (line {ann.sourceline})"
+        children = [c for c in ann if isinstance(c.tag, str)]
+        if len(children) != 1 or etree.QName(children[0]) != etree.QName(SOLVER_NS, "Solver"):
+            raise SetupError(f"expected one <greyfmu:Solver xmlns:greyfmu=\"{SOLVER_NS}\" rtol=\"...\" "
+                             "maxStep=\"...\"/> element.", file=display, element=where)
+        solver = children[0]
+        unknown = sorted(set(solver.attrib) - {"rtol", "maxStep"})
+        if unknown:
+            raise SetupError(f"unknown attribute(s) {', '.join(unknown)} of greyfmu:Solver; it has rtol and "
+                             "maxStep.", file=display, element=where)
+        values = {a: _float_attr(solver, a, display) for a in ("rtol", "maxStep")}
+        for attr, value in values.items():
+            if value is not None and not (0.0 < value < float("inf")):
+                raise SetupError(f"{attr}='{solver.get(attr)}' must be a positive number.", file=display,
+                                 element=where)
+        return SolverOptions(rtol=values["rtol"], max_step=values["maxStep"], file=display, element=where)
+    return None
 
 
 def _read_connector(c: etree._Element) -> Connector:
@@ -281,9 +350,6 @@ def _read_connector(c: etree._Element) -> Connector:
 
 def _read_connection(c: etree._Element, display: str) -> Connection:
     line = c.sourceline
-    if c.get("startElement") is None or c.get("endElement") is None:
-        raise SetupError("connections to system-level connectors (no startElement/endElement) are not "
-                         "supported.", file=display, element=f"ssd:Connection (line {line})")
     factor, offset, has = 1.0, 0.0, False
     lt = c.find("ssc:LinearTransformation", NS)
     if lt is not None:
@@ -320,7 +386,7 @@ def _read_bindings(owner: etree._Element, base_dir: Path, display: str) -> list[
         source = binding.get("source")
         if source is not None:
             ssv = resolve_uri(source, base_dir)
-            if not ssv.is_file():
+            if not is_file(ssv):
                 raise SetupError(f"parameter set '{source}' not found (looked at {ssv}).", file=display,
                                  element=where)
             parsed = read_ssv(ssv)
@@ -329,8 +395,10 @@ def _read_bindings(owner: etree._Element, base_dir: Path, display: str) -> list[
             if inline is None:
                 raise SetupError("a parameter binding needs a source or inline ssd:ParameterValues.",
                                  file=display, element=where)
+            # the SSD schema lets ssd:ParameterValues hold anything: check the inline set as an .ssv is
+            validate_schema(inline, "SystemStructureParameterValues.xsd", display)
             parsed = _read_parameter_set(inline, display)
-        values.extend(ParameterValue(prefix + p.name, p.type, p.value, p.file, p.line) for p in parsed)
+        values.extend(replace(p, name=prefix + p.name) for p in parsed)
     return values
 
 
@@ -348,6 +416,7 @@ def read_ssv(path: str | Path) -> list[ParameterValue]:
 
 def _read_parameter_set(pset: etree._Element, display: str) -> list[ParameterValue]:
     values = []
+    units = read_units(pset.find("ssv:Units", NS), display)
     for p in pset.iterfind("ssv:Parameters/ssv:Parameter", NS):
         v = next(t for t in p if isinstance(t.tag, str) and etree.QName(t).localname in VALUE_TYPES)
         kind = etree.QName(v).localname
@@ -363,8 +432,37 @@ def _read_parameter_set(pset: etree._Element, display: str) -> list[ParameterVal
         else:
             raise SetupError(f"{kind} parameter values are not supported.", file=display,
                              element=f"ssv:Parameter (line {p.sourceline})", variable=p.get("name"))
-        values.append(ParameterValue(p.get("name"), kind, value, display, p.sourceline))
+        values.append(ParameterValue(p.get("name"), kind, value, display, p.sourceline,
+                                     unit=v.get("unit") if kind == "Real" else None, units=units))
     return values
+
+
+def read_units(units: etree._Element | None, display: str) -> dict[str, Unit]:
+    """The ``ssc:Unit`` definitions of an ``ssd:Units`` or ``ssv:Units`` element (SSP 1.0
+    SystemStructureCommon.xsd TUnits: a name and a BaseUnit with exponents, factor, offset)."""
+    found: dict[str, Unit] = {}
+    for u in (units if units is not None else []):
+        if not isinstance(u.tag, str):
+            continue
+        name = u.get("name")
+        where = f"ssc:Unit '{name}' (line {u.sourceline})"
+        if name in found:
+            raise SetupError(f"unit '{name}' is defined twice.", file=display, element=where)
+        base = u.find("ssc:BaseUnit", NS)
+        if base is None:
+            raise SetupError("a unit needs an ssc:BaseUnit.", file=display, element=where)
+        exponents = {}
+        for attr in BASE_UNITS:
+            text = base.get(attr, "0")
+            try:
+                exponents[attr] = int(text)
+            except ValueError:
+                raise SetupError(f"exponent {attr}='{text}' is not an integer.", file=display,
+                                 element=where) from None
+        found[name] = make_unit(name, display, _float_attr(base, "factor", display, default=1.0),
+                                _float_attr(base, "offset", display, default=0.0), **exponents)
+        check_definition(found[name], file=display, element=where)
+    return found
 
 
 def resolve_uri(uri: str, base_dir: Path) -> Path:
@@ -378,9 +476,11 @@ def resolve_uri(uri: str, base_dir: Path) -> Path:
 
 
 def _read_step_annotations(root: etree._Element, display: str) -> tuple[float | None, str | None, str | None]:
-    """The step size from our own annotation, else OSP's, else OpenModelica's."""
+    """The step size from our own annotation, else OSP's, else OpenModelica's (nested systems' ignored)."""
     found: dict[str, tuple[float | None, str | None]] = {}
     for ann in root.iter(f"{{{NS['ssc']}}}Annotation"):
+        if sum(1 for a in ann.iterancestors(f"{{{NS['ssd']}}}System")) > 1:
+            continue
         kind = ann.get("type")
         for el in ann.iter():
             if not isinstance(el.tag, str):

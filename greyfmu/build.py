@@ -1,7 +1,8 @@
 """Build the FMUs of ``fmus/`` with pythonfmu and repair what pythonfmu 0.7.0 writes wrong.
 
 Each ``fmus/<Name>.py`` becomes ``<out_dir>/<Name>.fmu`` (FMI 2.0 Co-Simulation) with the
-``greyfmu`` package and ``fmus/_slave.py`` embedded as resources.  The archive's
+``greyfmu`` package and ``fmus/_slave.py`` embedded as resources; each ``fmus/fmi3/<Name>.py``
+becomes an FMI 3.0 Co-Simulation FMU built with pythonfmu3, with ``fmus/fmi3/_slave3.py``.  The archive's
 modelDescription.xml is then post-processed:
 
 - every output must have ``initial="exact"`` and a start value (the build fails otherwise);
@@ -30,6 +31,8 @@ PACKAGE_DIR = Path(__file__).resolve().parent
 REPOSITORY_ROOT = PACKAGE_DIR.parent
 FMU_SOURCES = REPOSITORY_ROOT / "fmus"
 SLAVE_BASE = FMU_SOURCES / "_slave.py"
+FMI3_SOURCES = FMU_SOURCES / "fmi3"
+SLAVE_BASE3 = FMI3_SOURCES / "_slave3.py"
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
 
 BASE_UNITS: dict[str, dict[str, str]] = {
@@ -65,31 +68,41 @@ def fmu_names() -> list[str]:
     return sorted(path.stem for path in FMU_SOURCES.glob("*.py") if not path.name.startswith("_"))
 
 
+def fmi3_fmu_names() -> list[str]:
+    """Names of the FMI 3.0 FMUs that can be built: ``fmus/fmi3/*.py`` not starting with ``_``.
+    They are built when named (``greyfmu build PID3``, or an SSD naming ``resources/PID3.fmu``),
+    not by a plain ``greyfmu build``, which builds the FMI 2.0 set."""
+    return sorted(path.stem for path in FMI3_SOURCES.glob("*.py") if not path.name.startswith("_"))
+
+
 def build_fmus(
     names: Iterable[str] | None = None,
     out_dir: str | Path | None = None,
     force: bool = False,
     echo: Callable[[str], None] | None = None,
 ) -> list[Path]:
-    """Build the named FMUs (all when ``names`` is None) into ``out_dir`` (default build/fmus).
+    """Build the named FMUs (all FMI 2.0 ones when ``names`` is None) into ``out_dir`` (default build/fmus).
 
     An FMU newer than all its sources (its script, ``fmus/_slave.py``, every greyfmu
     module) is kept unless ``force``.  ``echo`` receives one line per FMU.  Returns the
     FMU paths in the order of ``names``.
     """
-    available = fmu_names()
-    requested = available if names is None else list(names)
+    available = fmu_names() + fmi3_fmu_names()
+    requested = fmu_names() if names is None else list(names)
     unknown = [name for name in requested if name not in available]
     if unknown:
         raise UnknownFmuError(f"unknown FMU {', '.join(unknown)}; valid names: {', '.join(available)}")
     out_dir = DEFAULT_OUT_DIR if out_dir is None else Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    newest_common_source = max(path.stat().st_mtime for path in [SLAVE_BASE, *PACKAGE_DIR.rglob("*.py")])
+    newest_common_source = max(path.stat().st_mtime for path in [*PACKAGE_DIR.rglob("*.py")])
     paths = []
     for name in requested:
         script = FMU_SOURCES / f"{name}.py"
+        if not script.is_file():
+            script = FMI3_SOURCES / f"{name}.py"
+        base = SLAVE_BASE3 if script.parent == FMI3_SOURCES else SLAVE_BASE
         fmu = out_dir / f"{name}.fmu"
-        newest_source = max(newest_common_source, script.stat().st_mtime)
+        newest_source = max(newest_common_source, base.stat().st_mtime, script.stat().st_mtime)
         if not force and fmu.is_file() and fmu.stat().st_mtime > newest_source:
             status = "up to date"
         else:
@@ -109,7 +122,7 @@ def provide_fmu(file_name: str) -> Path | None:
     ``fmus/`` folder to build from (a non-editable install).
     """
     name = Path(file_name)
-    if name.suffix != ".fmu" or not FMU_SOURCES.is_dir() or name.stem not in fmu_names():
+    if name.suffix != ".fmu" or not FMU_SOURCES.is_dir() or name.stem not in fmu_names() + fmi3_fmu_names():
         return None
 
     def report(line: str) -> None:
@@ -120,6 +133,9 @@ def provide_fmu(file_name: str) -> Path | None:
 
 
 def _build_one(script: Path, fmu: Path) -> None:
+    if script.parent == FMI3_SOURCES:
+        _build_one_fmi3(script, fmu)
+        return
     with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
         staged_package = Path(temp) / "package" / PACKAGE_DIR.name
         shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
@@ -172,8 +188,74 @@ def _declare_output_dependencies(root: ElementTree.Element, model: str, output_d
         unknown.set("dependencies", " ".join(str(index_of[dependency]) for dependency in output_dependencies[name]))
 
 
-def _declare_units(root: ElementTree.Element, model: str) -> None:
-    used = sorted({unit for unit in (node.get("unit") for node in root.iter("Real")) if unit is not None})
+def _build_one_fmi3(script: Path, fmu: Path) -> None:
+    """Build an FMI 3.0 FMU with pythonfmu3 0.3.4 and repair its model description:
+
+    - ``canHandleVariableCommunicationStepSize`` is written "false" whatever the slave can do
+      (pythonfmu3 copies the last common option's value into every Co-Simulation option); our
+      slaves handle any step, so it is set through the builder option;
+    - ``ModelStructure/Output`` gets ``dependencies`` (value references, FMI 3.0 §2.4.8) from
+      the slave class's ``output_dependencies``: absent, it means "depends on every input";
+    - ``UnitDefinitions`` declares the units the Float64 variables use (FMI 3.0 requires it).
+
+    Outputs keep pythonfmu3's ``initial="calculated"`` (the FMI 3.0 default for outputs), so they
+    carry no start value and are listed as InitialUnknowns, as FMI 3.0 §2.4.8 requires.
+    """
+    from pythonfmu3.builder import FmuBuilder as Fmu3Builder
+
+    with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
+        staged_package = Path(temp) / "package" / PACKAGE_DIR.name
+        shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        built = Fmu3Builder.build_FMU(script, dest=Path(temp) / "fmu", project_files=[staged_package, SLAVE_BASE3],
+                                      needsExecutionTool="false", canHandleVariableCommunicationStepSize="true")
+        with zipfile.ZipFile(built) as archive:
+            entries = {info.filename: archive.read(info) for info in archive.infolist()}
+        root = ElementTree.fromstring(entries["modelDescription.xml"])
+        model = root.get("modelName")
+        _declare_output_dependencies3(root, model, _slave_class3(script).output_dependencies)
+        _declare_units(root, model, tag="Float64")
+        ElementTree.indent(root)
+        entries["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
+        partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")
+        with zipfile.ZipFile(partial, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+            for name, data in entries.items():
+                archive.writestr(name, data)
+        os.replace(partial, fmu)
+
+
+def _slave_class3(script: Path) -> type:
+    """The slave class of an FMI 3.0 script (named as the file), imported with fmus/fmi3 on sys.path."""
+    import importlib.util
+
+    sys.path.insert(0, str(script.parent))
+    try:
+        spec = importlib.util.spec_from_file_location(f"_greyfmu_fmi3_{script.stem}", script)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(script.parent))
+    return getattr(module, script.stem)
+
+
+def _declare_output_dependencies3(root: ElementTree.Element, model: str,
+                                  output_dependencies: dict[str, list[str]]) -> None:
+    variables = [node for node in root.find("ModelVariables") if node.get("name")]
+    vr_of = {node.get("name"): node.get("valueReference") for node in variables}
+    inputs = {node.get("name") for node in variables if node.get("causality") == "input"}
+    outputs = {node.get("valueReference"): node.get("name") for node in variables if node.get("causality") == "output"}
+    if set(output_dependencies) != set(outputs.values()):
+        raise BuildError(f"{model}: output_dependencies names {sorted(output_dependencies)}, "
+                         f"but the outputs are {sorted(outputs.values())}")
+    for unknown in root.findall("ModelStructure/Output"):
+        dependencies = output_dependencies[outputs[unknown.get("valueReference")]]
+        not_inputs = [dependency for dependency in dependencies if dependency not in inputs]
+        if not_inputs:
+            raise BuildError(f"{model}: an output depends on {not_inputs}, which are not inputs ({sorted(inputs)})")
+        unknown.set("dependencies", " ".join(vr_of[dependency] for dependency in dependencies))
+
+
+def _declare_units(root: ElementTree.Element, model: str, tag: str = "Real") -> None:
+    used = sorted({unit for unit in (node.get("unit") for node in root.iter(tag)) if unit is not None})
     if not used:
         return
     unknown = [unit for unit in used if unit not in BASE_UNITS]

@@ -4,8 +4,17 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from greyfmu.build import build_fmus
+
+# Hypothesis profiles (tests/test_fuzz.py scales its example counts by max_examples: 500 fuzz
+# examples in all by default, 10 000 in the nightly run).  Select the nightly size with
+# COSIM_FUZZ=nightly or `pytest --hypothesis-profile nightly`; every example must end in 5 s.
+settings.register_profile("default", max_examples=100, deadline=5000)
+settings.register_profile("nightly", max_examples=2000, deadline=5000)
+if "COSIM_FUZZ" in os.environ:
+    settings.load_profile(os.environ["COSIM_FUZZ"])
 
 
 @pytest.fixture(scope="session")

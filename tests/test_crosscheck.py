@@ -99,6 +99,9 @@ SCENARIOS = sorted(p.name for p in (Path(__file__).resolve().parents[1] / "ssp")
                    if (p / "SystemStructure.ssd").is_file())
 STEPS = 600
 DIVERGE_WITH_FMU_DEFAULTS = {"dpi_wood_berry"}
+#: Scenarios with implementation="ModelExchange": libcosim 0.11 and fmpy.ssp ignore it and run the
+#: plant's Co-Simulation export (explicit Euler at the 10 ms step), so their results differ from ours.
+MODEL_EXCHANGE = {"pid_mass_damper_me"}
 
 
 @pytest.mark.parametrize("name", SCENARIOS)
@@ -124,8 +127,10 @@ def test_every_scenario_packs_and_runs_in_both_peers(tmp_path, name):
     assert len(theirs) == len(ours)
     for n in names:
         assert np.all(np.isfinite(theirs[n])), n
-        if not feedthrough and n not in inputs:
+        if not feedthrough and n not in inputs and name not in MODEL_EXCHANGE:
             np.testing.assert_allclose(theirs[n], ours[n], rtol=1e-9, atol=1e-12, err_msg=n)
+    if name in MODEL_EXCHANGE:
+        assert np.max(np.abs(theirs["plant.y"] - ours["plant.y"])) > 0.01
     try:
         fmpy_rows = run_fmpy_ssp(ssp, 0.0, stop, h, names)
     except FMICallException as error:

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
-from cosim.metrics import compare, step_metrics
+from cosim.errors import SetupError
+from cosim.metrics import Tolerance, compare, step_metrics, tolerance_for
 
 
 def first_order(T=5.0, t0=2.0, dt=1e-3, stop=80.0):
@@ -92,3 +93,49 @@ def test_compare_function_names_missing_signals():
     with pytest.raises(Exception) as err:
         compare(a, a, signals=["plant.z"])
     assert "plant.y" in str(err.value)
+
+
+def test_the_most_specific_tolerance_key_wins():
+    default = Tolerance(1e-6, 1e-9)
+    tolerances = {"*": (1e-1, 0.0), "plant.*": (1e-2, 0.0), "plant.y?": {"rtol": 1e-3}, "plant.y": (1e-4, 1e-5)}
+    assert tolerance_for("plant.y", tolerances, default) == Tolerance(1e-4, 1e-5)       # exact name
+    assert tolerance_for("plant.y2", tolerances, default) == Tolerance(1e-3, 1e-9)      # missing atol: default's
+    assert tolerance_for("plant.u", tolerances, default) == Tolerance(1e-2, 0.0)
+    assert tolerance_for("controller.u", tolerances, default) == Tolerance(1e-1, 0.0)
+    assert tolerance_for("controller.u", {}, default) == default
+    for bad in [{"plant.y": (1e-3,)}, {"plant.y": {"rtol": 1e-3, "atl": 0}}, {"plant.y": (-1.0, 0.0)}]:
+        with pytest.raises(SetupError, match="plant.y"):
+            tolerance_for("plant.y", bad, default)
+
+
+def test_compare_reports_the_first_sample_out_of_band_per_signal():
+    t, y, r = first_order(stop=10.0)
+    a = np.empty(len(t), dtype=[("time", float), ("plant.y", float), ("setpoint.y", float)])
+    a["time"], a["plant.y"], a["setpoint.y"] = t, y, r
+    b = a.copy()
+    b["plant.y"][(t >= 5.0) & (t < 5.0105)] += 1e-4     # 11 samples out from t = 5 s
+    loose, tight = compare(a, b, tolerances={"plant.*": (0.0, 2e-4)}), compare(a, b)
+    assert all(d.ok for d in loose)
+    y_diff = tight[0]
+    assert not y_diff.ok and tight[1].ok and y_diff.samples_out == 11
+    assert y_diff.first_time == pytest.approx(5.0) and y_diff.first_reference == a["plant.y"][5000]
+    assert y_diff.first_value == b["plant.y"][5000] and y_diff.first_bound == pytest.approx(1e-9 + 1e-6 * y[5000])
+    assert "plant.y: first at t = 5 s" in y_diff.describe() and "(rtol 1e-06, atol 1e-09)" in y_diff.describe()
+    with pytest.raises(SetupError, match="'plant.yy'.*matches no compared signal.*Did you mean 'plant.y'"):
+        compare(a, b, tolerances={"plant.yy": (1.0, 1.0)})
+    with pytest.raises(SetupError, match=r"the time grids differ \(10001 samples from 0 to 10 s, step 0.001 s vs "
+                                         r"10001 samples .*; sample 1 is at 0.001 s vs 0.002 s\)"):
+        shifted = a.copy()
+        shifted["time"][1:] += 1e-3
+        compare(a, shifted)
+
+
+def test_compare_cli_per_signal_tolerances(tmp_path, capsys):
+    t, y, r = first_order(stop=10.0)
+    a = _csv(tmp_path / "a.csv", t, **{"plant.y": y, "setpoint.y": r})
+    c = _csv(tmp_path / "c.csv", t, **{"plant.y": y + 1e-3, "setpoint.y": r})
+    assert main(["compare", a, c, "--tolerance", "plant.*=0,2e-3"]) == 0
+    assert main(["compare", a, c, "--tolerance", "plant.*=0,2e-3", "--tolerance", "plant.y=0,1e-4"]) == 1
+    assert "plant.y: first at t = 0 s: value 0.001, reference 0, |diff| 0.001 > 0.0001" in capsys.readouterr().out
+    assert main(["compare", a, c, "--tolerance", "plant.y=1e-3"]) == 2
+    assert "not GLOB=RTOL,ATOL" in capsys.readouterr().err

@@ -1,4 +1,5 @@
-"""Build the test-only FMUs of tests/fmus/ with pythonfmu (real FMUs, not mocks)."""
+"""Build the test-only FMUs of tests/fmus/ with pythonfmu (real FMUs, not mocks), and the
+FMI 3.0 ones of tests/fmus/fmi3/ with pythonfmu3 (`build_test_fmus3`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -12,3 +13,11 @@ def build_test_fmus(dest: Path) -> dict[str, Path]:
     dest.mkdir(parents=True, exist_ok=True)
     return {script.stem: Path(FmuBuilder.build_FMU(script, dest=dest, needsExecutionTool="false"))
             for script in sorted(HERE.glob("*.py"))}
+
+
+def build_test_fmus3(dest: Path) -> dict[str, Path]:
+    from pythonfmu3.builder import FmuBuilder as Fmu3Builder
+
+    dest.mkdir(parents=True, exist_ok=True)
+    return {script.stem: Path(Fmu3Builder.build_FMU(script, dest=dest))
+            for script in sorted((HERE / "fmi3").glob("*.py"))}

@@ -1,0 +1,377 @@
+"""Flatten a hierarchy of SSP systems into one level of components and direct connections.
+
+SSP 1.0 lets an ``ssd:System`` hold other systems in its ``ssd:Elements`` and
+declare its own ``ssd:Connectors``.  A connection whose ``startElement`` or
+``endElement`` is omitted names a connector of the enclosing system
+(SystemStructureDescription.xsd, Connection).  The direction of the data flow
+follows from the connector kinds (same documentation): between two elements of
+a system it goes from an output to an input; between an element and the
+enclosing system's own connector the kinds match, and an ``input`` of the
+system feeds the element while an element's ``output`` feeds the system's
+``output``.
+
+The master runs a flat list of components, so this module resolves every chain
+output → system connector → … → system connector → input into one direct
+connection between the two components, at any depth, composing the
+``ssc:LinearTransformation`` of each hop as affine maps
+(``f2·(f1·x + o1) + o2``).  Names are paths relative to the root system:
+component ``ctrl`` of subsystem ``loop`` is ``loop.ctrl``; the root system's own
+components keep their plain names, and the root system's name goes to the run
+metadata, not into every column.
+
+System connectors are handled explicitly, never dropped:
+
+* driven by two connections: refused, naming both;
+* with no driver but feeding something: it needs a value from a
+  ParameterBinding (at its own system's level, named like a variable of that
+  system: ``r`` on the root, ``loop.r`` from the root or ``r`` on ``loop``), which
+  becomes the start value of every input or parameter it reaches (through the
+  transformations) — a constant input.  Without a value it is refused
+  (`bind_system_connectors`, run when all parameter sets are known);
+* root ``output`` connectors are recorded under their own name as an alias of the
+  component output driving them (`SystemOutput`); an undriven one is refused;
+* unconnected connectors, and outputs of a nested system that feed nothing,
+  have no effect, like an unconnected connector of a component.
+
+ParameterBindings of a nested system name variables relative to it and are
+prefixed with its path; SSP 1.0 (ParameterBindings) gives bindings at a higher
+level precedence, so the flattened list puts the deepest systems first (later
+bindings win in `cosim.graph`).
+"""
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field, replace
+
+from .errors import SetupError, did_you_mean
+from .ssp import Component, Connection, Connector, ParameterValue
+
+#: Whether a connector is the sending end of a connection, by its kind, seen from the system holding
+#: the connection: on one of its elements (component or subsystem), or on the system itself.
+#: Calculated parameters are not supported through systems (the master does not route parameters).
+_SENDS_AS_ELEMENT = {"output": True, "input": False, "parameter": False}
+_SENDS_AS_OWN = {"input": True, "parameter": True, "output": False}
+
+
+@dataclass
+class RawSystem:
+    """One ``ssd:System`` as read, before flattening: local names, connections with
+    ``start_element``/``end_element`` None where they name this system's own connectors."""
+    name: str
+    line: int
+    connectors: dict[str, Connector]
+    components: dict[str, Component]
+    systems: dict[str, RawSystem]
+    connections: list[Connection]
+    parameters: list[ParameterValue]
+    #: names of the components and systems in document order
+    elements: list[str] = field(default_factory=list)
+
+
+@dataclass
+class SystemNode:
+    """The hierarchy as `cosim info` shows it: full component paths, nested systems."""
+    name: str
+    path: str
+    line: int
+    connectors: list[Connector]
+    components: list[str]
+    systems: list[SystemNode]
+
+
+@dataclass
+class SystemOutput:
+    """A root-system output connector, recorded as ``factor·component.connector + offset``."""
+    name: str
+    component: str
+    connector: str
+    factor: float
+    offset: float
+    line: int
+
+
+@dataclass
+class OpenConnector:
+    """A system connector without a driver that feeds component inputs or parameters;
+    a ParameterBinding naming ``path`` gives it its (constant) value."""
+    path: str
+    kind: str
+    line: int
+    #: (component path, connector name, factor, offset) reached through the hierarchy
+    sinks: list[tuple[str, str, float, float]]
+
+
+@dataclass
+class Flat:
+    components: dict[str, Component]
+    connections: list[Connection]
+    parameters: list[ParameterValue]
+    hierarchy: SystemNode
+    system_outputs: dict[str, SystemOutput]
+    open_connectors: dict[str, OpenConnector]
+    #: paths of the system connectors that are driven by a connection
+    driven_connectors: set[str]
+
+
+# A node of the connection graph: ("c", component path, connector) or ("s", system path, connector);
+# the root system's path is "".
+Node = tuple[str, str, str]
+
+
+@dataclass
+class _Edge:
+    src: Node
+    dst: Node
+    connection: Connection
+
+
+def node_name(node: Node) -> str:
+    """``loop.ctrl.u`` for a component connector, ``loop.r`` (or ``r`` on the root) for a system's."""
+    return f"{node[1]}.{node[2]}" if node[1] else node[2]
+
+
+def flatten(root: RawSystem, file: str) -> Flat:
+    """Resolve the hierarchy under ``root`` into components and component-to-component connections."""
+    walker = _Walker(file)
+    hierarchy = walker.walk(root, "", 0)
+    parameters = [p for _, values in sorted(walker.parameters, key=lambda dp: -dp[0]) for p in values]
+    resolver = _Resolver(file, walker)
+    connections = walker.direct + resolver.routes()
+    return Flat(components=walker.components, connections=connections, parameters=parameters,
+                hierarchy=hierarchy, system_outputs=resolver.system_outputs,
+                open_connectors=resolver.open_connectors,
+                driven_connectors={node_name(n) for n in resolver.driver})
+
+
+class _Walker:
+    """Collects components, direct connections and directed edges through system connectors."""
+
+    def __init__(self, file: str):
+        self.file = file
+        self.components: dict[str, Component] = {}
+        self.direct: list[Connection] = []
+        self.edges: list[_Edge] = []
+        self.system_connectors: dict[Node, Connector] = {}
+        self.component_kinds: dict[Node, str] = {}
+        self.parameters: list[tuple[int, list[ParameterValue]]] = []
+
+    def walk(self, system: RawSystem, path: str, depth: int) -> SystemNode:
+        prefix = f"{path}." if path else ""
+        label = f"system '{path}'" if path else f"the root system '{system.name}'"
+        for name, conn in system.connectors.items():
+            if conn.kind == "inout":
+                raise SetupError("system connectors of kind 'inout' are not supported: SSP 1.0 gives them no "
+                                 "data-flow direction; declare an input or an output.", file=self.file,
+                                 element=f"ssd:Connector '{name}' of {label} (line {conn.line})", variable=name)
+            self.system_connectors[("s", path, name)] = conn
+        children: list[SystemNode] = []
+        for name in system.elements:  # document order: it orders the results' columns and Gauss-Seidel ties
+            if name in system.systems:
+                children.append(self.walk(system.systems[name], prefix + name, depth + 1))
+                continue
+            comp, full = system.components[name], prefix + name
+            if full in self.components:
+                raise SetupError(f"two components flatten to the same path '{full}'.", file=self.file,
+                                 element=f"ssd:Component '{name}' of {label} (line {comp.line})",
+                                 hint="Rename one of them; dots in names clash with subsystem paths.")
+            comp.name = full
+            self.components[full] = comp
+            for cname, conn in comp.connectors.items():
+                self.component_kinds[("c", full, cname)] = conn.kind
+        for c in system.connections:
+            self._connection(system, path, label, c)
+        self.parameters.append((depth, [replace(p, name=prefix + p.name) for p in system.parameters]))
+        return SystemNode(system.name, path, system.line, list(system.connectors.values()),
+                          [prefix + n for n in system.components], children)
+
+    def _connection(self, system: RawSystem, path: str, label: str, c: Connection) -> None:
+        prefix = f"{path}." if path else ""
+        where = f"ssd:Connection (line {c.line}) in {label}"
+        ends = [self._end(system, path, label, element, connector, where)
+                for element, connector in ((c.start_element, c.start_connector), (c.end_element, c.end_connector))]
+        if all(node[0] == "c" for node, _ in ends):
+            # component to component: cosim.graph directs and checks it against the FMUs
+            self.direct.append(Connection(prefix + c.start_element, c.start_connector, prefix + c.end_element,
+                                          c.end_connector, c.factor, c.offset, c.has_transformation,
+                                          c.suppress_unit_conversion, c.line))
+            return
+        (a, a_sends), (b, b_sends) = ends
+        # an undirected component end takes the direction the system end gives it
+        a_sends = (not b_sends) if a_sends is None else a_sends
+        b_sends = (not a_sends) if b_sends is None else b_sends
+        if a_sends == b_sends:
+            role = "send" if a_sends else "receive"
+            raise SetupError(f"both ends {role} ({node_name(a)} and {node_name(b)}): a connection goes from an "
+                             "output of an element (or an input of the enclosing system) to an input of an "
+                             "element (or an output of the enclosing system).", file=self.file, element=where)
+        src, dst = (a, b) if a_sends else (b, a)
+        self.edges.append(_Edge(src, dst, c))
+
+    def _end(self, system: RawSystem, path: str, label: str, element: str | None, connector: str,
+             where: str) -> tuple[Node, bool | None]:
+        """The node and whether it is the sending end; None for a component connector that is not
+        declared, or whose kind has no direction here: the other end decides, cosim.graph checks it."""
+        prefix = f"{path}." if path else ""
+        if element is None:
+            conn = system.connectors.get(connector)
+            if conn is None:
+                raise SetupError(f"{label} has no connector '{connector}' (a connection without an element "
+                                 "names a connector of the enclosing system).", file=self.file, element=where,
+                                 variable=connector, hint=did_you_mean(connector, system.connectors))
+            return ("s", path, connector), self._sends(conn, _SENDS_AS_OWN, f"{label}", where)
+        if element in system.components:
+            conn = system.components[element].connectors.get(connector)
+            return ("c", prefix + element, connector), (_SENDS_AS_ELEMENT.get(conn.kind) if conn else None)
+        if element in system.systems:
+            sub = system.systems[element]
+            conn = sub.connectors.get(connector)
+            if conn is None:
+                raise SetupError(f"system '{prefix + element}' has no connector '{connector}'.", file=self.file,
+                                 element=where, variable=connector, hint=did_you_mean(connector, sub.connectors))
+            return ("s", prefix + element, connector), self._sends(conn, _SENDS_AS_ELEMENT,
+                                                                   f"system '{prefix + element}'", where)
+        raise SetupError(f"unknown component '{element}' in {label}.", file=self.file, element=where,
+                         hint=did_you_mean(element, list(system.components) + list(system.systems)))
+
+    def _sends(self, conn: Connector, table: dict[str, bool], owner: str, where: str) -> bool:
+        if conn.kind not in table:
+            raise SetupError(f"connector '{conn.name}' of {owner} has kind '{conn.kind}', which this master "
+                             "cannot connect through a system (input, output, parameter are supported).",
+                             file=self.file, element=where, variable=conn.name)
+        return table[conn.kind]
+
+
+class _Resolver:
+    """Follows the edges from each component output through system connectors to the inputs."""
+
+    def __init__(self, file: str, walker: _Walker):
+        self.file = file
+        self.walker = walker
+        self.driver: dict[Node, _Edge] = {}  # system connectors only: graph checks component inputs
+        self.fanout: dict[Node, list[_Edge]] = defaultdict(list)
+        for e in walker.edges:
+            if e.dst[0] == "s":
+                if e.dst in self.driver:
+                    other = self.driver[e.dst].connection
+                    raise SetupError(f"system connector '{node_name(e.dst)}' is driven by two connections "
+                                     f"(lines {other.line} and {e.connection.line}).", file=file,
+                                     element=f"ssd:Connection (line {e.connection.line})",
+                                     variable=node_name(e.dst))
+                self.driver[e.dst] = e
+            self.fanout[e.src].append(e)
+        self.system_outputs: dict[str, SystemOutput] = {}
+        self.open_connectors: dict[str, OpenConnector] = {}
+
+    def routes(self) -> list[Connection]:
+        self._check_no_loops()
+        routes: list[Connection] = []
+        for src in list(self.fanout):
+            if src[0] == "c":
+                for e in self.fanout[src]:
+                    routes += self._follow(src, e, 1.0, 0.0, False, False, [])
+            elif src not in self.driver:
+                self._open(src)
+        for node, conn in self.walker.system_connectors.items():
+            if node[1] == "" and conn.kind == "output" and node not in self.driver:
+                raise SetupError(f"output connector '{node[2]}' of the root system is not driven by any "
+                                 "connection.", file=self.file, element=f"ssd:Connector (line {conn.line})",
+                                 variable=node[2], hint="Connect a component output to it, or remove it.")
+        return routes
+
+    def _check_no_loops(self) -> None:
+        for start in self.driver:
+            seen = {start}
+            node = start
+            while node in self.driver and self.driver[node].src[0] == "s":
+                node = self.driver[node].src
+                if node in seen:
+                    raise SetupError(f"system connectors '{node_name(start)}' … '{node_name(node)}' feed each "
+                                     "other in a loop with no component on it.", file=self.file,
+                                     element=f"ssd:Connection (line {self.driver[node].connection.line})")
+                seen.add(node)
+
+    def _follow(self, origin: Node, edge: _Edge, factor: float, offset: float, has: bool, suppress: bool,
+                hops: list[_Edge]) -> list[Connection]:
+        """Connections from ``origin`` (a component output) through ``edge`` and what follows it."""
+        c = edge.connection
+        factor, offset = c.factor * factor, c.factor * offset + c.offset
+        has, suppress = has or c.has_transformation, suppress or c.suppress_unit_conversion
+        hops = hops + [edge]
+        dst = edge.dst
+        if dst[0] == "c":
+            kind = self.walker.component_kinds.get(dst)
+            if kind == "parameter":
+                raise SetupError(f"parameter '{node_name(dst)}' is wired to the output {node_name(origin)} "
+                                 "through system connectors; parameter connections are not supported, give the "
+                                 "value with a ParameterBinding.", file=self.file,
+                                 element=f"ssd:Connection (line {c.line})", variable=dst[2])
+            lines = ", ".join(str(h.connection.line) for h in hops)
+            through = ", ".join(node_name(h.dst) for h in hops[:-1])
+            return [Connection(origin[1], origin[2], dst[1], dst[2], factor, offset, has, suppress,
+                               hops[0].connection.line, via=f"lines {lines} through system connector {through}")]
+        out: list[Connection] = []
+        for nxt in self.fanout.get(dst, []):
+            out += self._follow(origin, nxt, factor, offset, has, suppress, hops)
+        if dst[1] == "" and self.walker.system_connectors[dst].kind == "output":
+            self.system_outputs[dst[2]] = SystemOutput(dst[2], origin[1], origin[2], factor, offset,
+                                                       self.walker.system_connectors[dst].line)
+        return out
+
+    def _open(self, node: Node) -> None:
+        """An undriven system connector that feeds something: list what a binding would set."""
+        conn = self.walker.system_connectors[node]
+        sinks: list[tuple[str, str, float, float]] = []
+        stack = [(e, 1.0, 0.0) for e in self.fanout[node]]
+        while stack:
+            e, f, o = stack.pop()
+            f, o = e.connection.factor * f, e.connection.factor * o + e.connection.offset
+            if e.dst[0] == "c":
+                sinks.append((e.dst[1], e.dst[2], f, o))
+                continue
+            if e.dst[1] == "" and self.walker.system_connectors[e.dst].kind == "output":
+                raise SetupError(f"root output connector '{e.dst[2]}' is fed by '{node_name(node)}', which no "
+                                 "component drives; only component outputs can be recorded.", file=self.file,
+                                 element=f"ssd:Connection (line {e.connection.line})", variable=e.dst[2])
+            stack += [(nxt, f, o) for nxt in self.fanout.get(e.dst, [])]
+        if sinks:
+            self.open_connectors[node_name(node)] = OpenConnector(node_name(node), conn.kind, conn.line,
+                                                              sinks)
+
+
+def bind_system_connectors(open_connectors: dict[str, OpenConnector], driven: set[str],
+                           values: list[ParameterValue], file: str) -> list[ParameterValue]:
+    """Replace each value that names a system connector by values for what it feeds.
+
+    The value goes through the composed LinearTransformation of each path (Real
+    values only).  An open connector that gets no value is refused, naming it
+    and what it feeds; a value for a connector that a connection drives is refused.
+    """
+    out: list[ParameterValue] = []
+    bound: set[str] = set()
+    for p in values:
+        if p.name in driven:
+            raise SetupError(f"'{p.name}' is a system connector driven by a connection; it cannot also be "
+                             "given a value.", file=p.file, element=f"ssv:Parameter (line {p.line})",
+                             variable=p.name)
+        target = open_connectors.get(p.name)
+        if target is None:
+            out.append(p)
+            continue
+        bound.add(p.name)
+        for comp, conn, factor, offset in target.sinks:
+            if (factor, offset) == (1.0, 0.0):
+                out.append(replace(p, name=f"{comp}.{conn}"))
+                continue
+            if p.type not in ("Real", "Integer"):
+                raise SetupError(f"a {p.type} value cannot go through the LinearTransformation on the way "
+                                 f"from system connector '{p.name}' to {comp}.{conn}.", file=p.file,
+                                 element=f"ssv:Parameter (line {p.line})", variable=p.name)
+            out.append(replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset))
+    for path, target in open_connectors.items():
+        if path not in bound:
+            fed = ", ".join(f"{comp}.{conn}" for comp, conn, _, _ in target.sinks)
+            raise SetupError(f"system connector '{path}' (kind {target.kind}) has no driver and no value; it "
+                             f"feeds {fed}.", file=file, element=f"ssd:Connector (line {target.line})",
+                             variable=path, hint="Connect an output to it, or give it a value with a "
+                             "ParameterBinding (a constant input).")
+    return out

@@ -1,0 +1,223 @@
+"""FMI 3.0 Co-Simulation FMUs behind the master's FMI 2.0-shaped instance interface.
+
+`FMI3Instance` wraps fmpy's `FMU3Slave` and offers what `cosim.fmu.Instance`
+offers (see its docstring): ``do_step``/``get``/``set`` callables with the FMI
+2.0 C signatures, called by the execution on its ctypes exchange buffers.  Most
+are thin closures over the raw fmi3 functions; the differences they absorb:
+
+* ``fmi3Get*``/``fmi3Set*`` take ``nValues`` besides ``nValueReferences``
+  (FMI 3.0 §2.2.6.2): for scalars both are the same count.
+* ``fmi3Boolean`` is a C ``bool`` (1 byte, FMI 3.0 §2.2.3) while the exchange
+  buffer holds ``int`` as fmi2Boolean does: copied through a preallocated
+  ``c_bool`` scratch array.
+* Array variables (``<Dimension>``, FMI 3.0 §2.4.7.5, serialised row-major):
+  a connector names one element (`cosim.fmu.ArrayElement`, a value reference of
+  its own that only this module resolves).  Reading fetches the whole array into
+  a scratch buffer and copies the element out; writing keeps a scratch copy of
+  the whole input array (read once, then only the master writes it) and writes
+  it back whole.
+* ``fmi3DoStep`` reports ``terminateSimulation`` through an out-argument
+  (FMI 3.0 §4.2.4); the run then ends as it does after fmi2 Discard, with a
+  message.  Instances are created with ``eventModeUsed = earlyReturnAllowed =
+  false``, so ``eventHandlingNeeded`` and ``earlyReturn`` carry nothing here.
+* there is no ``fmi2SetupExperiment``: start and stop time go to
+  ``fmi3EnterInitializationMode`` (FMI 3.0 §2.3.2).
+* the log callback has no instance name (FMI 3.0 §2.3.1): one callback per
+  instance, writing into that instance's ``messages``.
+"""
+from __future__ import annotations
+
+import collections
+import ctypes
+from collections.abc import Callable
+
+import numpy as np
+from fmpy.fmi3 import FMU3Slave
+from fmpy.model_description import ModelVariable
+
+from .errors import SetupError
+from .fmu import FMU_LOG_LEVELS, STATUS, ArrayElement, FMUDescription, end_instance, exchange_type
+
+FMI_WARNING, FMI_DISCARD = 1, 2
+
+#: exchange type -> (fmi3 function suffix, C type the FMU reads and writes)
+FMI3_FUNCTIONS: dict[str, tuple[str, type]] = {
+    "Real": ("Float64", ctypes.c_double),
+    "Integer": ("Int32", ctypes.c_int32),
+    "Boolean": ("Boolean", ctypes.c_bool),
+    "String": ("String", ctypes.c_char_p),
+}
+
+Adapter = Callable[..., int]
+
+
+class FMI3Instance:
+    """One live FMI 3.0 Co-Simulation instance with the interface of `cosim.fmu.Instance`."""
+
+    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
+        self.name = name
+        self.desc = desc
+        self.messages: collections.deque[str] = collections.deque(maxlen=20)
+        self.slave = FMU3Slave(guid=desc.md.guid, unzipDirectory=unzip_dir,
+                               modelIdentifier=desc.model_identifier, instanceName=name)
+        self.component = None
+        self.failed: str | None = None
+        self._start, self._stop = 0.0, None
+        raw = self.slave._functions
+        self.do_step = self._do_step_adapter(raw["fmi3DoStep"])
+        self.get = {t: self._get_adapter(t) for t in FMI3_FUNCTIONS}
+        self.set = {t: self._set_adapter(t) for t in FMI3_FUNCTIONS}
+
+    # ----------------------------------------------------------------- hot-loop adapters
+
+    def _do_step_adapter(self, raw) -> Adapter:
+        event, terminate, early = ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool()
+        last = ctypes.c_double()
+        out = (ctypes.byref(event), ctypes.byref(terminate), ctypes.byref(early), ctypes.byref(last))
+
+        def do_step(component, t: float, h: float, no_prior_state: int) -> int:
+            status = raw(component, t, h, no_prior_state, *out)
+            if terminate.value and status <= FMI_WARNING:
+                self.messages.append(f"fmi3DoStep(t = {t:g}, h = {h:g}) returned {STATUS[status]} with "
+                                     "terminateSimulation = true: the run ends as after Discard")
+                return FMI_DISCARD
+            return status
+        return do_step
+
+    def _get_adapter(self, type_name: str) -> Adapter:
+        suffix, ctype = FMI3_FUNCTIONS[type_name]
+        raw = self.slave._functions[f"fmi3Get{suffix}"]
+        plans: dict[int, _Gather] = {}
+        elements = self.desc.elements
+
+        if not any(exchange_type(e.array) == type_name for e in elements.values()) and ctype is not ctypes.c_bool:
+            def get(component, vrs, n: int, values) -> int:
+                return raw(component, vrs, n, values, n)
+            return get
+
+        def get(component, vrs, n: int, values) -> int:
+            plan = plans.get(id(vrs))
+            if plan is None or not plan.serves(vrs, values):
+                plan = plans[id(vrs)] = _Gather(vrs, n, values, elements, ctype)
+            status = raw(component, plan.vrs, plan.nvr, plan.scratch, plan.nvalues)
+            if status <= FMI_WARNING:
+                plan.copy_out()
+            return status
+        return get
+
+    def _set_adapter(self, type_name: str) -> Adapter:
+        suffix, ctype = FMI3_FUNCTIONS[type_name]
+        raw = self.slave._functions[f"fmi3Set{suffix}"]
+        raw_get = self.slave._functions[f"fmi3Get{suffix}"]
+        plans: dict[int, _Gather] = {}
+        elements = self.desc.elements
+
+        if not any(exchange_type(e.array) == type_name for e in elements.values()) and ctype is not ctypes.c_bool:
+            def set_(component, vrs, n: int, values) -> int:
+                return raw(component, vrs, n, values, n)
+            return set_
+
+        def set_(component, vrs, n: int, values) -> int:
+            plan = plans.get(id(vrs))
+            if plan is None or not plan.serves(vrs, values):
+                plan = _Gather(vrs, n, values, elements, ctype)
+                # the whole input arrays as the FMU holds them; from then on only the master writes them
+                status = raw_get(component, plan.vrs, plan.nvr, plan.scratch, plan.nvalues)
+                if status > FMI_WARNING:
+                    return status
+                plans[id(vrs)] = plan
+            plan.copy_in()
+            return raw(component, plan.vrs, plan.nvr, plan.scratch, plan.nvalues)
+        return set_
+
+    # ----------------------------------------------------------------- set-up
+
+    def _log(self, env, status: int, category: bytes | None, message: bytes | None) -> None:
+        cat = category.decode("utf-8", "replace") if category else ""
+        text = message.decode("utf-8", "replace") if message else ""
+        self.messages.append(f"[{STATUS.get(status, status)}] {cat}: {text}".strip())
+
+    def instantiate(self, fmu_log: str = "errors") -> None:
+        """fmi3InstantiateCoSimulation (FMI 3.0 §4.2.1); ``fmu_log`` as in `cosim.fmu.Instance`."""
+        if fmu_log not in FMU_LOG_LEVELS:
+            raise SetupError(f"unknown FMU log level '{fmu_log}'; choose one of {', '.join(FMU_LOG_LEVELS)}.")
+        try:
+            self.slave.instantiate(loggingOn=fmu_log != "off", logMessage=self._log)
+        except Exception as e:
+            raise SetupError(f"fmi3InstantiateCoSimulation failed for {self.desc.path.name} (instantiation "
+                             f"token {self.desc.md.guid}): {e}." + self.last_messages(),
+                             element=f"component '{self.name}'") from None
+        self.component = self.slave.component
+        status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
+        if fmu_log == "errors" and status_categories:
+            self.slave.setDebugLogging(True, status_categories)
+
+    def setup_experiment(self, start: float, stop: float) -> None:
+        """Kept for `enter_initialization_mode`: FMI 3.0 has no fmi3SetupExperiment."""
+        self._start, self._stop = start, stop
+
+    def set_start(self, variable: ModelVariable, value: float | int | bool | str) -> None:
+        """Set a parameter or start value before initialisation (FMI 3.0 §2.2.6.2)."""
+        vr = [variable.valueReference]
+        kind = exchange_type(variable)
+        if kind == "String":
+            self.slave.setString(vr, [str(value)])
+        else:
+            {"Real": self.slave.setFloat64, "Integer": self.slave.setInt32,
+             "Boolean": self.slave.setBoolean}[kind](vr, [value])
+
+    def enter_initialization_mode(self) -> None:
+        self.slave.enterInitializationMode(startTime=self._start, stopTime=self._stop)
+
+    def exit_initialization_mode(self) -> None:
+        self.slave.exitInitializationMode()
+
+    def last_messages(self) -> str:
+        return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
+
+    def free(self) -> None:
+        """As `cosim.fmu.Instance.free` (FMI 3.0 §2.3.1 state machine).  pythonfmu3 0.3.4
+        libraries keep the same static interpreter state as pythonfmu 0.7.0 (they export
+        ``finalizePythonInterpreter`` too), so it is released the same way before unloading."""
+        end_instance(self, lambda: self.slave.fmi3FreeInstance(self.component))
+
+
+class _Gather:
+    """How the value references one get/set call names map onto fmi3 calls: the distinct
+    variables (an array once, however many of its elements are named), a scratch buffer for
+    their values in the FMU's C type, and the position of each named value in it.  Numbers
+    and Booleans only: strings are exchanged scalar by scalar (String array elements are
+    refused by `cosim.fmu.FMUDescription.variable`).
+
+    A plan serves one pair of caller arrays (value references, values), as the execution
+    passes the same ones at every call; it keeps them, so their ``id`` keys it safely."""
+
+    def __init__(self, vrs, n: int, values, elements: dict[int, ArrayElement], ctype: type):
+        self.caller = (vrs, values)
+        self.out = np.ctypeslib.as_array(values, shape=(n,))
+        variables: dict[int, int] = {}  # FMU value reference -> offset in scratch
+        offsets: list[int] = []
+        total = 0
+        for vr in vrs[:n]:
+            element = elements.get(vr)
+            real_vr, size, index = (element.array.valueReference, element.size, element.index) \
+                if element is not None else (vr, 1, 0)
+            if real_vr not in variables:
+                variables[real_vr] = total
+                total += size
+            offsets.append(variables[real_vr] + index)
+        self.nvr = len(variables)
+        self.vrs = (ctypes.c_uint * max(1, self.nvr))(*variables)
+        self.nvalues = total
+        self.scratch = (ctype * max(1, total))()
+        self.positions = np.array(offsets, dtype=np.intp)
+        self.view = np.ctypeslib.as_array(self.scratch)
+
+    def serves(self, vrs, values) -> bool:
+        return self.caller[0] is vrs and self.caller[1] is values
+
+    def copy_out(self) -> None:
+        self.out[:] = self.view[self.positions]
+
+    def copy_in(self) -> None:
+        self.view[self.positions] = self.out

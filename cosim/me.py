@@ -1,0 +1,301 @@
+"""Model Exchange FMUs hosted by the master: the master integrates their states.
+
+An FMI 2.0 Model Exchange FMU has no ``fmi2DoStep``; it gives derivatives and
+event indicators, and the importer integrates (FMI 2.0 §3).  `MEInstance`
+wraps fmpy's `FMU2Model` behind the same small interface as a Co-Simulation
+`cosim.fmu.Instance`, so the execution steps it like any other component:
+``do_step(component, t, h, flag)`` integrates from t to t + h with the inputs
+held (zero-order hold) using fmpy's `CVodeSolver` (SUNDIALS CVODE, BDF with a
+dense Newton solver, so stiff plants are stable at any communication step).
+
+Events (FMI 2.0 §3.2.2 for the functions, §3.2.3 for the state machine, §3.2.4
+for the reference loop this follows):
+
+* input events: an input changed at the communication point is a
+  discontinuity: the FMU goes through Event Mode (relations that depend on the
+  input are re-evaluated) and the solver restarts at t;
+* time events: ``eventInfo.nextEventTime`` caps the integration interval;
+* state events: event-indicator sign changes, located by CVODE's root finding;
+* step events: ``fmi2CompletedIntegratorStep`` asks for Event Mode.
+
+Each one is fmi2EnterEventMode, the fmi2NewDiscreteStates iteration until no
+new discrete states are needed, fmi2EnterContinuousTimeMode, and a solver
+restart from the FMU's (possibly re-initialised) states.  terminateSimulation
+ends the run as a Discard does.  ``do_step`` never raises: an FMU call that
+fails returns its status, a solver failure returns Error (3), and the reason
+is in ``messages``.
+"""
+from __future__ import annotations
+
+import collections
+import ctypes
+import math
+from dataclasses import dataclass
+
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Model, fmi2EventInfo, fmi2False
+
+from .errors import SetupError
+from .fmu import _LOG_TARGETS, STATUS, FMUDescription, Instance
+from .ssp import SolverOptions, SystemStructure
+
+FMI_OK, FMI_DISCARD, FMI_ERROR = 0, 2, 3
+#: Events handled within one communication step before the FMU is declared to chatter.
+MAX_EVENTS_PER_STEP = 1000
+#: Relative tolerance when the FMU's DefaultExperiment gives none.
+DEFAULT_RTOL = 1e-6
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """How the master integrates a Model Exchange FMU (recorded in the run metadata)."""
+    method: str
+    rtol: float
+    #: largest internal step (never more than the communication step); None: the communication step
+    max_step: float | None = None
+
+    def as_dict(self) -> dict:
+        return {"method": self.method, "rtol": self.rtol,
+                "max_step": "communication step" if self.max_step is None else self.max_step}
+
+
+def solver_settings(desc: FMUDescription, options: SolverOptions | None = None) -> SolverSettings:
+    """CVODE (BDF) at the component's ``org.greyfmu.solver`` rtol, else the FMU's
+    DefaultExperiment tolerance, else 1e-6; absolute tolerances are rtol × the states' nominal
+    values (as fmpy does).  The largest internal step is the annotation's maxStep (capped at the
+    communication step), else the communication step."""
+    experiment = desc.md.defaultExperiment
+    tolerance = experiment.tolerance if experiment is not None and experiment.tolerance else None
+    rtol = float(tolerance) if tolerance else DEFAULT_RTOL
+    if options is not None and options.rtol is not None:
+        rtol = options.rtol
+    return SolverSettings(method="CVode (BDF)", rtol=rtol, max_step=options.max_step if options else None)
+
+
+def check_model_exchange(structure: SystemStructure, fmus: dict[str, FMUDescription]) -> None:
+    """What can be checked before instantiation: an ``org.greyfmu.solver`` annotation only on a
+    component the master integrates (a Co-Simulation FMU integrates itself: refused rather than
+    ignored), and no discrete-time inputs on one, which FMI 2.0 lets an importer set only in
+    Event Mode (§3.2.3) while this master sets inputs at communication points in
+    Continuous-Time Mode."""
+    file = str(structure.ssd_file)
+    for name, comp in structure.components.items():
+        desc = fmus[name]
+        if comp.solver is not None and desc.kind != "fmi2-me":
+            raise SetupError(f"component '{name}' runs through its {desc.kind} interface, which integrates "
+                             "itself; the solver annotation applies to Model Exchange components only.",
+                             file=comp.solver.file, element=f"{comp.solver.element} of ssd:Component '{name}'",
+                             hint='Add implementation="ModelExchange" to the component or remove the annotation.')
+        if desc.kind != "fmi2-me":
+            continue
+        discrete = [v.name for v in desc.md.modelVariables if v.causality == "input" and v.variability != "continuous"]
+        if discrete:
+            raise SetupError(f"{desc.path.name} runs through its Model Exchange interface and has discrete-time "
+                             f"inputs ({', '.join(discrete)}), which FMI 2.0 lets an importer set only in Event Mode "
+                             "(§3.2.3); this master sets inputs at communication points in Continuous-Time Mode.",
+                             file=file, element=f"ssd:Component '{name}' (line {comp.line})", variable=discrete[0],
+                             hint='Use its Co-Simulation interface (implementation="CoSimulation") if it has one.')
+
+
+class _NoInput:
+    """fmpy's CVodeSolver re-applies input signals in its root function; inputs here are
+    set by the execution and held, so there is nothing to apply."""
+
+    def apply(self, time: float, continuous: bool = True, discrete: bool = True, after_event: bool = False):
+        pass
+
+
+class MEInstance(Instance):
+    """One FMI 2.0 Model Exchange instance stepped like a Co-Simulation slave.
+
+    ``get``/``set`` are the FMU's raw fmi2Get/fmi2Set functions.  ``events`` counts the
+    events handled by kind ("input", "time", "state", "step").  The set-up calls, the log
+    messages and ``free`` are `Instance`'s.
+    """
+
+    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
+        self.name = name
+        self.desc = desc
+        self.messages: collections.deque[str] = collections.deque(maxlen=20)
+        md = desc.md
+        self.slave = FMU2Model(guid=md.guid, unzipDirectory=unzip_dir,
+                               modelIdentifier=desc.model_identifier, instanceName=name)
+        _LOG_TARGETS[name] = self.messages
+        raw = self.slave._functions
+        self.get = {"Real": raw["fmi2GetReal"], "Integer": raw["fmi2GetInteger"],
+                    "Boolean": raw["fmi2GetBoolean"], "String": raw["fmi2GetString"]}
+        self.set = {"Real": raw["fmi2SetReal"], "Integer": raw["fmi2SetInteger"],
+                    "Boolean": raw["fmi2SetBoolean"], "String": raw["fmi2SetString"]}
+        self.component = None
+        self.failed: str | None = None
+        self.settings = solver_settings(desc)
+        self._raw = raw
+        self._nx = md.numberOfContinuousStates
+        self._nz = md.numberOfEventIndicators
+        self._needs_completed_step = bool(md.modelExchange.needsCompletedIntegratorStep)
+        inputs = [v.valueReference for v in md.modelVariables if v.causality == "input"]
+        self._input_vrs = (ctypes.c_uint * max(1, len(inputs)))(*inputs)
+        self._n_inputs = len(inputs)
+        self._inputs = (ctypes.c_double * max(1, len(inputs)))()
+        self._held = b""
+        self._solver = None
+        self._max_step = math.inf
+        self._start = 0.0
+        self._next_event: float | None = None
+        self._callback_failure: tuple[int, str] | None = None
+        self._events = {"input": 0, "time": 0, "state": 0, "step": 0}
+
+    @property
+    def events(self) -> dict[str, int]:
+        """Events handled so far, by kind."""
+        return dict(self._events)
+
+    # ----------------------------------------------------------------- set-up
+
+    def setup_experiment(self, start: float, stop: float) -> None:
+        """fmi2SetupExperiment with the solver's tolerance (the FMU may use it internally)."""
+        self._start = start
+        self.slave.setupExperiment(tolerance=self.settings.rtol, startTime=start, stopTime=stop)
+
+    def exit_initialization_mode(self) -> None:
+        """Leave Initialization Mode, then run the initial event iteration and enter
+        Continuous-Time Mode (FMI 2.0 §3.2.3: the model is in Event Mode after
+        fmi2ExitInitializationMode; §3.2.4's loop), so outputs reflect the initial state; start
+        the solver."""
+        self.slave.exitInitializationMode()
+        if self._discrete_iteration():
+            raise RuntimeError("the FMU requested termination during its initial event iteration")
+        self.slave.enterContinuousTimeMode()
+        self._held = self._read_inputs()
+        self._solver = self._new_solver()
+
+    def _new_solver(self):
+        from fmpy.sundials import CVodeSolver
+        return CVodeSolver(nx=self._nx, nz=self._nz, get_x=self._checked("fmi2GetContinuousStates"),
+                           set_x=self._checked("fmi2SetContinuousStates"),
+                           get_dx=self._checked("fmi2GetDerivatives"),
+                           get_z=self._checked("fmi2GetEventIndicators"),
+                           get_nominals=self._checked("fmi2GetNominalsOfContinuousStates"),
+                           set_time=self._checked("fmi2SetTime"), input=_NoInput(), startTime=self._start,
+                           relativeTolerance=self.settings.rtol)
+
+    def _checked(self, function: str):
+        """The raw FMI function bound to this instance, for the solver's callbacks: a status
+        above Warning is kept (a ctypes callback cannot raise) and reported by do_step."""
+        raw = self._raw[function]
+
+        def call(*args):
+            status = raw(self.component, *args)
+            if status > 1 and self._callback_failure is None:
+                self._callback_failure = (status, function)
+            return status
+        return call
+
+    def free(self) -> None:
+        """Free the solver (its callbacks call into the FMU), then the instance as `Instance`."""
+        self._solver = None
+        super().free()
+
+    # ----------------------------------------------------------------- stepping
+
+    def do_step(self, component, t: float, h: float, no_prior_state: int = 1) -> int:
+        """Integrate from t to t + h with the inputs held; the FMU's time and states are left at
+        t + h so its outputs there can be read.  Returns an FMI status and never raises."""
+        try:
+            return self._advance(t, t + h)
+        except FMICallException as e:
+            self.messages.append(f"[{STATUS.get(e.status, e.status)}] {e}")
+            return e.status
+        except Exception as e:  # the solver's failure (CVODE error flags) or a chattering FMU
+            self.messages.append(f"[Error] {type(e).__name__}: {e}")
+            return FMI_ERROR
+
+    def _advance(self, t: float, t_end: float) -> int:
+        max_step = t_end - t if self.settings.max_step is None else min(self.settings.max_step, t_end - t)
+        if not math.isclose(max_step, self._max_step, rel_tol=1e-9):
+            from fmpy.sundials.cvode import CVodeSetMaxStep
+            self._max_step = max_step
+            CVodeSetMaxStep(self._solver.cvode_mem, max_step)
+        held = self._read_inputs()
+        if held != self._held:  # inputs jumped at t: an event, then a fresh solver start
+            self._held = held
+            if self._event(t, ["input"]):
+                return self._terminated(t)
+        time = t
+        events = 0
+        while not _reached(time, t_end):
+            if self._next_event is not None and _reached(time, self._next_event):
+                kinds = ["time"]  # a time event due now: no integration first
+            else:
+                target = t_end if self._next_event is None else min(t_end, self._next_event)
+                state_event, _, time = self._solver.step(time, target)
+                if self._callback_failure is not None:
+                    return self._callback_status(time)
+                self.slave.setTime(time)
+                step_event = False
+                if self._needs_completed_step:
+                    step_event, terminate = self.slave.completedIntegratorStep()
+                    if terminate:
+                        return self._terminated(time)
+                time_event = self._next_event is not None and _reached(time, self._next_event)
+                kinds = [kind for kind, happened in (("time", time_event), ("state", state_event),
+                                                     ("step", step_event)) if happened]
+            if kinds:
+                events += 1
+                if events > MAX_EVENTS_PER_STEP:
+                    raise RuntimeError(f"more than {MAX_EVENTS_PER_STEP} events between t = {t:g} and "
+                                       f"{t_end:g} (the FMU chatters at t = {time:g})")
+                if self._event(time, kinds):
+                    return self._terminated(time)
+        if time != t_end:  # the grid time exactly, so outputs are read at t + h
+            self.slave.setTime(t_end)
+        return FMI_OK
+
+    def _event(self, time: float, kinds: list[str]) -> bool:
+        """Event Mode at ``time``: the discrete-state iteration, back to Continuous-Time Mode,
+        solver restart from the FMU's states (FMI 2.0 §3.2.2).  True if the FMU asks to stop."""
+        for kind in kinds:
+            self._events[kind] += 1
+        self.slave.enterEventMode()
+        if self._discrete_iteration():
+            return True
+        self.slave.enterContinuousTimeMode()
+        self._solver.reset(time)
+        return False
+
+    def _callback_status(self, time: float) -> int:
+        status, function = self._callback_failure
+        self._callback_failure = None
+        self.messages.append(f"[{STATUS.get(status, status)}] {function} failed while integrating near "
+                             f"t = {time:g}")
+        return status
+
+    def _discrete_iteration(self) -> bool:
+        """fmi2NewDiscreteStates until no new discrete states are needed; keeps the next time
+        event.  True if the FMU asks to terminate."""
+        info = fmi2EventInfo()
+        info.newDiscreteStatesNeeded = 1
+        while info.newDiscreteStatesNeeded != fmi2False:
+            self.slave.fmi2NewDiscreteStates(self.component, ctypes.byref(info))
+            if info.terminateSimulation != fmi2False:
+                return True
+        self._next_event = info.nextEventTime if info.nextEventTimeDefined != fmi2False else None
+        return False
+
+    def _terminated(self, time: float) -> int:
+        self.messages.append(f"[Discard] the FMU requested terminateSimulation at t = {time:g}")
+        return FMI_DISCARD
+
+    def _read_inputs(self) -> bytes:
+        """The inputs as set by the execution (fmi2GetReal on every input), to detect a jump."""
+        if not self._n_inputs:
+            return b""
+        status = self._raw["fmi2GetReal"](self.component, self._input_vrs, self._n_inputs, self._inputs)
+        if status > 1:
+            raise FMICallException(function="fmi2GetReal", status=status)
+        return bytes(self._inputs)
+
+
+def _reached(time: float, target: float) -> bool:
+    """``time`` is at or past ``target`` up to rounding (grid times are computed, not summed)."""
+    return time >= target or math.isclose(time, target, rel_tol=1e-12, abs_tol=1e-14)

@@ -1,0 +1,286 @@
+"""Read untrusted SSP input safely: XML without entities, ZIP archives within limits.
+
+An ``.ssp`` archive or ``.ssd`` file may come from anyone (a supplier, a colleague,
+a download), so reading it must not be a way to exhaust the machine or to read
+other files:
+
+- XML is parsed with entity substitution, DTD loading and network access off and
+  libxml2's size limits on (no ``huge_tree``).  A document that declares entities
+  (billion laughs, external ``SYSTEM`` entities, parameter entities) or names an
+  external DTD is refused: SSP 1.0 documents are defined by XML Schemas, a DTD has
+  no role in them.
+- ZIP archives are checked before anything is written (member count, declared
+  sizes, compression ratio, compression method, names) and the size limit is
+  enforced again while extracting, because declared sizes can lie.  Only the
+  methods store and deflate are accepted: the ZIP conventions FMI 2.0 §2.3 sets for
+  FMUs, which SSP 1.0 archives follow.
+
+Every refusal is a `SetupError` naming the file, the member and the limit.
+"""
+from __future__ import annotations
+
+import os
+import re
+import stat
+import zipfile
+import zlib
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from pathlib import Path, PurePosixPath
+
+from lxml import etree
+
+from .errors import SetupError
+
+#: Default limit on the bytes an archive may expand to.  An SSP holding a few FMUs
+#: with binaries for three platforms is tens to hundreds of MB; 2 GiB leaves room for
+#: FMUs carrying large tables while stopping a bomb before it fills a temporary
+#: folder (often a RAM-backed tmpfs of a few GiB).
+DEFAULT_MAX_UNPACKED_BYTES = 2 * 1024**3
+#: Environment variable that sets the limit (bytes, or with a K/M/G/T suffix).
+MAX_UNPACKED_ENV = "COSIM_MAX_UNPACKED_BYTES"
+#: An SSP archive holds the SSD, parameter sets and one member per FMU and resource.
+MAX_MEMBERS = 10_000
+#: Deflate of real data (binaries, XML, tables) stays well under 100:1; a bomb is
+#: near deflate's ceiling of about 1000:1.  Only members above `RATIO_CHECK_BYTES`
+#: are checked, so a small file of zeros is not refused.
+MAX_COMPRESSION_RATIO = 200
+RATIO_CHECK_BYTES = 1024**2
+ALLOWED_METHODS = {zipfile.ZIP_STORED: "store", zipfile.ZIP_DEFLATED: "deflate"}
+
+#: SSD and SSV documents are kilobytes to a few megabytes; beyond this one is not read into memory.
+MAX_XML_BYTES = 256 * 1024**2
+
+_CHUNK = 1024**2
+_limit_override: ContextVar[int | None] = ContextVar("cosim_max_unpacked_bytes", default=None)
+
+
+# --------------------------------------------------------------------------- XML
+
+def _parser() -> etree.XMLParser:
+    return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False,
+                           remove_comments=True)
+
+
+_ENTITY_MARKS = tuple("<!ENTITY".encode(codec) for codec in ("utf-8", "utf-16-le", "utf-16-be"))
+
+
+def parse_xml(path: Path, display: str | None = None) -> etree._ElementTree:
+    """Parse an SSP XML document with line numbers; refuse entities and external DTDs.
+
+    A file that is not well formed is reported with its line and column.
+    """
+    display = display or str(path)
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_XML_BYTES + 1)
+    except OSError as e:
+        raise SetupError(f"cannot read the file ({e.strerror or e}).", file=display) from None
+    if len(data) > MAX_XML_BYTES:
+        raise SetupError(f"the document is larger than {_size_text(MAX_XML_BYTES)}, far beyond any SSP "
+                         "system structure or parameter set; refusing to parse it.", file=display)
+    try:
+        tree = etree.fromstring(data, _parser()).getroottree()
+    except etree.XMLSyntaxError as e:
+        if any(mark in data for mark in _ENTITY_MARKS):
+            raise _entities_refused(display, f" (the parser stopped: {e.msg})") from None
+        line, col = e.position if e.position else (e.lineno, 0)
+        raise SetupError(f"XML is not well formed at line {line}, column {col}: {e.msg}.",
+                         file=display) from None
+    dtd = tree.docinfo.internalDTD
+    if dtd is not None and any(True for _ in dtd.iterentities()):
+        names = ", ".join(sorted({e.name for e in dtd.iterentities()})[:5])
+        raise _entities_refused(display, f" (declared: {names})")
+    if tree.docinfo.system_url or tree.docinfo.public_id:
+        raise SetupError(f"the DOCTYPE names an external DTD ({tree.docinfo.system_url or tree.docinfo.public_id}); "
+                         "SSP documents are defined by XML Schemas and must not reference a DTD.",
+                         file=display, element="DOCTYPE", hint="Delete the <!DOCTYPE ...> line.")
+    return tree
+
+
+def _entities_refused(display: str, detail: str) -> SetupError:
+    return SetupError(f"entity declarations are not allowed in SSP documents{detail}; they are the way "
+                      "to the billion-laughs expansion and to reading local files (external entities).",
+                      file=display, element="DOCTYPE", hint="Write the values out instead of using entities.")
+
+
+def is_file(path: Path) -> bool:
+    """`Path.is_file`, but False also for a name the system cannot look up (too long, say):
+    a file name taken from an SSP document is the user's, and the caller reports it as not found."""
+    try:
+        return path.is_file()
+    except OSError:
+        return False
+
+
+# --------------------------------------------------------------------------- ZIP
+
+def parse_size(text: str, source: str) -> int:
+    """Bytes from ``"2147483648"``, ``"512M"``, ``"4G"`` or ``"4GiB"`` (binary multiples)."""
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([kKmMgGtT]?)(?:i?[bB])?\s*", text)
+    if not m:
+        raise SetupError(f"'{text}' is not a size; give bytes or a number with K, M, G or T (binary "
+                         "multiples), e.g. 4G.", file=source)
+    return int(float(m.group(1)) * 1024 ** "_KMGT".index(m.group(2).upper() or "_"))
+
+
+@contextmanager
+def unpack_limit(max_unpacked_bytes: int | None) -> Iterator[None]:
+    """Within the block, archives are read with this limit (None: the environment or default).
+
+    Used by the CLI's ``--max-unpacked``, which cannot reach `cosim.ssp.load` through
+    every call in between.
+    """
+    token = _limit_override.set(max_unpacked_bytes)
+    try:
+        yield
+    finally:
+        _limit_override.reset(token)
+
+
+def max_unpacked_bytes(explicit: int | None = None) -> tuple[int, str]:
+    """The limit in force and where it comes from: argument, ``--max-unpacked``, environment, default."""
+    if explicit is not None:
+        return explicit, "the max_unpacked_bytes argument"
+    if _limit_override.get() is not None:
+        return _limit_override.get(), "--max-unpacked"
+    if os.environ.get(MAX_UNPACKED_ENV):
+        return parse_size(os.environ[MAX_UNPACKED_ENV], f"environment variable {MAX_UNPACKED_ENV}"), MAX_UNPACKED_ENV
+    return DEFAULT_MAX_UNPACKED_BYTES, "the default"
+
+
+def _size_text(n: int) -> str:
+    for unit, scale in (("GiB", 1024**3), ("MiB", 1024**2), ("KiB", 1024)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n} bytes"
+
+
+def _limit_hint() -> str:
+    return (f"If the archive is trusted, raise the limit with --max-unpacked SIZE, the environment variable "
+            f"{MAX_UNPACKED_ENV} or cosim.ssp.load(..., max_unpacked_bytes=N).")
+
+
+def check_member_name(name: str, archive: Path | str) -> None:
+    """Refuse members that are empty, absolute (``/x``, ``C:x``, ``\\\\host``) or escape the archive (``..``)."""
+    posix = PurePosixPath(name.replace("\\", "/"))
+    if not name.strip("/\\"):
+        raise SetupError("an archive member has an empty name.", file=str(archive))
+    if posix.is_absolute() or (len(name) > 1 and name[1] == ":"):
+        raise SetupError(f"archive member '{name}' has an absolute path; SSP members must be relative.",
+                         file=str(archive))
+    if ".." in posix.parts:
+        raise SetupError(f"archive member '{name}' escapes the archive ('..'); refusing to extract it.",
+                         file=str(archive))
+
+
+def extract_archive(path: Path, dest: Path, limit: int | None = None, required: str | None = None) -> None:
+    """Extract a ZIP archive into ``dest`` after checking it.
+
+    ``limit`` is the most bytes the archive may expand to (see `max_unpacked_bytes`);
+    ``required`` names a member the archive must hold at its root.  The FMUs among the
+    members are archives too, opened and extracted by fmpy later: their directories are
+    checked here the same way (`check_archive`), naming them ``archive.ssp!member.fmu``.
+    """
+    limit, source = max_unpacked_bytes(limit)
+    with _open(path, str(path)) as archive:
+        infos = archive.infolist()
+        _check_members(str(path), infos, limit, source)
+        names = [info.filename for info in infos]
+        if required is not None and required not in names:
+            raise SetupError(f"the archive has no {required} at its root.", file=str(path),
+                             hint=f"Members: {', '.join(names[:10]) or 'none'}.")
+        total = 0
+        for info in infos:
+            total = _extract_member(archive, info, path, dest, total, limit, source)
+    for info in infos:
+        if info.filename.lower().endswith(".fmu") and not info.is_dir():
+            check_archive(_target(dest, info.filename), limit, display=f"{path}!{info.filename}")
+
+
+def check_archive(path: Path, limit: int | None = None, display: str | None = None) -> None:
+    """Check a ZIP archive's directory (names, sizes, ratio, methods) without extracting it."""
+    limit, source = max_unpacked_bytes(limit)
+    display = display or str(path)
+    with _open(path, display) as archive:
+        _check_members(display, archive.infolist(), limit, source)
+
+
+def _open(path: Path, display: str) -> zipfile.ZipFile:
+    try:
+        return zipfile.ZipFile(path)
+    except zipfile.BadZipFile as e:
+        raise SetupError(f"not a zip archive ({e}).", file=display) from None
+    except OSError as e:
+        raise SetupError(f"cannot read the archive ({e.strerror or e}).", file=display) from None
+
+
+def _target(dest: Path, name: str) -> Path:
+    return dest.joinpath(*PurePosixPath(name.replace("\\", "/")).parts)
+
+
+def _check_members(display: str, infos: list[zipfile.ZipInfo], limit: int, source: str) -> None:
+    """Everything that can be refused from the central directory alone, before writing a byte."""
+    if len(infos) > MAX_MEMBERS:
+        raise SetupError(f"the archive has {len(infos)} members, more than the {MAX_MEMBERS} an SSP archive "
+                         "or FMU may hold.", file=display)
+    seen: set[str] = set()
+    declared = 0
+    for info in infos:
+        name = info.filename
+        check_member_name(name, display)
+        key = name.replace("\\", "/").rstrip("/")
+        if key in seen:
+            raise SetupError(f"archive member '{name}' appears twice; which copy is meant is ambiguous.",
+                             file=display)
+        seen.add(key)
+        if stat.S_ISLNK(info.external_attr >> 16):
+            raise SetupError(f"archive member '{name}' is a symbolic link; SSP archives and FMUs hold plain files.",
+                             file=display)
+        if info.flag_bits & 0x1:
+            raise SetupError(f"archive member '{name}' is encrypted; SSP archives and FMUs must not be.", file=display)
+        if info.compress_type not in ALLOWED_METHODS:
+            raise SetupError(f"archive member '{name}' uses ZIP compression method {info.compress_type}; only "
+                             "store (0) and deflate (8) are allowed (FMI 2.0 §2.3, followed by SSP 1.0).",
+                             file=display)
+        if (info.file_size > RATIO_CHECK_BYTES
+                and info.file_size > MAX_COMPRESSION_RATIO * max(info.compress_size, 1)):
+            raise SetupError(f"archive member '{name}' expands {info.file_size / max(info.compress_size, 1):.0f}"
+                             f" times (limit {MAX_COMPRESSION_RATIO}:1 for members over "
+                             f"{_size_text(RATIO_CHECK_BYTES)}): a zip bomb.", file=display)
+        declared += info.file_size
+        if declared > limit:
+            raise SetupError(f"the archive would expand to more than the limit of {_size_text(limit)} "
+                             f"({limit} bytes, {source}) at member '{name}' (declared sizes add up to "
+                             f"{_size_text(declared)}).", file=display, hint=_limit_hint())
+
+
+def _extract_member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path, dest: Path, total: int,
+                    limit: int, source: str) -> int:
+    """Copy one member in chunks, counting the bytes really written; returns the new total."""
+    target = _target(dest, info.filename)
+    if info.is_dir():
+        target.mkdir(parents=True, exist_ok=True)
+        return total
+    target.parent.mkdir(parents=True, exist_ok=True)
+    written = 0
+    try:
+        with archive.open(info) as src, open(target, "wb") as out:
+            while chunk := src.read(_CHUNK):
+                written += len(chunk)
+                if written > info.file_size:
+                    raise SetupError(f"archive member '{info.filename}' holds more than the "
+                                     f"{info.file_size} bytes its header declares; refusing to extract it.",
+                                     file=str(path))
+                if total + written > limit:
+                    raise SetupError(f"the archive expands to more than the limit of {_size_text(limit)} "
+                                     f"({limit} bytes, {source}) while extracting member '{info.filename}'.",
+                                     file=str(path), hint=_limit_hint())
+                out.write(chunk)
+    except (zipfile.BadZipFile, zlib.error, EOFError) as e:
+        raise SetupError(f"archive member '{info.filename}' is corrupt ({e}).", file=str(path)) from None
+    except OSError as e:
+        raise SetupError(f"cannot extract archive member '{info.filename}' ({e.strerror or e}).",
+                         file=str(path)) from None
+    return total + written

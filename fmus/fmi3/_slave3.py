@@ -1,0 +1,119 @@
+"""FMI 3.0 plumbing for the greyfmu slaves built with pythonfmu3; embedded in every FMI 3.0
+FMU next to the slave module.  The FMI 3.0 counterpart of ``fmus/_slave.py``, with the same
+contract for a slave: declare variables with ``parameter``/``input``/``output``, implement
+``build()`` (create the greyfmu objects from the parameters) and ``advance(t, h)`` (one
+communication step).  This base class
+
+- re-creates the greyfmu objects when they are next used after a parameter was set, so
+  outputs read during initialisation already use the parameters the master set;
+- takes the start time from the first ``do_step``: pythonfmu3 0.3.4 drops the startTime
+  of fmi3EnterInitializationMode (FMI 3.0 §2.3.2) and never calls ``setup_experiment``;
+- refuses non-finite inputs and outputs in ``do_step``: it logs a message naming the
+  variable and returns an error status instead of passing NaN on;
+- declares the independent variable ``time`` that FMI 3.0 requires (§2.4.7.4).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import abstractmethod
+from collections.abc import Callable
+from typing import Any, ClassVar
+
+from pythonfmu3 import Float64, Fmi3Causality, Fmi3Slave, Fmi3Status, Fmi3StepResult, Fmi3Variability, Int32
+
+REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
+
+
+class GreyfmuSlave3(Fmi3Slave):
+    """Base of the greyfmu FMI 3.0 slaves (see the module docstring)."""
+
+    output_dependencies: ClassVar[dict[str, list[str]]]
+    """For every output, the inputs it depends on at the same instant (read by ``greyfmu build``)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.author = "greyfmu"
+        self.time = 0.0
+        self.experiment_start = 0.0
+        self._stepped = False
+        self._input_names: list[str] = []
+        self._output_values: dict[str, Callable[[], float]] = {}
+        self._built = False
+        self.register_variable(Float64("time", causality=Fmi3Causality.independent, variability=Fmi3Variability.continuous,
+                                       description="Simulation time"))
+
+    def parameter(self, name: str, start: float | int, description: str, unit: str | None = None) -> None:
+        """Declare a fixed parameter (an ``int`` start makes it Int32); setting it makes the next
+        use rebuild the greyfmu objects."""
+        setattr(self, name, start)
+
+        def setter(value: float | int) -> None:
+            setattr(self, name, value)
+            self._built = False
+
+        variable_type = Int32 if isinstance(start, int) else Float64
+        extra = {"unit": unit} if unit is not None and variable_type is Float64 else {}
+        self.register_variable(variable_type(name, start=start, description=description, causality=Fmi3Causality.parameter,
+                                             variability=Fmi3Variability.fixed, setter=setter, **extra))
+
+    def input(self, name: str, start: float, description: str) -> None:
+        """Declare a continuous Float64 input."""
+        setattr(self, name, start)
+        self.register_variable(Float64(name, start=start, description=description, causality=Fmi3Causality.input,
+                                       variability=Fmi3Variability.continuous))
+        self._input_names.append(name)
+
+    def output(self, name: str, description: str, value: Callable[[], float], variability: Fmi3Variability) -> None:
+        """Declare a Float64 output computed by ``value()`` from up-to-date greyfmu objects."""
+
+        def getter() -> float:
+            self._ensure_built()
+            return value()
+
+        self.register_variable(Float64(name, description=description, causality=Fmi3Causality.output,
+                                       variability=variability, getter=getter))
+        self._output_values[name] = getter
+
+    @abstractmethod
+    def build(self) -> None:
+        """Create the greyfmu objects from the current parameters and ``self.experiment_start``."""
+
+    @abstractmethod
+    def advance(self, t: float, h: float) -> None:
+        """Advance the greyfmu objects over the communication step ``[t, t + h]``."""
+
+    def exit_initialization_mode(self) -> None:
+        self._ensure_built()
+
+    def do_step(self, current_time: float, step_size: float) -> Fmi3StepResult:
+        if not self._stepped:
+            self._stepped = True
+            if current_time != self.experiment_start:
+                self.experiment_start = current_time
+                self._built = False
+        for name in self._input_names:
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                return self._error(f"input {name} = {value} at t = {current_time} s is not a finite number")
+        self._ensure_built()
+        self.advance(current_time, step_size)
+        self.time = current_time + step_size
+        for name, output_value in self._output_values.items():
+            value = output_value()
+            if not math.isfinite(value):
+                return self._error(f"output {name} = {value} at t = {self.time} s is not a finite number")
+        return Fmi3StepResult()
+
+    def _ensure_built(self) -> None:
+        if not self._built:
+            try:
+                self.build()
+            except (ValueError, ArithmeticError) as error:
+                self.log(f"{self.instance_name}: invalid parameters: {error}", Fmi3Status.error)
+                raise
+            self._built = True
+
+    def _error(self, message: str) -> Fmi3StepResult:
+        self.log(f"{self.instance_name}: {message}", Fmi3Status.error)
+        return Fmi3StepResult(status=Fmi3Status.error)

@@ -1,0 +1,97 @@
+"""The pytest plugin cosim.pytest_plugin (loaded through the ``pytest11`` entry point) as a user's suite
+sees it: pytester writes a user test using ``cosim_regression`` on ssp/pid_fopdt and runs pytest on it.
+
+pytest runs in a subprocess each time: an in-process run removes the modules it imported when it ends, and the
+pythonfmu FMUs, which share this interpreter, then fail to import numpy again ("cannot load module more than
+once per process")."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+pytest_plugins = ["pytester"]
+
+SCENARIO = Path(__file__).resolve().parents[1] / "ssp" / "pid_fopdt"
+STOP = 20.0   # 200 steps of 0.1 s; the setpoint steps at 10 s, so plant.y moves in the second half
+
+
+def user_test(pytester: pytest.Pytester, tolerances: dict | None = None) -> None:
+    """A user's test file (absolute scenario path: pytester runs in a temporary folder)."""
+    pytester.makepyfile(test_loop=f"""
+        def test_loop(cosim_regression):
+            result = cosim_regression({str(SCENARIO)!r}, stop={STOP!r}, signals=["plant.y", "controller.u"],
+                                      tolerances={tolerances!r})
+            assert result["time"][-1] == {STOP!r}
+        """)
+
+
+def alter(reference: Path, signal: str, time: float, factor: float) -> None:
+    """Multiply one sample of a reference CSV by ``factor``."""
+    lines = reference.read_text().splitlines()
+    column = [name.strip('"') for name in lines[0].split(",")].index(signal)
+    for i, line in enumerate(lines[1:], start=1):
+        cells = line.split(",")
+        if float(cells[0]) == time:
+            cells[column] = repr(float(cells[column]) * factor)
+            lines[i] = ",".join(cells)
+            break
+    else:
+        raise AssertionError(f"no sample at {time} s in {reference}")
+    reference.write_text("\n".join(lines) + "\n")
+
+
+def test_reference_missing_written_checked_altered_and_loosened(pytester):
+    """One reference's life, each step a pytest run in a subprocess, the references in the folder the ini
+    option cosim_references names: missing (fails, says how to write it),
+    written with --cosim-update-references (passes, listed in the summary), checked (passes), altered
+    (fails naming signal, time, values and tolerance), accepted with a looser per-signal tolerance."""
+    user_test(pytester)
+    pytester.makeini("[pytest]\ncosim_references = regression_refs\n")
+    reference = pytester.path / "regression_refs" / "test_loop.csv"
+
+    missing = pytester.runpytest_subprocess()
+    missing.assert_outcomes(failed=1)
+    missing.stdout.fnmatch_lines(["*no reference for*test_loop.csv*--cosim-update-references*"])
+    assert not reference.exists()
+
+    written = pytester.runpytest_subprocess("--cosim-update-references")
+    written.assert_outcomes(passed=1)
+    written.stdout.fnmatch_lines(["*cosim: 1 reference(s) written*", f"written {reference} (test_loop.py::test_loop)"])
+    lines = reference.read_text().splitlines()
+    assert lines[0] == '"time","plant.y","controller.u"'      # only the selected signals
+    assert len(lines) == 1 + round(STOP / 0.1) + 1
+
+    pytester.runpytest_subprocess().assert_outcomes(passed=1)
+
+    alter(reference, "plant.y", 15.0, 1 + 1e-3)
+    failed = pytester.runpytest_subprocess()
+    failed.assert_outcomes(failed=1)
+    failed.stdout.fnmatch_lines([
+        f"*1 of 2 signals differ from the reference for {SCENARIO} (reference {reference}; candidate *.csv)*",
+        "*plant.y: first at t = 15 s: value *, reference *, |diff| *e-05 > * (rtol 1e-06, atol 1e-09); 1 sample(s) out*",
+    ])
+    candidate = Path(failed.stdout.str().split("; candidate ")[1].split(")")[0])
+    assert candidate.is_file()                                  # the run's own CSV, left for inspection
+
+    user_test(pytester, tolerances={"plant.*": (1e-2, 0.0)})
+    pytester.runpytest_subprocess().assert_outcomes(passed=1)
+
+    # the exact name is more specific than the glob and keeps plant.y tight
+    user_test(pytester, tolerances={"plant.*": (1e-2, 0.0), "plant.y": {"rtol": 1e-7}})
+    tight = pytester.runpytest_subprocess()
+    tight.assert_outcomes(failed=1)
+    tight.stdout.fnmatch_lines(["*plant.y: first at t = 15 s*(rtol 1e-07, atol 1e-09)*"])
+
+
+def test_option_and_ini_listed_in_help(pytester):
+    result = pytester.runpytest("--help")      # in process: runs no FMU
+    result.stdout.fnmatch_lines(["*--cosim-update-references*", "*cosim_references*"])
+
+
+def test_plugin_module_imports_neither_numpy_nor_fmpy(pytester):
+    """pytest loads the plugin in every session of anyone who installs the package: it must stay cheap."""
+    result = pytester.run("python", "-c", "import sys, cosim.pytest_plugin; "
+                          "print(sorted(m for m in ('numpy', 'fmpy', 'cosim.simulation') if m in sys.modules))")
+    assert result.ret == 0
+    assert result.stdout.lines[-1] == "[]"

@@ -1,0 +1,207 @@
+"""`cosim sweep`: combinations × seeds on a process pool and a Dask cluster, the results table,
+reruns that skip finished runs, failed runs as rows, names refused before any run.
+
+The scenario is a small real SSP system of our FMUs: a step setpoint, a PID on an FOPDT plant,
+band-limited white noise (which has a ``seed`` parameter) added to the measurement.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+import pytest
+from ssdgen import ssd_text, write_system
+
+from cosim.cli import main
+from cosim.errors import SetupError
+from cosim.metrics import METRICS, step_metrics
+from cosim.results import read
+from cosim.sweep import parse_seeds, parse_set, read_table, sweep
+
+SETS = {"controller.Kc": ["4", "8"], "plant.T": ["15", "20"]}
+SEEDS = [1, 2]
+METRIC = "plant.y:setpoint.y"
+
+
+def _loop(folder: Path, fmus: dict[str, Path], noise: bool = True) -> Path:
+    comps = {"setpoint": ("Step.fmu", {"y": "output"}),
+             "controller": ("PID.fmu", {"r": "input", "y": "input", "u": "output"}),
+             "plant": ("FOPDT.fmu", {"u": "input", "y": "output"}),
+             "sensor": ("Sum.fmu", {"u1": "input", "u2": "input", "y": "output"})}
+    conns = [("setpoint", "y", "controller", "r"), ("sensor", "y", "controller", "y"),
+             ("controller", "u", "plant", "u"), ("plant", "y", "sensor", "u1")]
+    params = {"setpoint": {"t_step": 1.0}}
+    if noise:
+        comps["noise"] = ("BandLimitedWhiteNoise.fmu", {"y": "output"})
+        conns.append(("noise", "y", "sensor", "u2"))
+        params["noise"] = {"power": 0.001, "Ts": 0.5}
+    names = ["Step", "PID", "FOPDT", "Sum"] + (["BandLimitedWhiteNoise"] if noise else [])
+    return write_system(folder, {f"{n}.fmu": fmus[n] for n in names},
+                        ssd_text("loop", comps, conns, stop=20.0, step=0.1, parameters=params))
+
+
+def _nan_as_none(row: dict) -> dict:
+    """NaN metrics (a response that never settles) compare equal to each other."""
+    return {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in row.items()}
+
+
+@pytest.fixture(scope="module")
+def scenario(built_fmus, tmp_path_factory) -> Path:
+    return _loop(tmp_path_factory.mktemp("sweep") / "loop", built_fmus)
+
+
+@pytest.fixture(scope="module")
+def pool_sweep(scenario, tmp_path_factory):
+    """The 2 × 2 parameters × 2 seeds sweep on a 2-process pool."""
+    out = tmp_path_factory.mktemp("pool")
+    return sweep(scenario, SETS, seeds=SEEDS, metrics=[METRIC], output=out, executor="process", workers=2), out
+
+
+def test_pool_runs_every_combination_and_records_it(pool_sweep):
+    result, out = pool_sweep
+    assert result.ran == 8 and result.skipped == 0 and len(result.rows) == 8
+    assert {(r["controller.Kc"], r["plant.T"], r["seed"]) for r in result.rows} == \
+        {(kc, t, s) for kc in (4.0, 8.0) for t in (15.0, 20.0) for s in SEEDS}
+    assert len({r["run_id"] for r in result.rows}) == 8
+    for row in result.rows:
+        assert row["status"] == "completed" and row["message"] is None and row["wall_time"] > 0
+        meta = json.loads((out / "runs" / f"{row['run_id']}.json").read_text())
+        assert meta["status"] == "completed"
+        assert meta["parameters"]["controller.Kc"] == row["controller.Kc"]
+        assert meta["parameters"]["plant.T"] == row["plant.T"]
+        assert meta["parameters"]["noise.seed"] == row["seed"]
+
+
+def test_metrics_are_those_of_the_run_csv(pool_sweep):
+    result, out = pool_sweep
+    for row in result.rows:
+        data = read(out / "runs" / f"{row['run_id']}.csv")
+        expected = step_metrics(data["time"], data["plant.y"], data["setpoint.y"])
+        for key in METRICS:
+            got = row[f"plant.y:{key}"]
+            assert (math.isnan(got) and math.isnan(expected[key])) or got == pytest.approx(expected[key], abs=1e-12)
+    assert len({row["plant.y:IAE"] for row in result.rows}) == 8
+
+
+def test_seeds_drive_the_noise(pool_sweep):
+    result, out = pool_sweep
+    noise = {(r["controller.Kc"], r["plant.T"], r["seed"]): read(out / "runs" / f"{r['run_id']}.csv")["noise.y"]
+             for r in result.rows}
+    # the noise source does not depend on the loop: same seed, same noise; another seed, other noise
+    np.testing.assert_array_equal(noise[(4.0, 15.0, 1)], noise[(8.0, 20.0, 1)])
+    np.testing.assert_array_equal(noise[(4.0, 15.0, 2)], noise[(8.0, 15.0, 2)])
+    assert not np.allclose(noise[(4.0, 15.0, 1)], noise[(4.0, 15.0, 2)])
+    assert np.std(noise[(4.0, 15.0, 1)]) > 0
+
+
+def test_csv_and_parquet_tables_agree(pool_sweep):
+    result, out = pool_sweep
+    parquet = pq.read_table(out / "sweep.parquet")
+    assert parquet.schema.field("controller.Kc").type == "double"
+    assert parquet.schema.field("seed").type == "int64"
+    csv = pacsv.read_csv(out / "sweep.csv", convert_options=pacsv.ConvertOptions(
+        column_types=parquet.schema, null_values=[""], strings_can_be_null=True))   # "nan" is NaN, not null
+    assert csv.column_names == parquet.column_names == result.columns
+    for a, b, c in zip(csv.to_pylist(), parquet.to_pylist(), result.rows):
+        assert a.keys() == b.keys() == c.keys()
+        for key in a:
+            same = [x for x in (a[key], b[key], c[key])]
+            if isinstance(same[0], float) and math.isnan(same[0]):
+                assert all(math.isnan(x) for x in same), key
+            else:
+                assert same[0] == same[1] == same[2], key
+
+
+def test_rerun_skips_finished_runs_and_runs_only_new_values(pool_sweep, scenario):
+    result, out = pool_sweep
+    again = sweep(scenario, SETS, seeds=SEEDS, metrics=[METRIC], output=out, executor="serial")
+    assert (again.ran, again.skipped) == (0, 8)
+    assert [_nan_as_none(r) for r in again.rows] == [_nan_as_none(r) for r in result.rows]
+    more = sweep(scenario, {**SETS, "plant.T": ["15", "20", "25"]}, seeds=SEEDS, metrics=[METRIC], output=out,
+                 executor="serial")
+    assert (more.ran, more.skipped, len(more.rows)) == (4, 8, 12)
+    assert {r["plant.T"] for r in more.rows if r["run_id"] not in {x["run_id"] for x in result.rows}} == {25.0}
+    assert len(read_table(out / "sweep.parquet")) == 12
+
+
+def test_same_table_on_a_dask_local_cluster(pool_sweep, scenario, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    result, _ = pool_sweep
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        dask = sweep(scenario, SETS, seeds=SEEDS, metrics=[METRIC], output=tmp_path, executor=client)
+    assert dask.ran == 8
+    assert [r["run_id"] for r in dask.rows] == [r["run_id"] for r in result.rows]
+    for a, b in zip(dask.rows, result.rows):
+        assert a["status"] == b["status"] == "completed"
+        for key in [c for c in result.columns if c.startswith("plant.y:")]:
+            assert (math.isnan(a[key]) and math.isnan(b[key])) or abs(a[key] - b[key]) <= 1e-12, key
+
+
+def test_a_refused_value_is_a_failed_row_and_the_others_complete(scenario, tmp_path, capsys):
+    # T = 0 passes the model description (no min) but the FOPDT FMU refuses it at initialisation;
+    # the runs go to a Dask LocalCluster the CLI starts (--scheduler local:N)
+    status = main(["sweep", str(scenario), "--set", "plant.T=20,0", "--metrics", METRIC,
+                   "--scheduler", "local:2", "--output", str(tmp_path), "--quiet"])
+    assert status == 1
+    rows = read_table(tmp_path / "sweep.parquet")
+    by_t = {r["plant.T"]: r for r in rows}
+    assert by_t[20.0]["status"] == "completed" and not math.isnan(by_t[20.0]["plant.y:IAE"])
+    assert by_t[0.0]["status"] == "failed"
+    assert "time constant T must be a finite number > 0" in by_t[0.0]["message"]
+    assert by_t[0.0]["plant.y:IAE"] is None
+    assert "failed" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["--set", "controller.Kcc=1,2"], "Did you mean 'Kc'"),
+    (["--set", "controler.Kc=1,2"], "Did you mean 'controller'"),
+    (["--set", "controller.Kc=fast"], "'fast' is not a Real value"),
+    (["--set", "controller.Kc"], "is not NAME=VALUE"),
+    (["--set", "plant.tau=-1"], "outside the variable's range"),
+    (["--seeds", "3..1"], "is not a list of seeds"),
+    (["--set", "plant.T=1,2", "--metrics", "plant.yy:setpoint.y"], "Did you mean 'plant.y'"),
+    (["--seeds", "1,2", "--seed-parameter", "noise.sed"], "Did you mean 'seed'"),
+    (["--set", "plant.T=1,2", "--scheduler", "local:two"], "give local:N"),
+    (["--seeds", "1,2", "--set", "noise.seed=3"], "both swept with --set and set by --seeds"),
+])
+def test_bad_arguments_are_refused_before_any_run(scenario, tmp_path, capsys, args, expected):
+    assert main(["sweep", str(scenario), *args, "--output", str(tmp_path / "out"), "--quiet"]) == 2
+    assert expected in capsys.readouterr().err
+    assert not (tmp_path / "out" / "runs").exists() or not any((tmp_path / "out" / "runs").glob("*.csv"))
+
+
+def test_seeds_need_a_seed_parameter(built_fmus, tmp_path):
+    quiet = _loop(tmp_path / "quiet", built_fmus, noise=False)
+    with pytest.raises(SetupError, match="no component of the scenario has a parameter named 'seed'"):
+        sweep(quiet, {}, seeds=[1, 2], output=tmp_path / "out", executor="serial")
+
+
+def test_argument_forms():
+    assert parse_set("plant.T=1, 2,3") == ("plant.T", ["1", "2", "3"])
+    assert parse_seeds("1..4") == [1, 2, 3, 4] and parse_seeds("1,5,9") == [1, 5, 9]
+
+
+def test_range_values_are_evenly_spaced_and_typed_by_the_variable(scenario, tmp_path):
+    result = sweep(scenario, {"plant.T": ["10:20:3"], "controller.integral_mode": ["1:3:3"]}, output=tmp_path,
+                   executor="serial", stop_time=2.0)
+    assert [(r["plant.T"], r["controller.integral_mode"]) for r in result.rows] == \
+        [(t, mode) for t in (10.0, 15.0, 20.0) for mode in (1, 2, 3)]
+    assert all(r["status"] == "completed" for r in result.rows)
+    schema = pq.read_schema(tmp_path / "sweep.parquet")
+    assert (schema.field("plant.T").type, schema.field("controller.integral_mode").type) == ("double", "int64")
+    with pytest.raises(SetupError, match="does not fall on integers"):
+        sweep(scenario, {"controller.integral_mode": ["1:2:3"]}, output=tmp_path, executor="serial")
+
+
+def test_sweep_of_an_ssp_archive(scenario, tmp_path):
+    archive = tmp_path / "loop.ssp"
+    assert main(["pack", str(scenario), "-o", str(archive)]) == 0
+    first = sweep(archive, {"plant.T": ["10", "20"]}, output=tmp_path / "out", executor="serial", stop_time=2.0)
+    assert [r["status"] for r in first.rows] == ["completed", "completed"]
+    again = sweep(archive, {"plant.T": ["10", "20"]}, output=tmp_path / "out", executor="serial", stop_time=2.0)
+    assert (again.ran, again.skipped) == (0, 2)
