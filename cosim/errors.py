@@ -10,6 +10,10 @@ import difflib
 from collections.abc import Iterable
 
 
+#: Longest message shown (characters); the middle of a longer one is cut.
+MAX_MESSAGE = 4000
+
+
 class CosimError(Exception):
     """Base class: a message built from where the problem is and what was expected."""
 
@@ -33,6 +37,9 @@ class CosimError(Exception):
         text = (": ".join([", ".join(where), self.detail]) if where else self.detail)
         if self.hint:
             text += f" {self.hint}"
+        if len(text) > MAX_MESSAGE:  # a malformed document can carry megabyte-long names and values
+            cut = len(text) - MAX_MESSAGE
+            text = f"{text[:MAX_MESSAGE // 2]} … ({cut} characters cut) … {text[-MAX_MESSAGE // 2:]}"
         return text
 
 

@@ -44,7 +44,11 @@ def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path
         raise SetupError("the component has no source attribute naming its FMU.",
                          file=str(structure.ssd_file), element=where)
     looked: list[str] = []
-    direct = resolve_uri(comp.source, structure.base_dir)
+    archive_root = structure.base_dir.resolve() if structure.archive is not None else None
+    try:
+        direct = resolve_uri(comp.source, structure.base_dir, archive_root)
+    except SetupError as e:
+        raise SetupError(e.detail, file=str(structure.archive or structure.ssd_file), element=where) from None
     if is_file(direct):
         return direct
     looked.append(str(direct))

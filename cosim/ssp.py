@@ -17,6 +17,7 @@ the component level, and a parameter set given on the command line beats both.
 from __future__ import annotations
 
 import tempfile
+from contextvars import ContextVar
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -186,7 +187,11 @@ def _read_archive(path: Path, max_unpacked_bytes: int | None = None) -> SystemSt
     tmp = tempfile.TemporaryDirectory(prefix="cosim-ssp-")
     try:
         extract_archive(path, Path(tmp.name), max_unpacked_bytes, required=SSD_NAME)
-        structure = _read_ssd(Path(tmp.name) / SSD_NAME, display=f"{path}!{SSD_NAME}")
+        token = _ARCHIVE_ROOT.set(Path(tmp.name).resolve())
+        try:
+            structure = _read_ssd(Path(tmp.name) / SSD_NAME, display=f"{path}!{SSD_NAME}")
+        finally:
+            _ARCHIVE_ROOT.reset(token)
     except BaseException:
         tmp.cleanup()
         raise
@@ -385,7 +390,10 @@ def _read_bindings(owner: etree._Element, base_dir: Path, display: str) -> list[
         prefix = binding.get("prefix", "")
         source = binding.get("source")
         if source is not None:
-            ssv = resolve_uri(source, base_dir)
+            try:
+                ssv = resolve_uri(source, base_dir)
+            except SetupError as e:
+                raise SetupError(e.detail, file=display, element=where) from None
             if not is_file(ssv):
                 raise SetupError(f"parameter set '{source}' not found (looked at {ssv}).", file=display,
                                  element=where)
@@ -465,14 +473,30 @@ def read_units(units: etree._Element | None, display: str) -> dict[str, Unit]:
     return found
 
 
-def resolve_uri(uri: str, base_dir: Path) -> Path:
-    """Resolve a relative (or file:) URI of an SSD against its folder."""
+#: The extraction folder of the .ssp being read, if any: its SSD may refer only to its own members.
+_ARCHIVE_ROOT: ContextVar[Path | None] = ContextVar("cosim_archive_root", default=None)
+
+
+def resolve_uri(uri: str, base_dir: Path, archive_root: Path | None = None) -> Path:
+    """Resolve a relative (or file:) URI of an SSD against its folder.  Inside an ``.ssp``
+    (``archive_root``, by default the archive being read) the result must be a member of the
+    archive: an archive from elsewhere must not make the master read ``/etc/passwd`` or
+    ``../../secret`` (SSP 1.0 §2.2: an archive's URIs are relative to its root)."""
     parsed = urlparse(uri)
     if parsed.scheme == "file":
-        return Path(unquote(parsed.path))
-    if parsed.scheme and len(parsed.scheme) > 1:
+        if parsed.netloc not in ("", "localhost"):
+            raise SetupError(f"file URI with a host ('{parsed.netloc}') is not supported ({uri}); "
+                             "use a relative path.")
+        path = Path(unquote(parsed.path))
+    elif parsed.scheme and len(parsed.scheme) > 1:
         raise SetupError(f"URI scheme '{parsed.scheme}:' is not supported ({uri}); use a relative path.")
-    return base_dir / unquote(uri)
+    else:
+        path = base_dir / unquote(uri)
+    root = archive_root if archive_root is not None else _ARCHIVE_ROOT.get()
+    if root is not None and not path.resolve().is_relative_to(root):
+        raise SetupError(f"'{uri}' points outside the .ssp archive; an archive may refer only to its own "
+                         "members (relative paths inside it).")
+    return path
 
 
 def _read_step_annotations(root: etree._Element, display: str) -> tuple[float | None, str | None, str | None]:
