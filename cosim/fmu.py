@@ -262,16 +262,20 @@ class Instance:
       ``exit_initialization_mode``, ``free`` (these raise on a status above Warning).
     """
 
+    #: fmpy's class for the FMI 2.0 interface the instance drives
+    interface = FMU2Slave
+
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
         self.name = name
         self.desc = desc
         self.messages: collections.deque[str] = collections.deque(maxlen=20)
         md = desc.md
-        self.slave = FMU2Slave(guid=md.guid, unzipDirectory=unzip_dir,
-                               modelIdentifier=desc.model_identifier, instanceName=name)
+        self.slave = self.interface(guid=md.guid, unzipDirectory=unzip_dir,
+                                    modelIdentifier=desc.model_identifier, instanceName=name)
         _LOG_TARGETS[name] = self.messages
         raw = self.slave._functions
-        self.do_step = raw["fmi2DoStep"]
+        if "fmi2DoStep" in raw:  # Co-Simulation; a Model Exchange instance steps by its own method
+            self.do_step = raw["fmi2DoStep"]
         self.get = {"Real": raw["fmi2GetReal"], "Integer": raw["fmi2GetInteger"],
                     "Boolean": raw["fmi2GetBoolean"], "String": raw["fmi2GetString"]}
         self.set = {"Real": raw["fmi2SetReal"], "Integer": raw["fmi2SetInteger"],

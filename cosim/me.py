@@ -27,7 +27,6 @@ is in ``messages``.
 """
 from __future__ import annotations
 
-import collections
 import ctypes
 import math
 from dataclasses import dataclass
@@ -36,7 +35,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model, fmi2EventInfo, fmi2False
 
 from .errors import SetupError
-from .fmu import _LOG_TARGETS, STATUS, FMUDescription, Instance
+from .fmu import STATUS, FMUDescription, Instance
 from .ssp import SolverOptions, SystemStructure
 
 FMI_OK, FMI_DISCARD, FMI_ERROR = 0, 2, 3
@@ -113,21 +112,12 @@ class MEInstance(Instance):
     messages and ``free`` are `Instance`'s.
     """
 
+    interface = FMU2Model
+
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
-        self.name = name
-        self.desc = desc
-        self.messages: collections.deque[str] = collections.deque(maxlen=20)
+        super().__init__(name, desc, unzip_dir)
         md = desc.md
-        self.slave = FMU2Model(guid=md.guid, unzipDirectory=unzip_dir,
-                               modelIdentifier=desc.model_identifier, instanceName=name)
-        _LOG_TARGETS[name] = self.messages
         raw = self.slave._functions
-        self.get = {"Real": raw["fmi2GetReal"], "Integer": raw["fmi2GetInteger"],
-                    "Boolean": raw["fmi2GetBoolean"], "String": raw["fmi2GetString"]}
-        self.set = {"Real": raw["fmi2SetReal"], "Integer": raw["fmi2SetInteger"],
-                    "Boolean": raw["fmi2SetBoolean"], "String": raw["fmi2SetString"]}
-        self.component = None
-        self.failed: str | None = None
         self.settings = solver_settings(desc)
         self._raw = raw
         self._nx = md.numberOfContinuousStates
