@@ -2,34 +2,57 @@
 
 `Recorder` fills a preallocated NumPy chunk in the hot loop and hands full
 chunks to its sinks, so a run that fails half way has every flushed sample on
-disk.  Sinks: `CsvSink` (a CSV readable by ``fmpy.util.read_csv`` plus a JSON
-metadata file beside it) and `MemorySink` (for the Python API).
+disk, and the recorder's memory is one chunk whatever the run's length.  Sinks:
+`CsvSink` (a CSV readable by ``fmpy.util.read_csv``) and `ParquetSink`, each
+with a JSON metadata file beside it (`file_sink` picks one by the file's
+suffix), and `MemorySink` (for the Python API).
 """
 from __future__ import annotations
 
 import json
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 
+def file_sink(path: str | Path) -> CsvSink | ParquetSink:
+    """The sink for a result file: Parquet for a ``.parquet`` suffix, else CSV."""
+    return ParquetSink(path) if Path(path).suffix.lower() == ".parquet" else CsvSink(path)
+
+
 class CsvSink:
-    """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it."""
+    """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it.
+
+    A quoted header, then one line per sample, formatted by Arrow's C++ CSV writer: each
+    float64 in the shortest decimal form that reads back to the same bits (``-0``, ``inf``,
+    ``nan`` included), which ``fmpy.util.read_csv`` reads.  Formatting a chunk in C++ (without
+    the GIL) instead of ``np.savetxt``'s Python loop over rows keeps the writer's share of a
+    long run small (benchmarks/bench_memory.py).
+    """
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.meta_path = self.path.with_suffix(".json")
         self._file = None
+        self._names: list[str] = []
 
     def open(self, names: list[str]) -> None:
-        self._file = open(self.path, "w", newline="\n")
-        self._file.write(",".join(f'"{n}"' for n in names) + "\n")
+        import pyarrow as pa
+
+        self._file = pa.OSFile(str(self.path), "wb")
+        self._file.write((",".join(f'"{n}"' for n in names) + "\n").encode())
         self._file.flush()
+        self._names = names
 
     def write(self, rows: np.ndarray) -> None:
-        np.savetxt(self._file, rows, fmt="%.17g", delimiter=",")
+        import pyarrow as pa
+        import pyarrow.csv as pcsv
+
+        table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=self._names)
+        pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
         self._file.flush()
 
     def close(self, metadata: dict) -> None:
@@ -39,19 +62,74 @@ class CsvSink:
         self.meta_path.write_text(json.dumps(metadata, indent=2, default=str) + "\n")
 
 
-class MemorySink:
-    """Keeps the chunks; `array()` joins them into a structured array like fmpy.simulate_fmu's."""
+class ParquetSink:
+    """Writes chunks to a Parquet file as they come, one row group per chunk, float64 columns
+    named as the CSV's; the run metadata goes into the file's key-value metadata (key
+    ``cosim``, JSON: ``pyarrow.parquet.read_metadata(path).metadata[b"cosim"]``) and to
+    ``<name>.json`` beside it.
 
-    def __init__(self) -> None:
+    Parquet's footer (schema, row-group index, metadata) is written by `close`, which the
+    master calls after a failed run too, so the rows flushed before a failure stay readable;
+    a process killed mid-run leaves no footer and no readable rows, where a CSV keeps them.
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.meta_path = self.path.with_suffix(".json")
+        self._writer = None
+        self._schema = None
+
+    def open(self, names: list[str]) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        self._schema = pa.schema([(name, pa.float64()) for name in names])
+        # no dictionary encoding: sampled signals rarely repeat values, and trying it costs
+        # 4x the write time (Snappy compression still shrinks constant columns)
+        self._writer = pq.ParquetWriter(self.path, self._schema, use_dictionary=False)
+
+    def write(self, rows: np.ndarray) -> None:
+        import pyarrow as pa
+
+        columns = np.ascontiguousarray(rows.T)
+        self._writer.write_table(pa.Table.from_arrays(list(columns), schema=self._schema))
+
+    def close(self, metadata: dict) -> None:
+        text = json.dumps(metadata, indent=2, default=str) + "\n"
+        if self._writer is not None:
+            self._writer.add_key_value_metadata({"cosim": text})
+            self._writer.close()
+            self._writer = None
+        self.meta_path.write_text(text)
+
+
+class MemorySink:
+    """Keeps the chunks; `array()` joins them into a structured array like fmpy.simulate_fmu's.
+
+    ``keep``: the columns to keep besides ``time`` (None: all), so a long run written to a
+    file need not also hold every signal in memory.
+    """
+
+    def __init__(self, keep: Sequence[str] | None = None) -> None:
+        self.keep = None if keep is None else set(keep)
         self.names: list[str] = []
         self.chunks: list[np.ndarray] = []
         self.metadata: dict = {}
+        self._columns: np.ndarray | None = None
 
     def open(self, names: list[str]) -> None:
-        self.names = names
+        if self.keep is None:
+            self.names = names
+            return
+        unknown = self.keep.difference(names)
+        if unknown:
+            raise ValueError(f"MemorySink: no column named {', '.join(sorted(unknown))}")
+        self._columns = np.array([i for i, name in enumerate(names) if i == 0 or name in self.keep], dtype=np.intp)
+        self.names = [names[i] for i in self._columns]
 
     def write(self, rows: np.ndarray) -> None:
-        self.chunks.append(rows.copy())
+        self.chunks.append(rows.copy() if self._columns is None else rows[:, self._columns])
 
     def close(self, metadata: dict) -> None:
         self.metadata = metadata

@@ -9,7 +9,9 @@ communication step).  This base class
   time was set (so outputs read during initialisation already use the parameters the
   master set, and ``exit_initialization_mode`` reports invalid parameters),
 - refuses non-finite inputs and outputs in ``do_step``: it logs a message naming the
-  variable and returns an error status instead of passing NaN on.
+  variable and returns an error status instead of passing NaN on,
+- answers ``fmi2Get*``/``fmi2Set*`` through accessors compiled once per list of value
+  references (see `CompiledAccessors`), instead of pythonfmu's generic per-variable lookup.
 """
 
 from __future__ import annotations
@@ -17,11 +19,13 @@ from __future__ import annotations
 import math
 from abc import abstractmethod
 from collections.abc import Callable
+from operator import attrgetter
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element
 
-from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
+from pythonfmu.variables import ScalarVariable
 
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
 
@@ -52,6 +56,28 @@ def _type_attributes(unit: str | None, minimum: float | None, maximum: float | N
     return {key: str(value) for key, value in attributes.items() if value is not None}
 
 
+_CONVERSIONS: dict[type[ScalarVariable], type] = {Real: float, Integer: int, Boolean: bool, String: str}
+"""The Python type each FMI type is returned as, as pythonfmu's generic ``Fmi2Slave.get_*`` converts."""
+
+
+class CompiledAccessors(dict):
+    """Accessors of one FMI type, keyed by the tuple of value references of a get or set call.
+
+    pythonfmu's C++ wrapper calls ``get_real(vrs)``/``set_real(vrs, values)`` with a fresh list
+    of value references on every fmi2GetReal/fmi2SetReal; a master calls with the same few
+    lists at every step, so each list's accessor is compiled once (``compile(vrs)``) and looked
+    up by value afterwards.  A list that is refused raises from ``compile`` and is not stored.
+    """
+
+    def __init__(self, compile_accessor: Callable[[tuple[int, ...]], Callable]) -> None:
+        super().__init__()
+        self._compile = compile_accessor
+
+    def __missing__(self, vrs: tuple[int, ...]) -> Callable:
+        accessor = self[vrs] = self._compile(vrs)
+        return accessor
+
+
 class GreyfmuSlave(Fmi2Slave):
     """Base of the greyfmu slaves (see the module docstring)."""
 
@@ -64,8 +90,19 @@ class GreyfmuSlave(Fmi2Slave):
         self.experiment_start = 0.0
         self.current_time = 0.0
         self._input_names: list[str] = []
-        self._output_values: dict[str, Callable[[], float]] = {}
+        self._attributes: dict[int, str] = {}
+        """Value reference -> attribute name of the parameters and inputs (plain attributes of the slave)."""
+        self._outputs: dict[int, Callable[[], float]] = {}
+        """Value reference -> value function of each output, valid once the greyfmu objects are built."""
         self._built = False
+        self._get_real = CompiledAccessors(lambda vrs: self._compile_get(Real, vrs))
+        self._get_integer = CompiledAccessors(lambda vrs: self._compile_get(Integer, vrs))
+        self._get_boolean = CompiledAccessors(lambda vrs: self._compile_get(Boolean, vrs))
+        self._get_string = CompiledAccessors(lambda vrs: self._compile_get(String, vrs))
+        self._set_real = CompiledAccessors(lambda vrs: self._compile_set(Real, vrs))
+        self._set_integer = CompiledAccessors(lambda vrs: self._compile_set(Integer, vrs))
+        self._set_boolean = CompiledAccessors(lambda vrs: self._compile_set(Boolean, vrs))
+        self._set_string = CompiledAccessors(lambda vrs: self._compile_set(String, vrs))
 
     def parameter(
         self,
@@ -100,17 +137,17 @@ class GreyfmuSlave(Fmi2Slave):
             setattr(self, name, value)
 
         variable_type = IntegerVariable if isinstance(start, int) else RealVariable
-        self.register_variable(
-            variable_type(
-                name,
-                start=start,
-                description=description,
-                causality=Fmi2Causality.parameter,
-                variability=Fmi2Variability.fixed if retune is None else Fmi2Variability.tunable,
-                setter=setter,
-                type_attributes=_type_attributes(unit, minimum, maximum),
-            )
+        variable = variable_type(
+            name,
+            start=start,
+            description=description,
+            causality=Fmi2Causality.parameter,
+            variability=Fmi2Variability.fixed if retune is None else Fmi2Variability.tunable,
+            setter=setter,
+            type_attributes=_type_attributes(unit, minimum, maximum),
         )
+        self.register_variable(variable)
+        self._attributes[variable.value_reference] = name
 
     def output_limit_parameters(self) -> None:
         """u_min, u_max, du_max: the output limits of every controller FMU (greyfmu.control.PID's)."""
@@ -137,16 +174,16 @@ class GreyfmuSlave(Fmi2Slave):
         """Declare a continuous Real input."""
         self._claim(name)
         setattr(self, name, start)
-        self.register_variable(
-            RealVariable(
-                name,
-                start=start,
-                description=description,
-                causality=Fmi2Causality.input,
-                variability=Fmi2Variability.continuous,
-                type_attributes=_type_attributes(unit, None, None),
-            )
+        variable = RealVariable(
+            name,
+            start=start,
+            description=description,
+            causality=Fmi2Causality.input,
+            variability=Fmi2Variability.continuous,
+            type_attributes=_type_attributes(unit, None, None),
         )
+        self.register_variable(variable)
+        self._attributes[variable.value_reference] = name
         self._input_names.append(name)
 
     def output(
@@ -163,18 +200,17 @@ class GreyfmuSlave(Fmi2Slave):
             self._ensure_built()
             return value()
 
-        self.register_variable(
-            RealVariable(
-                name,
-                description=description,
-                causality=Fmi2Causality.output,
-                variability=variability,
-                initial=Fmi2Initial.exact,
-                getter=getter,
-                type_attributes=_type_attributes(unit, None, None),
-            )
+        variable = RealVariable(
+            name,
+            description=description,
+            causality=Fmi2Causality.output,
+            variability=variability,
+            initial=Fmi2Initial.exact,
+            getter=getter,
+            type_attributes=_type_attributes(unit, None, None),
         )
-        self._output_values[name] = getter
+        self.register_variable(variable)
+        self._outputs[variable.value_reference] = value
 
     @abstractmethod
     def build(self) -> None:
@@ -197,14 +233,111 @@ class GreyfmuSlave(Fmi2Slave):
             value = getattr(self, name)
             if not math.isfinite(value):
                 return self._error(f"input {name} = {value} at t = {current_time} s is not a finite number")
-        self._ensure_built()
+        if not self._built:
+            self._ensure_built()
         self.advance(current_time, step_size)
         self.current_time = current_time + step_size
-        for name, output_value in self._output_values.items():
+        for vr, output_value in self._outputs.items():  # the objects are built: no getter's build check
             value = output_value()
             if not math.isfinite(value):
+                name = self.vars[vr].name
                 return self._error(f"output {name} = {value} at t = {self.current_time} s is not a finite number")
         return True
+
+    # FMI get/set: the compiled accessors of `CompiledAccessors` (the C++ wrapper reads the result
+    # with PyList_GetItem, so a get returns a list).
+
+    def get_real(self, vrs: list[int]) -> list[float]:
+        return self._get_real[tuple(vrs)]()
+
+    def get_integer(self, vrs: list[int]) -> list[int]:
+        return self._get_integer[tuple(vrs)]()
+
+    def get_boolean(self, vrs: list[int]) -> list[bool]:
+        return self._get_boolean[tuple(vrs)]()
+
+    def get_string(self, vrs: list[int]) -> list[str]:
+        return self._get_string[tuple(vrs)]()
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        self._set_real[tuple(vrs)](values)
+
+    def set_integer(self, vrs: list[int], values: list[int]) -> None:
+        self._set_integer[tuple(vrs)](values)
+
+    def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
+        self._set_boolean[tuple(vrs)](values)
+
+    def set_string(self, vrs: list[int], values: list[str]) -> None:
+        self._set_string[tuple(vrs)](values)
+
+    def _variable(self, vr: int, kind: type[ScalarVariable]) -> ScalarVariable:
+        """The variable of ``vr``; a KeyError (unknown) or TypeError (another type) as Fmi2Slave's get/set raise."""
+        variable = self.vars.get(vr)
+        if variable is None:
+            raise KeyError(f"{self.instance_name}: no variable has the value reference {vr}")
+        if not isinstance(variable, kind):
+            raise TypeError(f"{self.instance_name}: variable {variable.name} (value reference {vr}) "
+                            f"is not of type {kind.__name__}")
+        return variable
+
+    def _compile_get(self, kind: type[ScalarVariable], vrs: tuple[int, ...]) -> Callable[[], list]:
+        """``get_<kind>(vrs)`` as one closure, with the values, Python types and refusals of
+        Fmi2Slave's generic get.  Parameters and inputs are plain attributes, read by one
+        ``attrgetter``; outputs build the greyfmu objects once, then call their value functions."""
+        variables = [self._variable(vr, kind) for vr in vrs]
+        convert = _CONVERSIONS[kind]
+        if vrs and all(vr in self._attributes for vr in vrs):
+            read = attrgetter(*(self._attributes[vr] for vr in vrs))
+            if len(vrs) == 1:
+                return lambda: [convert(read(self))]
+            return lambda: list(map(convert, read(self)))
+        getters = tuple(self._outputs.get(vr, variable.getter) for vr, variable in zip(vrs, variables))
+        if not any(vr in self._outputs for vr in vrs):
+            return lambda: [convert(get()) for get in getters]
+        if len(getters) == 1:  # one output: the most frequent call of a master, kept to one Python call
+            (get,) = getters
+
+            def read_one_built() -> list:
+                if not self._built:
+                    self._ensure_built()
+                return [convert(get())]
+
+            return read_one_built
+
+        def read_built() -> list:
+            if not self._built:
+                self._ensure_built()
+            return [convert(get()) for get in getters]
+
+        return read_built
+
+    def _compile_set(self, kind: type[ScalarVariable], vrs: tuple[int, ...]) -> Callable[[list], None]:
+        """``set_<kind>(vrs, values)`` as one closure calling the setters Fmi2Slave's generic set
+        calls: an input is a plain attribute (all-input lists update the instance dictionary in
+        one call); a parameter's setter marks the objects for a rebuild or retunes them.  Refused
+        as the generic set refuses: an unknown value reference (KeyError), another type or a
+        variable without a setter, such as an output (TypeError) — here before any value is set."""
+        variables = [self._variable(vr, kind) for vr in vrs]
+        for vr, variable in zip(vrs, variables):
+            if variable.setter is None:
+                raise TypeError(f"{self.instance_name}: variable {variable.name} (value reference {vr}) has no "
+                                "setter: only parameters and inputs can be set")
+        if all(variable.causality == Fmi2Causality.input and vr in self._attributes
+               for vr, variable in zip(vrs, variables)):
+            names = tuple(self._attributes[vr] for vr in vrs)
+            attributes = self.__dict__
+            if len(names) == 1:
+                (name,) = names
+                return lambda values: attributes.__setitem__(name, values[0])
+            return lambda values: attributes.update(zip(names, values))
+        setters = tuple(variable.setter for variable in variables)
+
+        def write(values: list) -> None:
+            for set_value, value in zip(setters, values):
+                set_value(value)
+
+        return write
 
     def _claim(self, name: str) -> None:
         if hasattr(self, name):

@@ -1,0 +1,156 @@
+"""Result sinks and the recorder: CSV and Parquet round-trip bit for bit with names and
+metadata, a failed run leaves its flushed rows readable in both formats, and the recorder's
+memory does not grow with the number of steps."""
+from __future__ import annotations
+
+import json
+import tracemalloc
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from pythonfmu.builder import FmuBuilder
+
+import cosim
+from cosim.cli import main
+from cosim.observers import CsvSink, MemorySink, ParquetSink, Recorder, file_sink
+from cosim.results import read
+from ssdgen import ssd_text, write_system
+from testfmus import HERE as TEST_FMU_SOURCES
+
+NAMES = ["time", "a.y", "b.u", "b.y"]
+METADATA = {"algorithm": "jacobi", "status": "completed", "steps": 7, "nested": {"x": [1, 2]}}
+
+
+def awkward_rows(n: int, seed: int = 3) -> np.ndarray:
+    """Values that stress a text format: 17 significant digits, huge, tiny, subnormal, -0.0, inf, NaN."""
+    rows = np.random.default_rng(seed).standard_normal((n, len(NAMES))) * 10.0 ** np.arange(-4, 4 * len(NAMES) - 4, 4)
+    rows[0, 1:] = [-0.0, 5e-324, 1.7976931348623157e308]
+    rows[1, 1:] = [np.inf, -np.inf, np.nan]
+    rows[:, 0] = np.arange(n) * 0.1
+    return rows
+
+
+def write_chunks(sink, chunks: list[np.ndarray]) -> None:
+    sink.open(NAMES)
+    for chunk in chunks:
+        sink.write(chunk)
+    sink.close(METADATA)
+
+
+def assert_bitwise_equal(got: np.ndarray, expected: np.ndarray) -> None:
+    assert got.dtype == expected.dtype and got.shape == expected.shape
+    assert got.tobytes() == expected.tobytes()
+
+
+def test_csv_round_trips_bit_for_bit(tmp_path):
+    rows = awkward_rows(300)
+    path = tmp_path / "r.csv"
+    write_chunks(CsvSink(path), [rows[:128], rows[128:]])
+    lines = path.read_text().splitlines()
+    assert lines[0] == '"time","a.y","b.u","b.y"' and len(lines) == 301
+    assert lines[1].split(",")[1:] == ["-0", "5e-324", "1.7976931348623157e+308"]
+    assert lines[2].split(",")[1:] == ["inf", "-inf", "nan"]
+    result = read(path)  # fmpy.util.read_csv
+    assert list(result.dtype.names) == NAMES
+    # NaN payloads aside, every float64 comes back with the same bits
+    back = np.column_stack([result[n] for n in NAMES])
+    assert np.array_equal(back, rows, equal_nan=True) and np.signbit(back[0, 1])
+    assert json.loads(path.with_suffix(".json").read_text()) == METADATA
+
+
+def test_parquet_round_trips_bit_for_bit_one_row_group_per_chunk(tmp_path):
+    rows = awkward_rows(300)
+    path = tmp_path / "r.parquet"
+    write_chunks(file_sink(path), [rows[:128], rows[128:256], rows[256:]])
+    parquet = pq.ParquetFile(path)
+    assert parquet.metadata.num_row_groups == 3
+    table = parquet.read()
+    assert table.column_names == NAMES
+    assert all(str(field.type) == "double" for field in table.schema)
+    back = np.column_stack([table.column(n).to_numpy() for n in NAMES])
+    assert_bitwise_equal(back, rows)
+    assert json.loads(pq.read_metadata(path).metadata[b"cosim"]) == METADATA
+    assert json.loads(path.with_suffix(".json").read_text()) == METADATA
+
+
+def test_memory_sink_keeps_only_the_columns_asked_for():
+    rows = awkward_rows(10)
+    sink = MemorySink(keep=["b.y"])
+    write_chunks(sink, [rows[:4], rows[4:]])
+    result = sink.array()
+    assert result.dtype.names == ("time", "b.y")
+    assert_bitwise_equal(result["b.y"], rows[:, 3])
+    with pytest.raises(ValueError, match="no column named b.z"):
+        MemorySink(keep=["b.z"]).open(NAMES)
+
+
+@pytest.fixture(scope="module")
+def failing_fmu(tmp_path_factory):
+    return FmuBuilder.build_FMU(TEST_FMU_SOURCES / "Failing.py", dest=tmp_path_factory.mktemp("failing"),
+                                needsExecutionTool="false")
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_a_run_failing_half_way_leaves_its_rows_readable(tmp_path, built_fmus, failing_fmu, suffix, capsys):
+    """Failing.fmu refuses the step from t = 5 s (fmi2Fatal); 5001 rows, more than one 4096-row chunk."""
+    components = {"f": ("Failing.fmu", {"u": "input", "y": "output"}),
+                  "lag": ("FirstOrderFilter.fmu", {"u": "input", "y": "output"})}
+    text = ssd_text("failing", components, [("f", "y", "lag", "u")], stop=10.0, step=0.001,
+                    parameters={"f": {"fail_time": 5.0}})
+    folder = write_system(tmp_path / "sys", {"Failing.fmu": failing_fmu,
+                                             "FirstOrderFilter.fmu": built_fmus["FirstOrderFilter"]}, text)
+    output = tmp_path / f"out{suffix}"
+    assert main(["run", str(folder), "-q", "-o", str(output)]) == 1
+    assert "fmi2DoStep returned Fatal at t = 5" in capsys.readouterr().err
+    if suffix == ".csv":
+        result = read(output)
+        time, y = result["time"], result["f.y"]
+    else:
+        parquet = pq.ParquetFile(output)
+        assert parquet.metadata.num_row_groups == 2
+        table = parquet.read()
+        time, y = table.column("time").to_numpy(), table.column("f.y").to_numpy()
+        assert json.loads(pq.read_metadata(output).metadata[b"cosim"])["status"] == "failed"
+    assert len(time) == 5001 and time[-1] == pytest.approx(5.0) and y[-1] == pytest.approx(5.0)
+    assert json.loads(output.with_suffix(".json").read_text())["status"] == "failed"
+
+
+def test_run_output_and_api_results_agree_in_both_formats(tmp_path, built_fmus):
+    components = {"src": ("Step.fmu", {"y": "output"}),
+                  "lag": ("FirstOrderFilter.fmu", {"u": "input", "y": "output"})}
+    text = ssd_text("lag", components, [("src", "y", "lag", "u")], stop=2.0, step=0.01,
+                    parameters={"src": {"t_step": 0.5}})
+    folder = write_system(tmp_path / "sys", {"Step.fmu": built_fmus["Step"],
+                                             "FirstOrderFilter.fmu": built_fmus["FirstOrderFilter"]}, text)
+    result = cosim.simulate(folder, output=tmp_path / "r.parquet")
+    cosim.simulate(folder, output=tmp_path / "r.csv")
+    table = pq.read_table(tmp_path / "r.parquet")
+    csv = read(tmp_path / "r.csv")
+    assert table.column_names == list(result.dtype.names) == list(csv.dtype.names)
+    for name in result.dtype.names:
+        assert_bitwise_equal(table.column(name).to_numpy(), result[name])
+        assert_bitwise_equal(csv[name], result[name])
+
+
+@pytest.mark.parametrize("make_sink", [CsvSink, ParquetSink], ids=["csv", "parquet"])
+def test_recorder_memory_does_not_grow_with_the_number_of_steps(tmp_path, make_sink):
+    """50 signals recorded for 2 and for 8 chunks of 4096 steps: the peak of the Python
+    allocations (one chunk formatted or converted by the sink) is the same."""
+    outputs, inputs = np.zeros(25), np.zeros(25)
+    names = [f"c{i}.y" for i in range(25)] + [f"c{i}.u" for i in range(25)]
+
+    def peak(chunks: int) -> int:
+        tracemalloc.start()
+        recorder = Recorder(names, [outputs, inputs], names, [make_sink(tmp_path / f"r{chunks}.out")])
+        for k in range(1, chunks * 4096 + 1):
+            outputs[:] = k
+            inputs[:] = -k
+            recorder.record(k * 0.01)
+        recorder.close({"steps": chunks * 4096})
+        _, high = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        return high
+
+    short, long = peak(2), peak(8)
+    assert long < 1.1 * short + 256 * 1024, (short, long)
