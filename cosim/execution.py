@@ -25,6 +25,7 @@ import ctypes
 import math
 import time as _time
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -55,16 +56,12 @@ class Grid:
             raise SetupError(f"the stop time {self.stop} is not after the start time {self.start}.",
                              element="stop time")
 
-    @property
+    @cached_property
     def steps(self) -> int:
         return max(1, math.ceil((self.stop - self.start) / self.step - 1e-9))
 
     def time(self, k: int) -> float:
         return self.stop if k >= self.steps else self.start + k * self.step
-
-    def times(self) -> list[float]:
-        """t_0 .. t_n as Python floats (t_k = start + k·h, the last one clamped to stop)."""
-        return [self.time(k) for k in range(self.steps + 1)]
 
 
 class _Typed:
@@ -301,12 +298,12 @@ class Execution:
             self.loop_seconds = _time.perf_counter() - started
 
     def _loop(self, recorder, progress, steppers, gs, gauss_seidel, n_steps, stride) -> None:
-        times = self.grid.times()
+        time = self.grid.time  # computed per step: a list of 10^6 times would cost 32 MB
         exchange, record = self._exchange, recorder.record
         for block in range(0, n_steps, stride):
             for k in range(block, min(block + stride, n_steps)):
-                t = times[k]
-                t_next = times[k + 1]
+                t = time(k)
+                t_next = time(k + 1)
                 h = t_next - t
                 if gauss_seidel:
                     if self._gauss_seidel_step(gs, t, h, t_next):
