@@ -72,7 +72,7 @@ def floor_spec(plan):
     return fmus, conns, signals
 
 
-def time_cosim(ssp: str, stop: float) -> float:
+def time_cosim(ssp: str | Path, stop: float) -> float:
     prepared = cosim.prepare(ssp, stop_time=stop, use_providers=False)
     try:
         _, meta = cosim.simulation.run(prepared)

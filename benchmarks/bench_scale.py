@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
 import cosim  # noqa: E402
-from bench_master import floor_spec  # noqa: E402
+from bench_master import floor_spec, time_cosim  # noqa: E402
 from floor import run_floor  # noqa: E402
 from greyfmu.build import build_fmus  # noqa: E402
 from ssdgen import ssd_text, write_system  # noqa: E402
@@ -51,15 +51,6 @@ def chain_system(folder: Path, block: str, n: int, fmus: dict[str, Path], stop: 
     text = ssd_text(f"{block}_chain_{n}", components, connections, stop=stop, step=STEP,
                     parameters={"source": {"t_step": 0.0}})
     return write_system(folder, {"Step.fmu": fmus["Step"], f"{block}.fmu": fmus[block]}, text)
-
-
-def time_cosim(folder: Path, stop: float) -> float:
-    prepared = cosim.prepare(folder, stop_time=stop, use_providers=False)
-    try:
-        _, meta = cosim.simulation.run(prepared)
-    finally:
-        prepared.close()
-    return meta["loop_seconds"]
 
 
 def time_floor(folder: Path, stop: float) -> float:

@@ -5,7 +5,6 @@ import os
 import shutil
 import subprocess
 import sys
-import zipfile
 
 import numpy as np
 import pytest
@@ -24,6 +23,7 @@ from greyfmu.build import (
     provide_fmu,
 )
 from greyfmu.cli import main
+from testfmus import edited_copy
 
 INTERFACE = {
     # name: (parameters, inputs, outputs -> same-instant input dependencies)
@@ -271,12 +271,6 @@ def test_rewrite_refuses_an_output_without_a_declared_dependency_list(built_fmus
 
 
 def test_rewrite_refuses_an_output_without_initial_exact(built_fmus, tmp_path):
-    broken = tmp_path / "broken.fmu"
-    with zipfile.ZipFile(built_fmus["Gain"]) as source, zipfile.ZipFile(broken, "w") as target:
-        for info in source.infolist():
-            data = source.read(info)
-            if info.filename == "modelDescription.xml":
-                data = data.replace(b'initial="exact"', b"")
-            target.writestr(info, data)
+    broken = edited_copy(built_fmus["Gain"], tmp_path / "broken.fmu", lambda xml: xml.replace('initial="exact"', ""))
     with pytest.raises(BuildError, match="initial"):
         _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]})

@@ -8,7 +8,6 @@ Expected values are computed here from each FMU's documented behaviour.
 from __future__ import annotations
 
 import shutil
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +17,7 @@ import cosim
 from cosim.errors import RunError, SetupError
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
-from testfmus import build_test_fmus, build_test_fmus3
+from testfmus import build_test_fmus, build_test_fmus3, edited_copy
 
 H = 0.1
 
@@ -229,12 +228,7 @@ def test_array_and_unsupported_parameters_are_refused(tmp_path, fmus, fmu, varia
 
 def test_fmi3_model_exchange_only_fmu_is_refused(tmp_path, fmus):
     """Echo3 with its interface element renamed to ModelExchange: an FMI 3.0 ME-only FMU."""
-    me_only = tmp_path / "Echo3.fmu"
-    with zipfile.ZipFile(fmus["Echo3"]) as source, zipfile.ZipFile(me_only, "w") as target:
-        for info in source.infolist():
-            data = source.read(info)
-            if info.filename == "modelDescription.xml":
-                data = data.replace(b"<CoSimulation ", b"<ModelExchange ")
-            target.writestr(info, data)
+    me_only = edited_copy(fmus["Echo3"], tmp_path / "Echo3.fmu",
+                          lambda xml: xml.replace("<CoSimulation ", "<ModelExchange "))
     err = _refused(tmp_path, {**fmus, "Echo3": me_only}, {"e": ("Echo3.fmu", {})})
     assert "Echo3.fmu would run through its FMI 3.0 Model Exchange interface" in err

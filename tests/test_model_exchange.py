@@ -21,6 +21,7 @@ from cosim.execution import Execution
 from cosim.observers import MemorySink, Recorder
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
+from testfmus import edited_copy
 
 ME_SCENARIO = Path("ssp/pid_mass_damper_me")
 SOLVER_NS = "urn:greyfmu:ssp:solver:1.0"
@@ -227,17 +228,6 @@ def test_unknown_implementation_is_caught_by_the_ssp_schema(tmp_path, built_fmus
     with pytest.raises(cosim.SetupError) as err:
         simulation.prepare(path)
     assert "SSP 1.0 schema" in str(err.value) and "implementation" in str(err.value) and "Hybrid" in str(err.value)
-
-
-def edited_copy(source: Path, target: Path, edit) -> Path:
-    """The same FMU (binary unchanged) with ``edit`` applied to its modelDescription.xml text."""
-    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zout:
-        for item in zin.infolist():
-            data = zin.read(item.filename)
-            if item.filename == "modelDescription.xml":
-                data = edit(data.decode("utf-8")).encode("utf-8")
-            zout.writestr(item, data)
-    return target
 
 
 def without_cosimulation(text: str) -> str:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import math
-import zipfile
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -21,6 +20,7 @@ from pythonfmu.builder import FmuBuilder
 from cosim.errors import SetupError
 from cosim.simulation import prepare, run
 from cosim.units import BUILTIN, IDENTITY, conversion, make_unit, then
+from testfmus import edited_copy
 
 HERE = Path(__file__).parent / "unitfmus"
 
@@ -47,23 +47,21 @@ def with_units(fmu: Path, target: Path, units: dict[str, str], definitions: dict
     """Copy ``fmu`` to ``target`` with ``unit`` set on the named Real variables and a
     UnitDefinitions element declaring them (from ``definitions``, default `DEFINITIONS`)."""
     definitions = {**DEFINITIONS, **(definitions or {})}
-    with zipfile.ZipFile(fmu) as archive:
-        entries = {info.filename: archive.read(info) for info in archive.infolist()}
-    root = ElementTree.fromstring(entries["modelDescription.xml"])
-    for sv in root.iter("ScalarVariable"):
-        if sv.get("name") in units:
-            sv.find("Real").set("unit", units[sv.get("name")])
-    if units:
-        unit_definitions = ElementTree.Element("UnitDefinitions")
-        for name in sorted(set(units.values())):
-            unit = ElementTree.SubElement(unit_definitions, "Unit", name=name)
-            ElementTree.SubElement(unit, "BaseUnit", definitions[name])
-        root.insert(list(root).index(root.find("CoSimulation")) + 1, unit_definitions)
-    entries["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with zipfile.ZipFile(target, "w") as archive:
-        for name, data in entries.items():
-            archive.writestr(name, data)
+
+    def edit(text: str) -> str:
+        root = ElementTree.fromstring(text.encode("utf-8"))
+        for sv in root.iter("ScalarVariable"):
+            if sv.get("name") in units:
+                sv.find("Real").set("unit", units[sv.get("name")])
+        if units:
+            unit_definitions = ElementTree.Element("UnitDefinitions")
+            for name in sorted(set(units.values())):
+                unit = ElementTree.SubElement(unit_definitions, "Unit", name=name)
+                ElementTree.SubElement(unit, "BaseUnit", definitions[name])
+            root.insert(list(root).index(root.find("CoSimulation")) + 1, unit_definitions)
+        return ElementTree.tostring(root, encoding="unicode", xml_declaration=True)
+
+    edited_copy(fmu, target, edit)
     return target
 
 
