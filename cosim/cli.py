@@ -52,7 +52,7 @@ def _parser() -> argparse.ArgumentParser:
     common(info)
 
     metrics = sub.add_parser("metrics", help="IAE, ISE, ITAE, overshoot, rise and settling time of a result")
-    metrics.add_argument("result", help="result CSV written by cosim run")
+    metrics.add_argument("result", help="result CSV or Parquet file written by cosim run")
     metrics.add_argument("--signal", required=True, help="controlled variable, e.g. plant.y")
     metrics.add_argument("--setpoint", required=True, help="setpoint signal, e.g. setpoint.y")
     metrics.add_argument("--t0", type=float, help="start of the measurement (default: the setpoint's last change)")
@@ -62,8 +62,8 @@ def _parser() -> argparse.ArgumentParser:
     metrics.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
 
     compare = sub.add_parser("compare", help="check that two results agree within tolerances (exit 1 if not)")
-    compare.add_argument("reference", help="reference result CSV")
-    compare.add_argument("candidate", help="result CSV to check")
+    compare.add_argument("reference", help="reference result (CSV or Parquet)")
+    compare.add_argument("candidate", help="result (CSV or Parquet) to check")
     compare.add_argument("--rtol", type=float, default=1e-6)
     compare.add_argument("--atol", type=float, default=1e-9)
     compare.add_argument("--signals", nargs="+", metavar="GLOB", help="signals to compare (default: all)")
@@ -255,7 +255,8 @@ def _read_result(path: str):
     try:
         return read(path)
     except (ValueError, IndexError) as e:
-        raise SetupError(f"not a result CSV readable by fmpy.util.read_csv ({e}).", file=path) from None
+        raise SetupError(f"not a result file (a CSV readable by fmpy.util.read_csv, or Parquet) ({e}).",
+                         file=path) from None
 
 
 def _metrics(args) -> int:

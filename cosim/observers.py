@@ -55,10 +55,14 @@ class CsvSink:
         pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
         self._file.flush()
 
-    def close(self, metadata: dict) -> None:
+    def finish(self) -> None:
+        """Close the file (no metadata)."""
         if self._file is not None:
             self._file.close()
             self._file = None
+
+    def close(self, metadata: dict) -> None:
+        self.finish()
         self.meta_path.write_text(json.dumps(metadata, indent=2, default=str) + "\n")
 
 
@@ -95,12 +99,17 @@ class ParquetSink:
         columns = np.ascontiguousarray(rows.T)
         self._writer.write_table(pa.Table.from_arrays(list(columns), schema=self._schema))
 
-    def close(self, metadata: dict) -> None:
-        text = json.dumps(metadata, indent=2, default=str) + "\n"
+    def finish(self, metadata_text: str | None = None) -> None:
+        """Write the footer (with the run metadata, if any) and close the file."""
         if self._writer is not None:
-            self._writer.add_key_value_metadata({"cosim": text})
+            if metadata_text is not None:
+                self._writer.add_key_value_metadata({"cosim": metadata_text})
             self._writer.close()
             self._writer = None
+
+    def close(self, metadata: dict) -> None:
+        text = json.dumps(metadata, indent=2, default=str) + "\n"
+        self.finish(text)
         self.meta_path.write_text(text)
 
 

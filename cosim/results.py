@@ -1,4 +1,4 @@
-"""Results on disk: read and write result CSVs, plot chosen signals (matplotlib, Agg backend)."""
+"""Results on disk: read and write result files (CSV, Parquet), plot chosen signals (matplotlib, Agg backend)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -8,22 +8,33 @@ import numpy as np
 
 
 def read(path: str | Path) -> np.ndarray:
-    """Read a result CSV into a structured array (``fmpy.util.read_csv`` format)."""
+    """Read a result file into a structured array (``fmpy.util.read_csv`` format): a
+    ``.parquet`` file written by `cosim.observers.ParquetSink`, else a result CSV."""
+    if Path(path).suffix.lower() == ".parquet":
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(path)
+        result = np.empty(table.num_rows, dtype=[(name, np.float64) for name in table.column_names])
+        for name in table.column_names:
+            result[name] = table.column(name).to_numpy()
+        return result
     from fmpy.util import read_csv
     return read_csv(str(path))
 
 
 def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = None) -> Path:
-    """Write ``time`` and the named fields (default: all) as a CSV in the format of
-    `cosim.observers.CsvSink` (quoted header, 17 significant digits, so a float64 reads back
-    bit for bit)."""
+    """Write ``time`` and the named fields (default: all) as `cosim.observers.file_sink` writes
+    a run (CSV, or Parquet for a ``.parquet`` name: every float64 reads back bit for bit),
+    without the metadata JSON a run writes beside it."""
+    from .observers import file_sink
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     columns = ["time"] + [n for n in (names if names is not None else result.dtype.names) if n != "time"]
-    rows = np.column_stack([result[n] for n in columns]) if len(result) else np.empty((0, len(columns)))
-    with open(path, "w", newline="\n") as f:
-        f.write(",".join(f'"{n}"' for n in columns) + "\n")
-        np.savetxt(f, rows, fmt="%.17g", delimiter=",")
+    sink = file_sink(path)
+    sink.open(columns)
+    if len(result):
+        sink.write(np.column_stack([result[n] for n in columns]))
+    sink.finish()
     return path
 
 
