@@ -197,8 +197,9 @@ class Execution:
                                             ty.pointer(ty.Ubuf, start)))
                     self._get_inputs[comp].append((ty.get_call(inst.get[ty.type_name], ty.Ubuf, start, n),
                                                    inst.component, vr, n, ty.pointer(ty.Ubuf, start)))
-        self._all_get = [call + (c,) for c in self.order for call in self._get[c]]
-        self._all_set = [call + (c,) for c in self.order for call in self._set[c]]
+        read_once, set_once = self.plan.read_in_settling_only, self.plan.set_in_settling_only
+        self._all_get = [call + (c,) for c in self.order if c not in read_once for call in self._get[c]]
+        self._all_set = [call + (c,) for c in self.order if c not in set_once for call in self._set[c]]
 
     def initialize(self) -> None:
         t0, stop = self.grid.start, self.grid.stop

@@ -68,6 +68,12 @@ class Plan:
     #: Gauss-Seidel order: upstream first, SSD order inside a loop
     gauss_seidel_order: list[str]
     notes: list[str] = field(default_factory=list)
+    #: components of the feedthrough sequence whose outputs nobody reads before the settling
+    #: re-reads them: the exchange skips their first read (`settling_shortcuts`)
+    read_in_settling_only: set[str] = field(default_factory=set)
+    #: components of the feedthrough sequence whose inputs are final when the settling sets
+    #: them: the exchange does not set them again
+    set_in_settling_only: set[str] = field(default_factory=set)
 
 
 def build_plan(structure: SystemStructure, extra_parameters: list[ParameterValue] = ()) -> Plan:
@@ -85,8 +91,10 @@ def build_plan(structure: SystemStructure, extra_parameters: list[ParameterValue
     _check_system_outputs(structure, outputs)
     order = _variable_order(structure, fmus, routes, outputs)
     feedthrough = _feedthrough_sequence(order, fmus, routes)
+    read_once, set_once = settling_shortcuts(feedthrough, routes)
     return Plan(structure=structure, fmus=fmus, routes=routes, start_values=start_values,
                 outputs=outputs, inputs=inputs, feedthrough_sequence=feedthrough,
+                read_in_settling_only=read_once, set_in_settling_only=set_once,
                 gauss_seidel_order=_gauss_seidel_order(structure, routes))
 
 
@@ -464,6 +472,32 @@ def _feedthrough_sequence(order: list, fmus: dict[str, FMUDescription], routes: 
             if not sequence or sequence[-1] != comp:
                 sequence.append(comp)
     return sequence
+
+
+def settling_shortcuts(sequence: list[str], routes: list[Route]) -> tuple[set[str], set[str]]:
+    """FMI calls the exchange can leave out without changing a value.
+
+    The exchange reads every output, then settles the feedthrough sequence (set a
+    component's inputs, re-read its outputs), then sets every input.  A component F of the
+    sequence need not be read first when every component that reads F inside the sequence
+    comes after F's first place in it (F's own loop-back counts as reading it first); a
+    component X need not be set at the end when every source of X in the sequence has its
+    last place before X's last place (X was set with final values).  A chain of feedthrough
+    blocks then costs one set and one get per block instead of two of each.
+    """
+    first: dict[str, int] = {}
+    last: dict[str, int] = {}
+    for i, comp in enumerate(sequence):
+        first.setdefault(comp, i)
+        last[comp] = i
+    consumers: dict[str, set[str]] = defaultdict(set)
+    sources: dict[str, set[str]] = defaultdict(set)
+    for r in routes:
+        consumers[r.src].add(r.dst)
+        sources[r.dst].add(r.src)
+    read_once = {f for f in first if all(first[x] > first[f] for x in consumers[f] if x in first)}
+    set_once = {x for x in last if all(last[s] < last[x] for s in sources[x] if s in last)}
+    return read_once, set_once
 
 
 def _gauss_seidel_order(structure: SystemStructure, routes: list[Route]) -> list[str]:
