@@ -313,7 +313,7 @@ def _sweep(args) -> int:
                    executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
     for row in result.failed:
         print(f"cosim: run {row['run_id']} failed: {row['message']}", file=sys.stderr)
-    print(f"cosim: sweep: {len(result.rows)} runs ({result.ran} run now, {result.skipped} already done and "
+    print(f"cosim: sweep: {len(result.rows)} runs ({result.ran} ran now, {result.skipped} already done and "
           f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}, results in "
           f"{output / 'runs'}")
     return 1 if result.failed else 0
