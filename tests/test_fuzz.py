@@ -268,6 +268,7 @@ def test_malformed_ssv_gives_setup_error(workspace, doc):
         _assert_names_file(e, path)
 
 
+@pytest.mark.filterwarnings("ignore:Duplicate name:UserWarning")  # duplicate members are one of the malformations
 @settings(max_examples=_scaled(1.2), **FUZZ)
 @given(data=malformed_archive())
 def test_malformed_archive_gives_setup_error(workspace, data):
