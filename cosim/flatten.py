@@ -12,10 +12,11 @@ system feeds the element while an element's ``output`` feeds the system's
 
 The master runs a flat list of components, so this module resolves every chain
 output → system connector → … → system connector → input into one direct
-connection between the two components, at any depth, composing the
-``ssc:LinearTransformation`` of each hop as affine maps
-(``f2·(f1·x + o1) + o2``).  Names are paths relative to the root system:
-component ``ctrl`` of subsystem ``loop`` is ``loop.ctrl``; the root system's own
+connection between the two components, at any depth, keeping the connections on
+the way (`Hop`, with the units their system connectors declare): SSP 1.0
+converts units and then applies the ``ssc:LinearTransformation`` on each
+connection, so `cosim.graph` composes them hop by hop into one affine map.
+Names are paths relative to the root system: component ``ctrl`` of subsystem ``loop`` is ``loop.ctrl``; the root system's own
 components keep their plain names, and the root system's name goes to the run
 metadata, not into every column.
 
@@ -25,8 +26,8 @@ System connectors are handled explicitly, never dropped:
 * with no driver but feeding something: it needs a value from a
   ParameterBinding (at its own system's level, named like a variable of that
   system: ``r`` on the root, ``loop.r`` from the root or ``r`` on ``loop``), which
-  becomes the start value of every input or parameter it reaches (through the
-  transformations) — a constant input.  Without a value it is refused
+  becomes the start value of every input or parameter it reaches (hop by hop,
+  like a connection) — a constant input.  Without a value it is refused
   (`bind_system_connectors`, run when all parameter sets are known);
 * root ``output`` connectors are recorded under their own name as an alias of the
   component output driving them (`SystemOutput`); an undriven one is refused;
@@ -41,6 +42,7 @@ bindings win in `cosim.graph`).
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 from .errors import SetupError, did_you_mean
@@ -79,15 +81,43 @@ class SystemNode:
     systems: list[SystemNode]
 
 
+@dataclass(frozen=True)
+class Hop:
+    """One ``ssd:Connection`` on a path through system connectors.
+
+    SSP 1.0 (SystemStructureDescription.xsd, Connection and its ``suppressUnitConversion``)
+    converts the value on each connection from its start connector's unit to its end
+    connector's unit, then applies that connection's LinearTransformation (only the
+    transformation when ``suppressUnitConversion="true"``).  `cosim.graph` composes the hops in
+    that order; it knows the component ends' units (their FMU variables), this module does not.
+    """
+    line: int
+    #: the system connector at each end (``loop.r``; ``r`` on the root); None where the end is a component
+    start_system: str | None
+    end_system: str | None
+    #: those system connectors' ``ssc:Real unit``; None for a component end or a connector without one
+    start_unit: str | None
+    end_unit: str | None
+    factor: float
+    offset: float
+    has_transformation: bool
+    suppress: bool
+
+
 @dataclass
 class SystemOutput:
-    """A root-system output connector, recorded as ``factor·component.connector + offset``."""
+    """A root-system output connector, recorded as ``factor·component.connector + offset``.
+
+    As flattened, ``factor``/``offset`` compose the transformations of ``hops`` only;
+    `cosim.graph` replaces them by the per-hop composition with the unit conversions, from
+    the FMU variable's unit to the root connector's (`Hop`)."""
     name: str
     component: str
     connector: str
     factor: float
     offset: float
     line: int
+    hops: tuple[Hop, ...] = ()
 
 
 @dataclass
@@ -97,8 +127,10 @@ class OpenConnector:
     path: str
     kind: str
     line: int
-    #: (component path, connector name, factor, offset) reached through the hierarchy
-    sinks: list[tuple[str, str, float, float]]
+    #: (component path, connector name, the connections on the way) reached through the hierarchy
+    sinks: list[tuple[str, str, tuple[Hop, ...]]]
+    #: its ``ssc:Real unit``, if it declares one
+    unit: str | None = None
 
 
 @dataclass
@@ -308,43 +340,60 @@ class _Resolver:
             lines = ", ".join(str(h.connection.line) for h in hops)
             through = ", ".join(node_name(h.dst) for h in hops[:-1])
             return [Connection(origin[1], origin[2], dst[1], dst[2], factor, offset, has, suppress,
-                               hops[0].connection.line, via=f"lines {lines} through system connector {through}")]
+                               hops[0].connection.line, via=f"lines {lines} through system connector {through}",
+                               hops=self._hops(hops))]
         out: list[Connection] = []
         for nxt in self.fanout.get(dst, []):
             out += self._follow(origin, nxt, factor, offset, has, suppress, hops)
         if dst[1] == "" and self.walker.system_connectors[dst].kind == "output":
             self.system_outputs[dst[2]] = SystemOutput(dst[2], origin[1], origin[2], factor, offset,
-                                                       self.walker.system_connectors[dst].line)
+                                                       self.walker.system_connectors[dst].line, self._hops(hops))
         return out
+
+    def _hops(self, edges: list[_Edge]) -> tuple[Hop, ...]:
+        """The `Hop` of each edge, with the units its system connectors declare."""
+        def end(node: Node) -> tuple[str | None, str | None]:
+            return (node_name(node), self.walker.system_connectors[node].unit) if node[0] == "s" else (None, None)
+
+        out = []
+        for e in edges:
+            (start, start_unit), (stop, stop_unit), c = end(e.src), end(e.dst), e.connection
+            out.append(Hop(c.line, start, stop, start_unit, stop_unit, c.factor, c.offset, c.has_transformation,
+                           c.suppress_unit_conversion))
+        return tuple(out)
 
     def _open(self, node: Node) -> None:
         """An undriven system connector that feeds something: list what a binding would set."""
         conn = self.walker.system_connectors[node]
-        sinks: list[tuple[str, str, float, float]] = []
-        stack = [(e, 1.0, 0.0) for e in self.fanout[node]]
+        sinks: list[tuple[str, str, tuple[Hop, ...]]] = []
+        stack = [(e, [e]) for e in self.fanout[node]]
         while stack:
-            e, f, o = stack.pop()
-            f, o = e.connection.factor * f, e.connection.factor * o + e.connection.offset
+            e, path = stack.pop()
             if e.dst[0] == "c":
-                sinks.append((e.dst[1], e.dst[2], f, o))
+                sinks.append((e.dst[1], e.dst[2], self._hops(path)))
                 continue
             if e.dst[1] == "" and self.walker.system_connectors[e.dst].kind == "output":
                 raise SetupError(f"root output connector '{e.dst[2]}' is fed by '{node_name(node)}', which no "
                                  "component drives; only component outputs can be recorded.", file=self.file,
                                  element=f"ssd:Connection (line {e.connection.line})", variable=e.dst[2])
-            stack += [(nxt, f, o) for nxt in self.fanout.get(e.dst, [])]
+            stack += [(nxt, path + [nxt]) for nxt in self.fanout.get(e.dst, [])]
         if sinks:
             self.open_connectors[node_name(node)] = OpenConnector(node_name(node), conn.kind, conn.line,
-                                                              sinks)
+                                                              sinks, conn.unit)
+
+
+#: The value a component connector gets from a value given to an open system connector, through
+#: the connections on the way: (value, open connector, component path, connector name, hops).
+Through = Callable[[ParameterValue, OpenConnector, str, str, tuple[Hop, ...]], ParameterValue]
 
 
 def bind_system_connectors(open_connectors: dict[str, OpenConnector], driven: set[str],
-                           values: list[ParameterValue], file: str) -> list[ParameterValue]:
+                           values: list[ParameterValue], file: str, through: Through) -> list[ParameterValue]:
     """Replace each value that names a system connector by values for what it feeds.
 
-    The value goes through the composed LinearTransformation of each path (Real
-    values only).  An open connector that gets no value is refused, naming it
-    and what it feeds; a value for a connector that a connection drives is refused.
+    ``through`` takes the value along each path, hop by hop (`cosim.graph`, which knows the
+    FMUs' units).  An open connector that gets no value is refused, naming it and what it
+    feeds; a value for a connector that a connection drives is refused.
     """
     out: list[ParameterValue] = []
     bound: set[str] = set()
@@ -358,18 +407,10 @@ def bind_system_connectors(open_connectors: dict[str, OpenConnector], driven: se
             out.append(p)
             continue
         bound.add(p.name)
-        for comp, conn, factor, offset in target.sinks:
-            if (factor, offset) == (1.0, 0.0):
-                out.append(replace(p, name=f"{comp}.{conn}"))
-                continue
-            if p.type not in ("Real", "Integer"):
-                raise SetupError(f"a {p.type} value cannot go through the LinearTransformation on the way "
-                                 f"from system connector '{p.name}' to {comp}.{conn}.", file=p.file,
-                                 element=f"ssv:Parameter (line {p.line})", variable=p.name)
-            out.append(replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset))
+        out += [through(p, target, comp, conn, hops) for comp, conn, hops in target.sinks]
     for path, target in open_connectors.items():
         if path not in bound:
-            fed = ", ".join(f"{comp}.{conn}" for comp, conn, _, _ in target.sinks)
+            fed = ", ".join(f"{comp}.{conn}" for comp, conn, _ in target.sinks)
             raise SetupError(f"system connector '{path}' (kind {target.kind}) has no driver and no value; it "
                              f"feeds {fed}.", file=file, element=f"ssd:Connector (line {target.line})",
                              variable=path, hint="Connect an output to it, or give it a value with a "

@@ -9,12 +9,13 @@ follows.
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import partial
 
 from fmpy.model_description import ModelVariable
 
 from .errors import SetupError, did_you_mean
-from .flatten import bind_system_connectors
+from .flatten import Hop, OpenConnector, bind_system_connectors
 from .fmu import ArrayElement, FMUDescription, describe, exchange_type, unit_of
 from .me import check_model_exchange
 from .ssp import Connection, ParameterValue, SystemStructure
@@ -88,7 +89,7 @@ def build_plan(structure: SystemStructure, extra_parameters: list[ParameterValue
     outputs, inputs = _check_connectors(structure, fmus, units)
     routes = _check_connections(structure, fmus, units)
     start_values = _check_parameters(structure, fmus, list(extra_parameters), units)
-    _check_system_outputs(structure, outputs)
+    _check_system_outputs(structure, outputs, units)
     order = _variable_order(structure, fmus, routes, outputs)
     feedthrough = _feedthrough_sequence(order, fmus, routes)
     read_once, set_once = settling_shortcuts(feedthrough, routes)
@@ -174,8 +175,13 @@ def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescriptio
             raise SetupError(f"input {dst}.{dv.name} is driven by two connections (the other: "
                              f"{driven[key].describe()}).", file=file, element=where, variable=dv.name)
         driven[key] = c
-        factor, offset = (_route_map(structure, units, c, (src, sv), (dst, dv), where)
-                          if exchange_type(sv) == "Real" else (c.factor, c.offset))
+        if exchange_type(sv) != "Real":
+            factor, offset = c.factor, c.offset
+        elif c.hops:  # cosim.flatten starts the path at the component output
+            factor, offset = _hops_map(structure, units, c.hops, _source_view(structure, units, (src, sv), where),
+                                       (dst, dv), where)
+        else:
+            factor, offset = _route_map(structure, units, c, (src, sv), (dst, dv), where)
         routes.append(Route(src, sv, dst, dv, factor, offset))
     return routes
 
@@ -224,18 +230,84 @@ def _route_map(structure: SystemStructure, units: SystemUnits, c: Connection, so
     dst_name, dst_scope, _, from_dst_view = _connector_unit(
         units, dst, dv, structure.components[dst].connectors[dv.name].unit, where, file)
     convert = IDENTITY
-    if src_name and dst_name and not c.suppress_unit_conversion:
-        if src_name == dst_name:
-            a, b = src_scope.find(src_name), dst_scope.find(dst_name)
-            if a is not None and b is not None:
-                check_agree({src_name: a}, {dst_name: b}, file=file, element=where)
-        else:
-            kw = {"file": file, "element": where, "variable": dv.name}
-            convert = conversion(src_scope.resolve(src_name, **kw), dst_scope.resolve(dst_name, **kw),
-                                 f"{src}.{sv.name} is in '{src_name}' and {dst}.{dv.name} in '{dst_name}': ",
-                                 **kw, hint="Correct one of the units, or add suppressUnitConversion=\"true\" "
-                                 "with an ssc:LinearTransformation that maps the values.")
+    if not c.suppress_unit_conversion:
+        convert = _unit_step((src_name, src_scope), (dst_name, dst_scope),
+                             f"{src}.{sv.name} is in '{src_name}' and {dst}.{dv.name} in '{dst_name}': ",
+                             file=file, element=where, variable=dv.name)
     return then(then(then(to_src_view, convert), (c.factor, c.offset)), from_dst_view)
+
+
+def _unit_step(start: tuple[str | None, UnitScope], end: tuple[str | None, UnitScope], context: str,
+               hint: str = "Correct one of the units, or add suppressUnitConversion=\"true\" with an "
+               "ssc:LinearTransformation that maps the values.", **where) -> Affine:
+    """The conversion on one connection from the start connector's unit to the end connector's
+    (each a name and where it is looked up): none when either has no unit; for the same name,
+    only a check that both places define it alike."""
+    (start_name, start_scope), (end_name, end_scope) = start, end
+    if not (start_name and end_name):
+        return IDENTITY
+    if start_name == end_name:
+        a, b = start_scope.find(start_name), end_scope.find(end_name)
+        if a is not None and b is not None:
+            check_agree({start_name: a}, {end_name: b}, file=where["file"], element=where["element"])
+        return IDENTITY
+    return conversion(start_scope.resolve(start_name, **where), end_scope.resolve(end_name, **where), context,
+                      **where, hint=hint)
+
+
+def _source_view(structure: SystemStructure, units: SystemUnits, source: tuple[str, ModelVariable],
+                 where: str) -> tuple[str | None, UnitScope, Affine, str]:
+    """A component output as the start of a path: its connector's unit, where that is looked up,
+    the map from the FMU's value to the connector's, and its name."""
+    src, sv = source
+    name, scope, to_view, _ = _connector_unit(units, src, sv, structure.components[src].connectors[sv.name].unit,
+                                              where, str(structure.ssd_file))
+    return name, scope, to_view, f"{src}.{sv.name}"
+
+
+def _hops_map(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, ...],
+              start: tuple[str | None, UnitScope, Affine, str], target: tuple[str, ModelVariable] | None,
+              where: str) -> Affine:
+    """The affine map along a path through system connectors (`cosim.flatten`): from the value
+    at its start (``start``: the unit, where it is looked up, the map from the value given to
+    the start's unit, a name for messages; see `_source_view`) to the target FMU's value, or,
+    with no ``target``, to the value of the root-system output connector that ends the path.
+
+    SSP 1.0 (SystemStructureDescription.xsd, Connection and ``suppressUnitConversion``) applies
+    to each connection on the way: convert from its start connector's unit to its end
+    connector's unit, then its LinearTransformation; with ``suppressUnitConversion="true"``
+    on a connection, only its transformation.  The component ends take their connector
+    views (`_connector_unit`).  A system connector that declares a unit holds its value in
+    that unit (names looked up in the SSD's ``ssd:Units``, then the built-ins).  One without
+    a unit is transparent: it carries the unit of what drives it, so nothing is converted at
+    it — SSP 1.0 gives such a connector no unit of its own, and a graphical tool's pass-through
+    port must not change a value; converting end to end would also skip the hops'
+    transformations in between.  A hop between units of different dimensions is refused.
+    """
+    file = str(structure.ssd_file)
+    name, scope, result, source = start
+    ssd_scope = UnitScope(units.ssd)
+    from_view = IDENTITY
+    for hop in hops:
+        if hop.end_system is None:  # the component input (or parameter, for a constant) that ends the path
+            dst, dv = target
+            declared = structure.components[dst].connectors.get(dv.name)
+            end_name, end_scope, _, from_view = _connector_unit(
+                units, dst, dv, declared.unit if declared else None, where, file)
+            end_label = f"{dst}.{dv.name}"
+        else:
+            end_name, end_scope = (hop.end_unit, ssd_scope) if hop.end_unit else (name, scope)
+            end_label = f"system connector '{hop.end_system}'"
+        start_label = f"system connector '{hop.start_system}'" if hop.start_system else source
+        if not hop.suppress:
+            result = then(result, _unit_step(
+                (name, scope), (end_name, end_scope),
+                f"on the connection at line {hop.line}, {start_label} is in '{name}' and {end_label} in "
+                f"'{end_name}': ", file=file, element=f"{where}, ssd:Connection (line {hop.line})",
+                variable=hop.end_system or hop.start_system))
+        result = then(result, (hop.factor, hop.offset))
+        name, scope = end_name, end_scope
+    return then(result, from_view)
 
 
 def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], element: str, connector: str,
@@ -257,10 +329,15 @@ def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], eleme
     return fmus[element].variable(connector, where, file)
 
 
-def _check_system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVariable]]) -> None:
-    """Each root-system output connector is an alias of a recorded component output (cosim.flatten)."""
+def _check_system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
+                          units: SystemUnits) -> None:
+    """Each root-system output connector is an alias of a recorded component output (cosim.flatten).
+
+    A Real one is recorded as the root connector's value: the output, read in its FMU's unit,
+    taken hop by hop to the root connector's unit (`_hops_map`; the connector's own unit if it
+    declares one, else the unit carried along the path)."""
     file = str(structure.ssd_file)
-    for out in structure.system_outputs.values():
+    for out in list(structure.system_outputs.values()):
         where = f"ssd:Connector '{out.name}' of the root system (line {out.line})"
         var = next((v for v in outputs[out.component] if v.name == out.connector), None)
         if var is None:
@@ -273,6 +350,10 @@ def _check_system_outputs(structure: SystemStructure, outputs: dict[str, list[Mo
         if any(f"{c}.{v.name}" == out.name for c, vs in outputs.items() for v in vs):
             raise SetupError(f"the name clashes with the component output {out.name} in the results.",
                              file=file, element=where, variable=out.name)
+        if exchange_type(var) == "Real":
+            factor, offset = _hops_map(structure, units, out.hops,
+                                       _source_view(structure, units, (out.component, var), where), None, where)
+            structure.system_outputs[out.name] = replace(out, factor=factor, offset=offset)
 
 
 # --------------------------------------------------------------------------- parameters
@@ -286,11 +367,50 @@ def _check_parameters(structure: SystemStructure, fmus: dict[str, FMUDescription
         for p in comp.parameters:
             _apply_parameter(resolved, name, p.name, p, fmus[name], units)
     system_values = bind_system_connectors(structure.open_connectors, structure.driven_connectors,
-                                           list(structure.parameters) + extra, str(structure.ssd_file))
+                                           list(structure.parameters) + extra, str(structure.ssd_file),
+                                           partial(_through_hops, structure, fmus, units))
     for p in system_values:
         comp_name, var_name = _split_system_name(structure, p)
         _apply_parameter(resolved, comp_name, var_name, p, fmus[comp_name], units)
     return list(resolved.values())
+
+
+def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits,
+                  p: ParameterValue, open_connector: OpenConnector, comp: str, conn: str,
+                  hops: tuple[Hop, ...]) -> ParameterValue:
+    """The value a component connector gets from ``p``, given to an open system connector: the
+    connector holds it in its own unit if it declares one (converted from ``p``'s unit, as a
+    parameter value is), else in ``p``'s unit; then each hop as on a connection (`_hops_map`),
+    ending in the FMU variable's unit.  A variable that is not Real gets the value through the
+    transformations only (Real and Integer values; others only where there is none)."""
+    where = (f"ssv:Parameter '{p.name}' (line {p.line}) for {comp}.{conn} through system connector "
+             f"'{open_connector.path}'")
+    var = fmus[comp].variable(conn, where, p.file)
+    numeric = p.type in ("Real", "Integer")
+    if exchange_type(var) != "Real" or not numeric:
+        factor, offset = IDENTITY
+        for hop in hops:
+            factor, offset = then((factor, offset), (hop.factor, hop.offset))
+        if (factor, offset) == IDENTITY:
+            return replace(p, name=f"{comp}.{conn}")
+        if not numeric:
+            raise SetupError(f"a {p.type} value cannot go through the LinearTransformation on the way "
+                             f"from system connector '{p.name}' to {comp}.{conn}.", file=p.file,
+                             element=f"ssv:Parameter (line {p.line})", variable=p.name)
+        return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset)
+    kw = {"file": p.file, "element": where, "variable": open_connector.path}
+    unit, scope = p.unit, units.for_value(comp, p.units, file=p.file, element=where)
+    given = IDENTITY
+    if open_connector.unit:
+        own = UnitScope(units.ssd)
+        given = _unit_step((p.unit, scope), (open_connector.unit, own),
+                           f"the value is given in '{p.unit}' and system connector '{open_connector.path}' is in "
+                           f"'{open_connector.unit}': ", "Give the value in a unit of the connector's dimension.",
+                           **kw)
+        unit, scope = open_connector.unit, own
+    factor, offset = _hops_map(structure, units, hops, (unit, scope, given, f"system connector '{p.name}'"),
+                               (comp, var), where)
+    return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset, unit=None)
 
 
 def _split_system_name(structure: SystemStructure, p: ParameterValue) -> tuple[str, str]:

@@ -30,7 +30,7 @@ from .safeio import extract_archive, is_file, parse_xml
 from .units import BASE_UNITS, Unit, check_definition, make_unit
 
 if TYPE_CHECKING:
-    from .flatten import OpenConnector, RawSystem, SystemNode, SystemOutput
+    from .flatten import Hop, OpenConnector, RawSystem, SystemNode, SystemOutput
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -117,6 +117,8 @@ class Connection:
     line: int
     #: for a connection resolved through system connectors: its lines and the connectors on the way
     via: str = ""
+    #: for a connection resolved through system connectors: each connection on the way (`cosim.flatten.Hop`)
+    hops: tuple[Hop, ...] = ()
 
     def describe(self) -> str:
         return (f"connection {self.start_element}.{self.start_connector} -> "
