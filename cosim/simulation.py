@@ -176,8 +176,12 @@ def _units(plan: Plan) -> dict[str, str | None]:
     computes or receives them, after any unit conversion of the connection), else the unit the
     SSD connector gives a variable without one (cosim.graph._connector_unit); None: no unit."""
     components = plan.structure.components
-    return {f"{comp}.{v.name}": unit_of(v) or _declared_unit(components.get(comp), v.name)
-            for comp in plan.outputs for v in plan.outputs[comp] + plan.inputs[comp]}
+    units = {f"{comp}.{v.name}": unit_of(v) or _declared_unit(components.get(comp), v.name)
+             for comp in plan.outputs for v in plan.outputs[comp] + plan.inputs[comp]}
+    for out in plan.structure.system_outputs.values():  # the last unit a system connector declares on
+        declared = [u for hop in out.hops for u in (hop.start_unit, hop.end_unit) if u]  # the way, else
+        units[out.name] = declared[-1] if declared else units[f"{out.component}.{out.connector}"]  # the source's
+    return units
 
 
 def _declared_unit(component: ssp.Component | None, connector: str) -> str | None:

@@ -173,6 +173,7 @@ def test_root_outputs_and_constant_inputs_convert_hop_by_hop(tmp_path, built):
     assert_every_sample(r["Tplain"], r["src.y1"])
     assert_every_sample(r["sub.dst.v2"], np.full(11, 2.0 * (300.0 - 273.15)))
     assert meta["system_outputs"]["TK"] == "1 * src.y1 + 273.14999999999998"
+    assert (meta["units"]["TK"], meta["units"]["Tplain"], meta["units"]["src.y1"]) == ("K", "degC", "degC")
 
 
 @pytest.mark.parametrize("inner", [False, True], ids=["into-the-connector", "out-of-the-connector"])
