@@ -37,7 +37,7 @@ SETTABLE_CAUSALITIES = ("parameter", "input")
 class Route:
     """One connection, resolved: output (src) to input (dst); ``factor``/``offset`` map the
     source FMU's value to the destination FMU's value: the unit conversion and the
-    LinearTransformation composed (see `_route_map`)."""
+    LinearTransformation composed (see `_hops_map`)."""
     src: str
     src_var: ModelVariable
     dst: str
@@ -177,11 +177,11 @@ def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescriptio
         driven[key] = c
         if exchange_type(sv) != "Real":
             factor, offset = c.factor, c.offset
-        elif c.hops:  # cosim.flatten starts the path at the component output
-            factor, offset = _hops_map(structure, units, c.hops, _source_view(structure, units, (src, sv), where),
+        else:  # a connection between two components is a path of one hop
+            hops = c.hops or (Hop(c.line, None, None, None, None, c.factor, c.offset, c.has_transformation,
+                                  c.suppress_unit_conversion),)
+            factor, offset = _hops_map(structure, units, hops, _source_view(structure, units, (src, sv), where),
                                        (dst, dv), where)
-        else:
-            factor, offset = _route_map(structure, units, c, (src, sv), (dst, dv), where)
         routes.append(Route(src, sv, dst, dv, factor, offset))
     return routes
 
@@ -208,33 +208,6 @@ def _connector_unit(units: SystemUnits, comp: str, var: ModelVariable, declared:
     fmu = units.for_variable(comp).resolve(own, **kw)
     context = f"the SSD declares unit '{declared}' where the FMU declares '{own}'; "
     return declared, units.for_connector(comp), conversion(fmu, view, context, **kw), conversion(view, fmu, **kw)
-
-
-def _route_map(structure: SystemStructure, units: SystemUnits, c: Connection, source: tuple[str, ModelVariable],
-               target: tuple[str, ModelVariable], where: str) -> Affine:
-    """The affine map from the source FMU's value to the target FMU's value on a Real connection.
-
-    SSP 1.0 (SystemStructureDescription.xsd Connection, SystemStructureCommon.xsd
-    LinearTransformation): the value is converted from the start connector's unit to the end
-    connector's unit first, then target = factor·source + offset; with
-    ``suppressUnitConversion="true"`` only the LinearTransformation applies.  Around that sit
-    the connector views (`_connector_unit`).  The composition is one factor and one offset,
-    so the exchange costs the same as a plain LinearTransformation.  No conversion when a
-    connector has no unit (FMI 2.0 §2.2.7: a variable without a unit is not checked) or both
-    ends name the same unit.
-    """
-    file = str(structure.ssd_file)
-    (src, sv), (dst, dv) = source, target
-    src_name, src_scope, to_src_view, _ = _connector_unit(
-        units, src, sv, structure.components[src].connectors[sv.name].unit, where, file)
-    dst_name, dst_scope, _, from_dst_view = _connector_unit(
-        units, dst, dv, structure.components[dst].connectors[dv.name].unit, where, file)
-    convert = IDENTITY
-    if not c.suppress_unit_conversion:
-        convert = _unit_step((src_name, src_scope), (dst_name, dst_scope),
-                             f"{src}.{sv.name} is in '{src_name}' and {dst}.{dv.name} in '{dst_name}': ",
-                             file=file, element=where, variable=dv.name)
-    return then(then(then(to_src_view, convert), (c.factor, c.offset)), from_dst_view)
 
 
 def _unit_step(start: tuple[str | None, UnitScope], end: tuple[str | None, UnitScope], context: str,
@@ -273,10 +246,15 @@ def _hops_map(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, .
     the start's unit, a name for messages; see `_source_view`) to the target FMU's value, or,
     with no ``target``, to the value of the root-system output connector that ends the path.
 
-    SSP 1.0 (SystemStructureDescription.xsd, Connection and ``suppressUnitConversion``) applies
-    to each connection on the way: convert from its start connector's unit to its end
-    connector's unit, then its LinearTransformation; with ``suppressUnitConversion="true"``
-    on a connection, only its transformation.  The component ends take their connector
+    SSP 1.0 (SystemStructureDescription.xsd, Connection and ``suppressUnitConversion``;
+    SystemStructureCommon.xsd LinearTransformation) applies to each connection on the way:
+    convert from its start connector's unit to its end connector's unit, then its
+    LinearTransformation (target = factor·source + offset); with
+    ``suppressUnitConversion="true"`` on a connection, only its transformation.  A connection
+    between two components is a path of one hop.  The composition is one factor and one
+    offset, so the exchange costs the same as a plain LinearTransformation.  No conversion
+    when a connector has no unit (FMI 2.0 §2.2.7: a variable without a unit is not checked)
+    or both ends name the same unit.  The component ends take their connector
     views (`_connector_unit`).  A system connector that declares a unit holds its value in
     that unit (names looked up in the SSD's ``ssd:Units``, then the built-ins).  One without
     a unit is transparent: it carries the unit of what drives it, so nothing is converted at
@@ -300,11 +278,14 @@ def _hops_map(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, .
             end_label = f"system connector '{hop.end_system}'"
         start_label = f"system connector '{hop.start_system}'" if hop.start_system else source
         if not hop.suppress:
+            context = f"{start_label} is in '{name}' and {end_label} in '{end_name}': "
+            element = where
+            if len(hops) > 1:  # name the connection of the path
+                context = f"on the connection at line {hop.line}, {context}"
+                element = f"{where}, ssd:Connection (line {hop.line})"
             result = then(result, _unit_step(
-                (name, scope), (end_name, end_scope),
-                f"on the connection at line {hop.line}, {start_label} is in '{name}' and {end_label} in "
-                f"'{end_name}': ", file=file, element=f"{where}, ssd:Connection (line {hop.line})",
-                variable=hop.end_system or hop.start_system))
+                (name, scope), (end_name, end_scope), context, file=file, element=element,
+                variable=hop.end_system or hop.start_system or target[1].name))
         result = then(result, (hop.factor, hop.offset))
         name, scope = end_name, end_scope
     return then(result, from_view)
