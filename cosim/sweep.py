@@ -297,14 +297,14 @@ def execute(task: Task) -> dict[str, Any]:
     row: dict[str, Any] = {"run_id": task.run_id, "status": "completed", "message": None}
     result = None
     try:
-        with unpack_limit(task.max_unpacked):
+        with unpack_limit(task.max_unpacked):  # the FMUs are unpacked by run(): inside the limit too
             prepared = prepare(task.scenario, start_time=task.start, stop_time=task.stop, step_size=task.step,
                                algorithm=task.algorithm, parameter_sets=task.parameter_sets,
                                fmu_dirs=task.fmu_dirs)
-        try:
-            result, metadata = run(prepared, output=task.csv)
-        finally:
-            prepared.close()
+            try:
+                result, metadata = run(prepared, output=task.csv)
+            finally:
+                prepared.close()
         if metadata["status"] == "discarded":
             row.update(status="discarded", message=metadata["message"])
     except CosimError as e:

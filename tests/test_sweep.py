@@ -205,3 +205,13 @@ def test_sweep_of_an_ssp_archive(scenario, tmp_path):
     assert [r["status"] for r in first.rows] == ["completed", "completed"]
     again = sweep(archive, {"plant.T": ["10", "20"]}, output=tmp_path / "out", executor="serial", stop_time=2.0)
     assert (again.ran, again.skipped) == (0, 2)
+
+
+def test_workers_unpack_the_fmus_within_the_parents_limit(scenario, tmp_path):
+    """--max-unpacked reaches the spawned workers, which unpack the FMUs when they run."""
+    from cosim.safeio import unpack_limit
+
+    with unpack_limit(1000):
+        result = sweep(scenario, {"plant.T": ["10"]}, output=tmp_path, executor="process", workers=1, stop_time=2.0)
+    (row,) = result.rows
+    assert row["status"] == "failed" and "1000" in row["message"] and "--max-unpacked" in row["message"]
