@@ -172,9 +172,7 @@ class Execution:
     def instantiate(self) -> None:
         for name in self.order:
             desc = self.plan.fmus[name]
-            inst = open_instance(name, desc, self._unzipped(desc.path))
-            if desc.kind == "fmi2-me":  # integrated by the master: the component's solver settings
-                inst.settings = solver_settings(desc, self.plan.structure.components[name].solver)
+            inst = open_instance(name, desc, self._unzipped(desc.path), self.plan.structure.components[name].solver)
             self.instances[name] = inst
             inst.instantiate(self.fmu_log)
         self._compile_calls()

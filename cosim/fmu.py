@@ -196,14 +196,15 @@ def _kind(md: ModelDescription, path: Path, implementation: str, where: str, fil
     return "fmi2-me" if use_me else "fmi2-cs"
 
 
-def open_instance(name: str, desc: FMUDescription, unzip_dir: str) -> "Instance":
-    """The live instance for ``desc.kind`` (not yet instantiated)."""
+def open_instance(name: str, desc: FMUDescription, unzip_dir: str, solver=None) -> "Instance":
+    """The live instance for ``desc.kind`` (not yet instantiated); ``solver`` is the component's
+    ``org.greyfmu.solver`` options (`cosim.ssp.SolverOptions`) for a Model Exchange FMU."""
     if desc.kind == "fmi3-cs":
         from .fmi3 import FMI3Instance
         return FMI3Instance(name, desc, unzip_dir)
     if desc.kind == "fmi2-me":
         from .me import MEInstance
-        return MEInstance(name, desc, unzip_dir)
+        return MEInstance(name, desc, unzip_dir, solver)
     return Instance(name, desc, unzip_dir)
 
 

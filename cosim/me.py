@@ -114,11 +114,11 @@ class MEInstance(Instance):
 
     interface = FMU2Model
 
-    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
+    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, options: SolverOptions | None = None):
         super().__init__(name, desc, unzip_dir)
         md = desc.md
         raw = self.slave._functions
-        self.settings = solver_settings(desc)
+        self.settings = solver_settings(desc, options)
         self._raw = raw
         self._nx = md.numberOfContinuousStates
         self._nz = md.numberOfEventIndicators
