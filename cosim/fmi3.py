@@ -27,7 +27,6 @@ are thin closures over the raw fmi3 functions; the differences they absorb:
 """
 from __future__ import annotations
 
-import collections
 import ctypes
 from collections.abc import Callable
 
@@ -36,7 +35,7 @@ from fmpy.fmi3 import FMU3Slave
 from fmpy.model_description import ModelVariable
 
 from .errors import SetupError
-from .fmu import FMU_LOG_LEVELS, STATUS, ArrayElement, FMUDescription, end_instance, exchange_type
+from .fmu import STATUS, ArrayElement, FMUDescription, InstanceBase, end_instance, exchange_type, log_line
 
 FMI_WARNING, FMI_DISCARD = 1, 2
 
@@ -51,17 +50,13 @@ FMI3_FUNCTIONS: dict[str, tuple[str, type]] = {
 Adapter = Callable[..., int]
 
 
-class FMI3Instance:
+class FMI3Instance(InstanceBase):
     """One live FMI 3.0 Co-Simulation instance with the interface of `cosim.fmu.Instance`."""
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
-        self.name = name
-        self.desc = desc
-        self.messages: collections.deque[str] = collections.deque(maxlen=20)
+        super().__init__(name, desc)
         self.slave = FMU3Slave(guid=desc.md.guid, unzipDirectory=unzip_dir,
                                modelIdentifier=desc.model_identifier, instanceName=name)
-        self.component = None
-        self.failed: str | None = None
         self._start, self._stop = 0.0, None
         raw = self.slave._functions
         self.do_step = self._do_step_adapter(raw["fmi3DoStep"])
@@ -133,24 +128,19 @@ class FMI3Instance:
     # ----------------------------------------------------------------- set-up
 
     def _log(self, env, status: int, category: bytes | None, message: bytes | None) -> None:
-        cat = category.decode("utf-8", "replace") if category else ""
-        text = message.decode("utf-8", "replace") if message else ""
-        self.messages.append(f"[{STATUS.get(status, status)}] {cat}: {text}".strip())
+        self.messages.append(log_line(status, category, message))
 
     def instantiate(self, fmu_log: str = "errors") -> None:
         """fmi3InstantiateCoSimulation (FMI 3.0 §4.2.1); ``fmu_log`` as in `cosim.fmu.Instance`."""
-        if fmu_log not in FMU_LOG_LEVELS:
-            raise SetupError(f"unknown FMU log level '{fmu_log}'; choose one of {', '.join(FMU_LOG_LEVELS)}.")
+        logging_on = self.logging_on(fmu_log)
         try:
-            self.slave.instantiate(loggingOn=fmu_log != "off", logMessage=self._log)
+            self.slave.instantiate(loggingOn=logging_on, logMessage=self._log)
         except Exception as e:
             raise SetupError(f"fmi3InstantiateCoSimulation failed for {self.desc.path.name} (instantiation "
                              f"token {self.desc.md.guid}): {e}." + self.last_messages(),
                              element=f"component '{self.name}'") from None
         self.component = self.slave.component
-        status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
-        if fmu_log == "errors" and status_categories:
-            self.slave.setDebugLogging(True, status_categories)
+        self.restrict_logging(fmu_log)
 
     def setup_experiment(self, start: float, stop: float) -> None:
         """Kept for `enter_initialization_mode`: FMI 3.0 has no fmi3SetupExperiment."""
@@ -171,9 +161,6 @@ class FMI3Instance:
 
     def exit_initialization_mode(self) -> None:
         self.slave.exitInitializationMode()
-
-    def last_messages(self) -> str:
-        return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
 
     def free(self) -> None:
         """As `cosim.fmu.Instance.free` (FMI 3.0 §2.3.1 state machine).  pythonfmu3 0.3.4

@@ -221,13 +221,18 @@ _LOG_TARGETS: dict[str, collections.deque] = {}
 _CALLBACKS: list[fmi2CallbackFunctions] = []
 
 
-def _log(env, instance_name, status, category, message) -> None:
-    name = instance_name.decode("utf-8", "replace") if instance_name else ""
+def log_line(status: int, category: bytes | None, message: bytes | None) -> str:
+    """One FMU log message as the master keeps it: ``[Status] category: text``."""
     text = message.decode("utf-8", "replace") if message else ""
     cat = category.decode("utf-8", "replace") if category else ""
+    return f"[{STATUS.get(status, status)}] {cat}: {text}".strip()
+
+
+def _log(env, instance_name, status, category, message) -> None:
+    name = instance_name.decode("utf-8", "replace") if instance_name else ""
     target = _LOG_TARGETS.get(name)
     if target is not None:
-        target.append(f"[{STATUS.get(status, status)}] {cat}: {text}".strip())
+        target.append(log_line(status, category, message))
     else:  # an FMU run by plain fmpy in the same process: fmpy's own default (print)
         printLogMessage(env, instance_name, status, category, message)
 
@@ -248,7 +253,36 @@ def _callbacks() -> fmi2CallbackFunctions:
     return _CALLBACKS[0]
 
 
-class Instance:
+class InstanceBase:
+    """What every instance kind keeps besides its FMI functions: its name and description, the
+    last log messages of its FMU (to explain a failure), the component handle and the status
+    it failed with; and how logging is turned on (``fmu_log``, see `Instance.instantiate`)."""
+
+    def __init__(self, name: str, desc: FMUDescription):
+        self.name = name
+        self.desc = desc
+        self.messages: collections.deque[str] = collections.deque(maxlen=20)
+        self.component = None
+        self.failed: str | None = None
+
+    @staticmethod
+    def logging_on(fmu_log: str) -> bool:
+        """Whether to instantiate with logging on; refuses an unknown level."""
+        if fmu_log not in FMU_LOG_LEVELS:
+            raise SetupError(f"unknown FMU log level '{fmu_log}'; choose one of {', '.join(FMU_LOG_LEVELS)}.")
+        return fmu_log != "off"
+
+    def restrict_logging(self, fmu_log: str) -> None:
+        """After instantiation: with "errors", only the FMU's logStatus* categories."""
+        status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
+        if fmu_log == "errors" and status_categories:
+            self.slave.setDebugLogging(True, status_categories)
+
+    def last_messages(self) -> str:
+        return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
+
+
+class Instance(InstanceBase):
     """One live FMI 2.0 Co-Simulation instance with raw FMI functions for the hot loop.
 
     The interface every instance kind offers the execution:
@@ -267,9 +301,7 @@ class Instance:
     interface = FMU2Slave
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
-        self.name = name
-        self.desc = desc
-        self.messages: collections.deque[str] = collections.deque(maxlen=20)
+        super().__init__(name, desc)
         md = desc.md
         self.slave = self.interface(guid=md.guid, unzipDirectory=unzip_dir,
                                     modelIdentifier=desc.model_identifier, instanceName=name)
@@ -281,8 +313,6 @@ class Instance:
                     "Boolean": raw["fmi2GetBoolean"], "String": raw["fmi2GetString"]}
         self.set = {"Real": raw["fmi2SetReal"], "Integer": raw["fmi2SetInteger"],
                     "Boolean": raw["fmi2SetBoolean"], "String": raw["fmi2SetString"]}
-        self.component = None
-        self.failed: str | None = None
 
     def instantiate(self, fmu_log: str = "errors") -> None:
         """Instantiate.  ``fmu_log``: "errors" (default) turns logging on with only the FMI 2.0
@@ -290,17 +320,14 @@ class Instance:
         that logs every call (OpenModelica's logFmi2Call) does not slow the run; "all" turns
         every category on; "off" turns logging off (fastest: pythonfmu FMUs then skip their
         log queue, but a failing FMU's own explanation is lost)."""
-        if fmu_log not in FMU_LOG_LEVELS:
-            raise SetupError(f"unknown FMU log level '{fmu_log}'; choose one of {', '.join(FMU_LOG_LEVELS)}.")
+        logging_on = self.logging_on(fmu_log)
         try:
-            self.slave.instantiate(callbacks=_callbacks(), loggingOn=fmu_log != "off")
+            self.slave.instantiate(callbacks=_callbacks(), loggingOn=logging_on)
         except Exception as e:
             raise SetupError(f"fmi2Instantiate failed for {self.desc.path.name} (GUID {self.desc.md.guid}): {e}."
                              + self.last_messages(), element=f"component '{self.name}'") from None
         self.component = self.slave.component
-        status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
-        if fmu_log == "errors" and status_categories:
-            self.slave.setDebugLogging(True, status_categories)
+        self.restrict_logging(fmu_log)
 
     def setup_experiment(self, start: float, stop: float) -> None:
         self.slave.setupExperiment(startTime=start, stopTime=stop)
@@ -319,9 +346,6 @@ class Instance:
 
     def exit_initialization_mode(self) -> None:
         self.slave.exitInitializationMode()
-
-    def last_messages(self) -> str:
-        return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
 
     def free(self) -> None:
         end_instance(self, lambda: self.slave.fmi2FreeInstance(self.component))
