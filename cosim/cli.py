@@ -138,9 +138,7 @@ def _run(args) -> int:
         structure = prepared.plan.structure
         name = structure.name or Path(args.path).stem
         output = Path(args.output or Path("results") / f"{name}.csv")
-        outputs = [f"{c}.{v.name}" for c, vs in prepared.plan.outputs.items() for v in vs]
-        outputs += list(structure.system_outputs)
-        inputs = [f"{c}.{v.name}" for c, vs in prepared.plan.inputs.items() for v in vs]
+        outputs, inputs = prepared.plan.recorded()
         panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
                   else [[n] for n in outputs])
         grid = prepared.grid

@@ -76,6 +76,14 @@ class Plan:
     #: them: the exchange does not set them again
     set_in_settling_only: set[str] = field(default_factory=set)
 
+    def recorded(self) -> tuple[list[str], list[str]]:
+        """The result names of the recorded outputs (the root system's output connectors last)
+        and inputs: every connector but String ones, which are exchanged, not recorded
+        (`cosim.execution.Execution.recorder_sources`)."""
+        def names(group: dict[str, list[ModelVariable]]) -> list[str]:
+            return [f"{c}.{v.name}" for c, vs in group.items() for v in vs if exchange_type(v) != "String"]
+        return names(self.outputs) + list(self.structure.system_outputs), names(self.inputs)
+
 
 def build_plan(structure: SystemStructure, extra_parameters: list[ParameterValue] = ()) -> Plan:
     """Check the structure against the FMUs (already located) and order it."""

@@ -264,9 +264,8 @@ def _plan_runs(prepared: Prepared, sets: Mapping[str, Sequence[Value]], seeds: S
 
 
 def _check_metrics(prepared: Prepared, metrics: Sequence[Metric]) -> None:
-    plan = prepared.plan
-    names = [f"{c}.{v.name}" for group in (plan.outputs, plan.inputs) for c, vs in group.items() for v in vs]
-    names += list(plan.structure.system_outputs)
+    outputs, inputs = prepared.plan.recorded()
+    names = outputs + inputs
     for m in metrics:
         for name in (m.signal, m.setpoint):
             if name not in names:

@@ -15,6 +15,7 @@ import pytest
 
 import cosim
 from cosim.errors import RunError, SetupError
+from cosim.sweep import sweep
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 from testfmus import build_test_fmus, build_test_fmus3, edited_copy
@@ -113,6 +114,15 @@ def test_string_connection_between_fmi2_fmus(tmp_path, fmus):
     folder = _system(tmp_path, fmus, comps, [("a", "label", "b", "text")], stop=1.0, step=0.25)
     r = cosim.simulate(folder)
     np.testing.assert_array_equal(r["b.length"], [3, 3, 4, 4, 4])   # "low" before 0.5, then "high"
+    # strings are not recorded: neither plotted nor usable as a sweep metric (refused up front)
+    prepared = cosim.prepare(folder)
+    try:
+        assert prepared.plan.recorded() == (["b.length"], [])
+        assert "a.label" not in r.dtype.names and "b.text" not in r.dtype.names
+    finally:
+        prepared.close()
+    with pytest.raises(SetupError, match="no recorded signal 'a.label'"):
+        sweep(folder, {}, metrics=["b.length:a.label"], output=tmp_path / "sweep", executor="serial")
 
 
 def _pid_loop(tmp_path: Path, controller_fmu: str) -> Path:
