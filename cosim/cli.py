@@ -245,25 +245,14 @@ def _pack(args) -> int:
     return 0
 
 
-def _read_result(path: str):
-    from .results import read
-
-    if not Path(path).is_file():
-        raise SetupError("no such result file.", file=path)
-    try:
-        return read(path)
-    except (ValueError, IndexError) as e:
-        raise SetupError(f"not a result file (a CSV readable by fmpy.util.read_csv, or Parquet) ({e}).",
-                         file=path) from None
-
-
 def _metrics(args) -> int:
     import json
 
     from .metrics import METRICS, step_metrics
+    from .results import read
     from .simulation import select
 
-    result = _read_result(args.result)
+    result = read(args.result)
     names = [n for n in result.dtype.names if n != "time"]
     y, r = (select(names, [name])[0] for name in (args.signal, args.setpoint))
     m = step_metrics(result["time"], result[y], result[r], t0=args.t0, t1=args.t1, band=args.band)
@@ -279,9 +268,10 @@ def _metrics(args) -> int:
 
 def _compare(args) -> int:
     from .metrics import compare, parse_tolerance
+    from .results import read
     from .simulation import select
 
-    a, b = _read_result(args.reference), _read_result(args.candidate)
+    a, b = read(args.reference), read(args.candidate)
     signals = select([n for n in a.dtype.names if n != "time"], args.signals) if args.signals else None
     tolerances = dict(parse_tolerance(text) for text in args.tolerance)
     diffs = compare(a, b, signals=signals, rtol=args.rtol, atol=args.atol, tolerances=tolerances)

@@ -164,9 +164,8 @@ class Regression:
                   f"`pytest {UPDATE_OPTION} '{self.request.node.nodeid}'`, check it and commit it.")
         try:
             stored = read(path)
-        except (OSError, ValueError, IndexError) as e:
-            _fail(f"cosim regression: the reference {path} is not a result CSV ({e}); "
-                  f"rewrite it with {UPDATE_OPTION}.")
+        except (OSError, CosimError) as e:
+            _fail(f"cosim regression: the reference cannot be read: {e} Rewrite it with {UPDATE_OPTION}.")
         stored_names = [n for n in stored.dtype.names if n != "time"]
         missing = [n for n in stored_names if n not in chosen]
         extra = [n for n in chosen if n not in stored_names]

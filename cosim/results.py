@@ -6,18 +6,33 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import SetupError
+
 
 def read(path: str | Path) -> np.ndarray:
     """Read a result file into a structured array (``fmpy.util.read_csv`` format): a
-    ``.parquet`` file written by `cosim.observers.ParquetSink`, else a result CSV."""
-    if Path(path).suffix.lower() == ".parquet":
-        import pyarrow.parquet as pq
+    ``.parquet`` file written by `cosim.observers.ParquetSink`, else a result CSV.  A missing
+    or unreadable file is a `SetupError` naming it."""
+    if not Path(path).is_file():
+        raise SetupError("no such result file.", file=str(path))
+    try:
+        return _read_parquet(path) if Path(path).suffix.lower() == ".parquet" else _read_csv(path)
+    except (ValueError, IndexError) as e:  # pyarrow's ArrowInvalid is a ValueError
+        raise SetupError(f"not a result file (a CSV readable by fmpy.util.read_csv, or Parquet) ({e}).",
+                         file=str(path)) from None
 
-        table = pq.read_table(path)
-        result = np.empty(table.num_rows, dtype=[(name, np.float64) for name in table.column_names])
-        for name in table.column_names:
-            result[name] = table.column(name).to_numpy()
-        return result
+
+def _read_parquet(path: str | Path) -> np.ndarray:
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    result = np.empty(table.num_rows, dtype=[(name, np.float64) for name in table.column_names])
+    for name in table.column_names:
+        result[name] = table.column(name).to_numpy()
+    return result
+
+
+def _read_csv(path: str | Path) -> np.ndarray:
     from fmpy.util import read_csv
     return read_csv(str(path))
 
