@@ -22,7 +22,20 @@ def file_sink(path: str | Path) -> CsvSink | ParquetSink:
     return ParquetSink(path) if Path(path).suffix.lower() == ".parquet" else CsvSink(path)
 
 
-class CsvSink:
+class _FileSink:
+    """A result file and the run's metadata JSON beside it (``<name>.json``)."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.meta_path = self.path.with_suffix(".json")
+
+    @staticmethod
+    def metadata_text(metadata: dict) -> str:
+        return json.dumps(metadata, indent=2, default=str) + "\n"
+
+
+class CsvSink(_FileSink):
     """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it.
 
     A quoted header, then one line per sample, formatted by Arrow's C++ CSV writer: each
@@ -33,9 +46,7 @@ class CsvSink:
     """
 
     def __init__(self, path: str | Path):
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.meta_path = self.path.with_suffix(".json")
+        super().__init__(path)
         self._file = None
         self._names: list[str] = []
 
@@ -63,10 +74,10 @@ class CsvSink:
 
     def close(self, metadata: dict) -> None:
         self.finish()
-        self.meta_path.write_text(json.dumps(metadata, indent=2, default=str) + "\n")
+        self.meta_path.write_text(self.metadata_text(metadata))
 
 
-class ParquetSink:
+class ParquetSink(_FileSink):
     """Writes chunks to a Parquet file as they come, one row group per chunk, float64 columns
     named as the CSV's; the run metadata goes into the file's key-value metadata (key
     ``cosim``, JSON: ``pyarrow.parquet.read_metadata(path).metadata[b"cosim"]``) and to
@@ -78,9 +89,7 @@ class ParquetSink:
     """
 
     def __init__(self, path: str | Path):
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.meta_path = self.path.with_suffix(".json")
+        super().__init__(path)
         self._writer = None
         self._schema = None
 
@@ -108,7 +117,7 @@ class ParquetSink:
             self._writer = None
 
     def close(self, metadata: dict) -> None:
-        text = json.dumps(metadata, indent=2, default=str) + "\n"
+        text = self.metadata_text(metadata)
         self.finish(text)
         self.meta_path.write_text(text)
 
