@@ -359,7 +359,7 @@ def _check_parameters(structure: SystemStructure, fmus: dict[str, FMUDescription
                                            list(structure.parameters) + extra, str(structure.ssd_file),
                                            partial(_through_hops, structure, fmus, units))
     for p in system_values:
-        comp_name, var_name = _split_system_name(structure, p)
+        comp_name, var_name = split_system_name(structure, p)
         _apply_parameter(resolved, comp_name, var_name, p, fmus[comp_name], units)
     return list(resolved.values())
 
@@ -402,7 +402,9 @@ def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], u
     return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset, unit=None)
 
 
-def _split_system_name(structure: SystemStructure, p: ParameterValue) -> tuple[str, str]:
+def split_system_name(structure: SystemStructure, p: ParameterValue) -> tuple[str, str]:
+    """The component and the variable a system-level name ``comp.var`` names (the longest
+    component path first: components of nested systems have dotted names)."""
     for comp in sorted(structure.components, key=len, reverse=True):
         if p.name.startswith(comp + "."):
             return comp, p.name[len(comp) + 1:]

@@ -42,7 +42,7 @@ import numpy as np
 
 from .errors import CosimError, SetupError, did_you_mean
 from .fmu import exchange_type
-from .graph import build_plan
+from .graph import build_plan, split_system_name
 from .metrics import METRICS, step_metrics
 from .safeio import max_unpacked_bytes, unpack_limit
 from .simulation import Prepared, prepare, run
@@ -177,22 +177,11 @@ class _Run:
     parameters: list[ParameterValue]
 
 
-def _split(prepared: Prepared, name: str):
-    """The component and its variable for ``comp.var`` (longest component name first), or None."""
-    structure = prepared.plan.structure
-    for comp in sorted(structure.components, key=len, reverse=True):
-        if name.startswith(comp + "."):
-            return prepared.plan.fmus[comp].variables.get(name[len(comp) + 1:])
-    return None
-
-
 def _variable(prepared: Prepared, name: str):
-    """The FMU variable behind ``comp.var``; an unknown name gets the master's own message."""
-    var = _split(prepared, name)
-    if var is None:
-        build_plan(prepared.plan.structure, [ParameterValue(name, "Real", 0.0, SOURCE, 0)])
-        raise SetupError(f"unknown parameter '{name}'.", element="--set", variable=name)
-    return var
+    """The FMU variable behind ``comp.var``, or the master's own message for an unknown name."""
+    p = ParameterValue(name, "Real", 0.0, SOURCE, 0)
+    comp, var = split_system_name(prepared.plan.structure, p)
+    return prepared.plan.fmus[comp].variable(var, f"--set {name}", SOURCE)
 
 
 def _seed_parameters(prepared: Prepared, named: Sequence[str]) -> list[str]:
