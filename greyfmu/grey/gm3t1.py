@@ -29,6 +29,42 @@ RCOND = 1e-10
 """Singular values of the column-scaled regressor below this fraction of the largest count as zero."""
 
 
+def equations(x1: np.ndarray, x_before: float | None = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Y (13) and B (14) of (12) for samples x1(1..n) along the last axis (one record or a stack of them).
+
+    ``x_before`` is x1(0) (the paper's (6): 0), giving rows k = 2..n; None gives rows k = 3..n.
+    Returns Y of shape (..., rows) and B of shape (..., rows, 3).  Raises `GreyModelError` for
+    fewer than 3 rows.
+    """
+    x1 = np.asarray(x1, dtype=float)
+    n = x1.shape[-1]
+    first_row = 3 if x_before is None else 2
+    if n - first_row + 1 < 3:
+        raise GreyModelError(f"GM3t1.fit: {n} samples give {max(n - first_row + 1, 0)} equations for 3 unknowns")
+    before = np.full(x1.shape[:-1] + (1,), 0.0 if x_before is None else x_before)
+    padded = np.concatenate((before, x1), axis=-1)
+    x0 = np.diff(padded, axis=-1)  # x0[..., k-1] = α1(x1(k)) = x1(k) − x1(k−1), k = 1..n   (6), (10)
+    k = np.arange(first_row, n + 1)
+    Y = x0[..., k - 1] - x0[..., k - 2]  # (9), (13)
+    B = np.stack((-x0[..., k - 1], -0.5 * (padded[..., k] + padded[..., k - 1]), np.ones_like(Y)), axis=-1)  # (11), (14)
+    return Y, B
+
+
+def rounding_draws(samples: Sequence[float] | np.ndarray, resolution: float, draws: int, seed: int,
+                   x_before: float | None = 0.0) -> np.ndarray:
+    """θ = [a1, a2, b] by (16) for ``draws`` records uniformly within ±resolution/2 of the printed ``samples``.
+
+    The question it answers: which θ could unrounded data behind a table printed to ``resolution``
+    give?  Returns an array (draws, 3); the normal equations (16) are solved as printed.
+    """
+    printed = finite_vector(samples, "rounding_draws")
+    rng = np.random.default_rng(seed)
+    records = printed + rng.uniform(-0.5 * resolution, 0.5 * resolution, size=(draws, printed.size))
+    Y, B = equations(records, x_before)
+    normal = np.einsum("dki,dkj->dij", B, B)
+    return np.linalg.solve(normal, np.einsum("dki,dk->di", B, Y)[..., None])[..., 0]
+
+
 @dataclass(frozen=True)
 class SecondOrderConstants:
     """k_s, ω_n, ζ of (1) from θ by (4), in the paper's sign convention (all three positive).
@@ -81,19 +117,9 @@ class GM3t1:
         constant data, or data without a second-order trace.
         """
         x1 = finite_vector(samples, "GM3t1.fit")
-        if x_before is None:
-            padded, first_row = np.concatenate(([0.0], x1)), 3
-        else:
-            if not math.isfinite(x_before):
-                raise ValueError(f"GM3t1.fit: x_before = {x_before} is not a finite number")
-            padded, first_row = np.concatenate(([x_before], x1)), 2
-        n = x1.size
-        if n - first_row + 1 < 3:
-            raise GreyModelError(f"GM3t1.fit: {n} samples give {max(n - first_row + 1, 0)} equations for 3 unknowns")
-        x0 = np.diff(padded)  # x0[k-1] = α1(x1(k)) = x1(k) − x1(k−1), k = 1..n   (6), (10)
-        k = np.arange(first_row, n + 1)
-        Y = x0[k - 1] - x0[k - 2]  # (9), (13)
-        B = np.column_stack((-x0[k - 1], -0.5 * (padded[k] + padded[k - 1]), np.ones(k.size)))  # (11), (14)
+        if x_before is not None and not math.isfinite(x_before):
+            raise ValueError(f"GM3t1.fit: x_before = {x_before} is not a finite number")
+        Y, B = equations(x1, x_before)
         scale = np.linalg.norm(B, axis=0)
         if not np.all(scale > 0.0):
             raise GreyModelError("GM3t1.fit: a column of the regressor (14) is zero — the data have no dynamics")
