@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from greyfmu.control.digital_pi import design_digital_pi, stationary_variances, write_design_ssv
-from greyfmu.control.digital_pi.examples import Example, ch47, wood_berry
+from greyfmu.control.digital_pi.examples import UNIT_DISC, Example, ch47, wood_berry
 from greyfmu.ssv import matrix_parameters, write_parameter_set
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -22,7 +22,7 @@ FIGURES = ROOT / "docs" / "figures"
 SCENARIOS = {
     # name: (example, event times r2, d1, d2, stop, regulation stop)
     "dpi_ch47": (ch47, (1.0, 2.0, 3.0), 4.0, 20.0),
-    "dpi_wood_berry": (wood_berry, (100.0, 200.0, 300.0), 400.0, 2000.0),
+    "dpi_wood_berry": (wood_berry, (200.0, 400.0, 600.0), 800.0, 2000.0),
 }
 BLT = {"Kc1": 0.375, "Ti1": 8.29, "Kc2": -0.075, "Ti2": 23.6}
 """Luyben's (1986) BLT multiloop PI settings for the Wood–Berry column (minutes; from memory)."""
@@ -116,6 +116,12 @@ def write_scenarios() -> None:
         folder = ROOT / "ssp" / name
         folder.mkdir(parents=True, exist_ok=True)
         write_design_ssv(design, folder / "controller.ssv")
+        if (example.alpha, example.beta) != UNIT_DISC:
+            unit = design_digital_pi(example.plant, example.T, example.tau, *UNIT_DISC, example.q, example.r)
+            write_design_ssv(unit, folder / "unit_disc.ssv", component="controller",
+                             comment=f"{example.name}: the same digital PI designed in the unit disc (alpha = 1, "
+                                     "beta = 0, the paper's Example 2) instead of the scenario's disc; "
+                                     "system-level set written by docs/digital_pi_report.py")
         write_parameter_set(folder / "plant.ssv", "plant", plant_parameters(example),
                             f"{example.name}: plant (1) for the StochasticLTI FMU, written by docs/digital_pi_report.py")
         write_parameter_set(folder / "regulation.ssv", "regulation", regulation_parameters(example),

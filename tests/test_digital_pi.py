@@ -26,7 +26,7 @@ from greyfmu.control.digital_pi import (
     static_decoupling,
     static_gain,
 )
-from greyfmu.control.digital_pi.examples import ch47, cement_kiln, wood_berry
+from greyfmu.control.digital_pi.examples import UNIT_DISC, ch47, cement_kiln, wood_berry
 from greyfmu.plants import StochasticLTI
 
 
@@ -100,7 +100,7 @@ def test_augmented_model_reproduces_the_exactly_integrated_plant(tau):
 def test_disc_lqr_recovered_example_section_4():
     G = np.array([[1.2, 0.5], [0.0, 0.9]])
     H = np.array([[0.0], [1.0]])
-    K, _ = dlqr_disc(G, H, np.eye(2), np.eye(1), alpha=0.3, beta=0.4)
+    K = dlqr_disc(G, H, np.eye(2), np.eye(1), alpha=0.3, beta=0.4).K
     np.testing.assert_allclose(K, [[1.1107, 1.1907]], atol=1e-4)
     np.testing.assert_allclose(np.sort(np.linalg.eigvals(G - H @ K).real), [0.4419, 0.4675], atol=1e-4)
 
@@ -114,7 +114,7 @@ def test_disc_lqr_is_the_lq_gain_of_the_scaled_system():
     Gs, Hs = (G - beta * np.eye(4)) / alpha, H / alpha
     P = solve_discrete_are(Gs, Hs, Q, R)
     K_ref = np.linalg.solve(alpha**2 * R + H.T @ P @ H, H.T @ P @ (G - beta * np.eye(4)))   # §4 second form
-    K, _ = dlqr_disc(G, H, Q, R, alpha, beta)
+    K = dlqr_disc(G, H, Q, R, alpha, beta).K
     np.testing.assert_allclose(K, K_ref, rtol=1e-8, atol=1e-10)
     assert in_disc(np.linalg.eigvals(G - H @ K), alpha, beta)
 
@@ -140,11 +140,11 @@ def test_ch47_example_2_design():
     np.testing.assert_allclose(design.K1 @ static_gain(example.plant), np.eye(2), atol=1e-12)
 
 
-@pytest.mark.parametrize("alpha, beta", [(1.0, 0.0), (0.3, 0.7)])
+@pytest.mark.parametrize("alpha, beta", [(1.0, 0.0), (0.3, 0.7), (0.2, 0.7)])
 def test_wood_berry_poles_in_the_disc(alpha, beta):
     example = wood_berry()
     design = design_digital_pi(example.plant, example.T, example.tau, alpha, beta, 10.0, 1.0)
-    assert design.augmented.order == 4 + 7 * 2
+    assert design.augmented.order == 4 + 8 * 2      # τ = 7 + T/2 min: d = 8 samples of u1 held
     assert in_disc(design.closed_loop_poles, alpha, beta)
     np.testing.assert_allclose(reference_dc_gain(design), np.eye(2), atol=1e-8)
     np.testing.assert_allclose(static_gain(example.plant), [[12.8, -18.9], [6.6, -19.4]], atol=1e-12)
@@ -215,12 +215,31 @@ def test_unstabilisable_refused():
         dlqr_disc(np.diag([0.9, 0.5]), H[::-1], np.eye(2), np.eye(1), alpha=0.1, beta=0.9)
 
 
-def test_non_converging_dare_reported_not_returned():
-    """Wood–Berry at the paper's Example-1 disc: 14 delay states at z = 0 must be pushed into
-    |z − 0.7| < 0.2; the DARE's backward error is 1.5e-4 and no gain is returned."""
+def test_paper_disc_accepted_with_its_residual_reported():
+    """Wood–Berry with the T/2 delay at the paper's Example-1 disc (0.2, 0.7): the 16 delay states at z = 0
+    must be pushed into |z − 0.7| < 0.2.  P is ill-conditioned, the DARE's backward error is ~5e-3 (the
+    former 1e-6 threshold refused this design), yet every pole lies in the disc (max |z − β|/α = 0.878)."""
     example = wood_berry()
-    with pytest.raises(DesignError, match="did not converge"):
-        design_digital_pi(example.plant, example.T, example.tau, 0.2, 0.7, 10.0, 1.0)
+    assert (example.alpha, example.beta) == (0.2, 0.7)
+    design = design_digital_pi(example.plant, example.T, example.tau, 0.2, 0.7, 10.0, 1.0)
+    assert 1e-6 < design.riccati_backward_error < 0.1
+    radius = np.abs(design.closed_loop_poles - 0.7).max() / 0.2
+    assert radius == pytest.approx(0.878, abs=2e-3)
+    unit = design_digital_pi(example.plant, example.T, example.tau, *UNIT_DISC, 10.0, 1.0)
+    assert unit.riccati_backward_error < 1e-12
+
+
+def test_pole_outside_the_disc_refused(monkeypatch):
+    """A Riccati solution whose gain leaves a pole outside the disc is refused, naming the radius and the
+    residual (here the solver is replaced by one returning P = 0, i.e. K = 0, G's own poles 1.2, 0.9)."""
+    import greyfmu.control.digital_pi.disc_lqr as disc_lqr
+
+    monkeypatch.setattr(disc_lqr, "solve_discrete_are", lambda G, H, Q, R: np.zeros_like(Q))
+    G = np.array([[1.2, 0.5], [0.0, 0.9]])
+    H = np.array([[0.0], [1.0]])
+    with pytest.raises(DesignError, match=r"outside the disc \|z - 0.4\| < 0.3: max \|z - beta\|/alpha = 2\.66667 "
+                                          r"\(Riccati backward error"):
+        dlqr_disc(G, H, np.eye(2), np.eye(1), alpha=0.3, beta=0.4)
 
 
 def test_divergent_innovation_observer_refused():
@@ -242,12 +261,12 @@ def _random_case(seed: int):
 
 
 def _outcome(seed: int) -> bool:
-    """True: gain returned with every pole in the disc; False: refused as a non-converging DARE."""
+    """True: gain returned with every pole in the disc; False: refused (DARE unsolved or a pole outside)."""
     G, H, alpha, beta = _random_case(seed)
     try:
-        K, _ = dlqr_disc(G, H, np.eye(G.shape[0]), np.eye(H.shape[1]), alpha, beta)
+        K = dlqr_disc(G, H, np.eye(G.shape[0]), np.eye(H.shape[1]), alpha, beta).K
     except DesignError as error:
-        assert "did not converge" in str(error) or "does not stabilise" in str(error)
+        assert "did not converge" in str(error) or "outside the disc" in str(error)
         return False
     assert in_disc(np.linalg.eigvals(G - H @ K), alpha, beta)
     return True
@@ -261,8 +280,9 @@ def test_poles_in_disc_for_random_systems(seed):
 
 def test_fraction_of_random_systems_designed():
     """Seeded sweep of 1000 random (generically controllable) systems: the fraction designed is
-    printed with -s; recovered-models.md §4 found 2925/3000 (97.5 %) with a 1e-8 residual test."""
+    printed with -s (1000/1000 with the pole-in-disc acceptance; 997/1000 with the former 1e-6
+    backward-error threshold; recovered-models.md §4 found 2925/3000 with a 1e-8 residual test)."""
     results = [_outcome(seed) for seed in range(1000)]
     fraction = sum(results) / len(results)
     print(f"disc LQR: {sum(results)}/{len(results)} random systems designed ({100 * fraction:.1f} %), all in the disc")
-    assert fraction > 0.95
+    assert fraction > 0.99

@@ -12,7 +12,7 @@ from greyfmu.control.digital_pi.design import (
     reference_dc_gain,
     stationary_variances,
 )
-from greyfmu.control.digital_pi.disc_lqr import dlqr_disc
+from greyfmu.control.digital_pi.disc_lqr import DiscLQR, dlqr_disc
 from greyfmu.control.digital_pi.discretize import ContinuousPlant, DelayTerm, DiscretePlant, c2d, integral_expm, split_delay
 from greyfmu.control.digital_pi.errors import DesignError
 from greyfmu.control.digital_pi.observer import continuous_noise_gain, innovation_observer, kalman_innovation
@@ -27,6 +27,7 @@ __all__ = [
     "DesignError",
     "DigitalPI",
     "DigitalPIDesign",
+    "DiscLQR",
     "DiscretePlant",
     "augment_delay",
     "c2d",

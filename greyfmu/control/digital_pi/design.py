@@ -28,7 +28,10 @@ from greyfmu.control.digital_pi.observer import innovation_observer
 
 @dataclass(frozen=True)
 class DigitalPIDesign:
-    """Everything the design produces; the controller needs Gp, Hp, Gammap, Cp (observer), F, K1, K2, Hc."""
+    """Everything the design produces; the controller needs Gp, Hp, Gammap, Cp (observer), F, K1, K2, Hc.
+
+    ``riccati_backward_error`` is the relative residual of (26) (`DiscLQR.backward_error`), reported.
+    """
 
     T: float
     alpha: float
@@ -45,6 +48,7 @@ class DigitalPIDesign:
     Hc: np.ndarray
     closed_loop_poles: np.ndarray
     observer_poles: np.ndarray
+    riccati_backward_error: float
 
     @property
     def KP(self) -> np.ndarray:
@@ -78,13 +82,14 @@ def design_digital_pi(plant: ContinuousPlant, T: float, tau: float | np.ndarray,
         raise DesignError(f"Hc must be a nonsingular {plant.p}x{plant.p} matrix, got {Hc.tolist()}")
     Gbar, Hbar = cascade_pi(aug, Hc)
     size = Gbar.shape[0]
-    Kbar, P = dlqr_disc(Gbar, Hbar, _weight(Q, size), _weight(R, plant.m), alpha, beta)
+    lqr = dlqr_disc(Gbar, Hbar, _weight(Q, size), _weight(R, plant.m), alpha, beta)
+    Kbar = lqr.K
     Go = innovation_observer(aug)
     na = aug.order
     F = Kbar[:, :na] - K1 @ aug.Cp                                    # (21), sign of K1 as in the module note
     K2 = Kbar[:, na:]                                                 # (21)
-    return DigitalPIDesign(T, alpha, beta, discrete, aug, Gbar, Hbar, Kbar, P, K1, K2, F, Hc,
-                           np.linalg.eigvals(Gbar - Hbar @ Kbar), np.linalg.eigvals(Go))
+    return DigitalPIDesign(T, alpha, beta, discrete, aug, Gbar, Hbar, Kbar, lqr.P, K1, K2, F, Hc,
+                           np.linalg.eigvals(Gbar - Hbar @ Kbar), np.linalg.eigvals(Go), lqr.backward_error)
 
 
 def closed_loop(design: DigitalPIDesign) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -32,6 +32,10 @@ class Example:
     r: float
 
 
+UNIT_DISC = (1.0, 0.0)
+"""(α, β) of the paper's Example 2: the ordinary LQR, every pole in the unit circle."""
+
+
 def cement_kiln() -> Example:
     """Example 1 slot: (28)-(29) of the paper.  Drop Westerlund's A, B, C, V (T = 5, τ = T/2) in here."""
     raise LookupError("the cement kiln matrices of Zhou et al. (2006) (28)-(29) were lost in extraction and are not "
@@ -52,14 +56,16 @@ def wood_berry() -> Example:
     """Wood–Berry column (recovered-models.md §3) as a diagonal realisation with per-entry delays.
 
     States x11, x12, x21, x22, one per transfer element; y = (x11 + x12, x21 + x22) + η; time in
-    minutes.  Noise (RECONSTRUCTED): white noise of 0.05 lb/min RMS on both inputs, held over T
-    and entering without delay, and measurement noise 0.02 mol %.  §3's separate feed-disturbance
-    states are left out: their poles 0.935 and 0.927 are uncontrollable and outside the paper's
-    disc |z − 0.7| < 0.2, so (G_αβ, H_α) would not be stabilisable (Lemma 1 refuses it).
-    Design: Q = 10 I, R = I as the paper, and the disc α = 1, β = 0 of its Example 2.  The
-    Example 1 disc (α = 0.2, β = 0.7) is refused here (DARE backward error 1.5e-4: the 14 delay
-    states sit at z = 0 and must all be pushed into the disc), and α = 0.3, β = 0.7 is solvable
-    but peaks at |y| = 238 after a unit step; see docs/digital_pi.md.
+    minutes.  Each element's dead time (1, 3, 7, 3 min) gets the T/2 input delay of the zero-order
+    hold that both paper examples add (Example 1: "an input delay of τ = T/2 will be introduced"),
+    so τ = 1.5, 3.5, 7.5, 3.5 min.  Noise (RECONSTRUCTED): white noise of 0.05 lb/min RMS on both
+    inputs, held over T and entering without delay, and measurement noise 0.02 mol %.  §3's
+    separate feed-disturbance states are left out: their poles 0.935 and 0.927 are uncontrollable
+    and outside the paper's disc |z − 0.7| < 0.2, so (G_αβ, H_α) would not be stabilisable (Lemma 1
+    refuses it).  Design: Q = 10 I, R = I and the disc α = 0.2, β = 0.7 of the paper's Example 1.
+    The 16 delay states start at z = 0 and must all be pushed into the disc: every pole is in it
+    (max |z − β|/α = 0.878) but a unit step peaks at |y| ≈ 540 (docs/digital_pi.md); the unit disc
+    (α = 1, β = 0) of Example 2 is `UNIT_DISC`.
     """
     gains = np.array([12.8, -18.9, 6.6, -19.4])
     lags = np.array([16.7, 21.0, 10.9, 14.4])
@@ -68,15 +74,15 @@ def wood_berry() -> Example:
     A = np.diag(-1.0 / lags)
     B = np.zeros((4, 2))
     tau = np.zeros((4, 2))
+    T = 1.0
     for state, (K, lag, delay, j) in enumerate(zip(gains, lags, delays, inputs)):
         B[state, j] = K / lag
-        tau[state, j] = delay
+        tau[state, j] = delay + T / 2
     C = np.array([[1.0, 1, 0, 0], [0, 0, 1, 1]])
-    T = 1.0
     H = c2d(ContinuousPlant(A, B, C, np.zeros((4, 2))), T).H
     W = 0.05**2 * H @ H.T
     return _with_innovations("Wood-Berry column (substitute for the cement kiln)", A, B, C, tau, T, W,
-                             0.02**2 * np.eye(2), alpha=1.0, beta=0.0)
+                             0.02**2 * np.eye(2), alpha=0.2, beta=0.7)
 
 
 def ch47() -> Example:
