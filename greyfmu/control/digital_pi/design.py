@@ -13,7 +13,7 @@ and with the LQ law ``u* = −K̄1 x_a − K̄2 z`` (20) the split (21) becomes 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.linalg import solve_discrete_lyapunov
@@ -92,12 +92,26 @@ def design_digital_pi(plant: ContinuousPlant, T: float, tau: float | np.ndarray,
                            np.linalg.eigvals(Gbar - Hbar @ Kbar), np.linalg.eigvals(Go), lqr.backward_error)
 
 
-def closed_loop(design: DigitalPIDesign) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def with_observer_gain(design: DigitalPIDesign, Gamma: np.ndarray) -> DigitalPIDesign:
+    """The same design with the observer's Kalman gain replaced by ``Gamma`` (n×p, the plant's states;
+    the delay states get none), e.g. the gain identified by `extended_least_squares`.  Refused
+    (`innovation_observer`) when G − ΓC is not stable."""
+    a = design.augmented
+    Gammap = np.zeros_like(a.Gammap)
+    Gammap[: Gamma.shape[0]] = Gamma
+    augmented = replace(a, Gammap=Gammap)
+    return replace(design, augmented=augmented, observer_poles=np.linalg.eigvals(innovation_observer(augmented)))
+
+
+def closed_loop(design: DigitalPIDesign, plant_Gammap: np.ndarray | None = None,
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The loop of plant (9)/(10), PI and observer, state ξ = [X_a; z; x̂_a], inputs (r, η):
-    returns ``(A, B_r, B_eta, C_y, C_u)`` with ``y = C_y ξ + η`` and ``u = C_u ξ + K1 (r − η)``."""
+    returns ``(A, B_r, B_eta, C_y, C_u)`` with ``y = C_y ξ + η`` and ``u = C_u ξ + K1 (r − η)``.
+    ``plant_Gammap`` is the plant's noise gain when it differs from the observer's (default: equal)."""
     a = design.augmented
     na, p = a.order, a.Cp.shape[0]
     Gp, Hp, Gm, Cp = a.Gp, a.Hp, a.Gammap, a.Cp
+    Gn = Gm if plant_Gammap is None else plant_Gammap
     F, K1, K2, Hc = design.F, design.K1, design.K2, design.Hc
     C_u = np.hstack([-K1 @ Cp, -K2, -F])
     C_y = np.hstack([Cp, np.zeros((p, p + na))])
@@ -107,14 +121,16 @@ def closed_loop(design: DigitalPIDesign) -> tuple[np.ndarray, np.ndarray, np.nda
         np.hstack([Gm @ Cp, np.zeros((na, p)), Gp - Gm @ Cp]) + Hp @ C_u,
     ])
     B_r = np.vstack([Hp @ K1, Hc, Hp @ K1])
-    B_eta = np.vstack([Gm - Hp @ K1, -Hc, Gm - Hp @ K1])
+    B_eta = np.vstack([Gn - Hp @ K1, -Hc, Gm - Hp @ K1])
     return A, B_r, B_eta, C_y, C_u
 
 
-def stationary_variances(design: DigitalPIDesign, Q_eta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def stationary_variances(design: DigitalPIDesign, Q_eta: np.ndarray,
+                         plant_Gammap: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """E{y_i²} and E{u_i²} of the regulation loop (r = 0) driven by innovations η of covariance Q_eta,
-    from the discrete Lyapunov equation — the exact values the simulated variances (42) estimate."""
-    A, _, B_eta, C_y, C_u = closed_loop(design)
+    from the discrete Lyapunov equation — the exact values the simulated variances (42) estimate.
+    ``plant_Gammap`` as in `closed_loop` (an observer gain that is not the plant's)."""
+    A, _, B_eta, C_y, C_u = closed_loop(design, plant_Gammap)
     Q_eta = np.atleast_2d(np.asarray(Q_eta, dtype=float))
     S = solve_discrete_lyapunov(A, B_eta @ Q_eta @ B_eta.T)
     var_y = np.diag(C_y @ S @ C_y.T + Q_eta)
