@@ -6,35 +6,53 @@ StochasticLTI plant reproduces exactly (tests/test_digital_pi.py) — driven by 
 covariance Q_η and run under an LQ state feedback (unit disc, Q = I, R = I: any stabilising
 controller would do; CH-47 is open-loop unstable) plus a white dither on every input.  ELS sees
 only y and u.  The ARMAX orders follow the plant: na = nc = r = n/p, nb = r + D (D delay samples).
+
+Two routes, both ELS and K_oi = D_i − G_oi: "unknown" identifies the whole ARMAX (14) (the paper's
+route for an unknown plant); "known model" takes G, H, C as given (the paper's Example 2) and
+identifies only the moving average D(q) of w = A(q) y − B(q) u (`noise_model_gain`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from greyfmu.control.digital_pi.augment import augment_delay
+from greyfmu.control.digital_pi.augment import AugmentedPlant, augment_delay
 from greyfmu.control.digital_pi.companion import block_companion
 from greyfmu.control.digital_pi.design import design_digital_pi, stationary_variances, with_observer_gain
 from greyfmu.control.digital_pi.disc_lqr import dlqr_disc
 from greyfmu.control.digital_pi.discretize import c2d
 from greyfmu.control.digital_pi.examples import Example
-from greyfmu.control.digital_pi.identification import armax_observer, extended_least_squares, one_step_predictions
+from greyfmu.control.digital_pi.errors import DesignError
+from greyfmu.control.digital_pi.identification import (
+    armax_observer,
+    extended_least_squares,
+    noise_model_gain,
+    one_step_predictions,
+)
+
+
+@dataclass(frozen=True)
+class Route:
+    """One route's result: ‖K̂_o − K_o‖_F/‖K_o‖_F, the one-step prediction-error variances of its
+    observer on fresh data, and the digital PI's stationary E{y_i²} with its gain in the observer
+    (None, with ``refused`` naming why, when G − Γ̂C is unstable or the route has no such loop)."""
+
+    gain_error: float
+    prediction: np.ndarray | None
+    regulation: np.ndarray | None
+    refused: str = ""
 
 
 @dataclass(frozen=True)
 class GainComparison:
-    """One row of the table: data length N, ‖K̂_o − K_o‖_F/‖K_o‖_F, one-step prediction-error
-    variances on fresh data (identified observer, exact Kalman predictor) and the digital PI's
-    stationary E{y_i²} with the identified gain in its observer and with the DARE gain."""
+    """A row of the table: data length N, the two ELS routes and the DARE (true) Kalman gain."""
 
     N: int
-    gain_error: float
-    prediction_identified: np.ndarray
-    prediction_kalman: np.ndarray
-    regulation_identified: np.ndarray
-    regulation_kalman: np.ndarray
+    unknown: Route
+    known: Route
+    kalman: Route
 
 
 def closed_loop_records(example: Example, N: int, seed: int, dither: float) -> tuple[np.ndarray, np.ndarray]:
@@ -54,37 +72,58 @@ def closed_loop_records(example: Example, N: int, seed: int, dither: float) -> t
     return y, u
 
 
-def compare_gains(example: Example, N: int, seed: int, dither: float, validation: int = 4000) -> GainComparison:
-    """Identify from N samples (seed), validate on ``validation`` fresh samples (seed + 1)."""
-    discrete = c2d(example.plant, example.T, example.tau)
-    companion = block_companion(discrete.G, discrete.C)
-    r = companion.Go_blocks.shape[0]
-    lags = augment_delay(discrete).lags
-    y, u = closed_loop_records(example, N, seed, dither)
-    model = extended_least_squares(y, u, na=r, nb=r + lags, nc=r).model
-    K_hat = model.kalman_gain()
-    K_true = companion.to_companion(discrete.Gamma)
-    y_val, u_val = closed_loop_records(example, validation, seed + 1, dither)
-    keep = slice(validation // 10, None)
-    identified = y_val - one_step_predictions(armax_observer(model), y_val, u_val)
-    kalman = y_val - np.vstack([np.zeros(y_val.shape[1]),
-                                _kalman_predictions(discrete, y_val, u_val)[:-1]])
-    design = design_digital_pi(example.plant, example.T, example.tau, example.alpha, example.beta, example.q, example.r)
-    with_identified = with_observer_gain(design, companion.T_o @ K_hat)
-    var_identified, _ = stationary_variances(with_identified, example.Q_eta, design.augmented.Gammap)
-    var_kalman, _ = stationary_variances(design, example.Q_eta)
-    return GainComparison(N, float(np.linalg.norm(K_hat - K_true) / np.linalg.norm(K_true)),
-                          np.mean(identified[keep] ** 2, axis=0), np.mean(kalman[keep] ** 2, axis=0),
-                          var_identified, var_kalman)
-
-
-def _kalman_predictions(discrete, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """ŷ(k+1|k) of the true innovation model (the DARE gain Γ) on the augmented plant, from x̂(0) = 0."""
-    aug = augment_delay(discrete)
+def innovation_predictions(aug: AugmentedPlant, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """ŷ(k|k−1) of the observer ``x̂(k+1) = (Gp − Γp Cp) x̂ + Hp u + Γp y`` over the records, x̂(0) = 0."""
     Gk = aug.Gp - aug.Gammap @ aug.Cp
     x = np.zeros(aug.order)
     out = np.empty_like(y)
     for k in range(len(y)):
-        x = Gk @ x + aug.Hp @ u[k] + aug.Gammap @ y[k]
         out[k] = aug.Cp @ x
+        x = Gk @ x + aug.Hp @ u[k] + aug.Gammap @ y[k]
     return out
+
+
+def markov_parameters(aug: AugmentedPlant, count: int) -> np.ndarray:
+    """M_1 … M_count, M_l = Cp Gp^{l−1} Hp: y(k) = Σ M_l u(k − l) without noise."""
+    out, GH = [], aug.Hp
+    for _ in range(count):
+        out.append(aug.Cp @ GH)
+        GH = aug.Gp @ GH
+    return np.stack(out)
+
+
+def compare_gains(example: Example, N: int, seed: int, dither: float, validation: int = 4000) -> GainComparison:
+    """Identify from N samples (seed) by both routes, validate on ``validation`` fresh samples (seed + 1)."""
+    discrete = c2d(example.plant, example.T, example.tau)
+    aug = augment_delay(discrete)
+    companion = block_companion(discrete.G, discrete.C)
+    r = companion.Go_blocks.shape[0]
+    K_true = companion.to_companion(discrete.Gamma)
+    y, u = closed_loop_records(example, N, seed, dither)
+    y_val, u_val = closed_loop_records(example, validation, seed + 1, dither)
+    keep = slice(validation // 10, None)
+    design = design_digital_pi(example.plant, example.T, example.tau, example.alpha, example.beta, example.q, example.r)
+
+    def error(K: np.ndarray) -> float:
+        return float(np.linalg.norm(K - K_true) / np.linalg.norm(K_true))
+
+    def variance(prediction: np.ndarray) -> np.ndarray:
+        return np.mean((y_val - prediction)[keep] ** 2, axis=0)
+
+    model = extended_least_squares(y, u, na=r, nb=r + aug.lags, nc=r).model
+    try:
+        unknown = Route(error(model.kalman_gain()), variance(one_step_predictions(armax_observer(model), y_val, u_val)),
+                        None, "the identified model is not in the controller's coordinates")
+    except DesignError as refusal:
+        unknown = Route(error(model.kalman_gain()), None, None, str(refusal))
+    K_known = noise_model_gain(companion.Go_blocks, markov_parameters(aug, r + aug.lags), y, u)
+    Gammap = np.zeros_like(aug.Gammap)
+    Gammap[: discrete.G.shape[0]] = companion.T_o @ K_known
+    try:
+        loop = with_observer_gain(design, Gammap[: discrete.G.shape[0]])
+        known = Route(error(K_known), variance(innovation_predictions(replace(aug, Gammap=Gammap), y_val, u_val)),
+                      stationary_variances(loop, example.Q_eta, aug.Gammap)[0])
+    except DesignError as refusal:
+        known = Route(error(K_known), None, None, str(refusal))
+    kalman = Route(0.0, variance(innovation_predictions(aug, y_val, u_val)), stationary_variances(design, example.Q_eta)[0])
+    return GainComparison(N, unknown, known, kalman)

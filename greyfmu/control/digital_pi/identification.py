@@ -62,14 +62,15 @@ class ELSResult:
 def extended_least_squares(y: np.ndarray, u: np.ndarray, na: int, nb: int, nc: int,
                            initial_covariance: float = 1e4) -> ELSResult:
     """Recursive ELS on the records ``y`` (N×p) and ``u`` (N×m), θ(0) = 0, P(0) = ``initial_covariance``·I,
-    no forgetting.  Raises `DesignError` for non-finite data, orders < 1 or too few samples."""
+    no forgetting.  na = nb = 0 identifies a moving average ``y = D(q) η`` (`noise_model_gain`).
+    Raises `DesignError` for non-finite data, orders out of range or too few samples."""
     y, u = np.atleast_2d(np.asarray(y, dtype=float)), np.atleast_2d(np.asarray(u, dtype=float))
     N, p = y.shape
     m = u.shape[1]
     if u.shape[0] != N:
         raise DesignError(f"ELS: y has {N} samples, u has {u.shape[0]}")
-    if min(na, nb, nc) < 1:
-        raise DesignError(f"ELS: orders must be >= 1, got na = {na}, nb = {nb}, nc = {nc}")
+    if min(na, nb) < 0 or nc < 1:
+        raise DesignError(f"ELS: orders must be na, nb >= 0 and nc >= 1, got na = {na}, nb = {nb}, nc = {nc}")
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
         raise DesignError("ELS: the input/output records contain non-finite samples")
     size = p * na + m * nb + p * nc
@@ -80,7 +81,8 @@ def extended_least_squares(y: np.ndarray, u: np.ndarray, na: int, nb: int, nc: i
     P = initial_covariance * np.eye(size)
     eps = np.zeros((N, p))
     for k in range(start, N):
-        phi = np.concatenate([-y[k - na : k][::-1].ravel(), u[k - nb : k][::-1].ravel(), eps[k - nc : k][::-1].ravel()])
+        phi = np.concatenate([-y[k - na : k][::-1].ravel() if na else [], u[k - nb : k][::-1].ravel() if nb else [],
+                              eps[k - nc : k][::-1].ravel()])
         Pphi = P @ phi
         gain = Pphi / (1.0 + phi @ Pphi)
         theta += np.outer(gain, y[k] - phi @ theta)
@@ -91,6 +93,45 @@ def extended_least_squares(y: np.ndarray, u: np.ndarray, na: int, nb: int, nc: i
     B = blocks[1].reshape(p, nb, m).transpose(1, 0, 2)
     D = blocks[2].reshape(p, nc, p).transpose(1, 0, 2)
     return ELSResult(ARMAX(A, B, D), eps)
+
+
+def els_convergence_margin(D: np.ndarray, points: int = 2001) -> float:
+    """min over ω ∈ [0, π] of the smallest eigenvalue of Herm(C(e^{iω})⁻¹) − 1/2, C(z) = I + Σ D_i z^{−i}.
+
+    Positive: C⁻¹ − I/2 is strictly positive real, the sufficient condition for ELS to converge
+    (Ljung 1977; Ljung & Söderström 1983 §4.5).  Negative: convergence is not guaranteed.
+    """
+    p = D.shape[1]
+    worst = np.inf
+    for omega in np.linspace(0.0, np.pi, points):
+        z = np.exp(-1j * omega)
+        inverse = np.linalg.inv(np.eye(p) + sum(Di * z ** (i + 1) for i, Di in enumerate(D)))
+        worst = min(worst, float(np.linalg.eigvalsh((inverse + inverse.conj().T) / 2).min()) - 0.5)
+    return worst
+
+
+def noise_model_gain(Go_blocks: np.ndarray, markov: np.ndarray, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """K_o when the deterministic part is known and only the noise is not (the paper's Example 2: G, H, C
+    given, "no noise knowledge"): w = A(q) y − B(q) u is the moving average D(q) η of (14); ELS gives
+    the D_i and K_oi = D_i − G_oi.
+
+    ``Go_blocks`` (r, p, p) are the known G_oi; ``markov`` (L, p, m) the plant's Markov parameters
+    M_1 … M_L (y = Σ M_l u(k−l) without noise), from which B_l = Σ_{i=0}^{min(l−1, r)} G_oi M_{l−i}
+    (G_o0 = I) for l = 1 … L, L ≥ r + delay samples.
+    """
+    r, p, _ = Go_blocks.shape
+    L = markov.shape[0]
+    A = np.concatenate([np.eye(p)[None], Go_blocks])                       # A_0 = I, A_1 … A_r
+    B = np.stack([sum(A[i] @ markov[l - i - 1] for i in range(min(l, r + 1))) for l in range(1, L + 1)])
+    y, u = np.asarray(y, dtype=float), np.asarray(u, dtype=float)
+    w = np.zeros_like(y)
+    for i in range(r + 1):
+        w[i:] += y[: len(y) - i] @ A[i].T
+    for l in range(1, L + 1):
+        w[l:] -= u[: len(u) - l] @ B[l - 1].T
+    start = max(r, L)
+    D = extended_least_squares(w[start:], np.zeros((len(w) - start, 0)), na=0, nb=0, nc=r).model.D
+    return (D - Go_blocks).reshape(-1, p)
 
 
 def armax_observer(model: ARMAX) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
