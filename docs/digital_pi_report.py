@@ -180,6 +180,11 @@ def run_all() -> dict[str, dict[str, np.ndarray]]:
         results[name] = {"deterministic": cosim.simulate(folder),
                          "regulation": cosim.simulate(folder, stop_time=regulation_stop,
                                                       parameter_sets=[folder / "regulation.ssv"])}
+    folder = ROOT / "ssp" / "dpi_wood_berry"
+    unit = folder / "unit_disc.ssv"
+    results["dpi_wood_berry_unit_disc"] = {"deterministic": cosim.simulate(folder, parameter_sets=[unit]),
+                                           "regulation": cosim.simulate(folder, stop_time=2000.0,
+                                                                        parameter_sets=[unit, folder / "regulation.ssv"])}
     return results
 
 
@@ -201,6 +206,9 @@ def report(results: dict) -> str:
         if (example.alpha, example.beta) != UNIT_DISC:
             unit = design_digital_pi(example.plant, example.T, example.tau, *UNIT_DISC, example.q, example.r)
             var_y, var_u = stationary_variances(unit, example.Q_eta)
+            simulated = variances(results[f"{name}_unit_disc"]["regulation"], ["controller.u1", "controller.u2"])
+            lines.append(f"| {name} digital PI, unit disc (unit_disc.ssv), simulated | "
+                         + " | ".join(f"{v:.4g}" for v in simulated) + " |")
             lines.append(f"| {name} digital PI, unit disc (unit_disc.ssv), Lyapunov | "
                          + " | ".join(f"{v:.4g}" for v in [*var_y, *var_u]) + " |")
     simulated = variances(results["dpi_wood_berry_decentral"]["regulation"], ["pi1.u", "pi2.u"])
@@ -242,14 +250,14 @@ def figures(results: dict) -> None:
     import matplotlib.pyplot as plt
 
     FIGURES.mkdir(parents=True, exist_ok=True)
-    for name, unit in [("dpi_ch47", "s"), ("dpi_wood_berry", "min")]:
+    for name, unit in [("dpi_ch47", "s"), ("dpi_wood_berry", "min"), ("dpi_wood_berry_unit_disc", "min")]:
         for test in ("deterministic", "regulation"):
             fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 5))
             ours = results[name][test]
             for i in (1, 2):
                 axes[0].plot(ours["time"], ours[f"plant.y{i}"], label=f"y{i} digital PI")
                 axes[1].step(ours["time"], ours[f"controller.u{i}"], where="post", label=f"u{i} digital PI")
-            if name == "dpi_wood_berry":
+            if name.startswith("dpi_wood_berry"):
                 other = results["dpi_wood_berry_decentral"][test]
                 for i in (1, 2):
                     axes[0].plot(other["time"], other[f"plant.y{i}"], "--", label=f"y{i} decentralised PI")

@@ -14,7 +14,7 @@ identifies only the moving average D(q) of w = A(q) y − B(q) u (`noise_model_g
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,8 +36,10 @@ from greyfmu.control.digital_pi.identification import (
 @dataclass(frozen=True)
 class Route:
     """One route's result: ‖K̂_o − K_o‖_F/‖K_o‖_F, the one-step prediction-error variances of its
-    observer on fresh data, and the digital PI's stationary E{y_i²} with its gain in the observer
-    (None, with ``refused`` naming why, when G − Γ̂C is unstable or the route has no such loop)."""
+    observer on fresh data, and the digital PI's stationary E{y_i²} with its gain in the observer.
+    ``prediction`` and ``regulation`` are None with ``refused`` naming why when the identified
+    observer is unstable; ``regulation`` is None for the unknown-ARMAX route, whose model is in its
+    own coordinates, not the controller's."""
 
     gain_error: float
     prediction: np.ndarray | None
@@ -74,13 +76,7 @@ def closed_loop_records(example: Example, N: int, seed: int, dither: float) -> t
 
 def innovation_predictions(aug: AugmentedPlant, y: np.ndarray, u: np.ndarray) -> np.ndarray:
     """ŷ(k|k−1) of the observer ``x̂(k+1) = (Gp − Γp Cp) x̂ + Hp u + Γp y`` over the records, x̂(0) = 0."""
-    Gk = aug.Gp - aug.Gammap @ aug.Cp
-    x = np.zeros(aug.order)
-    out = np.empty_like(y)
-    for k in range(len(y)):
-        out[k] = aug.Cp @ x
-        x = Gk @ x + aug.Hp @ u[k] + aug.Gammap @ y[k]
-    return out
+    return one_step_predictions((aug.Gp - aug.Gammap @ aug.Cp, aug.Hp, aug.Gammap, aug.Cp), y, u)
 
 
 def markov_parameters(aug: AugmentedPlant, count: int) -> np.ndarray:
@@ -113,15 +109,13 @@ def compare_gains(example: Example, N: int, seed: int, dither: float, validation
     model = extended_least_squares(y, u, na=r, nb=r + aug.lags, nc=r).model
     try:
         unknown = Route(error(model.kalman_gain()), variance(one_step_predictions(armax_observer(model), y_val, u_val)),
-                        None, "the identified model is not in the controller's coordinates")
+                        None)
     except DesignError as refusal:
         unknown = Route(error(model.kalman_gain()), None, None, str(refusal))
     K_known = noise_model_gain(companion.Go_blocks, markov_parameters(aug, r + aug.lags), y, u)
-    Gammap = np.zeros_like(aug.Gammap)
-    Gammap[: discrete.G.shape[0]] = companion.T_o @ K_known
     try:
-        loop = with_observer_gain(design, Gammap[: discrete.G.shape[0]])
-        known = Route(error(K_known), variance(innovation_predictions(replace(aug, Gammap=Gammap), y_val, u_val)),
+        loop = with_observer_gain(design, companion.T_o @ K_known)
+        known = Route(error(K_known), variance(innovation_predictions(loop.augmented, y_val, u_val)),
                       stationary_variances(loop, example.Q_eta, aug.Gammap)[0])
     except DesignError as refusal:
         known = Route(error(K_known), None, None, str(refusal))
