@@ -2,7 +2,7 @@
 from input/output data and read the gain off it, K_oi = D_i − G_oi — "no prior knowledge of noise
 properties", no Riccati equation (Zhou et al. 2006, (12)-(14); Shieh, Wang & Tsay 1983).
 
-Extended least squares (ELS, also called pseudo-linear regression; Ljung 1999 §10.3): recursive
+Extended least squares (ELS, also called pseudo-linear regression; Ljung & Söderström 1983): recursive
 least squares on the regressor
 
     φ(k) = [−y(k−1) … −y(k−na), u(k−1) … u(k−nb), ε(k−1) … ε(k−nc)]
@@ -99,7 +99,8 @@ def els_convergence_margin(D: np.ndarray, points: int = 2001) -> float:
     """min over ω ∈ [0, π] of the smallest eigenvalue of Herm(C(e^{iω})⁻¹) − 1/2, C(z) = I + Σ D_i z^{−i}.
 
     Positive: C⁻¹ − I/2 is strictly positive real, the sufficient condition for ELS to converge
-    (Ljung 1977; Ljung & Söderström 1983 §4.5).  Negative: convergence is not guaranteed.
+    (Ljung, IEEE TAC 22, 1977, "On positive real transfer functions and the convergence of some
+    recursive schemes").  Negative: convergence is not guaranteed.
     """
     p = D.shape[1]
     worst = np.inf
