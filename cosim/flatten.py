@@ -43,106 +43,28 @@ from __future__ import annotations
 
 from collections import defaultdict
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 from .errors import SetupError, did_you_mean
-from .ssp import Component, Connection, Connector, ParameterValue
+from .structure import (
+    Component,
+    Connection,
+    Connector,
+    Hop,
+    OpenConnector,
+    ParameterValue,
+    RawStructure,
+    RawSystem,
+    SystemNode,
+    SystemOutput,
+    SystemStructure,
+)
 
 #: Whether a connector is the sending end of a connection, by its kind, seen from the system holding
 #: the connection: on one of its elements (component or subsystem), or on the system itself.
 #: Calculated parameters are not supported through systems (the master does not route parameters).
 _SENDS_AS_ELEMENT = {"output": True, "input": False, "parameter": False}
 _SENDS_AS_OWN = {"input": True, "parameter": True, "output": False}
-
-
-@dataclass
-class RawSystem:
-    """One ``ssd:System`` as read, before flattening: local names, connections with
-    ``start_element``/``end_element`` None where they name this system's own connectors."""
-    name: str
-    line: int
-    connectors: dict[str, Connector]
-    components: dict[str, Component]
-    systems: dict[str, RawSystem]
-    connections: list[Connection]
-    parameters: list[ParameterValue]
-    #: names of the components and systems in document order
-    elements: list[str] = field(default_factory=list)
-
-
-@dataclass
-class SystemNode:
-    """The hierarchy as `cosim info` shows it: full component paths, nested systems."""
-    name: str
-    path: str
-    line: int
-    connectors: list[Connector]
-    components: list[str]
-    systems: list[SystemNode]
-
-
-@dataclass(frozen=True)
-class Hop:
-    """One ``ssd:Connection`` on a path through system connectors.
-
-    SSP 1.0 (SystemStructureDescription.xsd, Connection and its ``suppressUnitConversion``)
-    converts the value on each connection from its start connector's unit to its end
-    connector's unit, then applies that connection's LinearTransformation (only the
-    transformation when ``suppressUnitConversion="true"``).  `cosim.graph` composes the hops in
-    that order; it knows the component ends' units (their FMU variables), this module does not.
-    """
-    line: int
-    #: the system connector at each end (``loop.r``; ``r`` on the root); None where the end is a component
-    start_system: str | None
-    end_system: str | None
-    #: those system connectors' ``ssc:Real unit``; None for a component end or a connector without one
-    start_unit: str | None
-    end_unit: str | None
-    factor: float
-    offset: float
-    has_transformation: bool
-    suppress: bool
-
-
-@dataclass
-class SystemOutput:
-    """A root-system output connector, recorded as ``factor·component.connector + offset``.
-
-    As flattened, ``factor``/``offset`` compose the transformations of ``hops`` only;
-    `cosim.graph` replaces them by the per-hop composition with the unit conversions, from
-    the FMU variable's unit to the root connector's (`Hop`)."""
-    name: str
-    component: str
-    connector: str
-    factor: float
-    offset: float
-    line: int
-    hops: tuple[Hop, ...] = ()
-
-
-@dataclass
-class OpenConnector:
-    """A system connector without a driver that feeds component inputs or parameters;
-    a ParameterBinding naming ``path`` gives it its (constant) value."""
-    path: str
-    kind: str
-    line: int
-    #: (component path, connector name, the connections on the way) reached through the hierarchy
-    sinks: list[tuple[str, str, tuple[Hop, ...]]]
-    #: its ``ssc:Real unit``, if it declares one
-    unit: str | None = None
-
-
-@dataclass
-class Flat:
-    components: dict[str, Component]
-    connections: list[Connection]
-    parameters: list[ParameterValue]
-    hierarchy: SystemNode
-    system_outputs: dict[str, SystemOutput]
-    open_connectors: dict[str, OpenConnector]
-    #: paths of the system connectors that are driven by a connection
-    driven_connectors: set[str]
 
 
 # A node of the connection graph: ("c", component path, connector) or ("s", system path, connector);
@@ -162,17 +84,22 @@ def node_name(node: Node) -> str:
     return f"{node[1]}.{node[2]}" if node[1] else node[2]
 
 
-def flatten(root: RawSystem, file: str) -> Flat:
-    """Resolve the hierarchy under ``root`` into components and component-to-component connections."""
+def flatten(raw: RawStructure) -> SystemStructure:
+    """Resolve the hierarchy of ``raw`` into components and component-to-component connections."""
+    file = raw.display
     walker = _Walker(file)
-    hierarchy = walker.walk(root, "", 0)
+    hierarchy = walker.walk(raw.root, "", 0)
     parameters = [p for _, values in sorted(walker.parameters, key=lambda dp: -dp[0]) for p in values]
     resolver = _Resolver(file, walker)
     connections = walker.direct + resolver.routes()
-    return Flat(components=walker.components, connections=connections, parameters=parameters,
-                hierarchy=hierarchy, system_outputs=resolver.system_outputs,
-                open_connectors=resolver.open_connectors,
-                driven_connectors={node_name(n) for n in resolver.driver})
+    return SystemStructure(name=raw.name, system_name=raw.root.name, ssd_file=raw.ssd_file,
+                           base_dir=raw.base_dir, components=walker.components, connections=connections,
+                           parameters=parameters, start_time=raw.start_time, stop_time=raw.stop_time,
+                           step_size=raw.step_size, step_size_source=raw.step_size_source,
+                           algorithm=raw.algorithm, units=raw.units, archive=raw.archive, _tmp=raw._tmp,
+                           hierarchy=hierarchy, system_outputs=resolver.system_outputs,
+                           open_connectors=resolver.open_connectors,
+                           driven_connectors={node_name(n) for n in resolver.driver})
 
 
 class _Walker:
@@ -206,8 +133,7 @@ class _Walker:
                 raise SetupError(f"two components flatten to the same path '{full}'.", file=self.file,
                                  element=f"ssd:Component '{name}' of {label} (line {comp.line})",
                                  hint="Rename one of them; dots in names clash with subsystem paths.")
-            comp.name = full
-            self.components[full] = comp
+            self.components[full] = replace(comp, name=full)
             for cname, conn in comp.connectors.items():
                 self.component_kinds[("c", full, cname)] = conn.kind
         for c in system.connections:

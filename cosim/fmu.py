@@ -198,7 +198,7 @@ def _kind(md: ModelDescription, path: Path, implementation: str, where: str, fil
 
 def open_instance(name: str, desc: FMUDescription, unzip_dir: str, solver=None) -> "Instance":
     """The live instance for ``desc.kind`` (not yet instantiated); ``solver`` is the component's
-    ``org.greyfmu.solver`` options (`cosim.ssp.SolverOptions`) for a Model Exchange FMU."""
+    ``org.greyfmu.solver`` options (`cosim.structure.SolverOptions`) for a Model Exchange FMU."""
     if desc.kind == "fmi3-cs":
         from .fmi3 import FMI3Instance
         return FMI3Instance(name, desc, unzip_dir)

@@ -15,10 +15,10 @@ from functools import partial
 from fmpy.model_description import ModelVariable
 
 from .errors import SetupError, did_you_mean
-from .flatten import Hop, OpenConnector, bind_system_connectors
+from .flatten import bind_system_connectors
 from .fmu import ArrayElement, FMUDescription, describe, exchange_type, unit_of
 from .me import check_model_exchange
-from .ssp import Connection, ParameterValue, SystemStructure
+from .structure import Connection, Hop, OpenConnector, ParameterValue, SystemStructure
 from .units import (
     IDENTITY,
     Affine,

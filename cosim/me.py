@@ -36,7 +36,7 @@ from fmpy.fmi2 import FMU2Model, fmi2EventInfo, fmi2False
 
 from .errors import SetupError
 from .fmu import STATUS, FMUDescription, Instance
-from .ssp import SolverOptions, SystemStructure
+from .structure import SolverOptions, SystemStructure
 
 FMI_OK, FMI_DISCARD, FMI_ERROR = 0, 2, 3
 #: Events handled within one communication step before the FMU is declared to chatter.

@@ -20,7 +20,8 @@ from pathlib import Path, PurePosixPath
 
 from .errors import SetupError
 from .safeio import is_file
-from .ssp import Component, SystemStructure, resolve_uri
+from .ssp import resolve_uri
+from .structure import Component, SystemStructure
 
 Provider = Callable[[str], "Path | None"]
 

@@ -17,11 +17,11 @@ import numpy as np
 from . import ssp
 from .errors import RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
-from .flatten import SystemOutput
 from .fmu import unit_of
 from .graph import Plan, build_plan
 from .observers import MemorySink, Recorder, file_sink
 from .resources import locate_fmus
+from .structure import Component, SystemOutput
 
 
 @dataclass
@@ -184,7 +184,7 @@ def _units(plan: Plan) -> dict[str, str | None]:
     return units
 
 
-def _declared_unit(component: ssp.Component | None, connector: str) -> str | None:
+def _declared_unit(component: Component | None, connector: str) -> str | None:
     declared = component.connectors.get(connector) if component is not None else None
     return declared.unit if declared is not None else None
 
@@ -193,7 +193,7 @@ class SystemOutputColumns:
     """A sink wrapper that appends the root system's output connectors to every chunk.
 
     Each is ``factor · (the driving component output's column) + offset``
-    (`cosim.flatten.SystemOutput`), computed per chunk, not in the stepping loop.
+    (`cosim.structure.SystemOutput`), computed per chunk, not in the stepping loop.
     """
 
     def __init__(self, outputs: list[SystemOutput], sinks: list):

@@ -46,7 +46,8 @@ from .graph import build_plan, split_system_name
 from .metrics import METRICS, step_metrics
 from .safeio import max_unpacked_bytes, unpack_limit
 from .simulation import Prepared, prepare, run
-from .ssp import NS, ParameterValue
+from .ssp import NS
+from .structure import ParameterValue
 
 Value = float | int | bool | str
 #: Arrow type of a swept column per FMI variable type
