@@ -184,7 +184,7 @@ def _prepare_without_grid(args, prepare):
 
 
 def _info(args) -> int:
-    from .me import solver_settings
+    from .solvers import solver_settings
     from .simulation import prepare
 
     prepared = _prepare_without_grid(args, prepare)

@@ -16,8 +16,8 @@ from fmpy.model_description import ModelVariable
 
 from .errors import SetupError, did_you_mean
 from .flatten import bind_system_connectors
-from .fmu import ArrayElement, FMUDescription, describe, exchange_type, unit_of
-from .me import check_model_exchange
+from .description import ArrayElement, FMUDescription, describe, exchange_type, unit_of
+from .solvers import check_model_exchange
 from .structure import Connection, Hop, OpenConnector, ParameterValue, SystemStructure
 from .units import (
     IDENTITY,
@@ -138,7 +138,7 @@ def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription
 
 def _check_exchangeable(desc: FMUDescription, var: ModelVariable, where: str, file: str) -> None:
     """Refuse a connector the exchange cannot carry: a type without an exchange type
-    (`cosim.fmu.exchange_type`) or a whole FMI 3.0 array (SSP 1.0 connectors are scalars;
+    (`cosim.description.exchange_type`) or a whole FMI 3.0 array (SSP 1.0 connectors are scalars;
     one element is named as ``vector[1]``, see `FMUDescription.variable`)."""
     if exchange_type(var) is None:
         raise SetupError(f"{var.name} has the type {var.type} in {desc.path.name}; connectors of that type are "

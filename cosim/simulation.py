@@ -17,7 +17,7 @@ import numpy as np
 from . import ssp
 from .errors import RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
-from .fmu import unit_of
+from .description import unit_of
 from .graph import Plan, build_plan
 from .observers import MemorySink, Recorder, file_sink
 from .resources import locate_fmus
@@ -85,7 +85,7 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     (metadata in ``<output>.json``).
     A failed run raises `RunError` with the samples so far in ``error.result``
     (and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
-    collected to explain a failure ("errors", "all" or "off"; see `cosim.fmu.Instance`).
+    collected to explain a failure ("errors", "all" or "off"; see `cosim.instances.fmi2.FMI2Instance.instantiate`).
     """
     prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,

@@ -54,7 +54,7 @@ GREYFMU_NS = "urn:greyfmu:ssp:simulation:1.0"
 OSP_ANNOTATION = "com.opensimulationplatform"
 OMS_ANNOTATION = "org.openmodelica"
 #: Our own annotation on a Component (its ssd:Annotations): how the master integrates a Model
-#: Exchange FMU (cosim.me), ``<greyfmu:Solver rtol="1e-8" maxStep="0.001"/>``.
+#: Exchange FMU (cosim.instances.me), ``<greyfmu:Solver rtol="1e-8" maxStep="0.001"/>``.
 SOLVER_ANNOTATION = "org.greyfmu.solver"
 SOLVER_NS = "urn:greyfmu:ssp:solver:1.0"
 

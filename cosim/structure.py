@@ -52,7 +52,7 @@ class Component:
     parameters: list[ParameterValue] = field(default_factory=list)
     fmu_path: Path | None = None
     #: SSP 1.0 Component ``implementation``: "any", "CoSimulation" or "ModelExchange" (the
-    #: interface the master drives; cosim.fmu.describe checks the FMU has it)
+    #: interface the master drives; cosim.description.describe checks the FMU has it)
     implementation: str = "any"
     #: the component's ``org.greyfmu.solver`` annotation, for a Model Exchange FMU
     solver: SolverOptions | None = None
@@ -66,6 +66,19 @@ class SolverOptions:
     #: the SSD file and the annotation element, for messages
     file: str
     element: str
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """How the master integrates a Model Exchange FMU (recorded in the run metadata)."""
+    method: str
+    rtol: float
+    #: largest internal step (never more than the communication step); None: the communication step
+    max_step: float | None = None
+
+    def as_dict(self) -> dict:
+        return {"method": self.method, "rtol": self.rtol,
+                "max_step": "communication step" if self.max_step is None else self.max_step}
 
 
 @dataclass

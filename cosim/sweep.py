@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from .errors import CosimError, SetupError, did_you_mean
-from .fmu import exchange_type
+from .description import exchange_type
 from .graph import build_plan, split_system_name
 from .metrics import METRICS, step_metrics
 from .safeio import max_unpacked_bytes, unpack_limit
