@@ -23,8 +23,6 @@ from .errors import SetupError, did_you_mean
 Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me"]
 #: How the master exchanges a variable (`exchange_type`): the FMI 2.0 type names.
 ExchangeType = Literal["Real", "Integer", "Boolean", "String"]
-#: The exchange types, in the order the execution allocates their buffers.
-EXCHANGE_TYPES: tuple[ExchangeType, ...] = ("Real", "Integer", "Boolean", "String")
 
 #: SSP 1.0 Component ``implementation`` values (SystemStructureDescription.xsd).
 IMPLEMENTATIONS = ("any", "CoSimulation", "ModelExchange")
@@ -113,8 +111,8 @@ def _dimension_size(dimension) -> int:
 
 
 #: The exchange types of the master (the FMI 2.0 type names) for the FMI types it connects.
-_EXCHANGE_TYPES: dict[str, ExchangeType] = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String",
-                   "Float64": "Real", "Int32": "Integer"}
+_EXCHANGE_TYPES: dict[str, ExchangeType] = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean",
+                                            "String": "String", "Float64": "Real", "Int32": "Integer"}
 
 
 def exchange_type(variable: ModelVariable) -> ExchangeType | None:

@@ -31,9 +31,9 @@ import numpy as np
 
 from .errors import RunError, SetupError
 from .description import FMUDescription, exchange_type
-from .graph import Plan
 from .instances import STATUS, Instance, Unzipped, open_instance
 from .solvers import solver_settings
+from .structure import Plan
 from .observers import Recorder
 
 #: exchange types (`cosim.description.exchange_type`) and their buffers' C types, as fmi2 declares them

@@ -15,7 +15,7 @@ output → system connector → … → system connector → input into one dire
 connection between the two components, at any depth, keeping the connections on
 the way (`Hop`, with the units their system connectors declare): SSP 1.0
 converts units and then applies the ``ssc:LinearTransformation`` on each
-connection, so `cosim.graph` composes them hop by hop into one affine map.
+connection, so `cosim.routing` composes them hop by hop into one affine map.
 Names are paths relative to the root system: component ``ctrl`` of subsystem ``loop`` is ``loop.ctrl``; the root system's own
 components keep their plain names, and the root system's name goes to the run
 metadata, not into every column.
@@ -28,7 +28,7 @@ System connectors are handled explicitly, never dropped:
   system: ``r`` on the root, ``loop.r`` from the root or ``r`` on ``loop``), which
   becomes the start value of every input or parameter it reaches (hop by hop,
   like a connection) — a constant input.  Without a value it is refused
-  (`bind_system_connectors`, run when all parameter sets are known);
+  (`cosim.parameters.bind_system_connectors`, run when all parameter sets are known);
 * root ``output`` connectors are recorded under their own name as an alias of the
   component output driving them (`SystemOutput`); an undriven one is refused;
 * unconnected connectors, and outputs of a nested system that feed nothing,
@@ -37,12 +37,11 @@ System connectors are handled explicitly, never dropped:
 ParameterBindings of a nested system name variables relative to it and are
 prefixed with its path; SSP 1.0 (ParameterBindings) gives bindings at a higher
 level precedence, so the flattened list puts the deepest systems first (later
-bindings win in `cosim.graph`).
+bindings win in `cosim.parameters`).
 """
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 from .errors import SetupError, did_you_mean
@@ -148,7 +147,7 @@ class _Walker:
         ends = [self._end(system, path, label, element, connector, where)
                 for element, connector in ((c.start_element, c.start_connector), (c.end_element, c.end_connector))]
         if all(node[0] == "c" for node, _ in ends):
-            # component to component: cosim.graph directs and checks it against the FMUs
+            # component to component: cosim.plan directs and checks it against the FMUs
             self.direct.append(Connection(prefix + c.start_element, c.start_connector, prefix + c.end_element,
                                           c.end_connector, c.factor, c.offset, c.has_transformation,
                                           c.suppress_unit_conversion, c.line))
@@ -168,7 +167,7 @@ class _Walker:
     def _end(self, system: RawSystem, path: str, label: str, element: str | None, connector: str,
              where: str) -> tuple[Node, bool | None]:
         """The node and whether it is the sending end; None for a component connector that is not
-        declared, or whose kind has no direction here: the other end decides, cosim.graph checks it."""
+        declared, or whose kind has no direction here: the other end decides, cosim.plan checks it."""
         prefix = f"{path}." if path else ""
         if element is None:
             conn = system.connectors.get(connector)
@@ -306,39 +305,3 @@ class _Resolver:
         if sinks:
             self.open_connectors[node_name(node)] = OpenConnector(node_name(node), conn.kind, conn.line,
                                                               sinks, conn.unit)
-
-
-#: The value a component connector gets from a value given to an open system connector, through
-#: the connections on the way: (value, open connector, component path, connector name, hops).
-Through = Callable[[ParameterValue, OpenConnector, str, str, tuple[Hop, ...]], ParameterValue]
-
-
-def bind_system_connectors(open_connectors: dict[str, OpenConnector], driven: set[str],
-                           values: list[ParameterValue], file: str, through: Through) -> list[ParameterValue]:
-    """Replace each value that names a system connector by values for what it feeds.
-
-    ``through`` takes the value along each path, hop by hop (`cosim.graph`, which knows the
-    FMUs' units).  An open connector that gets no value is refused, naming it and what it
-    feeds; a value for a connector that a connection drives is refused.
-    """
-    out: list[ParameterValue] = []
-    bound: set[str] = set()
-    for p in values:
-        if p.name in driven:
-            raise SetupError(f"'{p.name}' is a system connector driven by a connection; it cannot also be "
-                             "given a value.", file=p.file, element=f"ssv:Parameter (line {p.line})",
-                             variable=p.name)
-        target = open_connectors.get(p.name)
-        if target is None:
-            out.append(p)
-            continue
-        bound.add(p.name)
-        out += [through(p, target, comp, conn, hops) for comp, conn, hops in target.sinks]
-    for path, target in open_connectors.items():
-        if path not in bound:
-            fed = ", ".join(f"{comp}.{conn}" for comp, conn, _ in target.sinks)
-            raise SetupError(f"system connector '{path}' (kind {target.kind}) has no driver and no value; it "
-                             f"feeds {fed}.", file=file, element=f"ssd:Connector (line {target.line})",
-                             variable=path, hint="Connect an output to it, or give it a value with a "
-                             "ParameterBinding (a constant input).")
-    return out

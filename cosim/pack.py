@@ -11,9 +11,9 @@ import zipfile
 from pathlib import Path, PurePosixPath
 
 from .errors import SetupError
-from .graph import Plan
 from .safeio import check_member_name
 from .ssp import SSD_NAME
+from .structure import Plan
 
 
 def pack(plan: Plan, output: Path) -> Path:

@@ -18,10 +18,10 @@ from . import ssp
 from .errors import RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
 from .description import unit_of
-from .graph import Plan, build_plan
 from .observers import MemorySink, Recorder, file_sink
+from .plan import build_plan
 from .resources import locate_fmus
-from .structure import Component, SystemOutput
+from .structure import Component, Plan, SystemOutput
 
 
 @dataclass
@@ -174,7 +174,7 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
 def _units(plan: Plan) -> dict[str, str | None]:
     """Each recorded connector's unit: its FMU variable's own (values are recorded as the FMU
     computes or receives them, after any unit conversion of the connection), else the unit the
-    SSD connector gives a variable without one (cosim.graph._connector_unit); None: no unit."""
+    SSD connector gives a variable without one (cosim.routing.connector_unit); None: no unit."""
     components = plan.structure.components
     units = {f"{comp}.{v.name}": unit_of(v) or _declared_unit(components.get(comp), v.name)
              for comp in plan.outputs for v in plan.outputs[comp] + plan.inputs[comp]}

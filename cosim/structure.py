@@ -15,6 +15,9 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from fmpy.model_description import ModelVariable
+
+from .description import FMUDescription, exchange_type
 from .units import Unit
 
 
@@ -139,7 +142,7 @@ class Hop:
     SSP 1.0 (SystemStructureDescription.xsd, Connection and its ``suppressUnitConversion``)
     converts the value on each connection from its start connector's unit to its end
     connector's unit, then applies that connection's LinearTransformation (only the
-    transformation when ``suppressUnitConversion="true"``).  `cosim.graph` composes the hops in
+    transformation when ``suppressUnitConversion="true"``).  `cosim.routing` composes the hops in
     that order; it knows the component ends' units (their FMU variables), this module does not.
     """
     line: int
@@ -160,7 +163,7 @@ class SystemOutput:
     """A root-system output connector, recorded as ``factor·component.connector + offset``.
 
     As flattened, ``factor``/``offset`` compose the transformations of ``hops`` only;
-    `cosim.graph` replaces them by the per-hop composition with the unit conversions, from
+    `cosim.plan` replaces them by the per-hop composition with the unit conversions, from
     the FMU variable's unit to the root connector's (`Hop`)."""
     name: str
     component: str
@@ -239,3 +242,56 @@ class SystemStructure:
         if self._tmp is not None:
             self._tmp.cleanup()
             self._tmp = None
+
+
+# --------------------------------------------------------------------------- validated (cosim.plan)
+
+@dataclass
+class Route:
+    """One connection, resolved: output (src) to input (dst); ``factor``/``offset`` map the
+    source FMU's value to the destination FMU's value: the unit conversion and the
+    LinearTransformation composed (see `cosim.routing.hops_map`)."""
+    src: str
+    src_var: ModelVariable
+    dst: str
+    dst_var: ModelVariable
+    factor: float
+    offset: float
+
+
+@dataclass
+class StartValue:
+    component: str
+    variable: ModelVariable
+    value: float | int | bool | str
+    origin: str
+
+
+@dataclass
+class Plan:
+    structure: SystemStructure
+    fmus: dict[str, FMUDescription]
+    routes: list[Route]
+    start_values: list[StartValue]
+    #: per component, the connector variables recorded and exchanged, in SSD order
+    outputs: dict[str, list[ModelVariable]]
+    inputs: dict[str, list[ModelVariable]]
+    #: components whose outputs must be re-read after their inputs are set at a
+    #: communication point (direct feedthrough), in dependency order; may repeat
+    feedthrough_sequence: list[str]
+    #: Gauss-Seidel order: upstream first, SSD order inside a loop
+    gauss_seidel_order: list[str]
+    #: components of the feedthrough sequence whose outputs nobody reads before the settling
+    #: re-reads them: the exchange skips their first read (`cosim.graph.settling_shortcuts`)
+    read_in_settling_only: set[str] = field(default_factory=set)
+    #: components of the feedthrough sequence whose inputs are final when the settling sets
+    #: them: the exchange does not set them again
+    set_in_settling_only: set[str] = field(default_factory=set)
+
+    def recorded(self) -> tuple[list[str], list[str]]:
+        """The result names of the recorded outputs (the root system's output connectors last)
+        and inputs: every connector but String ones, which are exchanged, not recorded
+        (`cosim.execution.Execution.recorder_sources`)."""
+        def names(group: dict[str, list[ModelVariable]]) -> list[str]:
+            return [f"{c}.{v.name}" for c, vs in group.items() for v in vs if exchange_type(v) != "String"]
+        return names(self.outputs) + list(self.structure.system_outputs), names(self.inputs)

@@ -17,7 +17,7 @@ its result files; change anything and the id changes.
 
 Values go in the way ``--param-set`` values do (SSP 1.0 parameter precedence: applied
 last, beating component- and system-level bindings), and every name and value is checked
-by the master's own validation (`cosim.graph.build_plan`) before the first run starts.
+by the master's own validation (`cosim.plan.build_plan`) before the first run starts.
 Runs go to a local process pool (``spawn`` start method: FMUs loaded in the parent are
 never forked), run serially in this process, or go to a Dask distributed cluster; Dask
 workers must see the scenario and the output folder at the same paths.
@@ -42,8 +42,9 @@ import numpy as np
 
 from .errors import CosimError, SetupError, did_you_mean
 from .description import exchange_type
-from .graph import build_plan, split_system_name
 from .metrics import METRICS, step_metrics
+from .parameters import split_system_name
+from .plan import build_plan
 from .safeio import max_unpacked_bytes, unpack_limit
 from .simulation import Prepared, prepare, run
 from .ssp import NS
