@@ -32,7 +32,6 @@ import numpy as np
 from .errors import RunError, SetupError
 from .description import FMUDescription, exchange_type
 from .instances import STATUS, Instance, Unzipped, open_instance
-from .solvers import solver_settings
 from .structure import Plan
 from .observers import Recorder
 
@@ -158,7 +157,7 @@ class Execution:
         self.grid = grid
         self.algorithm = algorithm
         self.fmu_log = fmu_log
-        self.order = list(plan.structure.components)
+        self.order = list(plan.components)
         self.typed = [_Typed(plan, t, self.order) for t in TYPES
                       if any(exchange_type(v) == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
         self.instances: dict[str, Instance] = {}
@@ -173,9 +172,7 @@ class Execution:
     def instantiate(self) -> None:
         for name in self.order:
             desc = self.plan.fmus[name]
-            solver = solver_settings(desc, self.plan.structure.components[name].solver) if desc.kind == "fmi2-me" \
-                else None
-            inst = open_instance(name, desc, self._unzipped(desc.path), solver)
+            inst = open_instance(name, desc, self._unzipped(desc.path), self.plan.solvers.get(name))
             self.instances[name] = inst
             inst.instantiate(self.fmu_log)
         self._compile_calls()
@@ -357,7 +354,7 @@ class Execution:
     def _component_metadata(self, name: str, d: FMUDescription) -> dict:
         meta = {"fmu": str(d.path), "guid": d.md.guid, "generation_tool": d.md.generationTool, "interface": d.kind}
         if d.kind == "fmi2-me":  # integrated by the master (cosim.instances.me)
-            meta["solver"] = solver_settings(d, self.plan.structure.components[name].solver).as_dict()
+            meta["solver"] = self.plan.solvers[name].as_dict()
         return meta
 
     def metadata(self) -> dict:

@@ -271,7 +271,7 @@ class _Resolver:
         for nxt in self.fanout.get(dst, []):
             out += self._follow(origin, nxt, factor, offset, has, suppress, hops)
         if dst[1] == "" and self.walker.system_connectors[dst].kind == "output":
-            self.system_outputs[dst[2]] = SystemOutput(dst[2], origin[1], origin[2], factor, offset,
+            self.system_outputs[dst[2]] = SystemOutput(dst[2], origin[1], origin[2],
                                                        self.walker.system_connectors[dst].line, self._hops(hops))
         return out
 

@@ -10,15 +10,16 @@ variable's range.
 """
 from __future__ import annotations
 
+from collections.abc import Collection, Sequence
 from dataclasses import replace
 
 from fmpy.model_description import ModelVariable
 
 from .description import ArrayElement, FMUDescription, exchange_type, unit_of
 from .errors import SetupError, did_you_mean
-from .routing import hops_map, unit_step
-from .structure import Hop, OpenConnector, ParameterValue, StartValue, SystemStructure
-from .units import IDENTITY, SystemUnits, UnitScope, conversion, then
+from .routing import hops_map, transformations, unit_step
+from .structure import Hop, OpenConnector, ParameterValue, Plan, StartValue, SystemStructure
+from .units import IDENTITY, SystemUnits, UnitScope, conversion
 
 SETTABLE_CAUSALITIES = ("parameter", "input")
 
@@ -34,7 +35,7 @@ def resolve_parameters(structure: SystemStructure, fmus: dict[str, FMUDescriptio
             _apply_parameter(resolved, name, p.name, p, fmus[name], units)
     system_values = bind_system_connectors(structure, fmus, units, list(structure.parameters) + extra)
     for p in system_values:
-        comp_name, var_name = split_system_name(structure, p)
+        comp_name, var_name = split_system_name(structure.components, p)
         _apply_parameter(resolved, comp_name, var_name, p, fmus[comp_name], units)
     return list(resolved.values())
 
@@ -52,9 +53,7 @@ def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], u
     var = fmus[comp].variable(conn, where, p.file)
     numeric = p.type in ("Real", "Integer")
     if exchange_type(var) != "Real" or not numeric:
-        factor, offset = IDENTITY
-        for hop in hops:
-            factor, offset = then((factor, offset), (hop.factor, hop.offset))
+        factor, offset = transformations(hops)
         if (factor, offset) == IDENTITY:
             return replace(p, name=f"{comp}.{conn}")
         if not numeric:
@@ -110,15 +109,24 @@ def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescri
     return out
 
 
-def split_system_name(structure: SystemStructure, p: ParameterValue) -> tuple[str, str]:
+def check_values(plan: Plan, values: Sequence[ParameterValue]) -> None:
+    """Check values named ``component.variable`` against a plan's FMUs as `resolve_parameters`
+    checks a parameter set applied last (names, causality, types, units, ranges), without
+    building the plan again (`cosim.sweep` checks every swept value before the first run)."""
+    for p in values:
+        comp, var_name = split_system_name(plan.components, p)
+        _apply_parameter({}, comp, var_name, p, plan.fmus[comp], plan.unit_scopes)
+
+
+def split_system_name(components: Collection[str], p: ParameterValue) -> tuple[str, str]:
     """The component and the variable a system-level name ``comp.var`` names (the longest
     component path first: components of nested systems have dotted names)."""
-    for comp in sorted(structure.components, key=len, reverse=True):
+    for comp in sorted(components, key=len, reverse=True):
         if p.name.startswith(comp + "."):
             return comp, p.name[len(comp) + 1:]
     raise SetupError(f"system-level parameter '{p.name}' does not start with a component name "
                      "('component.variable').", file=p.file, element=f"ssv:Parameter (line {p.line})",
-                     variable=p.name, hint=did_you_mean(p.name.rpartition(".")[0], structure.components))
+                     variable=p.name, hint=did_you_mean(p.name.rpartition(".")[0], components))
 
 
 def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue, desc: FMUDescription,

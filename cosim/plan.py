@@ -9,24 +9,38 @@ ModelStructure are refused).
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 from fmpy.model_description import ModelVariable
 
-from .description import FMUDescription, describe, exchange_type
+from .description import FMUDescription, describe, exchange_type, unit_of
 from .errors import SetupError, did_you_mean
 from .graph import feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
 from .parameters import resolve_parameters
-from .routing import connector_unit, hops_map, source_view
-from .solvers import check_model_exchange
-from .structure import Connection, Hop, ParameterValue, Plan, Route, SystemStructure
-from .units import SystemUnits, fmu_units
+from .routing import connector_unit, hops_map, source_view, transformations
+from .solvers import check_model_exchange, solvers_of
+from .structure import (
+    Connection,
+    Experiment,
+    Hop,
+    ParameterValue,
+    Plan,
+    RecordedOutput,
+    Route,
+    ScenarioFiles,
+    SystemStructure,
+)
+from .units import IDENTITY, SystemUnits, fmu_units
 
 
-def build_plan(structure: SystemStructure, extra_parameters: list[ParameterValue] = ()) -> Plan:
-    """Check the structure against the FMUs (already located) and order it."""
+def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
+               extra_parameters: Sequence[ParameterValue] = ()) -> Plan:
+    """Check the structure against its FMUs (``fmu_paths``: `cosim.resources.locate_fmus`) and
+    order it; ``extra_parameters`` are applied last (command-line parameter sets).  Nothing
+    given is changed."""
     file = str(structure.ssd_file)
-    fmus = {name: describe(comp.fmu_path, f"ssd:Component '{name}' (line {comp.line})", file,
+    fmus = {name: describe(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})", file,
                            comp.implementation)
             for name, comp in structure.components.items()}
     check_model_exchange(structure, fmus)
@@ -35,16 +49,23 @@ def build_plan(structure: SystemStructure, extra_parameters: list[ParameterValue
     outputs, inputs = _check_connectors(structure, fmus, units)
     routes = _check_connections(structure, fmus, units)
     start_values = resolve_parameters(structure, fmus, list(extra_parameters), units)
-    _check_system_outputs(structure, outputs, units)
+    system_outputs = _system_outputs(structure, outputs, units)
+    recorded_units = _recorded_units(structure, outputs, inputs, system_outputs)
     dependencies = {name: desc.output_dependencies for name, desc in fmus.items()}
     order = variable_order(routes, {c: [v.name for v in vs] for c, vs in outputs.items()}, dependencies,
                            file)
     feedthrough = feedthrough_sequence(order, routes, dependencies)
     read_once, set_once = settling_shortcuts(feedthrough, routes)
-    return Plan(structure=structure, fmus=fmus, routes=routes, start_values=start_values,
-                outputs=outputs, inputs=inputs, feedthrough_sequence=feedthrough,
-                read_in_settling_only=read_once, set_in_settling_only=set_once,
-                gauss_seidel_order=gauss_seidel_order(list(structure.components), routes))
+    return Plan(structure=structure, name=structure.name, system_name=structure.system_name,
+                files=ScenarioFiles(structure.ssd_file, structure.base_dir, structure.archive),
+                experiment=Experiment(structure.start_time, structure.stop_time, structure.step_size,
+                                      structure.step_size_source, structure.algorithm),
+                components=dict(structure.components), fmus=fmus, solvers=solvers_of(structure, fmus),
+                routes=routes, start_values=start_values, outputs=outputs, inputs=inputs,
+                feedthrough_sequence=feedthrough, read_in_settling_only=read_once, set_in_settling_only=set_once,
+                gauss_seidel_order=gauss_seidel_order(list(structure.components), routes),
+                system_outputs=system_outputs, columns=_columns(structure, outputs, inputs),
+                units=recorded_units, unit_scopes=units)
 
 
 
@@ -154,28 +175,62 @@ def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], eleme
     return fmus[element].variable(connector, where, file)
 
 
-def _check_system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
-                          units: SystemUnits) -> None:
+def _system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
+                    units: SystemUnits) -> dict[str, RecordedOutput]:
     """Each root-system output connector is an alias of a recorded component output (cosim.flatten).
 
     A Real one is recorded as the root connector's value: the output, read in its FMU's unit,
-    taken hop by hop to the root connector's unit (`cosim.routing.hops_map`; the connector's own unit if it
-    declares one, else the unit carried along the path)."""
+    taken hop by hop to the root connector's unit (`cosim.routing.hops_map`; the connector's own
+    unit if it declares one, else the unit carried along the path)."""
     file = str(structure.ssd_file)
-    for out in list(structure.system_outputs.values()):
+    recorded: dict[str, RecordedOutput] = {}
+    for out in structure.system_outputs.values():
         where = f"ssd:Connector '{out.name}' of the root system (line {out.line})"
         var = next((v for v in outputs[out.component] if v.name == out.connector), None)
         if var is None:
             raise SetupError(f"it is driven by {out.component}.{out.connector}, which is not an output "
                              "connector of that component.", file=file, element=where, variable=out.name)
-        if (out.factor, out.offset) != (1.0, 0.0) and exchange_type(var) != "Real":
+        if transformations(out.hops) != IDENTITY and exchange_type(var) != "Real":
             raise SetupError(f"a LinearTransformation applies to Real connections only; "
                              f"{out.component}.{out.connector} is {var.type}.", file=file, element=where,
                              variable=out.name)
         if any(f"{c}.{v.name}" == out.name for c, vs in outputs.items() for v in vs):
             raise SetupError(f"the name clashes with the component output {out.name} in the results.",
                              file=file, element=where, variable=out.name)
+        factor, offset = IDENTITY
         if exchange_type(var) == "Real":
             factor, offset = hops_map(structure, units, out.hops,
-                                       source_view(structure, units, (out.component, var), where), None, where)
-            structure.system_outputs[out.name] = replace(out, factor=factor, offset=offset)
+                                      source_view(structure, units, (out.component, var), where), None, where)
+        declared = [u for hop in out.hops for u in (hop.start_unit, hop.end_unit) if u]
+        unit = declared[-1] if declared else _unit(structure, out.component, var)
+        recorded[out.name] = RecordedOutput(out.name, out.component, out.connector, factor, offset, unit)
+    return recorded
+
+
+# --------------------------------------------------------------------------- recording
+
+def _columns(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
+             inputs: dict[str, list[ModelVariable]]) -> list[str]:
+    """The recorded connectors component by component in SSD order, connectors as each component
+    lists them: every output and input but String ones (exchanged, not recorded)."""
+    columns = []
+    for name, comp in structure.components.items():
+        recorded = {v.name for v in outputs[name] + inputs[name] if exchange_type(v) != "String"}
+        columns += [f"{name}.{conn}" for conn in comp.connectors if conn in recorded]
+    return columns
+
+
+def _recorded_units(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
+                    inputs: dict[str, list[ModelVariable]],
+                    system_outputs: dict[str, RecordedOutput]) -> dict[str, str | None]:
+    units = {f"{comp}.{v.name}": _unit(structure, comp, v) for comp in outputs for v in outputs[comp] + inputs[comp]}
+    units.update({name: out.unit for name, out in system_outputs.items()})
+    return units
+
+
+def _unit(structure: SystemStructure, comp: str, var: ModelVariable) -> str | None:
+    """A recorded connector's unit: its FMU variable's own (values are recorded as the FMU
+    computes or receives them, after any unit conversion of the connection), else the unit the
+    SSD connector gives a variable without one (`cosim.routing.connector_unit`); None: no unit."""
+    declared = structure.components[comp].connectors.get(var.name)
+    return unit_of(var) or (declared.unit if declared is not None else None)

@@ -118,3 +118,12 @@ def hops_map(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, ..
         result = then(result, (hop.factor, hop.offset))
         name, scope = end_name, end_scope
     return then(result, from_view)
+
+
+def transformations(hops: tuple[Hop, ...]) -> Affine:
+    """The LinearTransformations along a path composed, without any unit conversion: what a value
+    that has no unit (not Real) goes through."""
+    result = IDENTITY
+    for hop in hops:
+        result = then(result, (hop.factor, hop.offset))
+    return result

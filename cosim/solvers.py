@@ -23,6 +23,12 @@ def solver_settings(desc: FMUDescription, options: SolverOptions | None = None) 
     return SolverSettings(method="CVode (BDF)", rtol=rtol, max_step=options.max_step if options else None)
 
 
+def solvers_of(structure: SystemStructure, fmus: dict[str, FMUDescription]) -> dict[str, SolverSettings]:
+    """The solver settings of every component the master integrates (kind ``fmi2-me``)."""
+    return {name: solver_settings(desc, structure.components[name].solver)
+            for name, desc in fmus.items() if desc.kind == "fmi2-me"}
+
+
 def check_model_exchange(structure: SystemStructure, fmus: dict[str, FMUDescription]) -> None:
     """What can be checked before instantiation: an ``org.greyfmu.solver`` annotation only on a
     component the master integrates (a Co-Simulation FMU integrates itself: refused rather than

@@ -18,7 +18,7 @@ from pathlib import Path
 from fmpy.model_description import ModelVariable
 
 from .description import FMUDescription, exchange_type
-from .units import Unit
+from .units import SystemUnits, Unit
 
 
 # --------------------------------------------------------------------------- as read (cosim.ssp)
@@ -53,7 +53,6 @@ class Component:
     line: int
     connectors: dict[str, Connector] = field(default_factory=dict)
     parameters: list[ParameterValue] = field(default_factory=list)
-    fmu_path: Path | None = None
     #: SSP 1.0 Component ``implementation``: "any", "CoSimulation" or "ModelExchange" (the
     #: interface the master drives; cosim.description.describe checks the FMU has it)
     implementation: str = "any"
@@ -160,16 +159,12 @@ class Hop:
 
 @dataclass
 class SystemOutput:
-    """A root-system output connector, recorded as ``factor·component.connector + offset``.
-
-    As flattened, ``factor``/``offset`` compose the transformations of ``hops`` only;
-    `cosim.plan` replaces them by the per-hop composition with the unit conversions, from
-    the FMU variable's unit to the root connector's (`Hop`)."""
+    """A root-system output connector: an alias of the component output that drives it
+    through ``hops``; `cosim.plan` composes them, with the unit conversions, into the
+    plan's `RecordedOutput`."""
     name: str
     component: str
     connector: str
-    factor: float
-    offset: float
     line: int
     hops: tuple[Hop, ...] = ()
 
@@ -267,10 +262,62 @@ class StartValue:
     origin: str
 
 
+@dataclass(frozen=True)
+class ScenarioFiles:
+    """Where a scenario was read from."""
+    ssd_file: Path
+    #: the SSD's folder (inside an .ssp archive: the extraction folder)
+    base_dir: Path
+    archive: Path | None
+
+    @property
+    def source(self) -> Path:
+        """What the user gave: the archive, else the SSD."""
+        return self.archive or self.ssd_file
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """The SSD's ``ssd:DefaultExperiment`` and step-size annotation (None where it gives none)."""
+    start_time: float | None
+    stop_time: float | None
+    step_size: float | None
+    #: which annotation gave the step size
+    step_size_source: str | None
+    algorithm: str | None
+
+
+@dataclass(frozen=True)
+class RecordedOutput:
+    """A root-system output connector as recorded: ``factor·component.connector + offset``,
+    the per-hop composition of unit conversions and LinearTransformations from the FMU
+    variable's unit to the root connector's (`cosim.routing.hops_map`)."""
+    name: str
+    component: str
+    connector: str
+    factor: float
+    offset: float
+    #: the last unit a system connector declares on the way, else the source's
+    unit: str | None
+
+
 @dataclass
 class Plan:
+    """Everything a run needs, checked against the FMUs (`cosim.plan.build_plan`): execution,
+    recording, packing and sweeps take what they need from here."""
+    #: the flattened structure the plan was built from: for `cosim info`, and it owns the
+    #: extraction folder of an .ssp archive (`close`)
     structure: SystemStructure
+    name: str | None
+    #: the root system's name (result names are paths relative to it)
+    system_name: str
+    files: ScenarioFiles
+    experiment: Experiment
+    #: the flattened components, by path, in SSD order
+    components: dict[str, Component]
     fmus: dict[str, FMUDescription]
+    #: how the master integrates each Model Exchange component (`cosim.solvers`)
+    solvers: dict[str, SolverSettings]
     routes: list[Route]
     start_values: list[StartValue]
     #: per component, the connector variables recorded and exchanged, in SSD order
@@ -281,6 +328,15 @@ class Plan:
     feedthrough_sequence: list[str]
     #: Gauss-Seidel order: upstream first, SSD order inside a loop
     gauss_seidel_order: list[str]
+    #: root-system output connectors, recorded after the component connectors
+    system_outputs: dict[str, RecordedOutput]
+    #: the recorded connectors of the components in result-column order: component by component
+    #: in SSD order, connectors as each component lists them
+    columns: list[str]
+    #: each recorded signal's unit (None: no unit)
+    units: dict[str, str | None]
+    #: where unit names are looked up (`cosim.parameters.check_values`)
+    unit_scopes: SystemUnits
     #: components of the feedthrough sequence whose outputs nobody reads before the settling
     #: re-reads them: the exchange skips their first read (`cosim.graph.settling_shortcuts`)
     read_in_settling_only: set[str] = field(default_factory=set)
@@ -294,4 +350,8 @@ class Plan:
         (`cosim.execution.Execution.recorder_sources`)."""
         def names(group: dict[str, list[ModelVariable]]) -> list[str]:
             return [f"{c}.{v.name}" for c, vs in group.items() for v in vs if exchange_type(v) != "String"]
-        return names(self.outputs) + list(self.structure.system_outputs), names(self.inputs)
+        return names(self.outputs) + list(self.system_outputs), names(self.inputs)
+
+    def close(self) -> None:
+        """Remove the extraction folder of an .ssp archive (its FMUs are run from there)."""
+        self.structure.close()

@@ -17,7 +17,7 @@ its result files; change anything and the id changes.
 
 Values go in the way ``--param-set`` values do (SSP 1.0 parameter precedence: applied
 last, beating component- and system-level bindings), and every name and value is checked
-by the master's own validation (`cosim.plan.build_plan`) before the first run starts.
+by the master's own validation (`cosim.parameters.check_values`) before the first run starts.
 Runs go to a local process pool (``spawn`` start method: FMUs loaded in the parent are
 never forked), run serially in this process, or go to a Dask distributed cluster; Dask
 workers must see the scenario and the output folder at the same paths.
@@ -43,8 +43,7 @@ import numpy as np
 from .errors import CosimError, SetupError, did_you_mean
 from .description import exchange_type
 from .metrics import METRICS, step_metrics
-from .parameters import split_system_name
-from .plan import build_plan
+from .parameters import check_values, split_system_name
 from .safeio import max_unpacked_bytes, unpack_limit
 from .simulation import Prepared, prepare, run
 from .ssp import NS
@@ -182,7 +181,7 @@ class _Run:
 def _variable(prepared: Prepared, name: str):
     """The FMU variable behind ``comp.var``, or the master's own message for an unknown name."""
     p = ParameterValue(name, "Real", 0.0, SOURCE, 0)
-    comp, var = split_system_name(prepared.plan.structure, p)
+    comp, var = split_system_name(prepared.plan.components, p)
     return prepared.plan.fmus[comp].variable(var, f"--set {name}", SOURCE)
 
 
@@ -194,7 +193,7 @@ def _seed_parameters(prepared: Prepared, named: Sequence[str]) -> list[str]:
     if not found:
         raise SetupError("--seeds given, but no component of the scenario has a parameter named 'seed'; "
                          "name the parameter to set with --seed-parameter COMPONENT.VARIABLE.",
-                         file=str(prepared.plan.structure.ssd_file), element="--seeds")
+                         file=str(prepared.plan.files.ssd_file), element="--seeds")
     return found
 
 
@@ -204,11 +203,11 @@ def _digest(path: Path) -> str:
 
 def _identity(prepared: Prepared, parameter_sets: Sequence[Path]) -> dict:
     """Everything outside the swept values that decides a run's result."""
-    structure = prepared.plan.structure
-    if structure.archive is not None:
-        files = {structure.archive.name: _digest(structure.archive)}
+    scenario = prepared.plan.files
+    if scenario.archive is not None:
+        files = {scenario.archive.name: _digest(scenario.archive)}
     else:
-        files = {p.name: _digest(p) for p in sorted(structure.base_dir.iterdir())
+        files = {p.name: _digest(p) for p in sorted(scenario.base_dir.iterdir())
                  if p.suffix.lower() in (".ssd", ".ssv") and p.is_file()}
     grid = prepared.grid
     return {"scenario": files,
@@ -243,7 +242,7 @@ def _plan_runs(prepared: Prepared, sets: Mapping[str, Sequence[Value]], seeds: S
     every = [ParameterValue(name, types[name], v, SOURCE, 0) for name, vs in typed.items() for v in vs]
     every += [ParameterValue(name, types[name], _typed(s, types[name], name)[0], "cosim sweep --seeds", 0)
               for name in seed_names for s in seeds]
-    build_plan(prepared.plan.structure, every)      # the master's messages for names, types, ranges
+    check_values(prepared.plan, every)      # the master's messages for names, types, ranges
     runs = []
     for index, combo in enumerate(product(*typed.values(), *([seeds] if seeds else []))):
         values = dict(zip(typed, combo))
