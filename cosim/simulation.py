@@ -2,8 +2,9 @@
 
 `prepare` does everything that can fail before an FMU is instantiated: `validate`
 (read, locate the FMUs, build the `cosim.structure.Plan`) and `resolve_grid` (the
-time grid and algorithm from the arguments and the SSD); `simulate` runs a prepared system and returns the samples as a NumPy structured
-array (like ``fmpy.simulate_fmu``), writing them to a CSV as it goes if asked.
+time grid and algorithm from the arguments and the SSD); `simulate` runs a prepared
+system and returns the samples as a NumPy structured array (like ``fmpy.simulate_fmu``),
+writing them to a CSV as it goes if asked.
 """
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ import collections
 import os
 import sys
 from collections.abc import Callable, Mapping
-from typing import Literal, Protocol
+from typing import Literal, Protocol, runtime_checkable
 
 from fmpy.model_description import ModelVariable
 
@@ -30,6 +30,7 @@ StepFunction = Callable[..., int]
 ExchangeFunction = Callable[..., int]
 
 
+@runtime_checkable
 class Instance(Protocol):
     """One live FMU as the execution drives it (`cosim.execution`).
 
