@@ -91,11 +91,13 @@ def flatten(raw: RawStructure) -> SystemStructure:
     parameters = [p for _, values in sorted(walker.parameters, key=lambda dp: -dp[0]) for p in values]
     resolver = _Resolver(file, walker)
     connections = walker.direct + resolver.routes()
-    return SystemStructure(name=raw.name, system_name=raw.root.name, ssd_file=raw.ssd_file,
-                           base_dir=raw.base_dir, components=walker.components, connections=connections,
-                           parameters=parameters, start_time=raw.start_time, stop_time=raw.stop_time,
-                           step_size=raw.step_size, step_size_source=raw.step_size_source,
-                           algorithm=raw.algorithm, units=raw.units, archive=raw.archive, _tmp=raw._tmp,
+    files, experiment = raw.files, raw.experiment
+    return SystemStructure(name=raw.name, system_name=raw.root.name, ssd_file=files.ssd_file,
+                           base_dir=files.base_dir, components=walker.components, connections=connections,
+                           parameters=parameters, start_time=experiment.start_time,
+                           stop_time=experiment.stop_time, step_size=experiment.step_size,
+                           step_size_source=experiment.step_size_source, algorithm=experiment.algorithm,
+                           units=raw.units, archive=files.archive, _tmp=raw._tmp,
                            hierarchy=hierarchy, system_outputs=resolver.system_outputs,
                            open_connectors=resolver.open_connectors,
                            driven_connectors={node_name(n) for n in resolver.driver})

@@ -32,9 +32,11 @@ from .structure import (
     Component,
     Connection,
     Connector,
+    Experiment,
     ParameterValue,
     RawStructure,
     RawSystem,
+    ScenarioFiles,
     SolverOptions,
     SystemStructure,
 )
@@ -114,7 +116,7 @@ def _read_archive(path: Path, max_unpacked_bytes: int | None = None) -> RawStruc
     except BaseException:
         tmp.cleanup()
         raise
-    return replace(structure, archive=path, _tmp=tmp)
+    return replace(structure, files=replace(structure.files, archive=path), _tmp=tmp)
 
 
 _schemas: dict[str, etree.XMLSchema] = {}
@@ -154,9 +156,9 @@ def _read_ssd(path: Path, display: str | None = None) -> RawStructure:
         start = _float_attr(experiment, "startTime", display)
         stop = _float_attr(experiment, "stopTime", display)
     step, step_source, algorithm = _read_step_annotations(root, display)
-    return RawStructure(name=root.get("name"), ssd_file=path, display=display, base_dir=base_dir,
-                        root=_read_system(system, base_dir, display), start_time=start, stop_time=stop,
-                        step_size=step, step_size_source=step_source, algorithm=algorithm,
+    return RawStructure(name=root.get("name"), files=ScenarioFiles(path, base_dir, None), display=display,
+                        root=_read_system(system, base_dir, display),
+                        experiment=Experiment(start, stop, step, step_source, algorithm),
                         units=read_units(root.find("ssd:Units", NS), display))
 
 

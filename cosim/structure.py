@@ -182,25 +182,45 @@ class OpenConnector:
     unit: str | None = None
 
 
+@dataclass(frozen=True)
+class ScenarioFiles:
+    """Where a scenario was read from."""
+    ssd_file: Path
+    #: the SSD's folder (inside an .ssp archive: the extraction folder)
+    base_dir: Path
+    archive: Path | None
+
+    @property
+    def source(self) -> Path:
+        """What the user gave: the archive, else the SSD."""
+        return self.archive or self.ssd_file
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """The SSD's ``ssd:DefaultExperiment`` and step-size annotation (None where it gives none)."""
+    start_time: float | None
+    stop_time: float | None
+    step_size: float | None
+    #: which annotation gave the step size
+    step_size_source: str | None
+    algorithm: str | None
+
+
 @dataclass
 class RawStructure:
     """An SSD as read (`cosim.ssp.read`): the root system with its nesting and local names,
     the default experiment and the SSD's units; `cosim.flatten.flatten` makes it a
     `SystemStructure`."""
     name: str
-    ssd_file: Path
+    files: ScenarioFiles
     #: the SSD as messages name it (``archive.ssp!SystemStructure.ssd`` inside an archive)
     display: str
-    base_dir: Path
     root: RawSystem
-    start_time: float | None
-    stop_time: float | None
-    step_size: float | None
-    step_size_source: str | None
-    algorithm: str | None
+    experiment: Experiment
     #: the SSD's top-level ``ssd:Units`` (SSP 1.0 SystemStructureDescription.xsd)
-    units: dict[str, Unit] = field(default_factory=dict)
-    archive: Path | None = None
+    units: dict[str, Unit]
+    #: the extraction folder of an .ssp archive
     _tmp: tempfile.TemporaryDirectory | None = field(default=None, repr=False)
 
 
@@ -260,31 +280,6 @@ class StartValue:
     variable: ModelVariable
     value: float | int | bool | str
     origin: str
-
-
-@dataclass(frozen=True)
-class ScenarioFiles:
-    """Where a scenario was read from."""
-    ssd_file: Path
-    #: the SSD's folder (inside an .ssp archive: the extraction folder)
-    base_dir: Path
-    archive: Path | None
-
-    @property
-    def source(self) -> Path:
-        """What the user gave: the archive, else the SSD."""
-        return self.archive or self.ssd_file
-
-
-@dataclass(frozen=True)
-class Experiment:
-    """The SSD's ``ssd:DefaultExperiment`` and step-size annotation (None where it gives none)."""
-    start_time: float | None
-    stop_time: float | None
-    step_size: float | None
-    #: which annotation gave the step size
-    step_size_source: str | None
-    algorithm: str | None
 
 
 @dataclass(frozen=True)

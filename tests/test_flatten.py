@@ -9,7 +9,16 @@ import pytest
 
 from cosim.errors import SetupError
 from cosim.flatten import flatten
-from cosim.structure import Component, Connection, Connector, ParameterValue, RawStructure, RawSystem
+from cosim.structure import (
+    Component,
+    Connection,
+    Connector,
+    Experiment,
+    ParameterValue,
+    RawStructure,
+    RawSystem,
+    ScenarioFiles,
+)
 
 
 def connector(name: str, kind: str, unit: str | None = None) -> Connector:
@@ -34,9 +43,8 @@ def system(name: str, components=(), systems=(), connections=(), connectors=(), 
 
 
 def raw(root: RawSystem) -> RawStructure:
-    return RawStructure(name="test", ssd_file=Path("x.ssd"), display="x.ssd", base_dir=Path("."), root=root,
-                        start_time=0.0, stop_time=1.0, step_size=0.1, step_size_source="annotation",
-                        algorithm=None)
+    return RawStructure(name="test", files=ScenarioFiles(Path("x.ssd"), Path("."), None), display="x.ssd",
+                        root=root, experiment=Experiment(0.0, 1.0, 0.1, "annotation", None), units={})
 
 
 def loop_in_a_subsystem() -> RawStructure:
