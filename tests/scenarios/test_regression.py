@@ -26,9 +26,9 @@ import pytest
 from cosim import ssp
 from peers import gemseo_fmu_dir
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = sorted(p.name for p in (ROOT / "ssp").iterdir() if (p / "SystemStructure.ssd").is_file())
-PARAMS = Path(__file__).resolve().parent / "references" / "params"
+PARAMS = Path(__file__).resolve().parents[1] / "references" / "params"
 
 RTOL, ATOL = 1e-9, 1e-9
 
