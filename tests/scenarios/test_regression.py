@@ -4,7 +4,7 @@
 Runs are shortened to the first few hundred steps around the scenario's first setpoint or load change, so
 the whole file runs in well under a minute (table `RUNS`).  Rewrite the references after an intended change:
 
-    python -m pytest tests/test_regression.py --cosim-update-references
+    python -m pytest tests/scenarios/test_regression.py --cosim-update-references
 
 Tolerances.  The runs are deterministic: fixed-step master, plants integrated with fixed steps (exact ZOH,
 RK4 sub-steps), noise sources seeded in the SSD; on one machine two runs agree bit for bit.  The references
