@@ -135,14 +135,14 @@ def _run(args) -> int:
     prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
                        algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir)
     try:
-        structure = prepared.plan.structure
-        name = structure.name or Path(args.path).stem
+        plan = prepared.plan
+        name = plan.name or Path(args.path).stem
         output = Path(args.output or Path("results") / f"{name}.csv")
-        outputs, inputs = prepared.plan.recorded()
+        outputs, inputs = plan.recorded()
         panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
                   else [[n] for n in outputs])
         grid = prepared.grid
-        print(f"cosim: {name}: {len(structure.components)} FMUs, {len(prepared.plan.routes)} connections, "
+        print(f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
               f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
               f"{prepared.algorithm}")
         try:
@@ -163,9 +163,7 @@ def _run(args) -> int:
 
 
 def _validate(args) -> int:
-    from .simulation import prepare
-
-    prepared = _prepare_without_grid(args, prepare)
+    prepared = _prepare_with_placeholder_grid(args)
     plan = prepared.plan
     print(f"cosim: {args.path}: valid — {len(plan.fmus)} FMUs, {len(plan.routes)} connections, "
           f"{len(plan.start_values)} parameter values; step {prepared.grid.step:g} s ({prepared.step_source})")
@@ -173,38 +171,40 @@ def _validate(args) -> int:
     return 0
 
 
-def _prepare_without_grid(args, prepare):
-    """validate/info/pack need no step: fall back to a placeholder grid when the SSD has none."""
+def _prepare_with_placeholder_grid(args):
+    """validate/info/pack need no grid, but check the SSD's: a stop time and step size the SSD
+    does not give are placeholders (a stop 1 s after the start, a step of 1 s)."""
+    from .simulation import resolve_grid, validate
+
+    plan = validate(args.path, fmu_dirs=args.fmu_dir)
+    experiment = plan.experiment
     try:
-        return prepare(args.path, fmu_dirs=args.fmu_dir)
-    except SetupError as e:
-        if not e.detail.startswith(("no step size", "no stop time")):
-            raise
-        return prepare(args.path, fmu_dirs=args.fmu_dir, step_size=1.0, stop_time=1.0)
+        return resolve_grid(plan, stop_time=(experiment.start_time or 0.0) + 1.0 if experiment.stop_time is None
+                            else None, step_size=1.0 if experiment.step_size is None else None)
+    except BaseException:
+        plan.close()
+        raise
 
 
 def _info(args) -> int:
-    from .me import solver_settings
-    from .simulation import prepare
-
-    prepared = _prepare_without_grid(args, prepare)
+    prepared = _prepare_with_placeholder_grid(args)
     plan = prepared.plan
-    s = plan.structure
-    print(f"system {s.name!r} ({s.ssd_file})")
-    print(f"  experiment: start {s.start_time}, stop {s.stop_time}, step {s.step_size} "
-          f"({s.step_size_source or 'none in the SSD'}), algorithm {s.algorithm or 'jacobi'}")
-    if s.hierarchy is not None and (s.hierarchy.systems or s.hierarchy.connectors):
-        print(f"hierarchy (names are paths relative to the root system '{s.system_name}'):")
-        _print_system(s.hierarchy, 1)
-        for o in s.system_outputs.values():
+    e, hierarchy = plan.experiment, plan.structure.hierarchy
+    print(f"system {plan.name!r} ({plan.files.ssd_file})")
+    print(f"  experiment: start {e.start_time}, stop {e.stop_time}, step {e.step_size} "
+          f"({e.step_size_source or 'none in the SSD'}), algorithm {e.algorithm or 'jacobi'}")
+    if hierarchy is not None and (hierarchy.systems or hierarchy.connectors):
+        print(f"hierarchy (names are paths relative to the root system '{plan.system_name}'):")
+        _print_system(hierarchy, 1)
+        for o in plan.system_outputs.values():
             tf = f" (x{o.factor:g} {o.offset:+g})" if (o.factor, o.offset) != (1.0, 0.0) else ""
             print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}")
     print("components:")
     for name, desc in plan.fmus.items():
         print(f"  {name}: {desc.path.name} (FMI {desc.md.fmiVersion}, {desc.md.generationTool}, "
               f"GUID {desc.md.guid})")
-        solver = solver_settings(desc, s.components[name].solver) if desc.kind == "fmi2-me" else None
-        print(f"    interface {desc.kind} (implementation=\"{s.components[name].implementation}\")"
+        solver = plan.solvers.get(name)
+        print(f"    interface {desc.kind} (implementation=\"{plan.components[name].implementation}\")"
               + (f", integrated by the master: {solver.method}, rtol {solver.rtol:g}, max step "
                  f"{solver.as_dict()['max_step']}" if solver else ""))
         for v in plan.inputs[name] + plan.outputs[name]:
@@ -234,9 +234,8 @@ def _print_system(node, depth: int) -> None:
 
 def _pack(args) -> int:
     from .pack import pack
-    from .simulation import prepare
 
-    prepared = _prepare_without_grid(args, prepare)
+    prepared = _prepare_with_placeholder_grid(args)
     try:
         out = pack(prepared.plan, Path(args.output))
     finally:

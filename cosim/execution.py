@@ -30,12 +30,12 @@ from functools import cached_property
 import numpy as np
 
 from .errors import RunError, SetupError
-from .fmu import STATUS, FMUDescription, Instance, Unzipped, exchange_type, open_instance
-from .graph import Plan
-from .me import solver_settings
+from .description import FMUDescription, exchange_type
+from .instances import STATUS, Instance, Unzipped, open_instance
+from .structure import Plan
 from .observers import Recorder
 
-#: exchange types (`cosim.fmu.exchange_type`) and their buffers' C types, as fmi2 declares them
+#: exchange types (`cosim.description.exchange_type`) and their buffers' C types, as fmi2 declares them
 TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p}
 ALGORITHMS = ("jacobi", "gauss-seidel")
 FMI_WARNING, FMI_DISCARD = 1, 2
@@ -157,7 +157,7 @@ class Execution:
         self.grid = grid
         self.algorithm = algorithm
         self.fmu_log = fmu_log
-        self.order = list(plan.structure.components)
+        self.order = list(plan.components)
         self.typed = [_Typed(plan, t, self.order) for t in TYPES
                       if any(exchange_type(v) == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
         self.instances: dict[str, Instance] = {}
@@ -172,7 +172,7 @@ class Execution:
     def instantiate(self) -> None:
         for name in self.order:
             desc = self.plan.fmus[name]
-            inst = open_instance(name, desc, self._unzipped(desc.path), self.plan.structure.components[name].solver)
+            inst = open_instance(name, desc, self._unzipped(desc.path), self.plan.solvers.get(name))
             self.instances[name] = inst
             inst.instantiate(self.fmu_log)
         self._compile_calls()
@@ -211,7 +211,7 @@ class Execution:
             self._guard(name, t0, "entering initialization mode", inst.enter_initialization_mode)
         for comp in self.order:  # unconnected inputs keep the FMU's (or the binding's) start value
             for call in self._get_inputs[comp]:
-                self._check(call[0](*call[1:]), comp, t0, "fmi2Get (inputs)")
+                self._check(call[0](*call[1:]), comp, t0, "Get (inputs)")
         self._exchange(t0)
         for name, inst in self.instances.items():
             self._guard(name, t0, "exiting initialization mode", inst.exit_initialization_mode)
@@ -229,14 +229,14 @@ class Execution:
                            element=f"component '{comp}' ({inst.desc.path.name})") from None
 
     def _check(self, status: int, comp: str, t: float, what: str) -> None:
+        """Raise for a status above Warning; ``what`` is the FMI function without its API prefix
+        ("DoStep", "Get"), which the instance gives (`cosim.instances.Instance.api`)."""
         if status > FMI_WARNING:
             inst = self.instances[comp]
             if status >= 3:
                 inst.failed = STATUS.get(status, "Fatal")
-            if inst.desc.kind == "fmi3-cs":  # the call names are written as fmi2's in the hot loop
-                what = what.replace("fmi2", "fmi3", 1)
-            raise RunError(f"{what} returned {STATUS.get(status, status)} at t = {t:g}.{inst.last_messages()}",
-                           time=t, component=comp, status=status,
+            raise RunError(f"{inst.api}{what} returned {STATUS.get(status, status)} at t = {t:g}."
+                           f"{inst.last_messages()}", time=t, component=comp, status=status,
                            element=f"component '{comp}' ({inst.desc.path.name})")
 
     # ----------------------------------------------------------------- exchange
@@ -246,19 +246,19 @@ class Execution:
         for fn, c, vr, n, ptr, comp in self._all_get:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
-                self._check(s, comp, t, "fmi2Get")
+                self._check(s, comp, t, "Get")
         for comp in self.plan.feedthrough_sequence:
             self._route_into(comp, t)
             for fn, c, vr, n, ptr in self._get[comp]:
                 s = fn(c, vr, n, ptr)
                 if s > FMI_WARNING:
-                    self._check(s, comp, t, "fmi2Get")
+                    self._check(s, comp, t, "Get")
         for ty in self.typed:
             ty.route()
         for fn, c, vr, n, ptr, comp in self._all_set:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
-                self._check(s, comp, t, "fmi2Set")
+                self._check(s, comp, t, "Set")
 
     def _route_into(self, comp: str, t: float) -> None:
         for ty in self.typed:
@@ -266,7 +266,7 @@ class Execution:
         for fn, c, vr, n, ptr in self._set[comp]:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
-                self._check(s, comp, t, "fmi2Set")
+                self._check(s, comp, t, "Set")
 
     # ----------------------------------------------------------------- stepping
 
@@ -329,7 +329,7 @@ class Execution:
             for fn, cc, vr, n, ptr in self._get[name]:
                 s = fn(cc, vr, n, ptr)
                 if s > FMI_WARNING:
-                    self._check(s, name, t_next, "fmi2Get")
+                    self._check(s, name, t_next, "Get")
         return False
 
     def _step_status(self, status: int, comp: str, t: float) -> bool:
@@ -339,12 +339,11 @@ class Execution:
         inst = self.instances[comp]
         if status == FMI_DISCARD:
             self.status = "discarded"
-            step = "fmi3DoStep" if inst.desc.kind == "fmi3-cs" else "fmi2DoStep"
-            self.message = (f"component '{comp}' ({inst.desc.path.name}) returned Discard from {step} at "
+            self.message = (f"component '{comp}' ({inst.desc.path.name}) returned Discard from {inst.api}DoStep at "
                             f"t = {t:g}; the run ended at the last good time {self.last_time:g}."
                             f"{inst.last_messages()}")
             return True
-        self._check(status, comp, t, "fmi2DoStep")
+        self._check(status, comp, t, "DoStep")
         return False
 
     def close(self) -> None:
@@ -354,8 +353,8 @@ class Execution:
 
     def _component_metadata(self, name: str, d: FMUDescription) -> dict:
         meta = {"fmu": str(d.path), "guid": d.md.guid, "generation_tool": d.md.generationTool, "interface": d.kind}
-        if d.kind == "fmi2-me":  # integrated by the master (cosim.me)
-            meta["solver"] = solver_settings(d, self.plan.structure.components[name].solver).as_dict()
+        if d.kind == "fmi2-me":  # integrated by the master (cosim.instances.me)
+            meta["solver"] = self.plan.solvers[name].as_dict()
         return meta
 
     def metadata(self) -> dict:

@@ -15,7 +15,7 @@ output → system connector → … → system connector → input into one dire
 connection between the two components, at any depth, keeping the connections on
 the way (`Hop`, with the units their system connectors declare): SSP 1.0
 converts units and then applies the ``ssc:LinearTransformation`` on each
-connection, so `cosim.graph` composes them hop by hop into one affine map.
+connection, so `cosim.routing` composes them hop by hop into one affine map.
 Names are paths relative to the root system: component ``ctrl`` of subsystem ``loop`` is ``loop.ctrl``; the root system's own
 components keep their plain names, and the root system's name goes to the run
 metadata, not into every column.
@@ -28,7 +28,7 @@ System connectors are handled explicitly, never dropped:
   system: ``r`` on the root, ``loop.r`` from the root or ``r`` on ``loop``), which
   becomes the start value of every input or parameter it reaches (hop by hop,
   like a connection) — a constant input.  Without a value it is refused
-  (`bind_system_connectors`, run when all parameter sets are known);
+  (`cosim.parameters.bind_system_connectors`, run when all parameter sets are known);
 * root ``output`` connectors are recorded under their own name as an alias of the
   component output driving them (`SystemOutput`); an undriven one is refused;
 * unconnected connectors, and outputs of a nested system that feed nothing,
@@ -37,112 +37,33 @@ System connectors are handled explicitly, never dropped:
 ParameterBindings of a nested system name variables relative to it and are
 prefixed with its path; SSP 1.0 (ParameterBindings) gives bindings at a higher
 level precedence, so the flattened list puts the deepest systems first (later
-bindings win in `cosim.graph`).
+bindings win in `cosim.parameters`).
 """
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 from .errors import SetupError, did_you_mean
-from .ssp import Component, Connection, Connector, ParameterValue
+from .structure import (
+    Component,
+    Connection,
+    Connector,
+    Hop,
+    OpenConnector,
+    ParameterValue,
+    RawStructure,
+    RawSystem,
+    SystemNode,
+    SystemOutput,
+    SystemStructure,
+)
 
 #: Whether a connector is the sending end of a connection, by its kind, seen from the system holding
 #: the connection: on one of its elements (component or subsystem), or on the system itself.
 #: Calculated parameters are not supported through systems (the master does not route parameters).
 _SENDS_AS_ELEMENT = {"output": True, "input": False, "parameter": False}
 _SENDS_AS_OWN = {"input": True, "parameter": True, "output": False}
-
-
-@dataclass
-class RawSystem:
-    """One ``ssd:System`` as read, before flattening: local names, connections with
-    ``start_element``/``end_element`` None where they name this system's own connectors."""
-    name: str
-    line: int
-    connectors: dict[str, Connector]
-    components: dict[str, Component]
-    systems: dict[str, RawSystem]
-    connections: list[Connection]
-    parameters: list[ParameterValue]
-    #: names of the components and systems in document order
-    elements: list[str] = field(default_factory=list)
-
-
-@dataclass
-class SystemNode:
-    """The hierarchy as `cosim info` shows it: full component paths, nested systems."""
-    name: str
-    path: str
-    line: int
-    connectors: list[Connector]
-    components: list[str]
-    systems: list[SystemNode]
-
-
-@dataclass(frozen=True)
-class Hop:
-    """One ``ssd:Connection`` on a path through system connectors.
-
-    SSP 1.0 (SystemStructureDescription.xsd, Connection and its ``suppressUnitConversion``)
-    converts the value on each connection from its start connector's unit to its end
-    connector's unit, then applies that connection's LinearTransformation (only the
-    transformation when ``suppressUnitConversion="true"``).  `cosim.graph` composes the hops in
-    that order; it knows the component ends' units (their FMU variables), this module does not.
-    """
-    line: int
-    #: the system connector at each end (``loop.r``; ``r`` on the root); None where the end is a component
-    start_system: str | None
-    end_system: str | None
-    #: those system connectors' ``ssc:Real unit``; None for a component end or a connector without one
-    start_unit: str | None
-    end_unit: str | None
-    factor: float
-    offset: float
-    has_transformation: bool
-    suppress: bool
-
-
-@dataclass
-class SystemOutput:
-    """A root-system output connector, recorded as ``factor·component.connector + offset``.
-
-    As flattened, ``factor``/``offset`` compose the transformations of ``hops`` only;
-    `cosim.graph` replaces them by the per-hop composition with the unit conversions, from
-    the FMU variable's unit to the root connector's (`Hop`)."""
-    name: str
-    component: str
-    connector: str
-    factor: float
-    offset: float
-    line: int
-    hops: tuple[Hop, ...] = ()
-
-
-@dataclass
-class OpenConnector:
-    """A system connector without a driver that feeds component inputs or parameters;
-    a ParameterBinding naming ``path`` gives it its (constant) value."""
-    path: str
-    kind: str
-    line: int
-    #: (component path, connector name, the connections on the way) reached through the hierarchy
-    sinks: list[tuple[str, str, tuple[Hop, ...]]]
-    #: its ``ssc:Real unit``, if it declares one
-    unit: str | None = None
-
-
-@dataclass
-class Flat:
-    components: dict[str, Component]
-    connections: list[Connection]
-    parameters: list[ParameterValue]
-    hierarchy: SystemNode
-    system_outputs: dict[str, SystemOutput]
-    open_connectors: dict[str, OpenConnector]
-    #: paths of the system connectors that are driven by a connection
-    driven_connectors: set[str]
 
 
 # A node of the connection graph: ("c", component path, connector) or ("s", system path, connector);
@@ -162,17 +83,24 @@ def node_name(node: Node) -> str:
     return f"{node[1]}.{node[2]}" if node[1] else node[2]
 
 
-def flatten(root: RawSystem, file: str) -> Flat:
-    """Resolve the hierarchy under ``root`` into components and component-to-component connections."""
+def flatten(raw: RawStructure) -> SystemStructure:
+    """Resolve the hierarchy of ``raw`` into components and component-to-component connections."""
+    file = raw.display
     walker = _Walker(file)
-    hierarchy = walker.walk(root, "", 0)
+    hierarchy = walker.walk(raw.root, "", 0)
     parameters = [p for _, values in sorted(walker.parameters, key=lambda dp: -dp[0]) for p in values]
     resolver = _Resolver(file, walker)
     connections = walker.direct + resolver.routes()
-    return Flat(components=walker.components, connections=connections, parameters=parameters,
-                hierarchy=hierarchy, system_outputs=resolver.system_outputs,
-                open_connectors=resolver.open_connectors,
-                driven_connectors={node_name(n) for n in resolver.driver})
+    files, experiment = raw.files, raw.experiment
+    return SystemStructure(name=raw.name, system_name=raw.root.name, ssd_file=files.ssd_file,
+                           base_dir=files.base_dir, components=walker.components, connections=connections,
+                           parameters=parameters, start_time=experiment.start_time,
+                           stop_time=experiment.stop_time, step_size=experiment.step_size,
+                           step_size_source=experiment.step_size_source, algorithm=experiment.algorithm,
+                           units=raw.units, archive=files.archive, _tmp=raw._tmp,
+                           hierarchy=hierarchy, system_outputs=resolver.system_outputs,
+                           open_connectors=resolver.open_connectors,
+                           driven_connectors={node_name(n) for n in resolver.driver})
 
 
 class _Walker:
@@ -206,8 +134,7 @@ class _Walker:
                 raise SetupError(f"two components flatten to the same path '{full}'.", file=self.file,
                                  element=f"ssd:Component '{name}' of {label} (line {comp.line})",
                                  hint="Rename one of them; dots in names clash with subsystem paths.")
-            comp.name = full
-            self.components[full] = comp
+            self.components[full] = replace(comp, name=full)
             for cname, conn in comp.connectors.items():
                 self.component_kinds[("c", full, cname)] = conn.kind
         for c in system.connections:
@@ -222,7 +149,7 @@ class _Walker:
         ends = [self._end(system, path, label, element, connector, where)
                 for element, connector in ((c.start_element, c.start_connector), (c.end_element, c.end_connector))]
         if all(node[0] == "c" for node, _ in ends):
-            # component to component: cosim.graph directs and checks it against the FMUs
+            # component to component: cosim.plan directs and checks it against the FMUs
             self.direct.append(Connection(prefix + c.start_element, c.start_connector, prefix + c.end_element,
                                           c.end_connector, c.factor, c.offset, c.has_transformation,
                                           c.suppress_unit_conversion, c.line))
@@ -242,7 +169,7 @@ class _Walker:
     def _end(self, system: RawSystem, path: str, label: str, element: str | None, connector: str,
              where: str) -> tuple[Node, bool | None]:
         """The node and whether it is the sending end; None for a component connector that is not
-        declared, or whose kind has no direction here: the other end decides, cosim.graph checks it."""
+        declared, or whose kind has no direction here: the other end decides, cosim.plan checks it."""
         prefix = f"{path}." if path else ""
         if element is None:
             conn = system.connectors.get(connector)
@@ -346,7 +273,7 @@ class _Resolver:
         for nxt in self.fanout.get(dst, []):
             out += self._follow(origin, nxt, factor, offset, has, suppress, hops)
         if dst[1] == "" and self.walker.system_connectors[dst].kind == "output":
-            self.system_outputs[dst[2]] = SystemOutput(dst[2], origin[1], origin[2], factor, offset,
+            self.system_outputs[dst[2]] = SystemOutput(dst[2], origin[1], origin[2],
                                                        self.walker.system_connectors[dst].line, self._hops(hops))
         return out
 
@@ -380,39 +307,3 @@ class _Resolver:
         if sinks:
             self.open_connectors[node_name(node)] = OpenConnector(node_name(node), conn.kind, conn.line,
                                                               sinks, conn.unit)
-
-
-#: The value a component connector gets from a value given to an open system connector, through
-#: the connections on the way: (value, open connector, component path, connector name, hops).
-Through = Callable[[ParameterValue, OpenConnector, str, str, tuple[Hop, ...]], ParameterValue]
-
-
-def bind_system_connectors(open_connectors: dict[str, OpenConnector], driven: set[str],
-                           values: list[ParameterValue], file: str, through: Through) -> list[ParameterValue]:
-    """Replace each value that names a system connector by values for what it feeds.
-
-    ``through`` takes the value along each path, hop by hop (`cosim.graph`, which knows the
-    FMUs' units).  An open connector that gets no value is refused, naming it and what it
-    feeds; a value for a connector that a connection drives is refused.
-    """
-    out: list[ParameterValue] = []
-    bound: set[str] = set()
-    for p in values:
-        if p.name in driven:
-            raise SetupError(f"'{p.name}' is a system connector driven by a connection; it cannot also be "
-                             "given a value.", file=p.file, element=f"ssv:Parameter (line {p.line})",
-                             variable=p.name)
-        target = open_connectors.get(p.name)
-        if target is None:
-            out.append(p)
-            continue
-        bound.add(p.name)
-        out += [through(p, target, comp, conn, hops) for comp, conn, hops in target.sinks]
-    for path, target in open_connectors.items():
-        if path not in bound:
-            fed = ", ".join(f"{comp}.{conn}" for comp, conn, _ in target.sinks)
-            raise SetupError(f"system connector '{path}' (kind {target.kind}) has no driver and no value; it "
-                             f"feeds {fed}.", file=file, element=f"ssd:Connector (line {target.line})",
-                             variable=path, hint="Connect an output to it, or give it a value with a "
-                             "ParameterBinding (a constant input).")
-    return out

@@ -11,24 +11,24 @@ import zipfile
 from pathlib import Path, PurePosixPath
 
 from .errors import SetupError
-from .graph import Plan
 from .safeio import check_member_name
 from .ssp import SSD_NAME
+from .structure import Plan
 
 
 def pack(plan: Plan, output: Path) -> Path:
-    structure = plan.structure
-    members: dict[str, Path] = {SSD_NAME: structure.ssd_file}
-    for ssv in sorted(structure.base_dir.rglob("*.ssv")):
-        members[ssv.relative_to(structure.base_dir).as_posix()] = ssv
-    for name, comp in structure.components.items():
+    files = plan.files
+    members: dict[str, Path] = {SSD_NAME: files.ssd_file}
+    for ssv in sorted(files.base_dir.rglob("*.ssv")):
+        members[ssv.relative_to(files.base_dir).as_posix()] = ssv
+    for name, comp in plan.components.items():
         member = PurePosixPath(comp.source).as_posix()
         if ":" in member.split("/")[0]:
             raise SetupError(f"source '{comp.source}' is a URI, not a path inside the archive; use "
-                             "resources/<Name>.fmu.", file=str(structure.ssd_file),
+                             "resources/<Name>.fmu.", file=str(files.ssd_file),
                              element=f"ssd:Component '{name}' (line {comp.line})")
         check_member_name(member, output)
-        members[member] = comp.fmu_path
+        members[member] = plan.fmus[name].path
     output.parent.mkdir(parents=True, exist_ok=True)
     tmp = output.with_suffix(output.suffix + ".part")
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:

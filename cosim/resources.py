@@ -20,7 +20,8 @@ from pathlib import Path, PurePosixPath
 
 from .errors import SetupError
 from .safeio import is_file
-from .ssp import Component, SystemStructure, resolve_uri
+from .ssp import resolve_uri
+from .structure import Component, SystemStructure
 
 Provider = Callable[[str], "Path | None"]
 
@@ -30,11 +31,11 @@ def providers() -> list[Provider]:
 
 
 def locate_fmus(structure: SystemStructure, fmu_dirs: Sequence[Path] = (),
-                use_providers: bool = True) -> None:
-    """Set ``fmu_path`` on every component, or raise naming what was looked at."""
+                use_providers: bool = True) -> dict[str, Path]:
+    """The FMU file of every component, by component path, or raise naming what was looked at."""
     found_providers = providers() if use_providers else []
-    for comp in structure.components.values():
-        comp.fmu_path = _locate(comp, structure, fmu_dirs, found_providers)
+    return {name: _locate(comp, structure, fmu_dirs, found_providers)
+            for name, comp in structure.components.items()}
 
 
 def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path],

@@ -1,8 +1,10 @@
 """The run as a user asks for it: read, locate, validate, then execute and record.
 
-`prepare` does everything that can fail before an FMU is instantiated;
-`simulate` runs a prepared system and returns the samples as a NumPy structured
-array (like ``fmpy.simulate_fmu``), writing them to a CSV as it goes if asked.
+`prepare` does everything that can fail before an FMU is instantiated: `validate`
+(read, locate the FMUs, build the `cosim.structure.Plan`) and `resolve_grid` (the
+time grid and algorithm from the arguments and the SSD); `simulate` runs a prepared
+system and returns the samples as a NumPy structured array (like ``fmpy.simulate_fmu``),
+writing them to a CSV as it goes if asked.
 """
 from __future__ import annotations
 
@@ -17,56 +19,76 @@ import numpy as np
 from . import ssp
 from .errors import RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
-from .flatten import SystemOutput
-from .fmu import unit_of
-from .graph import Plan, build_plan
 from .observers import MemorySink, Recorder, file_sink
+from .plan import build_plan
 from .resources import locate_fmus
+from .structure import Plan, RecordedOutput
 
 
 @dataclass
 class Prepared:
+    """A validated plan on a resolved grid: what `run` executes."""
     plan: Plan
     grid: Grid
     algorithm: str
     step_source: str
 
     def close(self) -> None:
-        self.plan.structure.close()
+        self.plan.close()
+
+
+def validate(path: str | Path, *, parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
+             use_providers: bool = True) -> Plan:
+    """Read, locate and check a system against its FMUs (`cosim.plan.build_plan`); nothing is
+    instantiated.  The plan owns an extracted archive until it is closed."""
+    structure = ssp.load(path)
+    try:
+        extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
+        fmu_paths = locate_fmus(structure, [Path(d) for d in fmu_dirs], use_providers=use_providers)
+        return build_plan(structure, fmu_paths, extra)
+    except BaseException:
+        structure.close()
+        raise
+
+
+def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: float | None = None,
+                 step_size: float | None = None, algorithm: str | None = None) -> Prepared:
+    """The time grid and algorithm of a run: the arguments given, else the SSD's default
+    experiment and annotations (`cosim.structure.Experiment`); a missing stop time or step
+    size, or an unknown algorithm, is refused."""
+    experiment, file = plan.experiment, str(plan.files.ssd_file)
+    start = start_time if start_time is not None else (experiment.start_time or 0.0)
+    stop = stop_time if stop_time is not None else experiment.stop_time
+    if stop is None:
+        raise SetupError("no stop time: the SSD has no ssd:DefaultExperiment stopTime; pass --stop.", file=file)
+    if step_size is not None:
+        step, source = step_size, "command line"
+    elif experiment.step_size is not None:
+        step, source = experiment.step_size, experiment.step_size_source
+    else:
+        raise SetupError(
+            "no step size: pass --step, or add one to ssd:DefaultExperiment/ssd:Annotations — ours "
+            f"(<ssc:Annotation type=\"{ssp.GREYFMU_ANNOTATION}\"><greyfmu:Simulation "
+            f"xmlns:greyfmu=\"{ssp.GREYFMU_NS}\" stepSize=\"0.1\"/></ssc:Annotation>), OSP's "
+            "osp:FixedStepAlgorithm baseStepSize or OpenModelica's oms:FixedStepMaster stepSize.",
+            file=file, element="ssd:DefaultExperiment")
+    algo = algorithm or experiment.algorithm or "jacobi"
+    if algo not in ALGORITHMS:
+        raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
+    return Prepared(plan, Grid(start, stop, step), algo, source)
 
 
 def prepare(path: str | Path, *, start_time: float | None = None, stop_time: float | None = None,
             step_size: float | None = None, algorithm: str | None = None,
             parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
             use_providers: bool = True) -> Prepared:
-    """Read and validate a system; nothing is instantiated."""
-    structure = ssp.load(path)
+    """`validate`, then `resolve_grid`; nothing is instantiated."""
+    plan = validate(path, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs, use_providers=use_providers)
     try:
-        extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
-        locate_fmus(structure, [Path(d) for d in fmu_dirs], use_providers=use_providers)
-        plan = build_plan(structure, extra)
-        file = str(structure.ssd_file)
-        start = start_time if start_time is not None else (structure.start_time or 0.0)
-        stop = stop_time if stop_time is not None else structure.stop_time
-        if stop is None:
-            raise SetupError("no stop time: the SSD has no ssd:DefaultExperiment stopTime; pass --stop.", file=file)
-        if step_size is not None:
-            step, source = step_size, "command line"
-        elif structure.step_size is not None:
-            step, source = structure.step_size, structure.step_size_source
-        else:
-            raise SetupError(
-                "no step size: pass --step, or add one to ssd:DefaultExperiment/ssd:Annotations — ours "
-                f"(<ssc:Annotation type=\"{ssp.GREYFMU_ANNOTATION}\"><greyfmu:Simulation "
-                f"xmlns:greyfmu=\"{ssp.GREYFMU_NS}\" stepSize=\"0.1\"/></ssc:Annotation>), OSP's "
-                "osp:FixedStepAlgorithm baseStepSize or OpenModelica's oms:FixedStepMaster stepSize.",
-                file=file, element="ssd:DefaultExperiment")
-        algo = algorithm or structure.algorithm or "jacobi"
-        if algo not in ALGORITHMS:
-            raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
-        return Prepared(plan, Grid(start, stop, step), algo, source)
+        return resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step_size,
+                            algorithm=algorithm)
     except BaseException:
-        structure.close()
+        plan.close()
         raise
 
 
@@ -85,7 +107,7 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     (metadata in ``<output>.json``).
     A failed run raises `RunError` with the samples so far in ``error.result``
     (and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
-    collected to explain a failure ("errors", "all" or "off"; see `cosim.fmu.Instance`).
+    collected to explain a failure ("errors", "all" or "off"; see `cosim.instances.fmi2.FMI2Instance.instantiate`).
     """
     prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
@@ -107,22 +129,23 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     CSV (`cosim.observers.file_sink`).  ``keep``: the signals the returned array holds besides
     ``time`` (None: all); a long run streamed to ``output`` keeps only what it needs in memory.
     """
+    plan = prepared.plan
     memory = MemorySink(keep)
     sinks: list = [memory] + ([file_sink(output)] if output is not None else [])
-    if prepared.plan.structure.system_outputs:
-        sinks = [SystemOutputColumns(list(prepared.plan.structure.system_outputs.values()), sinks)]
-    execution = Execution(prepared.plan, prepared.grid, prepared.algorithm, fmu_log)
+    if plan.system_outputs:
+        sinks = [SystemOutputColumns(list(plan.system_outputs.values()), sinks)]
+    execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log)
     recorder = None
     bar = None
     try:
         execution.instantiate()
         names, arrays = execution.recorder_sources()
-        recorder = Recorder(names, arrays, _ssd_order(prepared.plan, names), sinks)
+        recorder = Recorder(names, arrays, plan.columns, sinks)
         execution.initialize()
         if progress:
             from tqdm import tqdm
             bar = tqdm(total=prepared.grid.steps, delay=1.0, unit="step", leave=False,
-                       desc=prepared.plan.structure.name or "cosim")
+                       desc=plan.name or "cosim")
         execution.run(recorder, bar)
     except RunError as e:
         execution.status = "failed"
@@ -146,57 +169,28 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     return memory.array(), metadata
 
 
-def _ssd_order(plan: Plan, names: list[str]) -> list[str]:
-    """Columns component by component in SSD order, connectors as each component lists them."""
-    order = []
-    for comp_name, comp in plan.structure.components.items():
-        for conn in comp.connectors:
-            full = f"{comp_name}.{conn}"
-            if full in names:
-                order.append(full)
-    return order
-
-
 def _metadata(prepared: Prepared, execution: Execution) -> dict:
     meta = execution.metadata()
-    structure = prepared.plan.structure
-    meta["system"] = str(structure.archive or structure.ssd_file)
+    plan = prepared.plan
+    meta["system"] = str(plan.files.source)
     # result names are paths relative to this system (loop.ctrl.u for component ctrl of subsystem loop)
-    meta["root_system"] = structure.system_name
-    if structure.system_outputs:
+    meta["root_system"] = plan.system_name
+    if plan.system_outputs:
         meta["system_outputs"] = {o.name: f"{o.factor:.17g} * {o.component}.{o.connector} + {o.offset:.17g}"
-                                  for o in structure.system_outputs.values()}
+                                  for o in plan.system_outputs.values()}
     meta["step_size_source"] = prepared.step_source
-    meta["units"] = _units(prepared.plan)
+    meta["units"] = plan.units
     return meta
-
-
-def _units(plan: Plan) -> dict[str, str | None]:
-    """Each recorded connector's unit: its FMU variable's own (values are recorded as the FMU
-    computes or receives them, after any unit conversion of the connection), else the unit the
-    SSD connector gives a variable without one (cosim.graph._connector_unit); None: no unit."""
-    components = plan.structure.components
-    units = {f"{comp}.{v.name}": unit_of(v) or _declared_unit(components.get(comp), v.name)
-             for comp in plan.outputs for v in plan.outputs[comp] + plan.inputs[comp]}
-    for out in plan.structure.system_outputs.values():  # the last unit a system connector declares on
-        declared = [u for hop in out.hops for u in (hop.start_unit, hop.end_unit) if u]  # the way, else
-        units[out.name] = declared[-1] if declared else units[f"{out.component}.{out.connector}"]  # the source's
-    return units
-
-
-def _declared_unit(component: ssp.Component | None, connector: str) -> str | None:
-    declared = component.connectors.get(connector) if component is not None else None
-    return declared.unit if declared is not None else None
 
 
 class SystemOutputColumns:
     """A sink wrapper that appends the root system's output connectors to every chunk.
 
     Each is ``factor · (the driving component output's column) + offset``
-    (`cosim.flatten.SystemOutput`), computed per chunk, not in the stepping loop.
+    (`cosim.structure.RecordedOutput`), computed per chunk, not in the stepping loop.
     """
 
-    def __init__(self, outputs: list[SystemOutput], sinks: list):
+    def __init__(self, outputs: list[RecordedOutput], sinks: list):
         self.outputs = outputs
         self.sinks = sinks
         self.columns = np.empty(0, dtype=np.intp)

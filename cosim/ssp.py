@@ -5,8 +5,9 @@ SSP 1.0 XML schema (the XSDs shipped with fmpy), and refuses, with a message,
 every SSP feature this master does not implement (parameter mappings, signal
 dictionaries, non-FMU components, Boolean/Integer/Enumeration mapping
 transformations) instead of ignoring it.  Nested systems and system-level
-connectors are read here (`_read_system`) and flattened by `cosim.flatten`
-into components named by their path (``loop.ctrl``) and direct connections.
+connectors are read here (`read`: XML → `cosim.structure.RawStructure`) and
+flattened by `cosim.flatten` into components named by their path (``loop.ctrl``)
+and direct connections; `load` is the two in a row.
 Files and archives are opened through `cosim.safeio`: no XML entities or DTDs,
 archives checked and size-limited before and while they are extracted.
 
@@ -18,19 +19,28 @@ from __future__ import annotations
 
 import tempfile
 from contextvars import ContextVar
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 from urllib.parse import unquote, urlparse
 
 from lxml import etree
 
 from .errors import SetupError
+from .flatten import flatten
 from .safeio import extract_archive, is_file, parse_xml
+from .structure import (
+    Component,
+    Connection,
+    Connector,
+    Experiment,
+    ParameterValue,
+    RawStructure,
+    RawSystem,
+    ScenarioFiles,
+    SolverOptions,
+    SystemStructure,
+)
 from .units import BASE_UNITS, Unit, check_definition, make_unit
-
-if TYPE_CHECKING:
-    from .flatten import Hop, OpenConnector, RawSystem, SystemNode, SystemOutput
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -46,7 +56,7 @@ GREYFMU_NS = "urn:greyfmu:ssp:simulation:1.0"
 OSP_ANNOTATION = "com.opensimulationplatform"
 OMS_ANNOTATION = "org.openmodelica"
 #: Our own annotation on a Component (its ssd:Annotations): how the master integrates a Model
-#: Exchange FMU (cosim.me), ``<greyfmu:Solver rtol="1e-8" maxStep="0.001"/>``.
+#: Exchange FMU (cosim.instances.me), ``<greyfmu:Solver rtol="1e-8" maxStep="0.001"/>``.
 SOLVER_ANNOTATION = "org.greyfmu.solver"
 SOLVER_NS = "urn:greyfmu:ssp:solver:1.0"
 
@@ -55,113 +65,22 @@ VALUE_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration", "Binary")
 SSD_NAME = "SystemStructure.ssd"
 
 
-@dataclass
-class Connector:
-    name: str
-    kind: str
-    type: str | None
-    unit: str | None
-    line: int
-
-
-@dataclass
-class ParameterValue:
-    """One value from a parameter set; ``name`` is as it resolves at its binding level."""
-    name: str
-    type: str
-    value: float | int | bool | str
-    file: str
-    line: int
-    #: ``ssv:Real unit``: the unit ``value`` is given in (None: the FMU variable's own)
-    unit: str | None = None
-    #: the ``ssv:Units`` of the parameter set that holds the value (SSP 1.0 ParameterSet)
-    units: dict[str, Unit] = field(default_factory=dict, repr=False)
-
-
-@dataclass
-class Component:
-    name: str
-    source: str
-    line: int
-    connectors: dict[str, Connector] = field(default_factory=dict)
-    parameters: list[ParameterValue] = field(default_factory=list)
-    fmu_path: Path | None = None
-    #: SSP 1.0 Component ``implementation``: "any", "CoSimulation" or "ModelExchange" (the
-    #: interface the master drives; cosim.fmu.describe checks the FMU has it)
-    implementation: str = "any"
-    #: the component's ``org.greyfmu.solver`` annotation, for a Model Exchange FMU
-    solver: SolverOptions | None = None
-
-
-@dataclass
-class SolverOptions:
-    """``org.greyfmu.solver``: settings for integrating a Model Exchange FMU (None: the default)."""
-    rtol: float | None
-    max_step: float | None
-    #: the SSD file and the annotation element, for messages
-    file: str
-    element: str
-
-
-@dataclass
-class Connection:
-    #: None, before flattening only, where the connection names a connector of its own system
-    start_element: str | None
-    start_connector: str
-    end_element: str | None
-    end_connector: str
-    factor: float
-    offset: float
-    has_transformation: bool
-    suppress_unit_conversion: bool
-    line: int
-    #: for a connection resolved through system connectors: its lines and the connectors on the way
-    via: str = ""
-    #: for a connection resolved through system connectors: each connection on the way (`cosim.flatten.Hop`)
-    hops: tuple[Hop, ...] = ()
-
-    def describe(self) -> str:
-        return (f"connection {self.start_element}.{self.start_connector} -> "
-                f"{self.end_element}.{self.end_connector} ({self.via or f'line {self.line}'})")
-
-
-@dataclass
-class SystemStructure:
-    name: str
-    system_name: str
-    ssd_file: Path
-    base_dir: Path
-    components: dict[str, Component]
-    connections: list[Connection]
-    parameters: list[ParameterValue]
-    start_time: float | None
-    stop_time: float | None
-    step_size: float | None
-    step_size_source: str | None
-    algorithm: str | None
-    #: the SSD's top-level ``ssd:Units`` (SSP 1.0 SystemStructureDescription.xsd)
-    units: dict[str, Unit] = field(default_factory=dict)
-    archive: Path | None = None
-    _tmp: tempfile.TemporaryDirectory | None = field(default=None, repr=False)
-    #: the systems as nested in the SSD (cosim.flatten), for `cosim info`
-    hierarchy: SystemNode | None = None
-    #: root-system output connectors: recorded under their name, aliases of component outputs
-    system_outputs: dict[str, SystemOutput] = field(default_factory=dict)
-    #: undriven system connectors feeding inputs or parameters: they need a ParameterBinding value
-    open_connectors: dict[str, OpenConnector] = field(default_factory=dict)
-    #: paths of the system connectors a connection drives (they cannot also be given a value)
-    driven_connectors: set[str] = field(default_factory=set)
-
-    def close(self) -> None:
-        if self._tmp is not None:
-            self._tmp.cleanup()
-            self._tmp = None
-
-
 # --------------------------------------------------------------------------- files
 
 def load(path: str | Path, max_unpacked_bytes: int | None = None) -> SystemStructure:
-    """Read a scenario folder, a ``.ssd`` file or an ``.ssp`` archive.
+    """Read a scenario folder, a ``.ssd`` file or an ``.ssp`` archive and flatten it
+    (`read`, then `cosim.flatten.flatten`)."""
+    raw = read(path, max_unpacked_bytes)
+    try:
+        return flatten(raw)
+    except BaseException:
+        if raw._tmp is not None:
+            raw._tmp.cleanup()
+        raise
+
+
+def read(path: str | Path, max_unpacked_bytes: int | None = None) -> RawStructure:
+    """Read a scenario folder, a ``.ssd`` file or an ``.ssp`` archive, as nested as written.
 
     ``max_unpacked_bytes`` limits what an archive may expand to (default: the
     environment variable COSIM_MAX_UNPACKED_BYTES, else 2 GiB; see `cosim.safeio`).
@@ -184,7 +103,7 @@ def load(path: str | Path, max_unpacked_bytes: int | None = None) -> SystemStruc
     raise SetupError("not an SSP system structure (expected a folder, a .ssd or an .ssp).", file=str(path))
 
 
-def _read_archive(path: Path, max_unpacked_bytes: int | None = None) -> SystemStructure:
+def _read_archive(path: Path, max_unpacked_bytes: int | None = None) -> RawStructure:
     """Extract the archive (checked and size-limited, see `cosim.safeio`) and read its SSD."""
     tmp = tempfile.TemporaryDirectory(prefix="cosim-ssp-")
     try:
@@ -197,9 +116,7 @@ def _read_archive(path: Path, max_unpacked_bytes: int | None = None) -> SystemSt
     except BaseException:
         tmp.cleanup()
         raise
-    structure.archive = path
-    structure._tmp = tmp
-    return structure
+    return replace(structure, files=replace(structure.files, archive=path), _tmp=tmp)
 
 
 _schemas: dict[str, etree.XMLSchema] = {}
@@ -220,7 +137,7 @@ def validate_schema(tree: etree._ElementTree | etree._Element, schema_file: str,
 
 # --------------------------------------------------------------------------- SSD
 
-def _read_ssd(path: Path, display: str | None = None) -> SystemStructure:
+def _read_ssd(path: Path, display: str | None = None) -> RawStructure:
     display = display or str(path)
     tree = parse_xml(path, display)
     root = tree.getroot()
@@ -230,11 +147,8 @@ def _read_ssd(path: Path, display: str | None = None) -> SystemStructure:
     validate_schema(tree, "SystemStructureDescription.xsd", display)
     _refuse_unsupported(root, display)
 
-    from .flatten import flatten  # flatten builds on this module's dataclasses
-
     system = root.find("ssd:System", NS)
     base_dir = path.parent
-    flat = flatten(_read_system(system, base_dir, display), display)
 
     start = stop = None
     experiment = root.find("ssd:DefaultExperiment", NS)
@@ -242,13 +156,10 @@ def _read_ssd(path: Path, display: str | None = None) -> SystemStructure:
         start = _float_attr(experiment, "startTime", display)
         stop = _float_attr(experiment, "stopTime", display)
     step, step_source, algorithm = _read_step_annotations(root, display)
-    return SystemStructure(name=root.get("name"), system_name=system.get("name"), ssd_file=path,
-                           base_dir=base_dir, components=flat.components, connections=flat.connections,
-                           parameters=flat.parameters, start_time=start, stop_time=stop, step_size=step,
-                           step_size_source=step_source, algorithm=algorithm,
-                           units=read_units(root.find("ssd:Units", NS), display),
-                           hierarchy=flat.hierarchy, system_outputs=flat.system_outputs,
-                           open_connectors=flat.open_connectors, driven_connectors=flat.driven_connectors)
+    return RawStructure(name=root.get("name"), files=ScenarioFiles(path, base_dir, None), display=display,
+                        root=_read_system(system, base_dir, display),
+                        experiment=Experiment(start, stop, step, step_source, algorithm),
+                        units=read_units(root.find("ssd:Units", NS), display))
 
 
 def _refuse_unsupported(root: etree._Element, display: str) -> None:
@@ -273,8 +184,6 @@ def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSys
     Element names are unique within their system (SSP 1.0, TElement name); geometry and
     annotations of the system are not read.
     """
-    from .flatten import RawSystem
-
     name = system.get("name")
     connectors: dict[str, Connector] = {}
     for c in system.iterfind("ssd:Connectors/ssd:Connector", NS):

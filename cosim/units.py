@@ -18,7 +18,7 @@ then the SSD and the FMU concerned (`SystemUnits`), then the small `BUILTIN`
 table of common process units — so a scenario may name ``degC`` or ``kgf/cm2``
 without defining them.  An SSD and an FMU that define the same name differently
 are refused.  How connections, SSD connectors and parameter values use this:
-`cosim.graph` (``_hops_map``, ``_connector_unit``, ``_convert_value``).
+`cosim.routing` (``hops_map``, ``connector_unit``) and `cosim.parameters` (``_convert_value``).
 """
 from __future__ import annotations
 

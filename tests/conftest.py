@@ -8,7 +8,7 @@ from hypothesis import settings
 
 from greyfmu.build import build_fmus
 
-# Hypothesis profiles (tests/test_fuzz.py scales its example counts by max_examples: 500 fuzz
+# Hypothesis profiles (tests/cosim/test_fuzz.py scales its example counts by max_examples: 500 fuzz
 # examples in all by default, 10 000 in the nightly run).  Select the nightly size with
 # COSIM_FUZZ=nightly or `pytest --hypothesis-profile nightly`; every example must end in 5 s.
 settings.register_profile("default", max_examples=100, deadline=5000)
@@ -33,10 +33,10 @@ def _repository_root() -> None:
 def _release_pythonfmu_state_before_fmpy_unloads() -> None:
     """Tests also run our FMUs through fmpy.simulate_fmu, which unloads each library when it
     is done: empty pythonfmu 0.7.0's static interpreter state first, as cosim does (see
-    cosim.fmu.release_pythonfmu_state: otherwise the unload can corrupt the heap)."""
+    cosim.instances.pythonfmu_state.release_pythonfmu_state: otherwise the unload can corrupt the heap)."""
     from fmpy.fmi1 import _FMU
 
-    from cosim.fmu import release_pythonfmu_state
+    from cosim.instances.pythonfmu_state import release_pythonfmu_state
 
     unload = _FMU.freeLibrary
 

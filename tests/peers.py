@@ -3,7 +3,7 @@ and benchmarks of our own master, plus a hand-written SSP 1.0 test system.
 
 Everything here was checked by experiment with fmpy 0.3.32, libcosimpy 0.0.6 (bundled
 libcosim/libcosimc 0.11.2) and gemseo-fmu 3.1.1 on Linux x86_64, Python 3.11; see
-docs/peers.md for the findings and tests/test_peers_smoke.py for the checks.
+docs/peers.md for the findings and tests/peers/test_peers_smoke.py for the checks.
 
 API
 ---
@@ -265,7 +265,7 @@ def run_libcosim(
     time-series observer and reads all samples at the end (``execution.step(n)`` runs the
     whole loop in C++).  ``observer="last_value"`` polls the last-value observer after
     each single ``execution.step()`` from Python; both give identical values (checked in
-    tests/test_peers_smoke.py).  The last-value observer returns zeros before the first
+    tests/peers/test_peers_smoke.py).  The last-value observer returns zeros before the first
     step (libcosim initializes lazily inside the first ``step()``), so row 0 always comes
     from the time series.
 

@@ -17,7 +17,7 @@ import cosim
 from cosim.metrics import step_metrics
 from greyfmu.control import GainSchedule, Interpolation, OperatingPoint
 
-SSP = Path(__file__).resolve().parents[1] / "ssp"
+SSP = Path(__file__).resolve().parents[2] / "ssp"
 CASES = (1, 2, 3)
 
 

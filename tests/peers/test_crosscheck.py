@@ -95,7 +95,7 @@ def test_pid_fopdt_against_fmpy_ssp(tmp_path):
     assert np.max(np.abs(bound["plant.y"][1:] - theirs["plant.y"])) > 0.1
 
 
-SCENARIOS = sorted(p.name for p in (Path(__file__).resolve().parents[1] / "ssp").iterdir()
+SCENARIOS = sorted(p.name for p in (Path(__file__).resolve().parents[2] / "ssp").iterdir()
                    if (p / "SystemStructure.ssd").is_file())
 STEPS = 600
 DIVERGE_WITH_FMU_DEFAULTS = {"dpi_wood_berry"}

@@ -17,7 +17,7 @@ import cosim
 from cosim.metrics import step_metrics
 from greyfmu.control.scheduling import ITAE
 
-SSP = Path(__file__).resolve().parent.parent / "ssp"
+SSP = Path(__file__).resolve().parents[2] / "ssp"
 NOMINAL, NMP, PID_LOOP = SSP / "sopdt_nominal", SSP / "sopdt_nmp", SSP / "sopdt_pid_itae"
 SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
 

@@ -1,6 +1,6 @@
 """FMI 3.0 Co-Simulation FMUs behind the master's FMI 2.0-shaped instance interface.
 
-`FMI3Instance` wraps fmpy's `FMU3Slave` and offers what `cosim.fmu.Instance`
+`FMI3Instance` wraps fmpy's `FMU3Slave` and offers what `cosim.instances.Instance`
 offers (see its docstring): ``do_step``/``get``/``set`` callables with the FMI
 2.0 C signatures, called by the execution on its ctypes exchange buffers.  Most
 are thin closures over the raw fmi3 functions; the differences they absorb:
@@ -11,7 +11,7 @@ are thin closures over the raw fmi3 functions; the differences they absorb:
   buffer holds ``int`` as fmi2Boolean does: copied through a preallocated
   ``c_bool`` scratch array.
 * Array variables (``<Dimension>``, FMI 3.0 §2.4.7.5, serialised row-major):
-  a connector names one element (`cosim.fmu.ArrayElement`, a value reference of
+  a connector names one element (`cosim.description.ArrayElement`, a value reference of
   its own that only this module resolves).  Reading fetches the whole array into
   a scratch buffer and copies the element out; writing keeps a scratch copy of
   the whole input array (read once, then only the master writes it) and writes
@@ -34,8 +34,9 @@ import numpy as np
 from fmpy.fmi3 import FMU3Slave
 from fmpy.model_description import ModelVariable
 
-from .errors import SetupError
-from .fmu import STATUS, ArrayElement, FMUDescription, InstanceBase, end_instance, exchange_type, log_line
+from ..description import ArrayElement, FMUDescription, exchange_type
+from ..errors import SetupError
+from .base import STATUS, InstanceBase, end_instance, log_line
 
 FMI_WARNING, FMI_DISCARD = 1, 2
 
@@ -51,7 +52,9 @@ Adapter = Callable[..., int]
 
 
 class FMI3Instance(InstanceBase):
-    """One live FMI 3.0 Co-Simulation instance with the interface of `cosim.fmu.Instance`."""
+    """One live FMI 3.0 Co-Simulation instance (`cosim.instances.Instance`)."""
+
+    api = "fmi3"
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
         super().__init__(name, desc)
@@ -131,7 +134,7 @@ class FMI3Instance(InstanceBase):
         self.messages.append(log_line(status, category, message))
 
     def instantiate(self, fmu_log: str = "errors") -> None:
-        """fmi3InstantiateCoSimulation (FMI 3.0 §4.2.1); ``fmu_log`` as in `cosim.fmu.Instance`."""
+        """fmi3InstantiateCoSimulation (FMI 3.0 §4.2.1); ``fmu_log`` as in `cosim.instances.Instance`."""
         logging_on = self.logging_on(fmu_log)
         try:
             self.slave.instantiate(loggingOn=logging_on, logMessage=self._log)
@@ -163,7 +166,7 @@ class FMI3Instance(InstanceBase):
         self.slave.exitInitializationMode()
 
     def free(self) -> None:
-        """As `cosim.fmu.Instance.free` (FMI 3.0 §2.3.1 state machine).  pythonfmu3 0.3.4
+        """As `cosim.instances.fmi2.FMI2Instance.free` (FMI 3.0 §2.3.1 state machine).  pythonfmu3 0.3.4
         libraries keep the same static interpreter state as pythonfmu 0.7.0 (they export
         ``finalizePythonInterpreter`` too), so it is released the same way before unloading."""
         end_instance(self, lambda: self.slave.fmi3FreeInstance(self.component))
@@ -174,7 +177,7 @@ class _Gather:
     variables (an array once, however many of its elements are named), a scratch buffer for
     their values in the FMU's C type, and the position of each named value in it.  Numbers
     and Booleans only: strings are exchanged scalar by scalar (String array elements are
-    refused by `cosim.fmu.FMUDescription.variable`).
+    refused by `cosim.description.FMUDescription.variable`).
 
     A plan serves one pair of caller arrays (value references, values), as the execution
     passes the same ones at every call; it keeps them, so their ``id`` keys it safely."""

@@ -4,7 +4,7 @@
 Runs are shortened to the first few hundred steps around the scenario's first setpoint or load change, so
 the whole file runs in well under a minute (table `RUNS`).  Rewrite the references after an intended change:
 
-    python -m pytest tests/test_regression.py --cosim-update-references
+    python -m pytest tests/scenarios/test_regression.py --cosim-update-references
 
 Tolerances.  The runs are deterministic: fixed-step master, plants integrated with fixed steps (exact ZOH,
 RK4 sub-steps), noise sources seeded in the SSD; on one machine two runs agree bit for bit.  The references
@@ -26,9 +26,9 @@ import pytest
 from cosim import ssp
 from peers import gemseo_fmu_dir
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = sorted(p.name for p in (ROOT / "ssp").iterdir() if (p / "SystemStructure.ssd").is_file())
-PARAMS = Path(__file__).resolve().parent / "references" / "params"
+PARAMS = Path(__file__).resolve().parents[1] / "references" / "params"
 
 RTOL, ATOL = 1e-9, 1e-9
 

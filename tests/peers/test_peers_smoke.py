@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import peers  # noqa: E402
 
 _spec = importlib.util.spec_from_file_location(
-    "greyfmu_benchmarks_floor", Path(__file__).resolve().parents[1] / "benchmarks" / "floor.py")
+    "greyfmu_benchmarks_floor", Path(__file__).resolve().parents[2] / "benchmarks" / "floor.py")
 floor = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(floor)
 

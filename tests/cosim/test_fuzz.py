@@ -38,7 +38,7 @@ from cosim import safeio, ssp
 from cosim.cli import main
 from cosim.errors import SetupError
 
-SCENARIOS = sorted(p.parent for p in Path(__file__).resolve().parents[1].glob("ssp/*/SystemStructure.ssd"))
+SCENARIOS = sorted(p.parent for p in Path(__file__).resolve().parents[2].glob("ssp/*/SystemStructure.ssd"))
 SSD_SOURCES = {s.name: (s / "SystemStructure.ssd").read_bytes() for s in SCENARIOS}
 SSV_SOURCES = {f"{s.name}/{f.name}": f.read_bytes() for s in SCENARIOS for f in sorted(s.glob("*.ssv"))}
 SSP_NAMES = ["SystemStructureDescription", "System", "Elements", "Component", "Connectors", "Connector",

@@ -12,7 +12,7 @@ import pytest
 
 pytest_plugins = ["pytester"]
 
-SCENARIO = Path(__file__).resolve().parents[1] / "ssp" / "pid_fopdt"
+SCENARIO = Path(__file__).resolve().parents[2] / "ssp" / "pid_fopdt"
 STOP = 20.0   # 200 steps of 0.1 s; the setpoint steps at 10 s, so plant.y moves in the second half
 
 

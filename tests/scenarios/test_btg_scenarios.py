@@ -15,7 +15,7 @@ import pytest
 import cosim
 from greyfmu.plants.boiler_turbine import equilibrium
 
-SCENARIO = Path(__file__).resolve().parents[1] / "ssp" / "btg_boiler_following"
+SCENARIO = Path(__file__).resolve().parents[2] / "ssp" / "btg_boiler_following"
 FUEL = {"pi": "fuel_pi.u", "grey": "fuel_grey.u"}
 LEVEL_SETPOINT_MODEL_MM = 100.0
 """The thesis's -100 mm set-point on the level datum of the scenario (README: model level - 200 mm)."""

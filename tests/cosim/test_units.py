@@ -22,7 +22,7 @@ from cosim.simulation import prepare, run
 from cosim.units import BUILTIN, IDENTITY, conversion, make_unit, then
 from testfmus import edited_copy
 
-HERE = Path(__file__).parent / "unitfmus"
+HERE = Path(__file__).parents[1] / "unitfmus"
 
 #: UnitDefinitions the test FMUs declare (FMI 2.0 §2.2.2 BaseUnit attributes).
 DEFINITIONS = {

@@ -134,12 +134,13 @@ def test_fmu_runs_in_a_fresh_python_with_only_its_embedded_greyfmu(built_fmus, t
     a second FMU in the same process would import the greyfmu modules the first one loaded
     (from the first FMU's resources, which fmpy.simulate_fmu deletes when it returns).  The
     script empties pythonfmu 0.7.0's static state before fmpy unloads the library, as cosim
-    does (cosim.fmu.release_pythonfmu_state); without it the process can abort on unload."""
+    does (cosim.instances.pythonfmu_state.release_pythonfmu_state); without it the process can
+    abort on unload."""
     script = (
         "import sys, fmpy\n"
         "from fmpy.fmi1 import _FMU\n"
         "unload = _FMU.freeLibrary\n"
-        "def free_library(self):\n"   # pythonfmu 0.7.0's unload bug: see cosim.fmu.release_pythonfmu_state
+        "def free_library(self):\n"   # pythonfmu 0.7.0's unload bug: see cosim.instances.pythonfmu_state
         "    self.dll.finalizePythonInterpreter()\n"
         "    unload(self)\n"
         "_FMU.freeLibrary = free_library\n"

@@ -1,4 +1,4 @@
-"""Model Exchange FMUs integrated by the master (cosim.me) on OpenModelica exports from gemseo-fmu.
+"""Model Exchange FMUs integrated by the master (cosim.instances.me) on OpenModelica exports from gemseo-fmu.
 
 Mass_Damper.fmu is m = 1 kg, c = 1e4 N/m, d = 10 N·s/m (modelDescription parameters), y = damper.s_rel
 with y(0) = 0 and rest at −0.5 m: y'' + 10 y' + 1e4 (y + 0.5) = f, poles −5 ± 99.9i.  Its Co-Simulation

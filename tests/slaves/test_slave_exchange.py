@@ -21,7 +21,7 @@ from pythonfmu.builder import get_model_class
 
 from greyfmu.build import FMU_SOURCES
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FMI2_SLAVES = sorted(path.stem for path in FMU_SOURCES.glob("*.py") if not path.name.startswith("_"))
 """The FMUs built on fmus/_slave.py (fmus/fmi3/ holds the FMI 3.0 ones, on their own base)."""
 GENERIC = {Real: (Fmi2Slave.get_real, Fmi2Slave.set_real), Integer: (Fmi2Slave.get_integer, Fmi2Slave.set_integer)}

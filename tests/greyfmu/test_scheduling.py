@@ -206,7 +206,7 @@ def test_scheduled_pid_uses_the_pid_integral_modes_worked_example():
     """§2.3.2 example through the scheduled PID: integral 60 with Kc 4.5, Ti 15; then Kc 5, Ti 10, e = 1, Ts = 1.
 
     The integral follows `integral_step` (60.5, 100.5, 67.1667; the thesis prints 90.5 and 67.15 for the
-    last two, see tests/test_pid.py); u adds the proportional part Kc·e = 5.
+    last two, see tests/greyfmu/test_pid.py); u adds the proportional part Kc·e = 5.
     """
     for mode, expected in ((1, 60.5), (2, 100.5), (3, 5.0 * (60.0 / 4.5 + 0.1))):
         gains = iter([Gains(4.5, 15.0, 0.0), Gains(5.0, 10.0, 0.0)])

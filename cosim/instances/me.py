@@ -3,7 +3,7 @@
 An FMI 2.0 Model Exchange FMU has no ``fmi2DoStep``; it gives derivatives and
 event indicators, and the importer integrates (FMI 2.0 §3).  `MEInstance`
 wraps fmpy's `FMU2Model` behind the same small interface as a Co-Simulation
-`cosim.fmu.Instance`, so the execution steps it like any other component:
+`cosim.instances.fmi2.FMI2Instance`, so the execution steps it like any other component:
 ``do_step(component, t, h, flag)`` integrates from t to t + h with the inputs
 held (zero-order hold) using fmpy's `CVodeSolver` (SUNDIALS CVODE, BDF with a
 dense Newton solver, so stiff plants are stable at any communication step).
@@ -29,71 +29,18 @@ from __future__ import annotations
 
 import ctypes
 import math
-from dataclasses import dataclass
 
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model, fmi2EventInfo, fmi2False
 
-from .errors import SetupError
-from .fmu import STATUS, FMUDescription, Instance
-from .ssp import SolverOptions, SystemStructure
+from ..description import FMUDescription
+from ..structure import SolverSettings
+from .base import STATUS
+from .fmi2 import FMI2Instance
 
 FMI_OK, FMI_DISCARD, FMI_ERROR = 0, 2, 3
 #: Events handled within one communication step before the FMU is declared to chatter.
 MAX_EVENTS_PER_STEP = 1000
-#: Relative tolerance when the FMU's DefaultExperiment gives none.
-DEFAULT_RTOL = 1e-6
-
-
-@dataclass(frozen=True)
-class SolverSettings:
-    """How the master integrates a Model Exchange FMU (recorded in the run metadata)."""
-    method: str
-    rtol: float
-    #: largest internal step (never more than the communication step); None: the communication step
-    max_step: float | None = None
-
-    def as_dict(self) -> dict:
-        return {"method": self.method, "rtol": self.rtol,
-                "max_step": "communication step" if self.max_step is None else self.max_step}
-
-
-def solver_settings(desc: FMUDescription, options: SolverOptions | None = None) -> SolverSettings:
-    """CVODE (BDF) at the component's ``org.greyfmu.solver`` rtol, else the FMU's
-    DefaultExperiment tolerance, else 1e-6; absolute tolerances are rtol × the states' nominal
-    values (as fmpy does).  The largest internal step is the annotation's maxStep (capped at the
-    communication step), else the communication step."""
-    experiment = desc.md.defaultExperiment
-    tolerance = experiment.tolerance if experiment is not None and experiment.tolerance else None
-    rtol = float(tolerance) if tolerance else DEFAULT_RTOL
-    if options is not None and options.rtol is not None:
-        rtol = options.rtol
-    return SolverSettings(method="CVode (BDF)", rtol=rtol, max_step=options.max_step if options else None)
-
-
-def check_model_exchange(structure: SystemStructure, fmus: dict[str, FMUDescription]) -> None:
-    """What can be checked before instantiation: an ``org.greyfmu.solver`` annotation only on a
-    component the master integrates (a Co-Simulation FMU integrates itself: refused rather than
-    ignored), and no discrete-time inputs on one, which FMI 2.0 lets an importer set only in
-    Event Mode (§3.2.3) while this master sets inputs at communication points in
-    Continuous-Time Mode."""
-    file = str(structure.ssd_file)
-    for name, comp in structure.components.items():
-        desc = fmus[name]
-        if comp.solver is not None and desc.kind != "fmi2-me":
-            raise SetupError(f"component '{name}' runs through its {desc.kind} interface, which integrates "
-                             "itself; the solver annotation applies to Model Exchange components only.",
-                             file=comp.solver.file, element=f"{comp.solver.element} of ssd:Component '{name}'",
-                             hint='Add implementation="ModelExchange" to the component or remove the annotation.')
-        if desc.kind != "fmi2-me":
-            continue
-        discrete = [v.name for v in desc.md.modelVariables if v.causality == "input" and v.variability != "continuous"]
-        if discrete:
-            raise SetupError(f"{desc.path.name} runs through its Model Exchange interface and has discrete-time "
-                             f"inputs ({', '.join(discrete)}), which FMI 2.0 lets an importer set only in Event Mode "
-                             "(§3.2.3); this master sets inputs at communication points in Continuous-Time Mode.",
-                             file=file, element=f"ssd:Component '{name}' (line {comp.line})", variable=discrete[0],
-                             hint='Use its Co-Simulation interface (implementation="CoSimulation") if it has one.')
 
 
 class _NoInput:
@@ -104,21 +51,21 @@ class _NoInput:
         pass
 
 
-class MEInstance(Instance):
+class MEInstance(FMI2Instance):
     """One FMI 2.0 Model Exchange instance stepped like a Co-Simulation slave.
 
     ``get``/``set`` are the FMU's raw fmi2Get/fmi2Set functions.  ``events`` counts the
     events handled by kind ("input", "time", "state", "step").  The set-up calls, the log
-    messages and ``free`` are `Instance`'s.
+    messages and ``free`` are `FMI2Instance`'s.
     """
 
     interface = FMU2Model
 
-    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, options: SolverOptions | None = None):
+    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, settings: SolverSettings):
         super().__init__(name, desc, unzip_dir)
         md = desc.md
         raw = self.slave._functions
-        self.settings = solver_settings(desc, options)
+        self.settings = settings
         self._raw = raw
         self._nx = md.numberOfContinuousStates
         self._nz = md.numberOfEventIndicators
@@ -182,7 +129,7 @@ class MEInstance(Instance):
         return call
 
     def free(self) -> None:
-        """Free the solver (its callbacks call into the FMU), then the instance as `Instance`."""
+        """Free the solver (its callbacks call into the FMU), then the instance as `FMI2Instance`."""
         self._solver = None
         super().free()
 

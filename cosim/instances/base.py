@@ -1,0 +1,130 @@
+"""What every live instance offers the execution (`Instance`), and what they share.
+
+An instance is one FMU driven through one interface: FMI 2.0 Co-Simulation
+(`cosim.instances.fmi2`), FMI 3.0 Co-Simulation (`cosim.instances.fmi3`) or FMI 2.0
+Model Exchange integrated by the master (`cosim.instances.me`).  The execution
+sees only `Instance`: raw ctypes-callable ``do_step``/``get``/``set`` for the hot
+loop, a handful of set-up calls, and the log messages the FMU sent (kept so a
+failure can be explained).
+"""
+from __future__ import annotations
+
+import collections
+import os
+import sys
+from collections.abc import Callable, Mapping
+from typing import Literal, Protocol, runtime_checkable
+
+from fmpy.model_description import ModelVariable
+
+from ..description import ExchangeType, FMUDescription
+from ..errors import SetupError
+from .pythonfmu_state import release_pythonfmu_state
+
+FMU_LOG_LEVELS = ("errors", "all", "off")
+STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+
+#: ``do_step(component, t, h, no_prior_state) -> status``
+StepFunction = Callable[..., int]
+#: ``get(component, vrs, n, values) -> status`` / ``set(...)`` on ctypes arrays
+ExchangeFunction = Callable[..., int]
+
+
+@runtime_checkable
+class Instance(Protocol):
+    """One live FMU as the execution drives it (`cosim.execution`).
+
+    * ``do_step(component, t, h, no_prior_state) -> status`` and, per exchange type
+      ("Real", "Integer", "Boolean", "String"), ``get[type](component, vrs, n, values) -> status``
+      and ``set[type](...)``: called with ctypes arrays of value references and values
+      (c_double for Real, c_int for Integer and Boolean, char* for String, as fmi2 declares them);
+    * ``api``: the prefix of its FMI functions ("fmi2" or "fmi3"), for messages;
+    * ``component`` (the handle passed back to those calls), ``failed`` (the FMI status name
+      after an Error/Fatal, else None), ``messages``;
+    * ``instantiate``, ``setup_experiment``, ``set_start``, ``enter_initialization_mode``,
+      ``exit_initialization_mode``, ``free`` (these raise on a status above Warning).
+    """
+    name: str
+    desc: FMUDescription
+    api: Literal["fmi2", "fmi3"]
+    component: object
+    failed: str | None
+    messages: collections.deque[str]
+    do_step: StepFunction
+    get: Mapping[ExchangeType, ExchangeFunction]
+    set: Mapping[ExchangeType, ExchangeFunction]
+
+    def instantiate(self, fmu_log: str = "errors") -> None: ...
+
+    def setup_experiment(self, start: float, stop: float) -> None: ...
+
+    def set_start(self, variable: ModelVariable, value: float | int | bool | str) -> None: ...
+
+    def enter_initialization_mode(self) -> None: ...
+
+    def exit_initialization_mode(self) -> None: ...
+
+    def free(self) -> None: ...
+
+    def last_messages(self) -> str: ...
+
+
+def log_line(status: int, category: bytes | None, message: bytes | None) -> str:
+    """One FMU log message as the master keeps it: ``[Status] category: text``."""
+    text = message.decode("utf-8", "replace") if message else ""
+    cat = category.decode("utf-8", "replace") if category else ""
+    return f"[{STATUS.get(status, status)}] {cat}: {text}".strip()
+
+
+class InstanceBase:
+    """What every instance kind keeps besides its FMI functions: its name and description, the
+    last log messages of its FMU (to explain a failure), the component handle and the status
+    it failed with; and how logging is turned on (``fmu_log``, see `cosim.instances.fmi2.FMI2Instance.instantiate`)."""
+
+    def __init__(self, name: str, desc: FMUDescription):
+        self.name = name
+        self.desc = desc
+        self.messages: collections.deque[str] = collections.deque(maxlen=20)
+        self.component = None
+        self.failed: str | None = None
+
+    @staticmethod
+    def logging_on(fmu_log: str) -> bool:
+        """Whether to instantiate with logging on; refuses an unknown level."""
+        if fmu_log not in FMU_LOG_LEVELS:
+            raise SetupError(f"unknown FMU log level '{fmu_log}'; choose one of {', '.join(FMU_LOG_LEVELS)}.")
+        return fmu_log != "off"
+
+    def restrict_logging(self, fmu_log: str) -> None:
+        """After instantiation: with "errors", only the FMU's logStatus* categories."""
+        status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
+        if fmu_log == "errors" and status_categories:
+            self.slave.setDebugLogging(True, status_categories)
+
+    def last_messages(self) -> str:
+        return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
+
+
+
+def end_instance(inst: InstanceBase, free_instance: Callable[[], None]) -> None:
+    """End an instance as the FMI state machine allows after its last status: terminate and
+    free after OK/Warning/Discard, only free after Error, nothing after Fatal ("it is not
+    possible to call any other function", FMI 2.0 §2.1.3, FMI 3.0 §2.3.1; freeing a pythonfmu
+    instance after Fatal corrupted the interpreter's memory here).  Then release the pythonfmu
+    interpreter state (`release_pythonfmu_state`), unload the library and forget the FMU's
+    ``resources`` folder, which pythonfmu and pythonfmu3 put on the host's ``sys.path`` at
+    every instantiation and never take off: our FMUs embed a copy of ``greyfmu`` there, and a
+    later ``import greyfmu.build`` in this process (or in a worker spawned from it, which
+    inherits ``sys.path``) would find that copy instead of the installed package."""
+    if inst.component is not None and inst.failed != "Fatal":
+        if inst.failed is None:
+            try:
+                inst.slave.terminate()
+            except Exception:  # terminate refused: the instance is still freed
+                pass
+        free_instance()
+        release_pythonfmu_state(inst.slave.dll)
+        inst.slave.freeLibrary()
+    inst.component = None
+    resources = os.path.join(inst.slave.unzipDirectory, "resources")
+    sys.path[:] = [entry for entry in sys.path if os.path.normpath(entry) != os.path.normpath(resources)]

@@ -1,0 +1,352 @@
+"""The master's data model: every stage's product, as plain dataclasses.
+
+The data path reads one way (docs/architecture.md)::
+
+    ssp.read  (XML → RawStructure)  →  flatten  (→ SystemStructure)
+      →  resources.locate_fmus  (→ {component: FMU path})
+      →  plan.build_plan  (→ Plan)  →  execution, observers, pack, sweep
+
+Each stage returns a new value and changes nothing it was given.  The readers and the
+checks import this module, not each other.
+"""
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fmpy.model_description import ModelVariable
+
+from .description import FMUDescription, exchange_type
+from .units import SystemUnits, Unit
+
+
+# --------------------------------------------------------------------------- as read (cosim.ssp)
+
+@dataclass
+class Connector:
+    name: str
+    kind: str
+    type: str | None
+    unit: str | None
+    line: int
+
+
+@dataclass
+class ParameterValue:
+    """One value from a parameter set; ``name`` is as it resolves at its binding level."""
+    name: str
+    type: str
+    value: float | int | bool | str
+    file: str
+    line: int
+    #: ``ssv:Real unit``: the unit ``value`` is given in (None: the FMU variable's own)
+    unit: str | None = None
+    #: the ``ssv:Units`` of the parameter set that holds the value (SSP 1.0 ParameterSet)
+    units: dict[str, Unit] = field(default_factory=dict, repr=False)
+
+
+@dataclass
+class Component:
+    name: str
+    source: str
+    line: int
+    connectors: dict[str, Connector] = field(default_factory=dict)
+    parameters: list[ParameterValue] = field(default_factory=list)
+    #: SSP 1.0 Component ``implementation``: "any", "CoSimulation" or "ModelExchange" (the
+    #: interface the master drives; cosim.description.describe checks the FMU has it)
+    implementation: str = "any"
+    #: the component's ``org.greyfmu.solver`` annotation, for a Model Exchange FMU
+    solver: SolverOptions | None = None
+
+
+@dataclass
+class SolverOptions:
+    """``org.greyfmu.solver``: settings for integrating a Model Exchange FMU (None: the default)."""
+    rtol: float | None
+    max_step: float | None
+    #: the SSD file and the annotation element, for messages
+    file: str
+    element: str
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """How the master integrates a Model Exchange FMU (recorded in the run metadata)."""
+    method: str
+    rtol: float
+    #: largest internal step (never more than the communication step); None: the communication step
+    max_step: float | None = None
+
+    def as_dict(self) -> dict:
+        return {"method": self.method, "rtol": self.rtol,
+                "max_step": "communication step" if self.max_step is None else self.max_step}
+
+
+@dataclass
+class Connection:
+    #: None, before flattening only, where the connection names a connector of its own system
+    start_element: str | None
+    start_connector: str
+    end_element: str | None
+    end_connector: str
+    factor: float
+    offset: float
+    has_transformation: bool
+    suppress_unit_conversion: bool
+    line: int
+    #: for a connection resolved through system connectors: its lines and the connectors on the way
+    via: str = ""
+    #: for a connection resolved through system connectors: each connection on the way (`Hop`)
+    hops: tuple[Hop, ...] = ()
+
+    def describe(self) -> str:
+        return (f"connection {self.start_element}.{self.start_connector} -> "
+                f"{self.end_element}.{self.end_connector} ({self.via or f'line {self.line}'})")
+
+
+
+# --------------------------------------------------------------------------- nesting (cosim.flatten)
+
+@dataclass
+class RawSystem:
+    """One ``ssd:System`` as read, before flattening: local names, connections with
+    ``start_element``/``end_element`` None where they name this system's own connectors."""
+    name: str
+    line: int
+    connectors: dict[str, Connector]
+    components: dict[str, Component]
+    systems: dict[str, RawSystem]
+    connections: list[Connection]
+    parameters: list[ParameterValue]
+    #: names of the components and systems in document order
+    elements: list[str] = field(default_factory=list)
+
+
+@dataclass
+class SystemNode:
+    """The hierarchy as `cosim info` shows it: full component paths, nested systems."""
+    name: str
+    path: str
+    line: int
+    connectors: list[Connector]
+    components: list[str]
+    systems: list[SystemNode]
+
+
+@dataclass(frozen=True)
+class Hop:
+    """One ``ssd:Connection`` on a path through system connectors.
+
+    SSP 1.0 (SystemStructureDescription.xsd, Connection and its ``suppressUnitConversion``)
+    converts the value on each connection from its start connector's unit to its end
+    connector's unit, then applies that connection's LinearTransformation (only the
+    transformation when ``suppressUnitConversion="true"``).  `cosim.routing` composes the hops in
+    that order; it knows the component ends' units (their FMU variables), this module does not.
+    """
+    line: int
+    #: the system connector at each end (``loop.r``; ``r`` on the root); None where the end is a component
+    start_system: str | None
+    end_system: str | None
+    #: those system connectors' ``ssc:Real unit``; None for a component end or a connector without one
+    start_unit: str | None
+    end_unit: str | None
+    factor: float
+    offset: float
+    has_transformation: bool
+    suppress: bool
+
+
+@dataclass
+class SystemOutput:
+    """A root-system output connector: an alias of the component output that drives it
+    through ``hops``; `cosim.plan` composes them, with the unit conversions, into the
+    plan's `RecordedOutput`."""
+    name: str
+    component: str
+    connector: str
+    line: int
+    hops: tuple[Hop, ...] = ()
+
+
+@dataclass
+class OpenConnector:
+    """A system connector without a driver that feeds component inputs or parameters;
+    a ParameterBinding naming ``path`` gives it its (constant) value."""
+    path: str
+    kind: str
+    line: int
+    #: (component path, connector name, the connections on the way) reached through the hierarchy
+    sinks: list[tuple[str, str, tuple[Hop, ...]]]
+    #: its ``ssc:Real unit``, if it declares one
+    unit: str | None = None
+
+
+@dataclass(frozen=True)
+class ScenarioFiles:
+    """Where a scenario was read from."""
+    ssd_file: Path
+    #: the SSD's folder (inside an .ssp archive: the extraction folder)
+    base_dir: Path
+    archive: Path | None
+
+    @property
+    def source(self) -> Path:
+        """What the user gave: the archive, else the SSD."""
+        return self.archive or self.ssd_file
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """The SSD's ``ssd:DefaultExperiment`` and step-size annotation (None where it gives none)."""
+    start_time: float | None
+    stop_time: float | None
+    step_size: float | None
+    #: which annotation gave the step size
+    step_size_source: str | None
+    algorithm: str | None
+
+
+@dataclass
+class RawStructure:
+    """An SSD as read (`cosim.ssp.read`): the root system with its nesting and local names,
+    the default experiment and the SSD's units; `cosim.flatten.flatten` makes it a
+    `SystemStructure`."""
+    name: str
+    files: ScenarioFiles
+    #: the SSD as messages name it (``archive.ssp!SystemStructure.ssd`` inside an archive)
+    display: str
+    root: RawSystem
+    experiment: Experiment
+    #: the SSD's top-level ``ssd:Units`` (SSP 1.0 SystemStructureDescription.xsd)
+    units: dict[str, Unit]
+    #: the extraction folder of an .ssp archive
+    _tmp: tempfile.TemporaryDirectory | None = field(default=None, repr=False)
+
+
+# --------------------------------------------------------------------------- flattened (cosim.flatten)
+
+@dataclass
+class SystemStructure:
+    name: str
+    system_name: str
+    ssd_file: Path
+    base_dir: Path
+    components: dict[str, Component]
+    connections: list[Connection]
+    parameters: list[ParameterValue]
+    start_time: float | None
+    stop_time: float | None
+    step_size: float | None
+    step_size_source: str | None
+    algorithm: str | None
+    #: the SSD's top-level ``ssd:Units`` (SSP 1.0 SystemStructureDescription.xsd)
+    units: dict[str, Unit] = field(default_factory=dict)
+    archive: Path | None = None
+    _tmp: tempfile.TemporaryDirectory | None = field(default=None, repr=False)
+    #: the systems as nested in the SSD, for `cosim info`
+    hierarchy: SystemNode | None = None
+    #: root-system output connectors: recorded under their name, aliases of component outputs
+    system_outputs: dict[str, SystemOutput] = field(default_factory=dict)
+    #: undriven system connectors feeding inputs or parameters: they need a ParameterBinding value
+    open_connectors: dict[str, OpenConnector] = field(default_factory=dict)
+    #: paths of the system connectors a connection drives (they cannot also be given a value)
+    driven_connectors: set[str] = field(default_factory=set)
+
+    def close(self) -> None:
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+
+# --------------------------------------------------------------------------- validated (cosim.plan)
+
+@dataclass
+class Route:
+    """One connection, resolved: output (src) to input (dst); ``factor``/``offset`` map the
+    source FMU's value to the destination FMU's value: the unit conversion and the
+    LinearTransformation composed (see `cosim.routing.hops_map`)."""
+    src: str
+    src_var: ModelVariable
+    dst: str
+    dst_var: ModelVariable
+    factor: float
+    offset: float
+
+
+@dataclass
+class StartValue:
+    component: str
+    variable: ModelVariable
+    value: float | int | bool | str
+    origin: str
+
+
+@dataclass(frozen=True)
+class RecordedOutput:
+    """A root-system output connector as recorded: ``factor·component.connector + offset``,
+    the per-hop composition of unit conversions and LinearTransformations from the FMU
+    variable's unit to the root connector's (`cosim.routing.hops_map`)."""
+    name: str
+    component: str
+    connector: str
+    factor: float
+    offset: float
+    #: the last unit a system connector declares on the way, else the source's
+    unit: str | None
+
+
+@dataclass
+class Plan:
+    """Everything a run needs, checked against the FMUs (`cosim.plan.build_plan`): execution,
+    recording, packing and sweeps take what they need from here."""
+    #: the flattened structure the plan was built from: for `cosim info`, and it owns the
+    #: extraction folder of an .ssp archive (`close`)
+    structure: SystemStructure
+    name: str | None
+    #: the root system's name (result names are paths relative to it)
+    system_name: str
+    files: ScenarioFiles
+    experiment: Experiment
+    #: the flattened components, by path, in SSD order
+    components: dict[str, Component]
+    fmus: dict[str, FMUDescription]
+    #: how the master integrates each Model Exchange component (`cosim.solvers`)
+    solvers: dict[str, SolverSettings]
+    routes: list[Route]
+    start_values: list[StartValue]
+    #: per component, the connector variables recorded and exchanged, in SSD order
+    outputs: dict[str, list[ModelVariable]]
+    inputs: dict[str, list[ModelVariable]]
+    #: components whose outputs must be re-read after their inputs are set at a
+    #: communication point (direct feedthrough), in dependency order; may repeat
+    feedthrough_sequence: list[str]
+    #: Gauss-Seidel order: upstream first, SSD order inside a loop
+    gauss_seidel_order: list[str]
+    #: root-system output connectors, recorded after the component connectors
+    system_outputs: dict[str, RecordedOutput]
+    #: the recorded connectors of the components in result-column order: component by component
+    #: in SSD order, connectors as each component lists them
+    columns: list[str]
+    #: each recorded signal's unit (None: no unit)
+    units: dict[str, str | None]
+    #: where unit names are looked up (`cosim.parameters.check_values`)
+    unit_scopes: SystemUnits
+    #: components of the feedthrough sequence whose outputs nobody reads before the settling
+    #: re-reads them: the exchange skips their first read (`cosim.graph.settling_shortcuts`)
+    read_in_settling_only: set[str] = field(default_factory=set)
+    #: components of the feedthrough sequence whose inputs are final when the settling sets
+    #: them: the exchange does not set them again
+    set_in_settling_only: set[str] = field(default_factory=set)
+
+    def recorded(self) -> tuple[list[str], list[str]]:
+        """The result names of the recorded outputs (the root system's output connectors last)
+        and inputs: every connector but String ones, which are exchanged, not recorded
+        (`cosim.execution.Execution.recorder_sources`)."""
+        def names(group: dict[str, list[ModelVariable]]) -> list[str]:
+            return [f"{c}.{v.name}" for c, vs in group.items() for v in vs if exchange_type(v) != "String"]
+        return names(self.outputs) + list(self.system_outputs), names(self.inputs)
+
+    def close(self) -> None:
+        """Remove the extraction folder of an .ssp archive (its FMUs are run from there)."""
+        self.structure.close()

@@ -1,0 +1,144 @@
+"""Parameter sweeps: every combination of swept values and seeds, run in parallel, one results table.
+
+A sweep takes a scenario and, for some parameters ``component.variable``, a list of values;
+it runs the Cartesian product of those lists (times the seeds, when given) and writes
+
+- ``OUTPUT/runs/<id>.csv`` and ``<id>.json``: each run's results and metadata, exactly as
+  ``cosim run`` writes them, and ``<id>.ssv``: the run's parameter values as an SSP 1.0
+  parameter set, so ``cosim run SCENARIO --param-set OUTPUT/runs/<id>.ssv`` repeats it;
+- ``OUTPUT/sweep.csv`` and ``OUTPUT/sweep.parquet``: one row per run (id, swept values, seed,
+  status, message, wall time, the requested step metrics), rewritten as runs finish, so a
+  sweep stopped halfway keeps every finished row.
+
+The run id is a hash of everything that decides the result: the scenario's files, every
+FMU's GUID and file contents, the parameter sets, the swept values, the seed and the time
+grid.  A rerun skips every run whose id has a finished row (completed or discarded) and
+its result files; change anything and the id changes.
+
+Values go in the way ``--param-set`` values do (SSP 1.0 parameter precedence: applied
+last, beating component- and system-level bindings), and every name and value is checked
+by the master's own validation (`cosim.parameters.check_values`) before the first run starts.
+Runs go to a local process pool (``spawn`` start method: FMUs loaded in the parent are
+never forked), run serially in this process, or go to a Dask distributed cluster; Dask
+workers must see the scenario and the output folder at the same paths.
+"""
+from __future__ import annotations
+
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..safeio import max_unpacked_bytes
+from ..simulation import prepare
+from .dispatch import Executor, Task, dispatch, local_workers, run_metrics
+from .table import finished_before, read_table, schema_of, write_table
+from .values import (
+    Metric,
+    Value,
+    check_metrics,
+    identity_of,
+    parse_metric,
+    parse_seeds,
+    parse_set,
+    plan_runs,
+    write_ssv,
+)
+
+__all__ = ["Metric", "SweepResult", "parse_metric", "parse_seeds", "parse_set", "read_table", "sweep", "write_ssv"]
+
+
+@dataclass
+class SweepResult:
+    """The table's rows in combination order, and how many runs were run or skipped."""
+    rows: list[dict[str, Any]]
+    ran: int
+    skipped: int
+    csv: Path
+    parquet: Path
+    columns: list[str] = field(default_factory=list)
+
+    @property
+    def failed(self) -> list[dict[str, Any]]:
+        return [r for r in self.rows if r["status"] == "failed"]
+
+
+
+def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: Sequence[int] = (),
+          seed_parameters: Sequence[str] = (), metrics: Sequence[str | Metric | tuple[str, str]] = (),
+          parameter_sets: Sequence[str | Path] = (), start_time: float | None = None,
+          stop_time: float | None = None, step_size: float | None = None, algorithm: str | None = None,
+          fmu_dirs: Sequence[str | Path] = (), output: str | Path = "results/sweep",
+          executor: Executor = "process", workers: int | None = None, force: bool = False,
+          progress: bool = False) -> SweepResult:
+    """Run every combination of ``sets`` (name -> values, strings parsed by the variable's type)
+    times ``seeds`` and write the results table (see the module docstring).
+
+    Raises `SetupError` before any run for a bad name, value, seed parameter or metric; a run
+    that fails is a row with status "failed" and its message.
+    """
+    output = Path(output)
+    scenario = Path(scenario)
+    if isinstance(executor, str) and executor.startswith("local:"):
+        local_workers(executor)
+    metric_list = [parse_metric(m) for m in metrics]
+    parameter_sets = [Path(p).resolve() for p in parameter_sets]
+    prepared = prepare(scenario, start_time=start_time, stop_time=stop_time, step_size=step_size,
+                       algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs)
+    try:       # this prepare also builds our FMUs once, before workers could race to build them
+        check_metrics(prepared, metric_list)
+        identity = identity_of(prepared, parameter_sets)
+        runs, types = plan_runs(prepared, sets, seeds, seed_parameters, identity)
+        grid, algo = prepared.grid, prepared.algorithm
+    finally:
+        prepared.close()
+    swept_types = {name: types[name] for name in sets}
+    schema = schema_of(swept_types, bool(seeds), metric_list)
+    runs_dir = output / "runs"
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    csv, parquet = output / "sweep.csv", output / "sweep.parquet"
+    before = {} if force else finished_before(output, runs_dir)
+
+    rows: dict[int, dict[str, Any]] = {}          # finished rows by combination index
+    fixed: dict[str, tuple[int, dict[str, Any]]] = {}   # run id -> index, swept values and seed
+    tasks: list[Task] = []
+    for r in runs:
+        fixed[r.run_id] = (r.index, {**r.values, **({"seed": r.seed} if seeds else {})})
+        if r.run_id in before:
+            old = before[r.run_id]
+            missing = [m for m in metric_list if any(c not in old for c in m.columns())]
+            if missing:
+                from ..results import read
+                old = {**old, **run_metrics(read(runs_dir / f"{r.run_id}.csv"), missing)}
+            rows[r.index] = {**old, **fixed[r.run_id][1]}
+            continue
+        ssv = runs_dir / f"{r.run_id}.ssv"
+        write_ssv(ssv, r.parameters, name=f"sweep run {r.run_id}")
+        tasks.append(Task(r.run_id, str(scenario.resolve()),
+                          tuple(str(p) for p in [*parameter_sets, ssv.resolve()]),
+                          tuple(str(Path(d).resolve()) for d in fmu_dirs), grid.start, grid.stop, grid.step,
+                          algo, str((runs_dir / f"{r.run_id}.csv").resolve()), tuple(metric_list),
+                          max_unpacked_bytes()[0]))
+    skipped = len(runs) - len(tasks)
+
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(runs), initial=skipped, unit="run", desc=f"sweep {scenario.name}", file=sys.stderr)
+
+    def finished(task: Task, row: dict[str, Any]) -> None:
+        index, values = fixed[task.run_id]
+        rows[index] = {**row, **values}
+        write_table([rows[i] for i in sorted(rows)], schema, csv, parquet)
+        if bar is not None:
+            bar.update()
+
+    write_table([rows[i] for i in sorted(rows)], schema, csv, parquet)
+    try:
+        dispatch(tasks, executor, workers, finished)
+    finally:
+        if bar is not None:
+            bar.close()
+    ordered = [{name: rows[i].get(name) for name in schema.names} for i in sorted(rows)]
+    return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv, parquet=parquet, columns=schema.names)

@@ -1,0 +1,79 @@
+"""The ``cosim`` command on its own (cosim.cli): run, validate, info and pack on a small system
+of real FMUs, exit codes and what each prints, without a scenario of ssp/."""
+from __future__ import annotations
+
+import zipfile
+
+import pytest
+
+from cosim.cli import main
+from cosim.results import read
+from ssdgen import ssd_text, write_system
+
+COMPONENTS = {"step": ("Step.fmu", {"y": "output"}), "gain": ("Gain.fmu", {"u": "input", "y": "output"})}
+CONNECTIONS = [("step", "y", "gain", "u")]
+
+
+def _system(tmp_path, built_fmus, **kw):
+    text = ssd_text("pair", COMPONENTS, CONNECTIONS, parameters={"gain": {"k": 4.0}}, **kw)
+    return write_system(tmp_path / "pair", {"Step.fmu": built_fmus["Step"], "Gain.fmu": built_fmus["Gain"]}, text)
+
+
+def test_run_writes_results_and_metadata(tmp_path, built_fmus, capsys):
+    folder = _system(tmp_path, built_fmus, stop=2.0, step=0.5)
+    out = tmp_path / "out.csv"
+    assert main(["run", str(folder), "-o", str(out), "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert "cosim: pair: 2 FMUs, 1 connections, t = 0..2 s, step 0.5 s (annotation org.greyfmu.simulation)" in printed
+    assert f"cosim: results: {out} (5 samples; metadata {out.with_suffix('.json')})" in printed
+    result = read(out)
+    assert list(result.dtype.names) == ["time", "step.y", "gain.u", "gain.y"] and result["gain.y"][-1] == 4.0
+
+
+def test_validate_without_a_step_in_the_ssd_checks_a_placeholder_grid(tmp_path, built_fmus, capsys):
+    folder = _system(tmp_path, built_fmus, step=None)
+    assert main(["validate", str(folder)]) == 0
+    assert (f"cosim: {folder}: valid — 2 FMUs, 1 connections, 1 parameter values; step 1 s (command line)"
+            in capsys.readouterr().out)
+    folder = _system(tmp_path, built_fmus, step=0.25)
+    assert main(["validate", str(folder)]) == 0
+    assert "step 0.25 s (annotation org.greyfmu.simulation)" in capsys.readouterr().out
+
+
+def test_validate_refuses_a_step_size_that_is_not_positive(tmp_path, built_fmus, capsys):
+    folder = _system(tmp_path, built_fmus, step=-0.1)
+    assert main(["validate", str(folder)]) == 2
+    assert "the step size must be a positive number; got -0.1" in capsys.readouterr().err
+
+
+def test_run_without_a_step_says_how_to_give_one(tmp_path, built_fmus, capsys):
+    assert main(["run", str(_system(tmp_path, built_fmus, step=None)), "-q"]) == 2
+    assert "no step size: pass --step" in capsys.readouterr().err
+
+
+def test_info_lists_components_connections_and_parameters(tmp_path, built_fmus, capsys):
+    assert main(["info", str(_system(tmp_path, built_fmus))]) == 0
+    printed = capsys.readouterr().out
+    for line in ("system 'pair'", "  gain: Gain.fmu (FMI 2.0", '    interface fmi2-cs (implementation="any")',
+                 "  step.y -> gain.u", "  gain.k = 4.0", "direct feedthrough resolved at each step in the order: gain"):
+        assert line in printed
+
+
+def test_pack_makes_an_archive_that_validates(tmp_path, built_fmus, capsys):
+    archive = tmp_path / "pair.ssp"
+    assert main(["pack", str(_system(tmp_path, built_fmus)), "-o", str(archive)]) == 0
+    with zipfile.ZipFile(archive) as z:
+        assert sorted(z.namelist()) == ["SystemStructure.ssd", "resources/Gain.fmu", "resources/Step.fmu"]
+    assert main(["validate", str(archive)]) == 0
+    assert "valid — 2 FMUs" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["sweep", "{folder}"], "nothing to sweep"),
+    (["sweep", "{folder}", "--seeds", "1..2", "--workers", "0"], "--workers 0: give at least 1"),
+    (["run", "{folder}", "--signals", "nothing*", "--plot", "x.png", "-q"], "no signal matches 'nothing*'"),
+])
+def test_wrong_arguments_exit_2_before_anything_runs(tmp_path, built_fmus, capsys, argv, message):
+    folder = _system(tmp_path, built_fmus)
+    assert main([a.format(folder=folder) for a in argv]) == 2
+    assert message in capsys.readouterr().err

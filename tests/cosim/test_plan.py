@@ -1,0 +1,120 @@
+"""The Plan as the one product of validation (cosim.plan, cosim.simulation.validate and
+resolve_grid): built from small real FMUs (greyfmu's Step, Gain and FirstOrderFilter),
+changing nothing it is given, and holding everything a run, a pack and a sweep need."""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import zipfile
+
+import numpy as np
+import pytest
+
+from cosim import ssp
+from cosim.errors import SetupError
+from cosim.pack import pack
+from cosim.parameters import check_values
+from cosim.plan import build_plan
+from cosim.resources import locate_fmus
+from cosim.simulation import Prepared, resolve_grid, run, validate
+from cosim.structure import ParameterValue
+from ssdgen import ssd_text, write_system
+
+COMPONENTS = {"lag": ("FirstOrderFilter.fmu", {"y": "output", "u": "input"}),
+              "step": ("Step.fmu", {"y": "output"}),
+              "gain": ("Gain.fmu", {"u": "input", "y": "output"})}
+CONNECTIONS = [("step", "y", "gain", "u", 2.0, 0.5), ("gain", "y", "lag", "u")]
+
+
+@pytest.fixture
+def chain(tmp_path, built_fmus):
+    """step -> (x2 + 0.5) -> gain (k = 3) -> lag; the SSD lists lag first."""
+    text = ssd_text("chain", COMPONENTS, CONNECTIONS, stop=2.0, step=0.1,
+                    parameters={"step": {"t_step": 0.5}, "gain": {"k": 3.0}, "lag": {"T": 0.2}})
+    files = {f: built_fmus[f.removesuffix(".fmu")] for f, _ in COMPONENTS.values()}
+    return write_system(tmp_path / "chain", files, text)
+
+
+def test_locating_and_planning_change_nothing_they_are_given(chain):
+    structure = ssp.load(chain)
+    before = copy.deepcopy(structure)
+    fmu_paths = locate_fmus(structure, use_providers=False)
+    assert fmu_paths == {name: chain / "resources" / fmu for name, (fmu, _) in COMPONENTS.items()}
+    extra = [ParameterValue("gain.k", "Real", 4.0, "cli.ssv", 3)]
+    plan = build_plan(structure, fmu_paths, extra)
+    assert structure == before and extra == [ParameterValue("gain.k", "Real", 4.0, "cli.ssv", 3)]
+    assert {f"{s.component}.{s.variable.name}": s.value for s in plan.start_values}["gain.k"] == 4.0
+
+
+def test_the_plan_holds_routes_columns_units_and_the_experiment(chain):
+    plan = validate(chain, use_providers=False)
+    try:
+        assert [(r.src, r.src_var.name, r.dst, r.dst_var.name, r.factor, r.offset) for r in plan.routes] == [
+            ("step", "y", "gain", "u", 2.0, 0.5), ("gain", "y", "lag", "u", 1.0, 0.0)]
+        assert plan.columns == ["lag.y", "lag.u", "step.y", "gain.u", "gain.y"]  # SSD order, as declared
+        assert plan.recorded() == (["lag.y", "step.y", "gain.y"], ["lag.u", "gain.u"])
+        assert set(plan.units) == set(plan.columns) and plan.solvers == {} and plan.system_outputs == {}
+        assert (plan.experiment.stop_time, plan.experiment.step_size) == (2.0, 0.1)
+        assert plan.files.source == chain / "SystemStructure.ssd" and plan.name == "chain"
+        assert plan.feedthrough_sequence == ["gain"] and plan.gauss_seidel_order == ["step", "gain", "lag"]
+    finally:
+        plan.close()
+
+
+def test_run_and_pack_need_nothing_but_the_plan(chain, tmp_path):
+    """With the structure it was built from taken away, the plan still runs and packs."""
+    plan = validate(chain, use_providers=False)
+    try:
+        bare = dataclasses.replace(plan, structure=None)
+        result, meta = run(Prepared(bare, resolve_grid(plan).grid, "jacobi", "annotation"))
+        archive = pack(bare, tmp_path / "chain.ssp")
+    finally:
+        plan.close()
+    assert meta["status"] == "completed" and list(result.dtype.names) == ["time"] + plan.columns
+    after = result["time"] >= 0.6 - 1e-12   # the step (t = 0.5) is seen by the next communication point
+    assert np.allclose(result["gain.u"][after], 2.5) and np.allclose(result["gain.y"][after], 7.5)
+    with zipfile.ZipFile(archive) as z:
+        assert sorted(z.namelist()) == ["SystemStructure.ssd", "resources/FirstOrderFilter.fmu",
+                                        "resources/Gain.fmu", "resources/Step.fmu"]
+
+
+def test_resolve_grid_takes_the_arguments_then_the_ssd(chain):
+    plan = validate(chain, use_providers=False)
+    try:
+        prepared = resolve_grid(plan)
+        assert (prepared.grid.stop, prepared.grid.step, prepared.algorithm) == (2.0, 0.1, "jacobi")
+        assert prepared.step_source == "annotation org.greyfmu.simulation"
+        prepared = resolve_grid(plan, step_size=0.5, stop_time=1.0, algorithm="gauss-seidel")
+        assert (prepared.grid.step, prepared.step_source, prepared.grid.steps) == (0.5, "command line", 2)
+        with pytest.raises(SetupError, match="unknown algorithm 'euler'"):
+            resolve_grid(plan, algorithm="euler")
+        with pytest.raises(SetupError, match="the step size must be a positive number"):
+            resolve_grid(plan, step_size=-1.0)
+    finally:
+        plan.close()
+
+
+def test_resolve_grid_refuses_what_the_ssd_does_not_give(tmp_path, built_fmus):
+    text = ssd_text("nostep", {"step": ("Step.fmu", {"y": "output"})}, [], step=None)
+    plan = validate(write_system(tmp_path / "nostep", {"Step.fmu": built_fmus["Step"]}, text), use_providers=False)
+    try:
+        assert plan.experiment.step_size is None
+        with pytest.raises(SetupError, match="no step size: pass --step"):
+            resolve_grid(plan)
+        assert resolve_grid(plan, step_size=0.25).grid.steps == 4
+    finally:
+        plan.close()
+
+
+def test_check_values_gives_the_masters_messages_without_a_second_plan(chain):
+    plan = validate(chain, use_providers=False)
+    try:
+        check_values(plan, [ParameterValue("gain.k", "Real", 5.0, "sweep", 0)])
+        with pytest.raises(SetupError, match="the FMU Gain.fmu has no variable 'kk'"):
+            check_values(plan, [ParameterValue("gain.kk", "Real", 5.0, "sweep", 0)])
+        with pytest.raises(SetupError, match="does not start with a component name"):
+            check_values(plan, [ParameterValue("nothing.k", "Real", 5.0, "sweep", 0)])
+        with pytest.raises(SetupError, match="causality 'output'"):
+            check_values(plan, [ParameterValue("gain.y", "Real", 5.0, "sweep", 0)])
+    finally:
+        plan.close()
