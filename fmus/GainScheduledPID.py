@@ -53,6 +53,10 @@ class GainScheduledPID(GreyfmuSlave):
             self.parameter(name, value, f"ITAE constant {name} of (2.8) (law = 4 only)")
         self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N")
         self.parameter("Ts", 0.1, "Sample time", unit="s")
+        self.parameter("anti_windup", 1, "1 = conditional-integration anti-windup at the output limits (ours), "
+                       "0 = none, the integral always integrates (the thesis's PI)", minimum=0, maximum=1)
+        self.parameter("derivative_on", 0, "Signal the D term differentiates: 0 = measurement -y (ours, no set-point "
+                       "kick), 1 = error e (the thesis's Td de/dt, (2.6a))", minimum=0, maximum=1)
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -85,6 +89,8 @@ class GainScheduledPID(GreyfmuSlave):
             schedule,
             self.Ts,
             N=self.N,
+            anti_windup=bool(self.anti_windup),
+            derivative_on=self.derivative_on,
             **self.output_limits(),
             **self.integral_options(),
         )

@@ -30,7 +30,12 @@ class GrayPredictivePI(GreyfmuSlave):
         self.parameter("m", 5, "LDISPI data interval: every m-th error sample enters the window", minimum=1)
         self.parameter("ph", 25.0, "Prediction horizon", unit="s", minimum=0.0)
         self.parameter("B", 50.0, "Bias keeping e + B positive (3.29b)", minimum=0.0)
-        self.parameter("a_min", 0.035, "Predict only when |a| > a_min, else estimate the current error", minimum=0.0)
+        self.parameter("a_min", 0.035, "Predict only when a passes a_min (see threshold), else estimate the current error",
+                       minimum=0.0)
+        self.parameter("threshold", 1, "Predict/estimate rule: 1 = a > a_min (§4.2 as printed), 2 = |a| > a_min",
+                       minimum=1, maximum=2)
+        self.parameter("anti_windup", 1, "1 = conditional-integration anti-windup at the output limits (ours), "
+                       "0 = none, the integral always integrates (the thesis's PI)", minimum=0, maximum=1)
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -48,7 +53,7 @@ class GrayPredictivePI(GreyfmuSlave):
     def build(self) -> None:
         self.controller = Controller(
             self.Kc, self.Ti, self.Ts, n=self.n, m=self.m, ph=self.ph, B=self.B, a_min=self.a_min,
-            **self.output_limits(), **self.integral_options(),
+            threshold=self.threshold, anti_windup=bool(self.anti_windup), **self.output_limits(), **self.integral_options(),
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)
 

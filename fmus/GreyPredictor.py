@@ -28,7 +28,10 @@ class GreyPredictor(GreyfmuSlave):
         self.parameter("m", 1, "Data interval (LDISPI): every m-th sample enters the window", minimum=1)
         self.parameter("ph", 20.0, "Prediction horizon", unit="s", minimum=0.0)
         self.parameter("B", 0.0, "Bias added before the fit, removed after it (3.29b)", minimum=0.0)
-        self.parameter("a_min", 0.0, "Predict only when |a| > a_min, else estimate the current value", minimum=0.0)
+        self.parameter("a_min", 0.0, "Predict only when a passes a_min (see threshold), else estimate the current value",
+                       minimum=0.0)
+        self.parameter("threshold", 2, "Predict/estimate rule: 1 = a > a_min (§4.2 as printed), 2 = |a| > a_min "
+                       "(with a_min = 0: always, chapter 3)", minimum=1, maximum=2)
         self.input("x", 0.0, "Signal to predict")
         self.output("x_hat", "Prediction ph ahead (held between samples)", lambda: self.predictor.prediction,
                     variability=Fmi2Variability.discrete)
@@ -40,7 +43,8 @@ class GreyPredictor(GreyfmuSlave):
                     lambda: float(self.predictor.mode), variability=Fmi2Variability.discrete)
 
     def build(self) -> None:
-        self.predictor = Predictor(n=self.n, m=self.m, horizon=self.ph / self.Ts, bias=self.B, a_min=self.a_min)
+        self.predictor = Predictor(n=self.n, m=self.m, horizon=self.ph / self.Ts, bias=self.B, a_min=self.a_min,
+                               threshold=self.threshold)
         self.clock = SampleClock(self.Ts, self.experiment_start)
 
     def advance(self, t: float, h: float) -> None:

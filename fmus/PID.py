@@ -28,6 +28,10 @@ class PID(GreyfmuSlave):
         self.parameter("Td", 1.5363, "Derivative time (0 disables the derivative term)", unit="s", minimum=0.0)
         self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N")
         self.parameter("Ts", 0.1, "Sample time", unit="s")
+        self.parameter("anti_windup", 1, "1 = conditional-integration anti-windup at the output limits (ours), "
+                       "0 = none, the integral always integrates (the thesis's PI)", minimum=0, maximum=1)
+        self.parameter("derivative_on", 0, "Signal the D term differentiates: 0 = measurement -y (ours, no set-point "
+                       "kick), 1 = error e (the thesis's Td de/dt, (2.6a))", minimum=0, maximum=1)
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -42,6 +46,8 @@ class PID(GreyfmuSlave):
             self.Td,
             self.Ts,
             N=self.N,
+            anti_windup=bool(self.anti_windup),
+            derivative_on=self.derivative_on,
             **self.output_limits(),
             **self.integral_options(),
         )
