@@ -48,8 +48,10 @@ def settled(r: np.ndarray, window: float = 300.0) -> bool:
     return bool(bounded and np.max(np.abs(e_p[tail])) < 2.0 and np.max(np.abs(e_e[tail])) < 2.0)
 
 
-def overshoot(r: np.ndarray) -> float:
-    return float(100 * (np.max(r["plant.P"] - r["plant.P"][0]) / r["sp_step.y"][-1] - 1))
+def overshoot(r: np.ndarray, y: str = "plant.P", setpoint: str = "sp_step.y") -> float:
+    """Overshoot [%] of y after the step of `setpoint`, in the step's direction."""
+    step = r[setpoint][-1] - r[setpoint][0]
+    return float(100 * np.max(np.sign(step) * (r[y] - r[y][0])) / abs(step) - 100)
 
 
 @pytest.mark.parametrize("load", [58, 76, 101])
@@ -89,6 +91,29 @@ def test_sim_4_1_grey_pi_and_pi_step_responses_alike(load):
     assert abs(overshoot(grey) - overshoot(pi)) < 2.0
     assert 10.0 < overshoot(pi) < 17.0
     assert settled(pi) and settled(grey)
+
+
+def test_figures_4_2_4_3_design_criterion_10_percent_overshoot():
+    """§4.2: "The control criteria are 10% overshoots for the unit-step responses of electric power and throttle
+    pressure" (Figs. 4.2/4.3, both directions).  NOT REPRODUCED with the printed gains (4.3): the pressure overshoots
+    13.3 % up and down (Fig. 4.3); the power follows a unit load step without overshoot (0.07 %), the pressure
+    overshooting its Fcn-Gen set-point change by 13.1 % (Fig. 4.2)."""
+    for direction in ("up", "down"):
+        assert 12.5 < overshoot(run(f"fig43_{direction}", "pi", 800.0)) < 14.0
+        power = run(f"fig42_{direction}", "pi", 800.0)
+        assert overshoot(power, "plant.E", "demand.y") < 1.0
+        assert 12.5 < overshoot(power, "plant.P", "pressure_sp.y") < 14.0
+
+
+def test_sim_4_2_drum_level_criterion_steady_met_transient_exceeded():
+    """§4.2's drum-level criterion: within ±50 mm at a steady load demand, short excursions within ±100 mm.  The
+    steady part holds (last 300 s within 21 mm in every stable case); the transient part does NOT: the level peaks
+    at 110-144 mm in the 9 MW/min ramps and 321 mm in CASE 8 (17 MW/min) with our PI."""
+    for case, peak in ((1, 100.0), (8, 250.0)):
+        r = run(f"sim42_case{case}", "pi", 1200.0)
+        level = np.abs(r["plant.L"] - LEVEL_SETPOINT_MODEL_MM)
+        assert np.max(level) > peak
+        assert np.max(level[r["time"] >= 900.0]) < 50.0
 
 
 @pytest.mark.parametrize("case", [5, 6, 7, 8, 9, 10])
