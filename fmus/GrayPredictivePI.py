@@ -13,8 +13,9 @@ class GrayPredictivePI(GreyfmuSlave):
     description = (
         "Error-prediction-based grey predictive PI (thesis 000_*, §3.2, Fig. 3.14, (3.29)): the error e = r - y plus "
         "the bias B goes through a moving-window GM(1,1) predictor (n samples every m-th sample, LDISPI §3.1.6); the "
-        "PI of the PID FMU (integral modes (2.10)-(2.12), limits, anti-windup) acts on the predicted error e_hat, ph "
-        "seconds ahead when |a| > a_min, the estimated current error otherwise (§4.2). Sampled at Ts with zero-order "
+        "PI of the PID FMU (integral modes (2.10)-(2.12), limits, optional anti-windup) acts on the predicted error "
+        "e_hat, ph seconds ahead when a > a_min (threshold 1, §4.2 as printed) or |a| > a_min (2), the estimated "
+        "current error otherwise. Sampled at Ts with zero-order "
         "hold, no direct feedthrough. Defaults: ph = 25 s, B = 50, a_min = 0.035 of §4.2; Kc, Ti for "
         "1/((1+30s)(1+5s)). " + REQUIREMENTS
     )

@@ -13,7 +13,8 @@ class GreyPredictor(GreyfmuSlave):
     description = (
         "Moving-window GM(1,1) grey predictor (thesis 000_*, §3.1.5-3.1.6, (3.5e)-(3.7b), (3.29)): samples x every "
         "Ts, fits GM(1,1) to n samples spaced m samples apart (LDISPI; m = 1: plain window) after adding the bias B, "
-        "and outputs the prediction ph seconds ahead minus B when |a| > a_min, else the model's estimate of the "
+        "and outputs the prediction ph seconds ahead minus B when |a| > a_min (threshold 2) or a > a_min (1), else "
+        "the model's estimate of the "
         "current sample; the current sample itself until the window is full or when no valid model exists "
         "(biased sample <= 0, singular fit, |a| >= 2). Zero-order hold between samples, no direct feedthrough. "
         "Defaults: Simulation 3.3 CASE 1 (Ts = 1 s, n = 4, ph = 20 s). " + REQUIREMENTS

@@ -11,9 +11,10 @@ from greyfmu.signals import SampleClock
 
 class PID(GreyfmuSlave):
     description = (
-        "Sampled ideal (ISA) PID u = Kc[e + (1/Ti)∫e dt + Td de/dt], e = r - y, with derivative on the "
-        "measurement filtered by Td/N (backward Euler), output and rate limits, conditional-integration "
-        "anti-windup and the integral modes (2.10)-(2.12) of the thesis. Sampled at Ts with zero-order hold: "
+        "Sampled ideal (ISA) PID u = Kc[e + (1/Ti)∫e dt + Td de/dt], e = r - y, with the derivative on the "
+        "measurement (default) or on the error (the thesis's form) filtered by Td/N (backward Euler), output and rate "
+        "limits, conditional-integration anti-windup (switchable off) and the integral modes (2.10)-(2.12) of the "
+        "thesis. Sampled at Ts with zero-order hold: "
         "do_step(t, h) computes every sample instant t0 + k*Ts in [t, t+h) from the inputs set at t, and u is "
         "the last sample's output (u0 before the first sample); no direct feedthrough. Defaults: Simulation 2.1 "
         "at its low operating point (Kc = 1.6069/0.2). " + REQUIREMENTS
