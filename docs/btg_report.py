@@ -190,7 +190,8 @@ def table(rows: list[tuple[Case, str, dict]]) -> str:
     for case, form, m in rows:
         cells = [fmt(100 * m[key] if key == "predicted" else m.get(key, float("nan")), digits)
                  for _, key, digits in COLUMNS]
-        lines.append(f"| {case.name} | {form} | " + " | ".join(cells) + " |")
+        label = form.replace("|", "\\|")  # a table cell
+        lines.append(f"| {case.name} | {label} | " + " | ".join(cells) + " |")
     return head + "\n".join(lines) + "\n"
 
 

@@ -37,6 +37,8 @@ SCENARIO = ROOT / "ssp" / "btg_boiler_following"
 TABLES = ROOT / "docs" / "btg_sensitivity_tables.md"
 FIGURE = ROOT / "docs" / "figures" / "btg_sensitivity.png"
 THRESHOLDS = {1: "a > a_min", 2: "|a| > a_min"}
+CELLS = {k: v.replace("|", "\\|") for k, v in THRESHOLDS.items()}
+"""The threshold names as markdown table cells."""
 A_MIN = (0.0, 0.005, 0.01, 0.02, 0.035)
 BIAS = (25.0, 50.0, 100.0)
 SPACING = (1, 5)
@@ -154,7 +156,7 @@ def main() -> None:
     heat_map(results)
     head = ("| threshold | a_min | B | m | settles CASE 5 | settles CASE 8 | predicting % (CASE 8) | peak e_P / PI "
             "| fuel range / PI | noise std / PI | S | D | N |\n|" + "---|" * 13 + "\n")
-    lines = [f"| {THRESHOLDS[s.threshold]} | {s.a_min:g} | {s.B:g} | {s.m} | {fmt(g['settles_sim42_case5'])} "
+    lines = [f"| {CELLS[s.threshold]} | {s.a_min:g} | {s.B:g} | {s.m} | {fmt(g['settles_sim42_case5'])} "
              f"| {fmt(g['settles_sim42_case8'])} | {100 * g['predicted']:.1f} | {g['peak'] / pi['peak']:.2f} "
              f"| {g['fuel_range'] / pi['fuel_range']:.2f} | {g['noise'] / pi['noise']:.2f} | "
              + " | ".join("**yes**" if held[k] else "no" for k in "SDN") + " |"
