@@ -127,7 +127,7 @@ def test_sim_2_2_integral_modes_2_11_2_12_are_more_damped(direction):
 def test_sim_2_2_reversed_dead_time_modes_2_11_2_12_overshoot(direction, large):
     """Sim. 2.2: "If we have τ(y) decrease as y increases, PID with the integral mode (2.11) and (2.12) will have a
     step response with large over-shoot."  REPRODUCED for (2.11) on the rising step (tau_falling.ssv: τ 20 → 14.2 s):
-    overshoot 268.7 % ((2.12) 16.8 %, (2.10) 0.6 %); on the falling step (τ grows) 7.1 / 4.1 / 0.3 %.  The order
+    overshoot 268.7 % ((2.12) 16.8 %, (2.10) 0.6 %); on the falling step (τ grows) 7.0 / 4.0 / 0.3 %.  The order
     (2.11) > (2.12) > (2.10) holds in both directions."""
     m = {k: setpoint_metrics("gs_sim2_2", direction, f"mode{k}", "tau_falling", stop_time=600.0) for k in (1, 2, 3)}
     assert m[2]["overshoot"] > m[3]["overshoot"] > m[1]["overshoot"]

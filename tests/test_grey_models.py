@@ -259,6 +259,15 @@ def test_grey_pi_is_the_pi_until_the_window_is_full():
     assert grey.mode is PredictorMode.FILLING
 
 
+def test_grey_pi_defaults_to_the_printed_rule_and_passes_anti_windup_to_its_pi():
+    """GrayPredictivePI's threshold defaults to §4.2 as printed (SIGNED); anti_windup=False reaches its PID."""
+    grey = GrayPredictivePI(2.0, 20.0, 1.0, u_min=0.0, u_max=1.0, anti_windup=False)
+    assert grey.predictor.threshold is Threshold.SIGNED and grey.pi.anti_windup is False
+    for _ in range(300):
+        grey.step(1.0, 0.0)
+    assert grey.u == 1.0 and grey.pi.I > 10.0  # the integral winds up behind the limited output
+
+
 def test_second_order_plant_is_exact():
     """The plant used by the scenarios: the analytic under-damped step response at any step size."""
     wn, zeta = 0.1, 0.5
