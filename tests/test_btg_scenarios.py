@@ -142,6 +142,25 @@ def test_sim_4_2_fast_ramps_thesis_pi_unstable_grey_pi_stable_with_magnitude_rul
     assert settled(grey) is grey_stable
 
 
+@pytest.mark.parametrize("case", [1, 2, 3, 4])
+def test_sim_4_2_slow_ramps_same_overshoot(case):
+    """Sim. 4.2 CASES 1-4 (9 MW/min): "the overshoots for both systems ... are almost the same".  REPRODUCED: peak
+    |e_P| within 0.15 kgf/cm2 of the PI's (2.69/2.78, 2.83/2.73, 3.02/2.92, 2.86/2.95 in the full runs); the grey PI
+    never predicts, so it is the PI acting on the GM(1,1) estimate of the error."""
+    pi, grey = run(f"sim42_case{case}", "pi", 600.0), run(f"sim42_case{case}", "grey", 600.0)
+    assert abs(np.max(np.abs(pressure_error(grey))) - np.max(np.abs(pressure_error(pi)))) < 0.15
+    assert not np.any(grey["fuel_grey.mode"] == 2)
+
+
+def test_sim_4_2_grey_error_8_to_10_only_in_case_5():
+    """Sim. 4.2 CASES 5-8: the grey PI stays stable "although the error of the throttle pressure is large, about
+    8-10 kgf/cm2".  NOT REPRODUCED beyond CASE 5: with the thesis's PI form and |a| the peak |e_P| is 9.8 in CASE 5
+    and 20.5 in CASE 8."""
+    peaks = {case: np.max(np.abs(pressure_error(run(f"sim42_case{case}", "grey", 1500.0, form="thesis |a|"))))
+             for case in (5, 8)}
+    assert 8.0 <= peaks[5] <= 10.0 and peaks[8] > 15.0
+
+
 def test_sim_4_2_case_8_printed_signed_threshold_loses_the_stability():
     """§4.2's rule as printed, "a(i) larger than 0.035" (signed: predict only while the biased error decays),
     with the thesis's PI form: the grey PI limit-cycles like the PI in Sim. 4.2 CASE 8 (last 300 s |e_P| 18.3
@@ -159,6 +178,19 @@ def test_sim_4_3_case_1_pulse_rejection_equal_not_a_third():
     ratio = np.max(np.abs(pressure_error(grey))) / np.max(np.abs(pressure_error(pi)))
     assert 0.9 < ratio < 1.1
     assert 0.9 < np.ptp(grey[FUEL["grey"]]) / np.ptp(pi[FUEL["pi"]]) < 1.1
+    assert not np.any(grey["fuel_grey.mode"] == 2)
+
+
+@pytest.mark.parametrize("case", [2, 3])
+def test_sim_4_3_cases_2_3_first_pulse_alike(case):
+    """Sim. 4.3 CASE 2 (400 s period): "still much better" with the grey PI — NOT REPRODUCED; CASE 3 (13 % pulse):
+    "almost the same" — REPRODUCED.  Here both are alike: first-pulse peak |e_P| and fuel range within 10 % of the PI's
+    (CASE 2: 1.02 and 1.05, the grey PI using more fuel; full runs with noise: peak ratios 1.02 and 0.99), the grey PI
+    never predicting.  Noise-free, master step 0.5 s."""
+    pi = run(f"sim43_case{case}", "pi", 500.0, noise=False)
+    grey = run(f"sim43_case{case}", "grey", 500.0, noise=False)
+    ratio = np.max(np.abs(pressure_error(grey))) / np.max(np.abs(pressure_error(pi)))
+    assert 0.9 < ratio < 1.1 and 0.9 < np.ptp(grey[FUEL["grey"]]) / np.ptp(pi[FUEL["pi"]]) < 1.1
     assert not np.any(grey["fuel_grey.mode"] == 2)
 
 
