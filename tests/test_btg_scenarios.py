@@ -3,7 +3,9 @@
 Each test names the simulation whose claim it checks.  Where our reproduction disagrees with
 the thesis the test asserts what we measure (and says so); docs/btg.md gives the numbers and
 the reason.  Runs are shortened to what a claim needs (one pulse period instead of three,
-1200 s instead of 1500 s of load following); docs/btg_report.py runs the full cases.
+600-1200 s of load following; 1500 s where the thesis's PI form needs it to settle);
+docs/btg_report.py runs the full cases, docs/btg_sensitivity_report.py the grid of grey-PI settings.
+Each run names its controller form (FORMS): ours unless the thesis's claim needs the thesis's PI.
 """
 
 from functools import lru_cache
