@@ -1,12 +1,19 @@
-"""Regenerate the tables and figures of docs/btg.md: thesis 000_*, ch. 4, Simulations 4.1-4.4.
+"""Regenerate the tables and figures of docs/btg.md: thesis 000_*, ch. 4, Figures 4.2/4.3, Simulations 4.1-4.4.
 
-    python docs/btg_report.py            # every case (about five minutes on one core)
-    python docs/btg_report.py sim43      # only the cases whose name starts with sim43
+    python docs/btg_report.py            # every case (about fifteen minutes on one core)
+    python docs/btg_report.py sim43      # only the cases whose name starts with sim43 (tables not written)
 
-Runs ssp/btg_boiler_following (Figure 4.1) through cosim once per case and fuel controller
-(PI and grey predictive PI; for the noisy pulse cases also without noise, to isolate the
-noise's share of the fuel command), writes docs/btg_tables.md and docs/figures/btg_*.png,
-and times one 3000 s load-following run (Simulation 4.2 CASE 8) at the scenario's step.
+Runs ssp/btg_boiler_following (Figure 4.1) through cosim once per case and controller form:
+
+- ``PI ours`` / ``grey ours``: our controllers (conditional-integration anti-windup, outputs limited to
+  0-100 %, the grey PI predicting when |a| > a_min);
+- ``PI thesis`` / ``grey thesis``: the thesis's fuel controllers as printed (``thesis.ssv``: no anti-windup,
+  no output limits, the valve clips; the grey PI predicting when a > a_min);
+- ``grey thesis |a|``: the thesis's PI form with our |a| rule (``thesis.ssv`` + ``magnitude.ssv``).
+
+For the noisy pulse cases each form also runs without noise, to isolate the noise's share of the fuel
+command.  Writes docs/btg_tables.md and docs/figures/btg_*.png, and times one 3000 s load-following run
+(Simulation 4.2 CASE 8) at the scenario's step.
 """
 
 from __future__ import annotations
@@ -28,9 +35,21 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "ssp" / "btg_boiler_following"
 FIGURES = ROOT / "docs" / "figures"
 TABLES = ROOT / "docs" / "btg_tables.md"
-CONTROLLERS = ("pi", "grey")
 OUTPUT = {"pi": "fuel_pi.u", "grey": "fuel_grey.u"}
 NOISE_FREE = SCENARIO / "noise_free.ssv"
+THESIS = SCENARIO / "thesis.ssv"
+MAGNITUDE = SCENARIO / "magnitude.ssv"
+FORMS: dict[str, tuple[str, tuple[Path, ...]]] = {
+    "PI ours": ("pi", ()),
+    "grey ours": ("grey", ()),
+    "PI thesis": ("pi", (THESIS,)),
+    "grey thesis": ("grey", (THESIS,)),
+    "grey thesis |a|": ("grey", (THESIS, MAGNITUDE)),
+}
+LEVEL_SETPOINT_MM = 100.0
+"""The thesis's -100 mm drum-level set-point in the model's datum (scenario README)."""
+LEVEL_STEADY_MM, LEVEL_TRANSIENT_MM = 50.0, 100.0
+"""§4.2's drum-level criterion: within ±50 mm at a steady load demand, short excursions within ±100 mm."""
 
 
 @dataclass(frozen=True)
@@ -40,25 +59,35 @@ class Case:
     stop: float
     step: float
     """Master step: 0.5 s (all sample times 0.5/1 s) unless the noise is sampled every 0.1 s."""
-    periodic: bool = False
+    period: float | None = None
+    """Period of the fuel pulse [s] (Sim. 4.3/4.4); None for a set-point or load change."""
 
 
 CASES = (
-    [Case(f"sim41_{n}", f"Sim. 4.1, unit pressure set-point step at {n} MW", 800.0, 0.5) for n in (58, 76, 101)]
+    [Case(f"fig42_{d}", f"Fig. 4.2, unit load-demand step {d} at 76 MW", 800.0, 0.5) for d in ("up", "down")]
+    + [Case(f"fig43_{d}", f"Fig. 4.3, unit pressure set-point step {d} at 76 MW", 800.0, 0.5) for d in ("up", "down")]
+    + [Case(f"sim41_{n}", f"Sim. 4.1, unit pressure set-point step at {n} MW", 800.0, 0.5) for n in (58, 76, 101)]
     + [Case(f"sim42_case{c}", f"Sim. 4.2 CASE {c}", 1500.0, 0.5) for c in range(1, 11)]
-    + [Case(f"sim43_case{c}", f"Sim. 4.3 CASE {c}", 1900.0, 0.1, True) for c in (1, 2, 3)]
-    + [Case(f"sim44_case{c}", f"Sim. 4.4 CASE {c}", 1900.0, 0.1 if c == 3 else 0.5, True) for c in range(1, 6)]
+    + [Case(f"sim43_case{c}", f"Sim. 4.3 CASE {c}", 1900.0, 0.1, 400.0 if c == 2 else 600.0) for c in (1, 2, 3)]
+    + [Case(f"sim44_case{c}", f"Sim. 4.4 CASE {c}", 1900.0, 0.1 if c == 3 else 0.5, 600.0) for c in range(1, 6)]
 )
+SAME_RUN = {"sim44_case3": "sim43_case1"}
+"""Sim. 4.4 CASE 3 is Sim. 4.3 CASE 1 (same pulse, same noise): its rows are copied, not re-run."""
 SETTLE_WINDOW = 300.0
 """Seconds at the end of a run in which a non-periodic case must have settled."""
 SETTLE_P, SETTLE_E = 2.0, 2.0
 """Settled: |pressure error| < 2 kgf/cm2 and |power error| < 2 MW over the window (noise std is < 0.5)."""
 BOUND = 50.0
 """Bounded: |pressure error| < 50 kgf/cm2 and |power error| < 50 MW throughout."""
+CHANGE_AT = 100.0
+"""Every case changes its set-point, load demand or disturbance at t = 100 s."""
 
 
-def simulate(case: str, controller: str, *, stop: float, step: float, extra: tuple[Path, ...] = ()) -> np.ndarray:
+def simulate(case: str, form: str, *, stop: float, step: float, noise: bool = True) -> np.ndarray:
+    controller, extra = FORMS[form]
     sets = [SCENARIO / f"{case}.ssv", SCENARIO / f"{controller}.ssv", *extra]
+    if not noise:
+        sets.append(NOISE_FREE)
     return cosim.simulate(SCENARIO, stop_time=stop, step_size=step, parameter_sets=sets)
 
 
@@ -66,42 +95,48 @@ def integral(t: np.ndarray, y: np.ndarray) -> float:
     return float(np.sum((y[1:] + y[:-1]) * np.diff(t)) / 2)
 
 
-def metrics(result: np.ndarray, controller: str, periodic: bool) -> dict[str, float | bool]:
+def overshoot(t: np.ndarray, y: np.ndarray, setpoint: np.ndarray) -> float:
+    """Largest excursion of y beyond the final set-point, in the direction of the set-point change, in % of
+    that change (0 = none); NaN if the set-point does not change."""
+    change = setpoint[-1] - setpoint[0]
+    if abs(change) < 1e-9:
+        return float("nan")
+    beyond = np.sign(change) * (y[t >= CHANGE_AT] - setpoint[-1])
+    return float(max(0.0, 100 * np.max(beyond) / abs(change)))
+
+
+def metrics(result: np.ndarray, controller: str, period: float | None) -> dict[str, float | bool]:
     """The report's columns for one run (errors on the true pressure and power, not the noisy measurement)."""
     t = result["time"]
     e_p = result["pressure_sp.y"] - result["plant.P"]
     e_e = result["demand.y"] - result["plant.E"]
+    level = result["plant.L"] - LEVEL_SETPOINT_MM
     u = result[OUTPUT[controller]]
     finite = bool(np.all(np.isfinite(e_p)) and np.all(np.isfinite(e_e)))
     bounded = finite and float(np.max(np.abs(e_p))) < BOUND and float(np.max(np.abs(e_e))) < BOUND
-    if periodic:  # the response to the last disturbance period is no larger than to the first
-        period = 600.0 if t[-1] > 1500 else 400.0
-        first = np.abs(e_p[(t >= 100) & (t < 100 + period)]).max()
+    tail = t >= t[-1] - SETTLE_WINDOW
+    if period is not None:  # the response to the last disturbance period is no larger than to the first
+        first = np.abs(e_p[(t >= CHANGE_AT) & (t < CHANGE_AT + period)]).max()
         last = np.abs(e_p[t >= t[-1] - period]).max()
         settled = bool(last <= 1.1 * first)
     else:
-        tail = t >= t[-1] - SETTLE_WINDOW
         settled = bool(np.max(np.abs(e_p[tail])) < SETTLE_P and np.max(np.abs(e_e[tail])) < SETTLE_E)
     return {
         "max_ep": float(np.max(np.abs(e_p))),
+        "tail_ep": float(np.max(np.abs(e_p[tail]))),
         "iae_p": integral(t, np.abs(e_p)),
         "iae_e": integral(t, np.abs(e_e)),
+        "os_p": overshoot(t, result["plant.P"], result["pressure_sp.y"]),
+        "os_e": overshoot(t, result["plant.E"], result["demand.y"]),
+        "level_max": float(np.max(np.abs(level))),
+        "level_tail": float(np.max(np.abs(level[tail]))),
         "tv_u": float(np.sum(np.abs(np.diff(u)))),
-        "std_u": float(np.std(u)),
-        "u_range": float(np.ptp(u)),
-        "overshoot": overshoot(result) if result["sp_step.y"][-1] != 0 else float("nan"),
+        "u_range": float(np.ptp(np.clip(u, 0.0, 100.0))),
         "predicted": float(np.mean(result["fuel_grey.mode"] == 2)) if controller == "grey" else float("nan"),
         "stable": bounded and settled,
         "bounded": bounded,
         "settled": settled,
     }
-
-
-def overshoot(result: np.ndarray) -> float:
-    """Overshoot [%] of the throttle pressure after the set-point step (Sim. 4.1)."""
-    step = result["sp_step.y"][-1]
-    start = result["plant.P"][0]
-    return float(100 * (np.max((result["plant.P"] - start) / step) - 1))
 
 
 def noise_std(noisy: np.ndarray, clean: np.ndarray, controller: str) -> float:
@@ -110,25 +145,27 @@ def noise_std(noisy: np.ndarray, clean: np.ndarray, controller: str) -> float:
 
 
 def figure(case: Case, runs: dict[str, np.ndarray]) -> None:
-    fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
-    for controller, style in zip(CONTROLLERS, ("-", "--")):
-        r = runs[controller]
-        label = "PI" if controller == "pi" else "grey PI"
-        axes[0].plot(r["time"], r["plant.P"], style, label=f"P, {label}")
-        axes[1].plot(r["time"], r["plant.E"], style, label=f"E, {label}")
-        axes[2].plot(r["time"], r[OUTPUT[controller]], style, label=f"fuel command, {label}")
-    r = runs["pi"]
+    fig, axes = plt.subplots(4, 1, figsize=(8, 10), sharex=True)
+    for form, r in runs.items():
+        controller = FORMS[form][0]
+        style = "--" if controller == "grey" else "-"
+        axes[0].plot(r["time"], r["plant.P"], style, lw=1, label=form)
+        axes[1].plot(r["time"], r["plant.E"], style, lw=1, label=form)
+        axes[2].plot(r["time"], np.clip(r[OUTPUT[controller]], -10, 110), style, lw=1, label=form)
+        axes[3].plot(r["time"], np.clip(r["plant.L"] - LEVEL_SETPOINT_MM, -400, 400), style, lw=1, label=form)
+    r = runs["PI ours"]
     axes[0].plot(r["time"], r["pressure_sp.y"], ":k", label="set-point")
     axes[1].plot(r["time"], r["demand.y"], ":k", label="load demand")
-    axes[2].plot(r["time"], r["turbine.u"], "-", color="0.6", label="governor command (PI run)")
-    for ax, unit in zip(axes, ("kgf/cm²", "MW", "%")):
-        ax.set_ylabel(unit)
+    for limit in (-LEVEL_TRANSIENT_MM, LEVEL_TRANSIENT_MM):
+        axes[3].axhline(limit, color="0.6", ls=":")
+    for ax, label in zip(axes, ("pressure [kgf/cm²]", "power [MW]", "fuel command [%]", "level − set-point [mm]")):
+        ax.set_ylabel(label)
         ax.grid(True)
-        ax.legend(fontsize=8, loc="best")
+    axes[0].legend(fontsize=7, loc="best", ncol=2)
     axes[0].set_title(f"{case.title} — ssp/btg_boiler_following")
     axes[-1].set_xlabel("time [s]")
     fig.tight_layout()
-    fig.savefig(FIGURES / f"btg_{case.name}.png", dpi=90)
+    fig.savefig(FIGURES / f"btg_{case.name}.png", dpi=80)
     plt.close(fig)
 
 
@@ -138,20 +175,30 @@ def fmt(value: float | bool, digits: int = 2) -> str:
     return "—" if not np.isfinite(value) else f"{value:.{digits}f}"
 
 
+COLUMNS = (
+    ("max \\|e_P\\|", "max_ep", 2), ("last 300 s \\|e_P\\|", "tail_ep", 2), ("IAE P", "iae_p", 0),
+    ("IAE E", "iae_e", 0), ("overshoot P %", "os_p", 1), ("overshoot E %", "os_e", 1),
+    ("level max mm", "level_max", 0), ("level last 300 s mm", "level_tail", 0), ("TV u", "tv_u", 0),
+    ("u range %", "u_range", 1), ("noise std u", "noise_std", 3), ("grey predicting %", "predicted", 1),
+    ("bounded", "bounded", 0), ("settled", "settled", 0),
+)
+
+
 def table(rows: list[tuple[Case, str, dict]]) -> str:
-    head = ("| case | fuel ctrl | max \\|e_P\\| | IAE P | IAE E | TV u | std u | noise std u | overshoot % "
-            "| grey predicting | bounded | settled |\n|" + "---|" * 12 + "\n")
-    lines = [f"| {c.name} | {ctl} | {fmt(m['max_ep'])} | {fmt(m['iae_p'], 0)} | {fmt(m['iae_e'], 0)} "
-             f"| {fmt(m['tv_u'], 0)} | {fmt(m['std_u'])} | {fmt(m.get('noise_std', float('nan')), 3)} "
-             f"| {fmt(m['overshoot'], 1)} | {fmt(100 * m['predicted'], 1)} | {fmt(m['bounded'])} "
-             f"| {fmt(m['settled'])} |" for c, ctl, m in rows]
+    head = "| case | fuel ctrl | " + " | ".join(c[0] for c in COLUMNS) + " |\n|" + "---|" * (len(COLUMNS) + 2) + "\n"
+    lines = []
+    for case, form, m in rows:
+        cells = [fmt(100 * m[key] if key == "predicted" else m.get(key, float("nan")), digits)
+                 for _, key, digits in COLUMNS]
+        label = form.replace("|", "\\|")  # a table cell
+        lines.append(f"| {case.name} | {label} | " + " | ".join(cells) + " |")
     return head + "\n".join(lines) + "\n"
 
 
 def timed_load_following() -> tuple[float, float]:
-    """Wall time of a 3000 s Simulation 4.2 CASE 8 run (PI and grey PI) at the scenario's step."""
+    """Wall time of a 3000 s Simulation 4.2 CASE 8 run (PI and grey PI, ours) at the scenario's step."""
     times = []
-    for controller in CONTROLLERS:
+    for controller in ("pi", "grey"):
         started = time.perf_counter()
         cosim.simulate(SCENARIO, stop_time=3000.0,
                        parameter_sets=[SCENARIO / "sim42_case8.ssv", SCENARIO / f"{controller}.ssv"])
@@ -161,24 +208,35 @@ def timed_load_following() -> tuple[float, float]:
 
 def main(prefix: str = "") -> None:
     FIGURES.mkdir(parents=True, exist_ok=True)
-    rows = []
+    rows: list[tuple[Case, str, dict]] = []
+    done: dict[str, list[tuple[str, dict]]] = {}
     for case in CASES:
         if not case.name.startswith(prefix):
             continue
-        runs = {c: simulate(case.name, c, stop=case.stop, step=case.step) for c in CONTROLLERS}
-        for controller in CONTROLLERS:
-            m = metrics(runs[controller], controller, case.periodic)
-            if case.periodic:
-                clean = simulate(case.name, controller, stop=case.stop, step=case.step, extra=(NOISE_FREE,))
-                m["noise_std"] = noise_std(runs[controller], clean, controller)
-            rows.append((case, controller, m))
-            print(case.name, controller, {k: round(v, 3) if isinstance(v, float) else v for k, v in m.items()},
-                  flush=True)
+        if case.name in SAME_RUN and SAME_RUN[case.name] in done:
+            rows += [(case, form, m) for form, m in done[SAME_RUN[case.name]]]
+            continue
+        runs = {form: simulate(case.name, form, stop=case.stop, step=case.step) for form in FORMS}
+        done[case.name] = []
+        for form, result in runs.items():
+            controller = FORMS[form][0]
+            m = metrics(result, controller, case.period)
+            if case.period is not None:
+                clean = simulate(case.name, form, stop=case.stop, step=case.step, noise=False)
+                m["noise_std"] = noise_std(result, clean, controller)
+            rows.append((case, form, m))
+            done[case.name].append((form, m))
+            print(case.name, form, {k: round(v, 3) if isinstance(v, float) else v for k, v in m.items()}, flush=True)
         figure(case, runs)
     text = ("# Boiler-turbine-generator: PI vs grey predictive PI (generated by docs/btg_report.py)\n\n"
-            "Errors are set-point minus the true (noise-free) pressure / power; u is the fuel controller's output "
-            "[%]; 'noise std u' is the standard deviation of u(noisy run) - u(same run without noise); 'grey "
-            "predicting' is the share of samples in which |a| > a_min, so the grey PI acted on a 25 s prediction.\n\n"
+            "Errors are set-point minus the true (noise-free) pressure P / power E; overshoots in % of the set-point "
+            "or load-demand change (— if none changes); level = drum level minus its set-point [mm] (§4.2's "
+            "criterion: 50 mm steady, 100 mm in transients); u is the fuel controller's output [%], its range "
+            "clipped to the valve's 0-100 %; 'noise std u' is the standard deviation of u(noisy run) - u(same run "
+            "without noise); 'grey predicting' is the share of samples in which the grey PI acted on a 25 s "
+            "prediction. Forms: 'ours' = anti-windup, outputs 0-100 %, |a| > a_min; 'thesis' = no anti-windup, "
+            "no output limits, a > a_min (thesis.ssv); 'thesis |a|' = thesis.ssv + magnitude.ssv. Stable = bounded "
+            "and settled (pulse cases: the last period's peak error within 110 % of the first's).\n\n"
             + table(rows))
     if not prefix:
         pi_time, grey_time = timed_load_following()

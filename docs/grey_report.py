@@ -3,7 +3,7 @@
     python docs/grey_report.py
 
 Figures: Simulation 3.2 (Figs. 3.2/3.3), 3.3 (Figs. 3.4-3.6), 3.4 (Figs. 3.7/3.8), 3.5-3.7
-(Figs. 3.9-3.11), grey PI vs PI, GM(3/t,1) identification.  Metrics from cosim.metrics.
+(Figs. 3.9-3.11), grey PI vs PI, Fig. 3.12's basic scheme, GM(3/t,1) identification.  Metrics from cosim.metrics.
 """
 from __future__ import annotations
 
@@ -121,6 +121,31 @@ def grey_pi_versus_pi() -> None:
     save(figure, "pi_vs_pi")
 
 
+def figure_3_12() -> None:
+    """Fig. 3.12 (PI on the predicted output) against the PI and the error-prediction grey PI of Fig. 3.14."""
+    r = cosim.simulate("ssp/grey_fig312")
+    t = r["time"]
+    loops = (("PI", "pi", "pi_plant"), ("Fig. 3.12: PI on ŷ", "out_pi", "out_plant"),
+             ("Fig. 3.14: grey PI", "grey_pi", "grey_plant"))
+    print("| | IAE | overshoot % | rise time s | settling time (±2 %) s | load IAE 400-700 s |")
+    print("|---|---|---|---|---|---|")
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    top.plot(t, r["setpoint.y"], "k:", label="set-point")
+    for label, controller, plant in loops:
+        m = step_metrics(t, r[f"{plant}.y"], r["setpoint.y"], t0=20, t1=400)
+        load = step_metrics(t, r[f"{plant}.y"], r["setpoint.y"], t0=400)
+        print(f"| {label} | {m['IAE']:.2f} | {m['overshoot']:.1f} | {m['rise_time']:.1f} | {m['settling_time']:.1f} | "
+              f"{load['IAE']:.2f} |")
+        top.plot(t, r[f"{plant}.y"], label=label)
+        bottom.plot(t, r[f"{controller}.u"], label=f"{label}: u")
+    top.plot(t, r["predictor.x_hat"], lw=0.8, label="ŷ, 10 s ahead (Fig. 3.12)")
+    top.set_title("Fig. 3.12 basic grey predictive control vs PI vs Fig. 3.14, 1/((1+30s)(1+5s)), Kc = 3, Ti = 30 s")
+    top.legend(fontsize=8)
+    bottom.set_xlabel("t [s]")
+    bottom.legend(fontsize=8)
+    save(figure, "fig312")
+
+
 def gm3t1_identification() -> None:
     figure, ax = plt.subplots(figsize=(9, 3.8))
     for ssv, label in ((None, "k_s = 2, ω_n = 0.1, ζ = 0.5"), ("overdamped.ssv", "k_s = 0.5, ω_n = 0.05, ζ = 2")):
@@ -141,4 +166,5 @@ if __name__ == "__main__":
     simulations_3_3_and_3_4()
     simulations_3_5_to_3_7()
     grey_pi_versus_pi()
+    figure_3_12()
     gm3t1_identification()

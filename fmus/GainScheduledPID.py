@@ -26,7 +26,8 @@ class GainScheduledPID(GreyfmuSlave):
         "2 = FGS2 (2.7), 3 = MFGS (2.9), with W clamped to [W_1, W_n]; or 4 = the ITAE rule (2.8) with constants "
         "A..F computed from the process-parameter inputs Kp, T, tau (the table is then unused). The gains are "
         "scheduled at every sample from the inputs of that sample and handed to the PID of the PID FMU (same "
-        "integral modes (2.10)-(2.12), derivative on the measurement filtered by Td/N, limits, anti-windup). "
+        "integral modes (2.10)-(2.12), derivative on the measurement or the error filtered by Td/N, limits, "
+        "optional anti-windup). "
         "An unsorted table, a non-positive Ti_i or n_points outside 1..8 is refused at initialisation with a "
         "message naming the parameter; a non-finite input is refused by do_step (error status naming it). "
         "Sampled at Ts with zero-order hold, no direct feedthrough; Kc, Ti, Td are the gains of the last sample "
@@ -53,6 +54,10 @@ class GainScheduledPID(GreyfmuSlave):
             self.parameter(name, value, f"ITAE constant {name} of (2.8) (law = 4 only)")
         self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N")
         self.parameter("Ts", 0.1, "Sample time", unit="s")
+        self.parameter("anti_windup", 1, "1 = conditional-integration anti-windup at the output limits (ours), "
+                       "0 = none, the integral always integrates (the thesis's PI)", minimum=0, maximum=1)
+        self.parameter("derivative_on", 0, "Signal the D term differentiates: 0 = measurement -y (ours, no set-point "
+                       "kick), 1 = error e (the thesis's Td de/dt, (2.6a))", minimum=0, maximum=1)
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -85,6 +90,8 @@ class GainScheduledPID(GreyfmuSlave):
             schedule,
             self.Ts,
             N=self.N,
+            anti_windup=bool(self.anti_windup),
+            derivative_on=self.derivative_on,
             **self.output_limits(),
             **self.integral_options(),
         )

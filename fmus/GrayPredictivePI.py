@@ -13,8 +13,9 @@ class GrayPredictivePI(GreyfmuSlave):
     description = (
         "Error-prediction-based grey predictive PI (thesis 000_*, §3.2, Fig. 3.14, (3.29)): the error e = r - y plus "
         "the bias B goes through a moving-window GM(1,1) predictor (n samples every m-th sample, LDISPI §3.1.6); the "
-        "PI of the PID FMU (integral modes (2.10)-(2.12), limits, anti-windup) acts on the predicted error e_hat, ph "
-        "seconds ahead when |a| > a_min, the estimated current error otherwise (§4.2). Sampled at Ts with zero-order "
+        "PI of the PID FMU (integral modes (2.10)-(2.12), limits, optional anti-windup) acts on the predicted error "
+        "e_hat, ph seconds ahead when a > a_min (threshold 1, §4.2 as printed) or |a| > a_min (2), the estimated "
+        "current error otherwise. Sampled at Ts with zero-order "
         "hold, no direct feedthrough. Defaults: ph = 25 s, B = 50, a_min = 0.035 of §4.2; Kc, Ti for "
         "1/((1+30s)(1+5s)). " + REQUIREMENTS
     )
@@ -30,7 +31,12 @@ class GrayPredictivePI(GreyfmuSlave):
         self.parameter("m", 5, "LDISPI data interval: every m-th error sample enters the window", minimum=1)
         self.parameter("ph", 25.0, "Prediction horizon", unit="s", minimum=0.0)
         self.parameter("B", 50.0, "Bias keeping e + B positive (3.29b)", minimum=0.0)
-        self.parameter("a_min", 0.035, "Predict only when |a| > a_min, else estimate the current error", minimum=0.0)
+        self.parameter("a_min", 0.035, "Predict only when a passes a_min (see threshold), else estimate the current error",
+                       minimum=0.0)
+        self.parameter("threshold", 1, "Predict/estimate rule: 1 = a > a_min (§4.2 as printed), 2 = |a| > a_min",
+                       minimum=1, maximum=2)
+        self.parameter("anti_windup", 1, "1 = conditional-integration anti-windup at the output limits (ours), "
+                       "0 = none, the integral always integrates (the thesis's PI)", minimum=0, maximum=1)
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -48,7 +54,7 @@ class GrayPredictivePI(GreyfmuSlave):
     def build(self) -> None:
         self.controller = Controller(
             self.Kc, self.Ti, self.Ts, n=self.n, m=self.m, ph=self.ph, B=self.B, a_min=self.a_min,
-            **self.output_limits(), **self.integral_options(),
+            threshold=self.threshold, anti_windup=bool(self.anti_windup), **self.output_limits(), **self.integral_options(),
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)
 

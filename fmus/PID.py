@@ -11,9 +11,10 @@ from greyfmu.signals import SampleClock
 
 class PID(GreyfmuSlave):
     description = (
-        "Sampled ideal (ISA) PID u = Kc[e + (1/Ti)∫e dt + Td de/dt], e = r - y, with derivative on the "
-        "measurement filtered by Td/N (backward Euler), output and rate limits, conditional-integration "
-        "anti-windup and the integral modes (2.10)-(2.12) of the thesis. Sampled at Ts with zero-order hold: "
+        "Sampled ideal (ISA) PID u = Kc[e + (1/Ti)∫e dt + Td de/dt], e = r - y, with the derivative on the "
+        "measurement (default) or on the error (the thesis's form) filtered by Td/N (backward Euler), output and rate "
+        "limits, conditional-integration anti-windup (switchable off) and the integral modes (2.10)-(2.12) of the "
+        "thesis. Sampled at Ts with zero-order hold: "
         "do_step(t, h) computes every sample instant t0 + k*Ts in [t, t+h) from the inputs set at t, and u is "
         "the last sample's output (u0 before the first sample); no direct feedthrough. Defaults: Simulation 2.1 "
         "at its low operating point (Kc = 1.6069/0.2). " + REQUIREMENTS
@@ -28,6 +29,10 @@ class PID(GreyfmuSlave):
         self.parameter("Td", 1.5363, "Derivative time (0 disables the derivative term)", unit="s", minimum=0.0)
         self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N")
         self.parameter("Ts", 0.1, "Sample time", unit="s")
+        self.parameter("anti_windup", 1, "1 = conditional-integration anti-windup at the output limits (ours), "
+                       "0 = none, the integral always integrates (the thesis's PI)", minimum=0, maximum=1)
+        self.parameter("derivative_on", 0, "Signal the D term differentiates: 0 = measurement -y (ours, no set-point "
+                       "kick), 1 = error e (the thesis's Td de/dt, (2.6a))", minimum=0, maximum=1)
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -42,6 +47,8 @@ class PID(GreyfmuSlave):
             self.Td,
             self.Ts,
             N=self.N,
+            anti_windup=bool(self.anti_windup),
+            derivative_on=self.derivative_on,
             **self.output_limits(),
             **self.integral_options(),
         )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from greyfmu.control.pid import PID, IntegralMode
-from greyfmu.grey.predictor import GreyPredictor, PredictorMode
+from greyfmu.grey.predictor import GreyPredictor, PredictorMode, Threshold
 
 
 class GrayPredictivePI:
@@ -15,10 +15,12 @@ class GrayPredictivePI:
 
     - ``e(k) = r − y(k)`` (3.29a); the `GreyPredictor` fits GM(1,1) to the biased errors
       ``e + B`` (3.29b) of a window of n samples spaced m samples apart (LDISPI, §3.1.6) and
-      returns ``ê = ê_b − B``, ``ph`` seconds ahead (3.29c)/(3.29d) when |a| > a_min, the
-      estimate of the current error otherwise (the rule of §4.2);
+      returns ``ê = ê_b − B``, ``ph`` seconds ahead (3.29c)/(3.29d) when a > a_min (``threshold``
+      SIGNED, §4.2 as printed; MAGNITUDE: |a| > a_min), the estimate of the current error
+      otherwise;
     - the PI is the `PID` with Td = 0 fed with ê: ``u(k) = Kc·ê(k) + I(k)``, its integral
-      law (2.10)-(2.12), limits, rate limit and anti-windup unchanged.
+      law (2.10)-(2.12), limits, rate limit and anti-windup (``anti_windup=False``: the
+      thesis's PI) unchanged.
 
     With a constant error the predictor gives a → 0 and ê → e (Propositions 3.4/3.5), so
     the loop has the steady state of the plain PI: no offset (Theorem 3.5).  Until the
@@ -41,13 +43,16 @@ class GrayPredictivePI:
         du_max: float = 0.0,
         integral_mode: IntegralMode | int = IntegralMode.METHOD3,
         u0: float = 0.0,
+        anti_windup: bool = True,
+        threshold: Threshold | int = Threshold.SIGNED,
     ) -> None:
-        self.pi = PID(Kc, Ti, 0.0, Ts, u_min=u_min, u_max=u_max, du_max=du_max, integral_mode=integral_mode, u0=u0)
+        self.pi = PID(Kc, Ti, 0.0, Ts, u_min=u_min, u_max=u_max, du_max=du_max, integral_mode=integral_mode, u0=u0,
+                      anti_windup=anti_windup)
         if not (math.isfinite(ph) and ph >= 0.0):
             raise ValueError(f"GrayPredictivePI: prediction horizon ph must be a finite number >= 0 s, got {ph}")
         self.Ts = Ts
         self.ph = ph
-        self.predictor = GreyPredictor(n=n, m=m, horizon=ph / Ts, bias=B, a_min=a_min)
+        self.predictor = GreyPredictor(n=n, m=m, horizon=ph / Ts, bias=B, a_min=a_min, threshold=threshold)
         self.e = 0.0
         self.e_hat = 0.0
         """Predicted (or estimated) error the PI acted on at the last sample."""

@@ -22,6 +22,15 @@ class IntegralMode(IntEnum):
     """(2.12): the accumulated ∫e/Ti is kept; the integral output is rescaled by Kc(k)."""
 
 
+class DerivativeOn(IntEnum):
+    """Which signal the D term differentiates."""
+
+    MEASUREMENT = 0
+    """−y: no derivative kick on set-point steps (our default, a practical refinement)."""
+    ERROR = 1
+    """e = r − y, as the thesis writes every PID law: Td·de(t)/dt in (2.6a), (2.7a), (2.8a), (2.9a)."""
+
+
 def integral_step(
     mode: IntegralMode | int,
     I_prev: float,
@@ -42,7 +51,7 @@ def integral_step(
     - METHOD3 (2.12): I1(k−1) = I(k−1) / Kc(k−1),           I(k) = Kc(k)·(I1(k−1) + Ts·e(k)/Ti(k))
 
     The §2.3.2 example (I(k) = 60, Kc 4.5 → 5, Ti 15 → 10, e = 1, Ts = 1) gives
-    60.5, 100.5 and 67.1667 (the thesis prints 90.5 and 67.15; see tests/test_pid.py).
+    60.5, 100.5 and 67.1667 (the thesis prints 90.5 and 67.15; see tests/greyfmu/test_pid.py).
     Gain-scheduled controllers call this with the gains of the previous and the current sample.
     """
     mode = IntegralMode(mode)
@@ -71,20 +80,24 @@ class PID:
 
     - ``P(k) = Kc·e(k)``
     - ``I(k) = integral_step(mode, I(k−1), e(k), Kc(k), Ti(k), Kc(k−1), Ti(k−1), Ts)``, (2.10)-(2.12)
-    - ``D(k)``: derivative on the measurement (−y, no kick on set-point steps) through the
+    - ``D(k)``: derivative of ``x = −y`` (``derivative_on = MEASUREMENT``, the default: no kick
+      on set-point steps) or of ``x = e`` (``ERROR``, the thesis's Td·de/dt of (2.6a)) through the
       filter ``1/(1 + s·Td/N)``, discretised by backward Euler with ``Tf = Td/N``:
-      ``D(k) = [Tf·D(k−1) − Kc·Td·(y(k) − y(k−1))] / (Tf + Ts)``.  Backward Euler is stable
+      ``D(k) = [Tf·D(k−1) + Kc·Td·(x(k) − x(k−1))] / (Tf + Ts)``.  Backward Euler is stable
       and free of ringing for every Tf ≥ 0 (Tustin rings when Tf < Ts/2); its response to a
-      step Δy has exactly the area ``−Kc·Td·Δy`` of the continuous term; ``Td = 0`` gives D ≡ 0.
+      step Δx has exactly the area ``Kc·Td·Δx`` of the continuous term; ``Td = 0`` gives D ≡ 0.
     - ``u(k)`` = ``P + I + D`` limited to ``u(k−1) ± du_max·Ts`` (rate limit, ``du_max`` in
       units per second, 0 or inf = none), then to ``[u_min, u_max]`` (the limits win).
 
-    Anti-windup by conditional integration: when the output is limited and this sample's
-    integral increment points further beyond the limit, the increment is dropped (the
-    mode's rescaling for a gain change still applies) and u is recomputed.
+    Anti-windup by conditional integration (``anti_windup=True``, the default; the thesis never
+    mentions one): when the output is limited and this sample's integral increment points
+    further beyond the limit, the increment is dropped (the mode's rescaling for a gain change
+    still applies) and u is recomputed.  ``anti_windup=False`` is the thesis's controller: the
+    integral always integrates, the output is still limited.  (The thesis's Simulink PIs have
+    no output limits either; give ``u_min``/``u_max`` = ±inf and let the actuator clip.)
 
     Bumpless start: the integral starts at the bias ``u0`` and the first sample takes
-    y(k−1) = y(k), so the output holds u0 while e = 0.  The bias is part of the integral
+    x(k−1) = x(k), so the output holds u0 while e = 0.  The bias is part of the integral
     (the thesis's "historic output"), so METHOD2/METHOD3 rescale it when the gains change.
 
     ``set_gains`` changes Kc, Ti, Td for the next sample (gain scheduling); that sample's
@@ -104,6 +117,8 @@ class PID:
         du_max: float = 0.0,
         integral_mode: IntegralMode | int = IntegralMode.METHOD3,
         u0: float = 0.0,
+        anti_windup: bool = True,
+        derivative_on: DerivativeOn | int = DerivativeOn.MEASUREMENT,
     ) -> None:
         _check_gains(Kc, Ti, Td)
         if not (math.isfinite(Ts) and Ts > 0.0):
@@ -123,6 +138,8 @@ class PID:
         self.du_max = du_max
         self.integral_mode = IntegralMode(integral_mode)
         self.u0 = u0
+        self.anti_windup = bool(anti_windup)
+        self.derivative_on = DerivativeOn(derivative_on)
         self._initial_gains = (Kc, Ti, Td)
         self._du_per_sample = du_max * Ts if du_max > 0.0 else math.inf
         self.reset()
@@ -135,7 +152,7 @@ class PID:
         self.e = 0.0
         self.I = self.u0
         self.D = 0.0
-        self._y_prev: float | None = None
+        self._x_prev: float | None = None
 
     def set_gains(self, Kc: float, Ti: float, Td: float) -> None:
         """Use the gains Kc, Ti, Td from the next sample on."""
@@ -145,19 +162,20 @@ class PID:
     def step(self, r: float, y: float) -> float:
         """One sample: set-point r, measurement y; returns the controller output u(k)."""
         e = r - y
-        y_prev = y if self._y_prev is None else self._y_prev
+        x = e if self.derivative_on is DerivativeOn.ERROR else -y
+        x_prev = x if self._x_prev is None else self._x_prev
         Tf = self.Td / self.N
-        D = (Tf * self.D - self.Kc * self.Td * (y - y_prev)) / (Tf + self.Ts)
+        D = (Tf * self.D + self.Kc * self.Td * (x - x_prev)) / (Tf + self.Ts)
         P = self.Kc * e
         I = self._integral(e)
         v = P + I + D
         u = self._limit(v)
-        if u != v:
+        if u != v and self.anti_windup:
             I_held = self._integral(0.0)
             if (v - u) * (I - I_held) > 0.0:
                 I = I_held
                 u = self._limit(P + I + D)
-        self.e, self.u, self.I, self.D, self._y_prev = e, u, I, D, y
+        self.e, self.u, self.I, self.D, self._x_prev = e, u, I, D, x
         self._Kc_prev, self._Ti_prev = self.Kc, self.Ti
         return u
 

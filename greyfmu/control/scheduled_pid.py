@@ -7,7 +7,7 @@ import math
 from collections.abc import Callable
 from typing import Generic, TypeVar
 
-from greyfmu.control.pid import PID, IntegralMode
+from greyfmu.control.pid import PID, DerivativeOn, IntegralMode
 from greyfmu.control.scheduling import Gains
 
 W = TypeVar("W")
@@ -26,7 +26,8 @@ class GainScheduledPID(Generic[W]):
     ``PID.set_gains`` and the PID law runs, so the integral mode (2.10)/(2.11)/(2.12) sees
     Kc(k−1), Ti(k−1) and Kc(k), Ti(k) exactly as in `greyfmu.control.pid.integral_step`.
     The first sample's gains are also taken as the gains before it, so the bias u0 is not
-    rescaled at the start.
+    rescaled at the start.  ``anti_windup`` and ``derivative_on`` are the `PID`'s options
+    (``anti_windup=False``, ``derivative_on=ERROR``: the thesis's law as written).
 
     Bad scheduling values: if ``schedule(W)`` refuses W (NaN, a non-positive process time
     constant, ...), the gains of the last sample are held, a warning is logged and
@@ -45,9 +46,12 @@ class GainScheduledPID(Generic[W]):
         du_max: float = 0.0,
         integral_mode: IntegralMode | int = IntegralMode.METHOD3,
         u0: float = 0.0,
+        anti_windup: bool = True,
+        derivative_on: DerivativeOn | int = DerivativeOn.MEASUREMENT,
     ) -> None:
         self.schedule = schedule
-        self._pid_options = dict(N=N, u_min=u_min, u_max=u_max, du_max=du_max, integral_mode=integral_mode, u0=u0)
+        self._pid_options = dict(N=N, u_min=u_min, u_max=u_max, du_max=du_max, integral_mode=integral_mode, u0=u0,
+                                 anti_windup=anti_windup, derivative_on=derivative_on)
         PID(1.0, 1.0, 0.0, Ts, **self._pid_options)  # refuse bad options now, not at the first sample
         self.Ts = Ts
         self.u0 = u0

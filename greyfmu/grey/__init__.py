@@ -4,7 +4,7 @@ from greyfmu.grey.ago import ago, background, iago
 from greyfmu.grey.errors import GreyModelError
 from greyfmu.grey.gm3t1 import GM3t1, SecondOrderConstants, StepIdentifier
 from greyfmu.grey.gm11 import GM11
-from greyfmu.grey.predictor import GreyPredictor, PredictorMode
+from greyfmu.grey.predictor import GreyPredictor, PredictorMode, Threshold
 
 __all__ = [
     "GM11",
@@ -12,6 +12,7 @@ __all__ = [
     "GreyModelError",
     "GreyPredictor",
     "PredictorMode",
+    "Threshold",
     "SecondOrderConstants",
     "StepIdentifier",
     "ago",

@@ -8,11 +8,15 @@ biased samples x + B (3.29b) so that a signal of either sign is positive, as The
 needs; B is subtracted from the result again (3.29d).
 
 The result, ``horizon`` samples ahead (a GM step is m samples, so the exponent of (3.29c)
-becomes n − 1 + horizon/m), follows the thesis's rule of §4.2: predict only when
-|a| > a_min, otherwise estimate the current value.  ``mode`` says which case applied:
+becomes n − 1 + horizon/m), follows the rule of §4.2, "predict as the parameter a(i) of
+GM(1,1) is larger than 0.035 ... if not, estimate the current output value": with
+``threshold = SIGNED`` (the rule as printed; the default of `GrayPredictivePI`) predict
+only when a > a_min, i.e. while the biased signal decays; ``MAGNITUDE`` (this class's
+default) predicts when |a| > a_min, in either direction; with a_min = 0 it predicts always,
+as the predictors of chapter 3 (Simulations 3.3-3.7, no threshold) do.  ``mode`` says which case applied:
 
 - FILLING:   fewer than (n − 1)·m + 1 samples seen: the current sample is returned;
-- ESTIMATED: |a| <= a_min: ê(n) by (3.7b), the model's estimate of the current sample;
+- ESTIMATED: the threshold not passed: ê(n) by (3.7b), the model's estimate of the current sample;
 - PREDICTED: ê(n + horizon/m) by (3.29c)/(3.29d);
 - FALLBACK:  no valid model — a biased sample <= 0 (B too small), C(i) = 0, or |a| >= 2
              (Remark 1): the current sample is returned.
@@ -37,15 +41,33 @@ class PredictorMode(IntEnum):
     FALLBACK = 3
 
 
+class Threshold(IntEnum):
+    """The predict/estimate rule of §4.2 applied to the development coefficient a."""
+
+    SIGNED = 1
+    """a > a_min: "a(i) larger than 0.035", as §4.2 states it."""
+    MAGNITUDE = 2
+    """|a| > a_min: predict a rising as well as a decaying biased signal."""
+
+
 class GreyPredictor:
     """GM(1,1) predictor on a moving window of n samples taken every m-th sample.
 
     ``n`` >= 3 (the thesis suggests 4 to 6), ``m`` >= 1, ``horizon`` >= 0 in samples of the
     signal (the time horizon is horizon·Ts), ``bias`` B >= 0 (3.29b), ``a_min`` >= 0 the
-    threshold of the predict/estimate rule (the thesis uses 0.035 in Chapter 4).
+    threshold of the predict/estimate rule (the thesis uses 0.035 in Chapter 4) and
+    ``threshold`` the form of that rule (`Threshold`).
     """
 
-    def __init__(self, n: int = 4, m: int = 1, horizon: float = 20.0, bias: float = 0.0, a_min: float = 0.0) -> None:
+    def __init__(
+        self,
+        n: int = 4,
+        m: int = 1,
+        horizon: float = 20.0,
+        bias: float = 0.0,
+        a_min: float = 0.0,
+        threshold: Threshold | int = Threshold.MAGNITUDE,
+    ) -> None:
         if not (isinstance(n, int) and n >= 3):
             raise ValueError(f"GreyPredictor: window length n must be an integer >= 3, got {n!r}")
         if not (isinstance(m, int) and m >= 1):
@@ -61,6 +83,7 @@ class GreyPredictor:
         self.horizon = horizon
         self.bias = bias
         self.a_min = a_min
+        self.threshold = Threshold(threshold)
         self._exponent_predict = n - 1 + horizon / m
         self._exponent_estimate = float(n - 1)
         self._history: deque[float] = deque(maxlen=(n - 1) * m + 1)
@@ -94,7 +117,7 @@ class GreyPredictor:
         if not abs(a) < 2.0:
             self.mode = PredictorMode.FALLBACK
             return x
-        if abs(a) > self.a_min:
+        if (a if self.threshold is Threshold.SIGNED else abs(a)) > self.a_min:
             self.mode = PredictorMode.PREDICTED
             exponent = self._exponent_predict
         else:

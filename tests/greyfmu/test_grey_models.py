@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from greyfmu.control import PID, GrayPredictivePI
-from greyfmu.grey import GM11, GM3t1, GreyModelError, GreyPredictor, PredictorMode, StepIdentifier, ago, background, iago
+from greyfmu.grey import GM11, GM3t1, GreyModelError, GreyPredictor, PredictorMode, StepIdentifier, Threshold, ago, background, iago
 from greyfmu.plants import SecondOrder
 
 # Example 3.1 / Simulation 3.2 data (Sim. 3.2 prints e0(9) = 749.685, Example 3.1 749.658; no window below uses it).
@@ -122,6 +122,18 @@ def test_predictor_a_min_rule_estimates_the_current_value():
     assert abs(predictor.a) <= 0.035 and predictor.mode is PredictorMode.ESTIMATED
     assert out == pytest.approx(GM11.fit([50.0, 50.1, 50.2, 50.3]).predict(4) - 50.0, rel=1e-12)
     assert out == pytest.approx(0.3, abs=1e-3)
+
+
+@pytest.mark.parametrize("threshold, predicts_rising", [(Threshold.SIGNED, False), (Threshold.MAGNITUDE, True)])
+def test_predictor_threshold_signed_as_printed_or_magnitude(threshold, predicts_rising):
+    """§4.2 "a(i) larger than 0.035": SIGNED predicts only a decaying biased signal (a > 0); MAGNITUDE either."""
+    rising, falling = [0.0, 2.0, 4.5, 7.5], [7.5, 4.5, 2.0, 0.0]
+    for signal, predicted in ((rising, predicts_rising), (falling, True)):
+        predictor = GreyPredictor(n=4, m=1, horizon=25, bias=50.0, a_min=0.035, threshold=threshold)
+        for x in signal:
+            predictor.update(x)
+        assert abs(predictor.a) > 0.035
+        assert (predictor.mode is PredictorMode.PREDICTED) is predicted
 
 
 def test_predictor_fallbacks():
@@ -245,6 +257,15 @@ def test_grey_pi_is_the_pi_until_the_window_is_full():
     for k in range(15):
         assert grey.step(1.0, 0.01 * k) == pytest.approx(pi.step(1.0, 0.01 * k), rel=1e-15)
     assert grey.mode is PredictorMode.FILLING
+
+
+def test_grey_pi_defaults_to_the_printed_rule_and_passes_anti_windup_to_its_pi():
+    """GrayPredictivePI's threshold defaults to §4.2 as printed (SIGNED); anti_windup=False reaches its PID."""
+    grey = GrayPredictivePI(2.0, 20.0, 1.0, u_min=0.0, u_max=1.0, anti_windup=False)
+    assert grey.predictor.threshold is Threshold.SIGNED and grey.pi.anti_windup is False
+    for _ in range(300):
+        grey.step(1.0, 0.0)
+    assert grey.u == 1.0 and grey.pi.I > 10.0  # the integral winds up behind the limited output
 
 
 def test_second_order_plant_is_exact():

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from greyfmu.control import PID, IntegralMode, integral_step
+from greyfmu.control import PID, DerivativeOn, IntegralMode, integral_step
 
 # §2.3.2 worked example: at k the three I-mode controllers output 60 with Kc = 4.5, Ti = 15;
 # at k+1, e = 1, Kc = 5, Ti = 10, Ts = 1.
@@ -132,6 +132,28 @@ def test_derivative_acts_on_the_measurement_only():
     pid.step(0.0, 0.0)
     pid.step(1.0, 0.0)  # set-point step: no derivative kick
     assert pid.D == 0.0
+
+
+def test_derivative_on_the_error_kicks_on_a_set_point_step_as_the_thesis_law():
+    """(2.6a) Td·de/dt: a set-point step Δr gives the same filtered pulse as a measurement step −Δr."""
+    on_error = PID(2.0, 1e6, 1.5, 0.1, derivative_on=DerivativeOn.ERROR)
+    on_measurement = PID(2.0, 1e6, 1.5, 0.1)
+    on_error.step(0.0, 0.0)
+    on_measurement.step(0.0, 0.0)
+    on_error.step(1.0, 0.0)
+    on_measurement.step(0.0, -1.0)
+    assert on_error.D > 0.0
+    assert on_error.D == pytest.approx(on_measurement.D, rel=1e-12)
+
+
+def test_without_anti_windup_the_integral_keeps_integrating_at_the_limit():
+    """anti_windup=False (the thesis's PI): the output is limited, the integral is not."""
+    Kc, Ti, Ts = 2.0, 5.0, 0.1
+    pid = PID(Kc, Ti, 0.0, Ts, u_min=0.0, u_max=1.0, anti_windup=False)
+    for _ in range(500):
+        assert pid.step(1.0, 0.0) == 1.0
+    assert pid.I == pytest.approx(500 * Kc * Ts / Ti, rel=1e-12)
+    assert next(k for k in range(1, 10000) if pid.step(0.0, 0.2) < 1.0) > 100
 
 
 def test_zero_derivative_time_disables_the_derivative():

@@ -3,7 +3,9 @@
 Each test names the simulation whose claim it checks.  Where our reproduction disagrees with
 the thesis the test asserts what we measure (and says so); docs/btg.md gives the numbers and
 the reason.  Runs are shortened to what a claim needs (one pulse period instead of three,
-1200 s instead of 1500 s of load following); docs/btg_report.py runs the full cases.
+600-1200 s of load following; 1500 s where the thesis's PI form needs it to settle);
+docs/btg_report.py runs the full cases, docs/btg_sensitivity_report.py the grid of grey-PI settings.
+Each run names its controller form (FORMS): ours unless the thesis's claim needs the thesis's PI.
 """
 
 from functools import lru_cache
@@ -21,9 +23,16 @@ LEVEL_SETPOINT_MODEL_MM = 100.0
 """The thesis's -100 mm set-point on the level datum of the scenario (README: model level - 200 mm)."""
 
 
+FORMS = {"ours": (), "thesis": ("thesis.ssv",), "thesis |a|": ("thesis.ssv", "magnitude.ssv"),
+         "thesis always": ("thesis.ssv", "grey_always.ssv")}
+"""Controller forms (docs/btg.md): ours (anti-windup, outputs 0-100 %, |a| > a_min); the thesis's as printed
+(no anti-windup, no output limits, a > a_min); the thesis's PI form with our |a| rule; the same predicting
+whenever |a| > 0 (a corner of docs/btg_sensitivity_tables.md)."""
+
+
 @lru_cache(maxsize=None)
-def run(case: str, controller: str, stop: float, step: float = 0.5, noise: bool = True) -> np.ndarray:
-    sets = [SCENARIO / f"{case}.ssv", SCENARIO / f"{controller}.ssv"]
+def run(case: str, controller: str, stop: float, step: float = 0.5, noise: bool = True, form: str = "ours") -> np.ndarray:
+    sets = [SCENARIO / f"{case}.ssv", SCENARIO / f"{controller}.ssv", *(SCENARIO / name for name in FORMS[form])]
     if not noise:
         sets.append(SCENARIO / "noise_free.ssv")
     return cosim.simulate(SCENARIO, stop_time=stop, step_size=step, parameter_sets=sets)
@@ -41,8 +50,10 @@ def settled(r: np.ndarray, window: float = 300.0) -> bool:
     return bool(bounded and np.max(np.abs(e_p[tail])) < 2.0 and np.max(np.abs(e_e[tail])) < 2.0)
 
 
-def overshoot(r: np.ndarray) -> float:
-    return float(100 * (np.max(r["plant.P"] - r["plant.P"][0]) / r["sp_step.y"][-1] - 1))
+def overshoot(r: np.ndarray, y: str = "plant.P", setpoint: str = "sp_step.y") -> float:
+    """Overshoot [%] of y after the step of `setpoint`, in the step's direction."""
+    step = r[setpoint][-1] - r[setpoint][0]
+    return float(100 * np.max(np.sign(step) * (r[y] - r[y][0])) / abs(step) - 100)
 
 
 @pytest.mark.parametrize("load", [58, 76, 101])
@@ -84,16 +95,81 @@ def test_sim_4_1_grey_pi_and_pi_step_responses_alike(load):
     assert settled(pi) and settled(grey)
 
 
+def test_figures_4_2_4_3_design_criterion_10_percent_overshoot():
+    """§4.2: "The control criteria are 10% overshoots for the unit-step responses of electric power and throttle
+    pressure" (Figs. 4.2/4.3, both directions).  NOT REPRODUCED with the printed gains (4.3): the pressure overshoots
+    13.3 % up and down (Fig. 4.3); the power follows a unit load step without overshoot (0.07 %), the pressure
+    overshooting its Fcn-Gen set-point change by 13.1 % (Fig. 4.2)."""
+    for direction in ("up", "down"):
+        assert 12.5 < overshoot(run(f"fig43_{direction}", "pi", 800.0)) < 14.0
+        power = run(f"fig42_{direction}", "pi", 800.0)
+        assert overshoot(power, "plant.E", "demand.y") < 1.0
+        assert 12.5 < overshoot(power, "plant.P", "pressure_sp.y") < 14.0
+
+
+def test_sim_4_2_drum_level_criterion_steady_met_transient_exceeded():
+    """§4.2's drum-level criterion: within ±50 mm at a steady load demand, short excursions within ±100 mm.  The
+    steady part holds (last 300 s within 21 mm in every stable case); the transient part does NOT: the level peaks
+    at 110-144 mm in the 9 MW/min ramps and 321 mm in CASE 8 (17 MW/min) with our PI."""
+    for case, peak in ((1, 100.0), (8, 250.0)):
+        r = run(f"sim42_case{case}", "pi", 1200.0)
+        level = np.abs(r["plant.L"] - LEVEL_SETPOINT_MODEL_MM)
+        assert np.max(level) > peak
+        assert np.max(level[r["time"] >= 900.0]) < 50.0
+
+
 @pytest.mark.parametrize("case", [5, 6, 7, 8, 9, 10])
-def test_sim_4_2_fast_ramps_pi_stays_stable_here(case):
-    """Sim. 4.2 CASES 5-10: the thesis's PI goes unstable, its grey PI stays stable.  NOT REPRODUCED:
-    here both settle (the rate-limited fuel valve saturates for a while, then both recover) and their
-    peak pressure errors differ by less than 1 kgf/cm2; the grey predictor predicts in under 10 % of
-    the samples of these 1200 s runs (|a| > a_min rarely holds with B = 50)."""
+def test_sim_4_2_fast_ramps_our_anti_windup_pi_stays_stable(case):
+    """Sim. 4.2 CASES 5-10 with OUR controllers (conditional-integration anti-windup, outputs 0-100 %): both the PI
+    and the grey PI settle (the rate-limited fuel valve saturates for a while, then both recover) and their peak
+    pressure errors differ by less than 1 kgf/cm2; the grey PI predicts in under 10 % of the samples.  The thesis's
+    instability is a property of its PI without anti-windup (next tests), not of the plant."""
     pi, grey = run(f"sim42_case{case}", "pi", 1200.0), run(f"sim42_case{case}", "grey", 1200.0)
     assert settled(pi) and settled(grey)
     assert abs(np.max(np.abs(pressure_error(pi))) - np.max(np.abs(pressure_error(grey)))) < 1.0
     assert np.mean(grey["fuel_grey.mode"] == 2) < 0.10
+
+
+@pytest.mark.parametrize("case, grey_stable", [(5, True), (8, True), (9, False)])
+def test_sim_4_2_fast_ramps_thesis_pi_unstable_grey_pi_stable_with_magnitude_rule(case, grey_stable):
+    """Sim. 4.2 CASES 5-8: "the BTG system under PI control becomes unstable, it is still stable under the control of
+    gray predictive PI"; CASES 9-10: the grey PI "can keep stable for wide ranges of load demand rates".  With the
+    thesis's PI form (no anti-windup, no output limits) the PI limit-cycles (last 300 s |e_P| 18-20 kgf/cm2 in CASES
+    5, 7, 8, 9) and the grey PI with the |a| rule settles in CASES 5, 7, 8: REPRODUCED there; in CASE 9 (34 MW/min)
+    it limit-cycles too (14 kgf/cm2): NOT REPRODUCED.  (CASES 6 and 10, falling loads, settle with both.)"""
+    pi = run(f"sim42_case{case}", "pi", 1500.0, form="thesis")
+    grey = run(f"sim42_case{case}", "grey", 1500.0, form="thesis |a|")
+    tail = pi["time"] >= 1200.0
+    assert not settled(pi) and np.max(np.abs(pressure_error(pi)[tail])) > 15.0
+    assert settled(grey) is grey_stable
+
+
+@pytest.mark.parametrize("case", [1, 2, 3, 4])
+def test_sim_4_2_slow_ramps_same_overshoot(case):
+    """Sim. 4.2 CASES 1-4 (9 MW/min): "the overshoots for both systems ... are almost the same".  REPRODUCED: peak
+    |e_P| within 0.15 kgf/cm2 of the PI's (2.69/2.78, 2.83/2.73, 3.02/2.92, 2.86/2.95 in the full runs); the grey PI
+    never predicts, so it is the PI acting on the GM(1,1) estimate of the error."""
+    pi, grey = run(f"sim42_case{case}", "pi", 600.0), run(f"sim42_case{case}", "grey", 600.0)
+    assert abs(np.max(np.abs(pressure_error(grey))) - np.max(np.abs(pressure_error(pi)))) < 0.15
+    assert not np.any(grey["fuel_grey.mode"] == 2)
+
+
+def test_sim_4_2_grey_error_8_to_10_only_in_case_5():
+    """Sim. 4.2 CASES 5-8: the grey PI stays stable "although the error of the throttle pressure is large, about
+    8-10 kgf/cm2".  NOT REPRODUCED beyond CASE 5: with the thesis's PI form and |a| the peak |e_P| is 9.8 in CASE 5
+    and 20.5 in CASE 8."""
+    peaks = {case: np.max(np.abs(pressure_error(run(f"sim42_case{case}", "grey", 1500.0, form="thesis |a|"))))
+             for case in (5, 8)}
+    assert 8.0 <= peaks[5] <= 10.0 and peaks[8] > 15.0
+
+
+def test_sim_4_2_case_8_printed_signed_threshold_loses_the_stability():
+    """§4.2's rule as printed, "a(i) larger than 0.035" (signed: predict only while the biased error decays),
+    with the thesis's PI form: the grey PI limit-cycles like the PI in Sim. 4.2 CASE 8 (last 300 s |e_P| 18.3
+    kgf/cm2).  The thesis's stability claim needs |a| > a_min (previous test)."""
+    grey = run("sim42_case8", "grey", 1500.0, form="thesis")
+    assert not settled(grey)
+    assert np.max(np.abs(pressure_error(grey)[grey["time"] >= 1200.0])) > 15.0
 
 
 def test_sim_4_3_case_1_pulse_rejection_equal_not_a_third():
@@ -107,6 +183,19 @@ def test_sim_4_3_case_1_pulse_rejection_equal_not_a_third():
     assert not np.any(grey["fuel_grey.mode"] == 2)
 
 
+@pytest.mark.parametrize("case", [2, 3])
+def test_sim_4_3_cases_2_3_first_pulse_alike(case):
+    """Sim. 4.3 CASE 2 (400 s period): "still much better" with the grey PI — NOT REPRODUCED; CASE 3 (13 % pulse):
+    "almost the same" — REPRODUCED.  Here both are alike: first-pulse peak |e_P| and fuel range within 10 % of the PI's
+    (CASE 2: 1.02 and 1.05, the grey PI using more fuel; full runs with noise: peak ratios 1.02 and 0.99), the grey PI
+    never predicting.  Noise-free, master step 0.5 s."""
+    pi = run(f"sim43_case{case}", "pi", 500.0, noise=False)
+    grey = run(f"sim43_case{case}", "grey", 500.0, noise=False)
+    ratio = np.max(np.abs(pressure_error(grey))) / np.max(np.abs(pressure_error(pi)))
+    assert 0.9 < ratio < 1.1 and 0.9 < np.ptp(grey[FUEL["grey"]]) / np.ptp(pi[FUEL["pi"]]) < 1.1
+    assert not np.any(grey["fuel_grey.mode"] == 2)
+
+
 @pytest.mark.parametrize("case", [1, 2])
 def test_sim_4_4_noise_sensitivity_within_20_percent(case):
     """Sim. 4.4 CASES 1-2 (white noise on the pressure): the variance of the fuel command's noise-induced
@@ -117,3 +206,26 @@ def test_sim_4_4_noise_sensitivity_within_20_percent(case):
         clean = run(f"sim44_case{case}", controller, 700.0, noise=False)
         share[controller] = np.var(noisy[FUEL[controller]] - clean[FUEL[controller]])
     assert 0.8 < share["grey"] / share["pi"] < 1.2
+
+
+def pulse_merits(controller: str, form: str) -> tuple[float, float, float]:
+    """Sim. 4.4 CASE 1's first pulse period (100-700 s): peak |e_P| and fuel range without noise, std of the
+    noise-induced fuel command (docs/btg_sensitivity_report.py's figures of merit D and N)."""
+    noisy = run("sim44_case1", controller, 700.0, form=form)
+    clean = run("sim44_case1", controller, 700.0, noise=False, form=form)
+    fuel = FUEL[controller]
+    return (float(np.max(np.abs(pressure_error(clean)))), float(np.ptp(np.clip(clean[fuel], 0.0, 100.0))),
+            float(np.std(noisy[fuel] - clean[fuel])))
+
+
+@pytest.mark.parametrize("form, disturbance, noise", [("thesis", False, True), ("thesis always", True, False)])
+def test_sensitivity_study_corners_trade_the_disturbance_claim_against_the_noise_claim(form, disturbance, noise):
+    """The thesis's claims D (Sim. 4.3: smaller pressure error with less fuel action) and N (Sim. 4.4: the grey PI's
+    noise sensitivity about the PI's) at two corners of docs/btg_sensitivity_tables.md, the thesis's PI form:
+    as printed (a > 0.035, B = 50, m = 5) the grey PI almost never predicts under the pulse, so N holds (noise std
+    ratio 0.98) and D does not (peak ratio 1.01, fuel range 1.03); predicting always (|a| > 0) D holds (0.64, 0.81)
+    and N fails (3.9).  The study finds no setting of a_min, B, m and the threshold where S, D and N all hold."""
+    pi_peak, pi_range, pi_noise = pulse_merits("pi", "thesis")
+    peak, fuel_range, noise_std = pulse_merits("grey", form)
+    assert (peak <= 0.8 * pi_peak and fuel_range < pi_range) is disturbance
+    assert (0.8 <= noise_std / pi_noise <= 1.2) is noise

@@ -89,6 +89,28 @@ def test_sim_2_1_integral_mode_2_10_overshoots_when_the_gain_grows():
     assert up[1]["overshoot"] > 10 * up[3]["overshoot"] and up[1]["overshoot"] > 100.0
 
 
+def test_sim_2_1_below_20_percent_not_reached_with_either_derivative_form():
+    """Sim. 2.1: "its response at y < 0.76 (overshoot is less than 20%)".  NOT REPRODUCED with either derivative
+    form: ours (on the measurement) 33.7 %, the thesis's Td·de/dt of (2.6a) (derivative_error.ssv) 28.9 %:
+    the derivative form explains 4.8 of the 13.7 points."""
+    ours = setpoint_metrics("gs_sim2_1", "step_low", "mode3", stop_time=300.0)
+    thesis = setpoint_metrics("gs_sim2_1", "step_low", "mode3", "derivative_error", stop_time=300.0)
+    assert ours["overshoot"] == pytest.approx(33.7, abs=0.5)
+    assert thesis["overshoot"] == pytest.approx(28.9, abs=0.5)
+    assert thesis["overshoot"] > 20.0
+
+
+def test_sim_2_1_reversed_gain_mode_2_10_overshoots_instead_of_over_damping():
+    """Sim. 2.1: "If we have Kp(y) increase as y decreases, PID with the integral mode (2.10) will have a greatly
+    over damped step response."  NOT REPRODUCED: on the mirror image of the step (kp_falling.ssv: Kp 0.2 → 1.79
+    while y falls 7.26 → 3.76), (2.10) overshoots 97.6 % (rise 19.3 s); (2.11)/(2.12) hold 33.7 %, their response
+    below y = 0.76.  The integral (2.10) accumulated at the large initial Kc is too large for the small final Kc,
+    as in the forward case, so the response overshoots in both directions."""
+    m = {k: setpoint_metrics("gs_sim2_1", f"mode{k}", "kp_falling", stop_time=300.0) for k in (1, 2, 3)}
+    assert m[1]["overshoot"] > 2 * m[3]["overshoot"] and m[1]["overshoot"] > 80.0
+    assert m[3]["overshoot"] == pytest.approx(33.7, abs=0.5) and m[2]["IAE"] == pytest.approx(m[3]["IAE"], rel=1e-9)
+
+
 # --- Simulation 2.2 (Figure 2.2): dead time varies, ITAE gains of tau(y(t - D)) -------------------------------
 
 
@@ -99,6 +121,17 @@ def test_sim_2_2_integral_modes_2_11_2_12_are_more_damped(direction):
     m = {k: setpoint_metrics("gs_sim2_2", direction, f"mode{k}", stop_time=600.0) for k in (1, 2, 3)}
     assert m[2]["rise_time"] > m[3]["rise_time"] > m[1]["rise_time"]
     assert m[2]["overshoot"] <= m[1]["overshoot"] and m[3]["overshoot"] <= m[1]["overshoot"]
+
+
+@pytest.mark.parametrize("direction, large", [("step_up", True), ("step_down", False)])
+def test_sim_2_2_reversed_dead_time_modes_2_11_2_12_overshoot(direction, large):
+    """Sim. 2.2: "If we have τ(y) decrease as y increases, PID with the integral mode (2.11) and (2.12) will have a
+    step response with large over-shoot."  REPRODUCED for (2.11) on the rising step (tau_falling.ssv: τ 20 → 14.2 s):
+    overshoot 268.7 % ((2.12) 16.8 %, (2.10) 0.6 %); on the falling step (τ grows) 7.0 / 4.0 / 0.3 %.  The order
+    (2.11) > (2.12) > (2.10) holds in both directions."""
+    m = {k: setpoint_metrics("gs_sim2_2", direction, f"mode{k}", "tau_falling", stop_time=600.0) for k in (1, 2, 3)}
+    assert m[2]["overshoot"] > m[3]["overshoot"] > m[1]["overshoot"]
+    assert bool(m[2]["overshoot"] > 100.0) is large
 
 
 # --- Simulations 2.3-2.5 (Figures 2.4, 2.6, 2.8, 2.11, 2.13): ITAE vs MFGS vs FGS1 vs FGS2 ----------------------
@@ -137,10 +170,41 @@ def test_sim_2_4_time_constant_varies_fgs_settle_faster_than_mfgs(case):
 
 
 @pytest.mark.parametrize("case", CASES)
+def test_sim_2_4_mfgs_is_not_over_damped(case):
+    """Figures 2.6, 2.8: MFGS has a "greatly over-damped" (CASE 1) / "over-damped" (CASE 2) step response.
+    NOT REPRODUCED: MFGS overshoots 37-39 % with our derivative and 30 % with the thesis's derivative on the error
+    (derivative_error.ssv); every law overshoots here (ITAE 41-46 %).  What holds is "more damped than FGS1/FGS2"
+    (test above)."""
+    for extra in ((), ("derivative_error",)):
+        assert setpoint_metrics("gs_sim2_4", f"case{case}", "mfgs", *extra)["overshoot"] > 25.0
+
+
+@pytest.mark.parametrize("case", CASES)
 def test_sim_2_5_dead_time_varies_overshoot_mfgs_fgs2_fgs1(case):
     """Figures 2.11, 2.13: "FGS1 has the largest over-shoot ..., FGS2 has larger ones, and MFGS has the least"."""
     m = {law: setpoint_metrics("gs_sim2_5", f"case{case}", law) for law in ("mfgs", "fgs1", "fgs2")}
     assert m["mfgs"]["overshoot"] <= m["fgs2"]["overshoot"] < m["fgs1"]["overshoot"]
+
+
+@pytest.mark.parametrize("case, order_holds", [(1, True), (2, False), (3, False)])
+def test_sim_2_5_settling_order_holds_in_case_1_only(case, order_holds):
+    """Fig. 2.11: "FGS1 has the largest over-shoot and settling time, FGS2 has larger ones, and MFGS has the least".
+    The settling part is NOT REPRODUCED in CASES 2 and 3: MFGS, without overshoot, settles last (131 / 129 s
+    against FGS2's 82 / 93 s); in CASE 1 MFGS settles first (132 s; FGS2 149 s, FGS1 not within 400 s)."""
+    m = {law: setpoint_metrics("gs_sim2_5", f"case{case}", law) for law in ("mfgs", "fgs2")}
+    assert bool(m["mfgs"]["settling_time"] < m["fgs2"]["settling_time"]) is order_holds
+
+
+def test_sim_2_5_mfgs_load_rejection_is_not_the_best_here():
+    """Sim. 2.5: "the disturbance rejection of MFGS is the best compared with FGS1 and FGS2" (judged against the
+    shape of ITAE's).  NOT REPRODUCED by the numbers: FGS2 rejects the +d step with a smaller IAE (CASE 1: 8.5
+    against MFGS's 14.3)."""
+    iae = {}
+    for law in ("mfgs", "fgs2"):
+        result = run("gs_sim2_5", "case1", law, stop_time=800.0)
+        t, e = result["time"], result["setpoint.y"] - result["plant.y"]
+        iae[law] = float(np.sum(np.abs(e[t >= 400.0])) * 0.1)
+    assert iae["fgs2"] < 0.7 * iae["mfgs"]
 
 
 @pytest.mark.parametrize("simulation", ["gs_sim2_3", "gs_sim2_4", "gs_sim2_5"])

@@ -66,6 +66,8 @@ RUNS: dict[str, Run] = {
     # every 4th sample stored (200 rows) since the three predictors sample at 1 s and 5 s.
     "grey_noise": Run(80.0, ("u.y", "process.y", "measurement.y", "grey_1s.x_hat", "grey_5s.x_hat",
                              "ldispi.x_hat"), (str(PARAMS / "grey_noise.ssv"),), decimate=4),
+    "grey_fig312": Run(60.0, ("setpoint.y", "pi_plant.y", "out_plant.y", "predictor.x_hat", "out_pi.u",
+                              "grey_plant.y")),   # setpoint step at 20 s, 600 steps of 0.1 s
     "grey_pi_vs_pi": Run(60.0, ("setpoint.y", "pi_plant.y", "pi.u", "grey_plant.y", "grey_pi.u",
                                 "grey_pi.mode")),     # setpoint step at 20 s, 600 steps of 0.1 s
     "grey_sim33": Run(300.0, PREDICTOR),              # the rise from 250 s, 300 steps of 1 s

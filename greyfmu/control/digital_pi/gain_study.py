@@ -2,7 +2,7 @@
 (2006) (12)-(14)): the experiment behind docs/digital_pi.md's identification table.
 
 Data: the stochastic plant (1)-(2) sampled at T — the augmented discrete model (9)/(10), which the
-StochasticLTI plant reproduces exactly (tests/test_digital_pi.py) — driven by innovations of
+StochasticLTI plant reproduces exactly (tests/greyfmu/test_digital_pi.py) — driven by innovations of
 covariance Q_η and run under an LQ state feedback (unit disc, Q = I, R = I: any stabilising
 controller would do; CH-47 is open-loop unstable) plus a white dither on every input.  ELS sees
 only y and u.  The ARMAX orders follow the plant: na = nc = r = n/p, nb = r + D (D delay samples).
