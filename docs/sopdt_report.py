@@ -169,6 +169,19 @@ def design_row(tuning: dict) -> tuple[SOPDTPredictive, float, float]:
     return controller, rho, limit
 
 
+def sweep_cells(parameter: str, variable: str, value: float, folder: Path) -> tuple[SOPDTPredictive, str]:
+    """The controller for ``parameter = value`` and its row's cells from ρ on (stability, limit, master-run metrics);
+    ``variable`` is the FMU's name of the parameter (the sample time T is ``Ts``)."""
+    controller, rho, limit = design_row({parameter: value})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", HorizonWarning)
+        m = loop_metrics(run(NOMINAL, {f"controller.{variable}": value}, folder))
+    return controller, (
+        f"{rho:.4f} | {'yes' if rho < 1 else '**no**'} | {fmt(limit, 3)} | {fmt(m['IAE'])} | {fmt(m['overshoot'])} | "
+        f"{fmt(m['settling_time'], 0)} | {fmt(m['load_IAE'])} |"
+    )
+
+
 def horizon_tables(folder: Path) -> list[str]:
     """N against the paper's rule (15 ≤ N ≤ 20), then T0 (with the (T_r − τ)/3 rule), then the X_k remedy."""
     lines = [
@@ -178,14 +191,9 @@ def horizon_tables(folder: Path) -> list[str]:
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for T in HORIZON_PERIODS:
-        controller, rho, limit = design_row({"T": T})
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", HorizonWarning)
-            m = loop_metrics(run(NOMINAL, {"controller.Ts": T}, folder))
-        lines.append(
-            f"| {T:g} | {controller.design.N} | {controller.design.m} | {START['tau'] + MASTER_STEP - controller.design.m * T:g} s | {rho:.4f} | {'yes' if rho < 1 else '**no**'} | "
-            f"{fmt(limit, 3)} | {fmt(m['IAE'])} | {fmt(m['overshoot'])} | {fmt(m['settling_time'], 0)} | {fmt(m['load_IAE'])} |"
-        )
+        controller, cells = sweep_cells("T", "Ts", T, folder)
+        d = controller.design
+        lines.append(f"| {T:g} | {d.N} | {d.m} | {START['tau'] + MASTER_STEP - d.m * T:g} s | {cells}")
     T_r = transient_time(ThirdOrderPlant())
     T0_rule = dominant_time_constant(T_r, 90.0)
     lines += [
@@ -197,14 +205,8 @@ def horizon_tables(folder: Path) -> list[str]:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for T0 in sorted([*DOMINANT_TIME_CONSTANTS, round(T0_rule, 1)]):
-        controller, rho, limit = design_row({"T0": T0})
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", HorizonWarning)
-            m = loop_metrics(run(NOMINAL, {"controller.T0": T0}, folder))
-        lines.append(
-            f"| {T0:g} | {controller.design.N} | {rho:.4f} | {'yes' if rho < 1 else '**no**'} | {fmt(limit, 3)} | "
-            f"{fmt(m['IAE'])} | {fmt(m['overshoot'])} | {fmt(m['settling_time'], 0)} | {fmt(m['load_IAE'])} |"
-        )
+        controller, cells = sweep_cells("T0", "T0", T0, folder)
+        lines.append(f"| {T0:g} | {controller.design.N} | {cells}")
     lines += [
         "",
         "### Raising X_k to recover stability lost to X_d or X_t (paper §4)",
