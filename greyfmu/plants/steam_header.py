@@ -178,11 +178,12 @@ def excitation_run(
 
 def segment_demands(params: HeaderParameters, valves: ArrayLike) -> NDArray[np.float64]:
     """Steam each header segment's turbine takes at P_set [kg/s]: D_j = K_tj v_j P_set."""
-    return np.asarray(SteamHeader(params).K_t) * np.asarray(valves, dtype=float) * params.P_set
+    return np.asarray(params.turbine_constants()) * np.asarray(valves, dtype=float) * params.P_set
 
 
 def firing_for_steam(params: HeaderParameters, boiler: int, steam: float, q_max: float = 1.5) -> float:
-    """The steady firing q in [0, q_max] at which ``boiler`` generates ``steam`` kg/s (NaN if none does)."""
+    """The steady firing q in [0, q_max] at which ``boiler`` generates ``steam`` kg/s, on the rising part of its
+    steam curve; NaN if the steam at q_max is below it (or at 0 above it)."""
     def excess(q: float) -> float:
         return float(params.steam(np.full(3, q))[boiler]) - steam
 
