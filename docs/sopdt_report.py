@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 import matplotlib
@@ -28,7 +29,7 @@ from scipy.optimize import brentq  # noqa: E402
 
 import cosim  # noqa: E402
 from cosim.metrics import step_metrics  # noqa: E402
-from greyfmu.control import SOPDTPredictive, free_response  # noqa: E402
+from greyfmu.control import HorizonWarning, SOPDTPredictive, dominant_time_constant, free_response  # noqa: E402
 from greyfmu.control.scheduling import ITAE  # noqa: E402
 from greyfmu.plants import ThirdOrderPlant  # noqa: E402
 
@@ -65,7 +66,7 @@ def loop_matrix(tuning: dict, T4: float = 0.0, master_step: float = MASTER_STEP)
     State: plant state x(kT), the applied inputs u_{k−1} … u_{k−L}, the outputs Y_{k−1}, Y_{k−2}.
     """
     controller = SOPDTPredictive(**{**START, **tuning})
-    d, T = controller.design, START["T"]
+    d, T = controller.design, controller.T
     plant = ThirdOrderPlant(T4=T4)
     delay_samples, fraction = divmod(plant.tau + master_step, T)
     delay_samples = int(delay_samples)
@@ -92,6 +93,22 @@ def spectral_radius(tuning: dict, T4: float = 0.0, master_step: float = MASTER_S
     return float(max(abs(np.linalg.eigvals(loop_matrix(tuning, T4, master_step)))))
 
 
+def controller_radius(tuning: dict) -> float:
+    """Spectral radius of the controller alone (measured output held at 0): u_t = u_{t−1} + X_p Σ q_i e_{t+i}
+    with the free response driven only by its own past moves (10).  b ∝ X_k and q ∝ 1/X_k, so this map does
+    not depend on X_k: a mode outside the unit circle here cannot be removed by raising X_k."""
+    controller = SOPDTPredictive(**{**START, **tuning})
+    d, L = controller.design, controller.design.m + 1
+
+    def advance(u_past: np.ndarray) -> np.ndarray:
+        free = free_response(d, (0.0, 0.0, 0.0), u_past)
+        u = u_past[0] - controller.X_p * float(np.dot(controller.weights, free[d.m :]))
+        return np.concatenate([[u], u_past[: L - 1]])
+
+    matrix = np.column_stack([advance(column) for column in np.eye(L)])
+    return float(max(abs(np.linalg.eigvals(matrix))))
+
+
 def stability_limit(
     parameter: str, low: float, high: float, T4: float = 0.0, master_step: float = MASTER_STEP, **tuning
 ) -> float:
@@ -113,6 +130,99 @@ def stable_intervals(parameter: str, grid: np.ndarray, T4: float = 0.0) -> list[
     if start is not None:
         runs.append((start, grid[-1]))
     return runs
+
+
+def recovering_gain(tuning: dict, grid: np.ndarray = np.round(np.arange(1.5, 100.0001, 0.05), 4)) -> float:
+    """The smallest X_k of ``grid`` (1.5 … 100) at which the loop with ``tuning`` is stable; NaN if none is."""
+    for X_k in grid:
+        if spectral_radius({**tuning, "X_k": float(X_k)}) < 1.0:
+            return float(X_k)
+    return math.nan
+
+
+def transient_time(plant: ThirdOrderPlant, band: float = 0.05, step: float = 1.0, horizon: float = 3000.0) -> float:
+    """T_r of the paper's §2: the time after which the unit-step response stays within ±band of its final value K."""
+    times = np.arange(step, horizon + step / 2, step)
+    y = np.array([plant.advance(t - step, step, 1.0) for t in times])
+    outside = np.flatnonzero(np.abs(y - plant.K) > band * abs(plant.K))
+    return float(times[outside[-1] + 1])
+
+
+HORIZON_PERIODS = [20.0, 24.0, 28.0, 32.0, 34.0, 36.0, 40.0, 46.0, 50.0, 56.0, 64.0, 70.0, 80.0]
+"""Sampling periods T (multiples of the 2-s master step) for the N study: N = [690/T] = 34 … 8."""
+DOMINANT_TIME_CONSTANTS = [100.0, 150.0, 200.0, 250.0, 300.0]
+"""T0 values of the T0 study at T = 40 s (200 s = the sum of the test process's time constants)."""
+REMEDY_CASES = [{"X_d": 0.3}, {"X_d": 0.5}, {"X_t": 1.5}, {"X_t": 1.8}, {"X_t": 2.0}, {"X_t": 3.0},
+                {"X_d": 3.12}, {"X_d": 3.6}, {"X_d": 4.5}]
+"""Tunings that lose stability at the default X_k = 1.5 (the paper: raising X_k usually restores it)."""
+
+
+def design_row(tuning: dict) -> tuple[SOPDTPredictive, float, float]:
+    """Controller, ρ and the X_k below which stability is lost (NaN if ρ ≥ 1 at X_k = 1.5 and 20)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", HorizonWarning)
+        controller = SOPDTPredictive(**{**START, **tuning})
+        rho = spectral_radius(tuning)
+        low = spectral_radius({**tuning, "X_k": 0.5}) - 1.0
+        high = spectral_radius({**tuning, "X_k": 20.0}) - 1.0
+        limit = stability_limit("X_k", 0.5, 20.0, **tuning) if low > 0.0 > high else math.nan
+    return controller, rho, limit
+
+
+def sweep_cells(parameter: str, variable: str, value: float, folder: Path) -> tuple[SOPDTPredictive, str]:
+    """The controller for ``parameter = value`` and its row's cells from ρ on (stability, limit, master-run metrics);
+    ``variable`` is the FMU's name of the parameter (the sample time T is ``Ts``)."""
+    controller, rho, limit = design_row({parameter: value})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", HorizonWarning)
+        m = loop_metrics(run(NOMINAL, {f"controller.{variable}": value}, folder))
+    return controller, (
+        f"{rho:.4f} | {'yes' if rho < 1 else '**no**'} | {fmt(limit, 3)} | {fmt(m['IAE'])} | {fmt(m['overshoot'])} | "
+        f"{fmt(m['settling_time'], 0)} | {fmt(m['load_IAE'])} |"
+    )
+
+
+def horizon_tables(folder: Path) -> list[str]:
+    """N against the paper's rule (15 ≤ N ≤ 20), then T0 (with the (T_r − τ)/3 rule), then the X_k remedy."""
+    lines = [
+        "### N = [(τ + 3 T0)/T]: the paper's rule N in 15 … 20, at most 20 (T varied, T0 = 200 s, X_k = 1.5)",
+        "",
+        "| T s | N | m | unmodelled delay τ + 2 s − m·T | ρ | stable | X_k where stability is lost | IAE (setpoint) | overshoot % | settling time s | IAE (load) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for T in HORIZON_PERIODS:
+        controller, cells = sweep_cells("T", "Ts", T, folder)
+        d = controller.design
+        lines.append(f"| {T:g} | {d.N} | {d.m} | {START['tau'] + MASTER_STEP - d.m * T:g} s | {cells}")
+    T_r = transient_time(ThirdOrderPlant())
+    T0_rule = dominant_time_constant(T_r, 90.0)
+    lines += [
+        "",
+        f"### T0 (T = 40 s, X_k = 1.5): T_r of the test process (±5 %) = {T_r:.0f} s, so the rule T0 ≈ (T_r − τ)/3 "
+        f"gives {T0_rule:.1f} s; the sum of its time constants is 200 s",
+        "",
+        "| T0 s | N | ρ | stable | X_k where stability is lost | IAE (setpoint) | overshoot % | settling time s | IAE (load) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for T0 in sorted([*DOMINANT_TIME_CONSTANTS, round(T0_rule, 1)]):
+        controller, cells = sweep_cells("T0", "T0", T0, folder)
+        lines.append(f"| {T0:g} | {controller.design.N} | {cells}")
+    lines += [
+        "",
+        "### Raising X_k to recover stability lost to X_d or X_t (paper §4)",
+        "",
+        "| tuning | m | ρ at X_k = 1.5 | smallest stabilising X_k (grid 0.05, ≤ 100) | ρ at X_k = 100 | controller alone ρ_c |",
+        "|---|---|---|---|---|---|",
+    ]
+    for tuning in REMEDY_CASES:
+        controller = SOPDTPredictive(**{**START, **tuning})
+        label = ", ".join(f"{k} = {v:g}" for k, v in tuning.items())
+        X_k = recovering_gain(tuning)
+        lines.append(
+            f"| {label} | {controller.design.m} | {spectral_radius(tuning):.4f} | {'none' if math.isnan(X_k) else f'{X_k:g}'} | "
+            f"{spectral_radius({**tuning, 'X_k': 100.0}):.4f} | {controller_radius(tuning):.5f} |"
+        )
+    return lines + [""]
 
 
 # --- runs through the master ---------------------------------------------------------------------------
@@ -263,6 +373,8 @@ def main() -> int:
             runs = stable_intervals(parameter, fine)
             lines.append(f"| {parameter} | {', '.join(f'{a:g} … {b:g}' for a, b in runs)} |")
         lines.append("")
+        lines += horizon_tables(folder)
+        print("horizon: done", file=sys.stderr)
 
         itae, detuned = ITAE()(1.2, 200.0, 90.0), ITAE(A=0.35)(1.2, 200.0, 90.0)
         comparison = [

@@ -14,7 +14,7 @@ class FourTank(GreyfmuSlave):
     description = (
         "Two-input four-tank benchmark of Pan, Shen & Luh (2012), (40), as the discrete map (41)-(42) the paper "
         "prints (forward Euler of (40) at the sample period Ts): after step k_change the input coefficients ramp "
-        "as 1 - ramp (k - k_change) and the delay of h3, h4 on h1, h2 steps from 1 to 'delay' samples "
+        "as 1 - ramp (k - ramp_origin) and the delay of h3, h4 on h1, h2 steps from 1 to 'delay' samples "
         "(DelayLine). The map advances at every sample instant t0 + k Ts in [t, t+h) with u1, u2 read at t "
         "(zero-order hold); levels are held between samples; no direct feedthrough. Dimensionless levels and "
         "flows. Initial levels: the equilibrium of (40) for u1 = u2 = u0. " + REQUIREMENTS
@@ -27,6 +27,8 @@ class FourTank(GreyfmuSlave):
         self.parameter("Ts", 1.0, "Sample period of the map (41)-(42)", unit="s")
         self.parameter("k_change", 500, "Step at which the ramp and the delay change start ((41)-(42))", minimum=0)
         self.parameter("ramp", 0.0005, "Slope of the input-coefficient ramp per step ((41)-(42))")
+        self.parameter("ramp_origin", 500, "Step at which the coefficient ramp 1 - ramp (k - ramp_origin) equals 1 "
+                       "(500: continuous at k_change; 0: the literal 1 - 0.0005 k of (41))", minimum=0)
         self.parameter("delay", 450, "Input delay after k_change, in steps ((41)-(42))", minimum=1)
         self.parameter("time_varying", 1, "1 = apply the changes (41)-(42), 0 = the time-invariant (40)", minimum=0, maximum=1)
         self.parameter("u0", 0.7, "Inputs whose equilibrium sets the initial levels")
@@ -37,7 +39,8 @@ class FourTank(GreyfmuSlave):
 
     def build(self) -> None:
         self.plant = FourTankPlant(
-            equilibrium_levels(self.u0, self.u0), self.Ts, self.k_change, self.ramp, self.delay, bool(self.time_varying)
+            equilibrium_levels(self.u0, self.u0), self.Ts, self.k_change, self.ramp, self.delay, bool(self.time_varying),
+            self.ramp_origin,
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)
 

@@ -19,13 +19,14 @@ METHODS = {1: "global", 2: "local", 3: "mixed"}
 
 
 @functools.lru_cache(maxsize=4)
-def initial_models(Ts: float, duration: float, rules: int) -> tuple[tuple[TSModel, ...], ...]:
+def initial_models(Ts: float, duration: float, rules: int, seed: int) -> tuple[tuple[TSModel, ...], ...]:
     """Initial TS models of the three groups: one open-loop random-firing run of the default
-    greyfmu.plants.SteamHeader per group (the group's boilers excited), GK clustering + local WLS."""
+    greyfmu.plants.SteamHeader per group (the group's boilers excited; group g's firing levels
+    drawn with seed 3·seed + g), GK clustering + local WLS."""
     structure = ARXStructure(2, 2)
     models = []
     for g, boilers in enumerate(boiler_groups(3, 2)):
-        Y, M = excitation_run(SteamHeader(), boilers, duration, Ts, seed=g)
+        Y, M = excitation_run(SteamHeader(), boilers, duration, Ts, seed=3 * seed + g)
         models.append(tuple(identify_group_models(Y, M, boilers, structure, rules)))
     return tuple(models)
 
@@ -77,6 +78,7 @@ class OSMMGPC(GreyfmuSlave):
         self.parameter("omega", 0.01, "Initial covariance C(0) = omega I of the estimators", minimum=0.0)
         self.parameter("rules", 3, "Rules per TS model", minimum=1)
         self.parameter("identification_time", 3000.0, "Length of each open-loop identification run", unit="s")
+        self.parameter("identification_seed", 0, "Seed s of the identification runs' random firing levels (group g draws with 3 s + g)", minimum=0)
         self.input("r1", 8.75, "Set-point of P_m2", unit="MPa")
         self.input("r2", 8.75, "Set-point of P_m4", unit="MPa")
         self.input("y1", 8.75, "Measured P_m2", unit="MPa")
@@ -88,7 +90,7 @@ class OSMMGPC(GreyfmuSlave):
                     variability=Fmi2Variability.discrete)
 
     def build(self) -> None:
-        models = copy.deepcopy([list(row) for row in initial_models(self.Ts, self.identification_time, self.rules)])
+        models = copy.deepcopy([list(row) for row in initial_models(self.Ts, self.identification_time, self.rules, self.identification_seed)])
         self.controller = OSMMController(
             boiler_groups(3, 2), models, ARXStructure(2, 2), np.full(3, self.M0), self.N1, self.N2, self.Nu,
             self.output_weight, self.move_weight, self.alpha,

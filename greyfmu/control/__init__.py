@@ -6,8 +6,10 @@ __all__ = ["PID", "DerivativeOn", "IntegralMode", "integral_step"]
 
 from greyfmu.control.sopdt_predictive import (
     ControlLaw,
+    HorizonWarning,
     SOPDTDesign,
     SOPDTPredictive,
+    dominant_time_constant,
     free_response,
     horizon_length,
     law_weights,
@@ -17,8 +19,10 @@ from greyfmu.control.sopdt_predictive import (
 
 __all__ += [
     "ControlLaw",
+    "HorizonWarning",
     "SOPDTDesign",
     "SOPDTPredictive",
+    "dominant_time_constant",
     "free_response",
     "horizon_length",
     "law_weights",

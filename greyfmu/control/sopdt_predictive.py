@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import math
+import warnings
 from collections import deque
 from dataclasses import dataclass
 from enum import IntEnum
@@ -32,6 +33,10 @@ N_MIN, N_MAX = 15, 20
 """Recommended range of the prediction horizon N = [(τ + 3·T0)/T] (paper §2 and §4)."""
 N_LIMIT = 40
 """Largest horizon accepted: beyond it the sampling period is far too short for the paper's method."""
+
+
+class HorizonWarning(UserWarning):
+    """The horizon N exceeds the paper's limit of 20 (abstract, §2, §4); the design is still made."""
 _U_HISTORY = N_LIMIT + 1
 """Past applied inputs kept: u_{t−1} … u_{t−m−1} for any admissible m < N ≤ 40."""
 
@@ -50,6 +55,18 @@ class ControlLaw(IntEnum):
 def horizon_length(T0: float, tau: float, T: float) -> int:
     """Prediction horizon N = integer part of (τ + 3·T0)/T (paper §2; 17 for the starting data)."""
     return math.floor((tau + 3.0 * T0) / T + 1e-9)
+
+
+def dominant_time_constant(T_r: float, tau: float) -> float:
+    """T0 ≈ (T_r − τ)/3 from the process transient time T_r (step response, ±5 % band) and dead time τ (paper §2).
+
+    The paper's other estimate is the sum of the process time constants.
+    """
+    if not (math.isfinite(tau) and tau >= 0.0):
+        raise ValueError(f"SOPDTPredictive: dead time tau must be a finite number >= 0 s, got {tau}")
+    if not (math.isfinite(T_r) and T_r > tau):
+        raise ValueError(f"SOPDTPredictive: transient time T_r must be a finite number > tau = {tau} s, got {T_r}")
+    return (T_r - tau) / 3.0
 
 
 def sampling_time_range(T0: float, tau: float) -> tuple[float, float]:
@@ -114,7 +131,8 @@ def sopdt_design(
     """Off-line computation of the paper's §2 from the process data K, T0, τ, ξ, T and the tuning X_k, X_t, X_d.
 
     Refuses K ≤ 0, T0 ≤ 0, τ < 0, ξ outside (0, 1], X_k/X_t ≤ 0, X_d < 0, N > 40 and m ≥ N,
-    each with a message giving the allowed range.
+    each with a message giving the allowed range.  Warns (``HorizonWarning``) for 20 < N ≤ 40:
+    the paper limits N to 20 ("at maximum 20").
     """
     _check_process(K, T0, tau)
     if not (math.isfinite(xi) and 0.0 < xi <= 1.0):
@@ -133,6 +151,15 @@ def sopdt_design(
             f"SOPDTPredictive: horizon N = [(tau + 3 T0)/T] = {N} exceeds {N_LIMIT}; allowed N <= {N_LIMIT}, "
             f"i.e. T >= {(tau + 3 * T0) / (N_LIMIT + 1):.4g} s (recommended: N in {N_MIN}..{N_MAX}, "
             f"T in ({low:.4g}, {high:.4g}] s)"
+        )
+    if N > N_MAX:
+        low, high = sampling_time_range(T0, tau)
+        warnings.warn(
+            f"SOPDTPredictive: horizon N = [(tau + 3 T0)/T] = {N} exceeds the paper's limit of {N_MAX} "
+            f"(N in {N_MIN}..{N_MAX}); for T0 = {T0:g} s, tau = {tau:g} s choose T in ({low:.4g}, {high:.4g}] s "
+            f"instead of T = {T:g} s",
+            HorizonWarning,
+            stacklevel=2,
         )
     m = math.floor(X_d * tau / T + 1e-9)
     if m >= N:

@@ -290,10 +290,12 @@ def _weighted_rls(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """One rank-one weighted RLS update; ``phi`` is nonzero only on ``block`` of the stacked θ.
 
-    K = C φ / (1/w + φᵀ C φ),  θ += K (y − φᵀ θ),  C −= K φᵀ C   (recovered-models.md §6).
+    K = C φ / (1/w + φᵀ C φ),  θ += K (y − φᵀ θ),  C −= K φᵀ C   (recovered-models.md §6),
+    with K computed as w C φ / (1 + w φᵀ C φ): the same gain without 1/w overflowing for a
+    vanishing weight (a raw firing level μ_m far from every rule centre).
     """
     Cphi = C[:, block] @ phi
-    gain = Cphi / (1.0 / weight + phi @ Cphi[block])
+    gain = weight * Cphi / (1.0 + weight * (phi @ Cphi[block]))
     theta += gain * (y - phi @ theta[block])
     C -= np.outer(gain, Cphi)
     return C, theta

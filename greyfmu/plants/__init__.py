@@ -26,6 +26,14 @@ from greyfmu.plants.stochastic_lti import StochasticLTI  # noqa: E402
 __all__ += ["StochasticLTI"]
 
 from greyfmu.plants.four_tank import FourTank, equilibrium_levels
-from greyfmu.plants.steam_header import HeaderParameters, SteamHeader, excitation_run
+from greyfmu.plants.steam_header import (
+    HeaderParameters,
+    SteamHeader,
+    excitation_run,
+    least_fuel_firing,
+    segment_demands,
+    steady_firing,
+)
 
-__all__ += ["FourTank", "equilibrium_levels", "HeaderParameters", "SteamHeader", "excitation_run"]
+__all__ += ["FourTank", "equilibrium_levels", "HeaderParameters", "SteamHeader", "excitation_run", "least_fuel_firing",
+            "segment_demands", "steady_firing"]

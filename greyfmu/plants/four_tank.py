@@ -10,7 +10,8 @@ coefficient on h_i(k−1), i.e. the forward-Euler map of (40) at one-second step
 
 with c = 1, d = 1 up to step ``k_change`` = 500 and then the ramp c(k) = 1 − 0.0005 (k − 500)
 and the delay d = 450 ((41)–(42); the paper's ``1 − 0.0005·k`` read as starting at step 500,
-where it says both changes start, so c is continuous).  Table 1's local poles 0.41–0.74 are
+where it says both changes start, so c is continuous).  The literal (41), c(k) = 1 − 0.0005·k
+from step 500 on (a jump from 1 to 0.75 at the change), is ``ramp_origin = 0``.  Table 1's local poles 0.41–0.74 are
 those of this map at levels 6–29 (1 − 1.41/√h), which is why we integrate the map the paper
 prints rather than the ODE.  Levels are clamped at 0 under the square roots.  The delayed
 √h_3, √h_4 are held in :class:`~greyfmu.plants.delay.DelayLine` s (they are piecewise constant
@@ -46,7 +47,9 @@ class FourTank:
 
     ``step(u1, u2)`` advances one sample and returns the levels h(k).  ``k_change`` is the
     step where the ramp and the delay change start, ``ramp`` the coefficient slope (0.0005 per
-    step), ``delay`` the input delay after the change (450 steps).
+    step), ``ramp_origin`` the step at which the ramp line passes through c = 1 (default
+    ``k_change``: c continuous; 0: the literal 1 − 0.0005·k of (41)), ``delay`` the input delay
+    after the change (450 steps).
     """
 
     def __init__(
@@ -57,6 +60,7 @@ class FourTank:
         ramp: float = 0.0005,
         delay: int = 450,
         time_varying: bool = True,
+        ramp_origin: int | None = None,
     ) -> None:
         if not (math.isfinite(Ts) and Ts > 0.0):
             raise ValueError(f"FourTank: sample period Ts must be a finite number > 0, got {Ts}")
@@ -68,6 +72,7 @@ class FourTank:
         self.Ts = Ts
         self.k_change = k_change
         self.ramp = ramp
+        self.ramp_origin = k_change if ramp_origin is None else ramp_origin
         self.delay = delay
         self.time_varying = time_varying
         self.reset()
@@ -82,7 +87,7 @@ class FourTank:
         """c(k) of (41)–(42)."""
         if not self.time_varying or k <= self.k_change:
             return 1.0
-        return 1.0 - self.ramp * (k - self.k_change)
+        return 1.0 - self.ramp * (k - self.ramp_origin)
 
     def input_delay(self, k: int) -> int:
         """d(k): 1 step, then ``delay`` steps after ``k_change``."""

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import brentq, minimize_scalar
 
 
 @dataclass(frozen=True)
@@ -173,3 +174,67 @@ def excitation_run(
         Y[k] = plant.pressures
         plant.advance(Ts, M[k], v)
     return Y, M
+
+
+def segment_demands(params: HeaderParameters, valves: ArrayLike) -> NDArray[np.float64]:
+    """Steam each header segment's turbine takes at P_set [kg/s]: D_j = K_tj v_j P_set."""
+    return np.asarray(params.turbine_constants()) * np.asarray(valves, dtype=float) * params.P_set
+
+
+def firing_for_steam(params: HeaderParameters, boiler: int, steam: float, q_max: float = 1.5) -> float:
+    """The steady firing q in [0, q_max] at which ``boiler`` generates ``steam`` kg/s, on the rising part of its
+    steam curve; NaN if the steam at q_max is below it (or at 0 above it)."""
+    def excess(q: float) -> float:
+        return float(params.steam(np.full(3, q))[boiler]) - steam
+
+    if not excess(0.0) <= 0.0 <= excess(q_max):
+        return math.nan
+    return float(brentq(excess, 0.0, q_max, xtol=1e-12))
+
+
+def steady_firing(
+    params: HeaderParameters, boilers: tuple[int, int], valves: ArrayLike, held: float, q_max: float = 1.5
+) -> NDArray[np.float64]:
+    """Steady firing of the three boilers when the pair ``boilers`` holds both segments at P_set
+    (no tie flow) and the third boiler fires ``held``: the segment balances
+    w_1 + w_2/2 = D_1, w_3 + w_2/2 = D_2 fix the pair's steam.  NaN where no firing in [0, q_max] gives it."""
+    D1, D2 = segment_demands(params, valves)
+    other = ({0, 1, 2} - set(boilers)).pop()
+    w = np.zeros(3)
+    w[other] = params.steam(np.full(3, held))[other]
+    if other == 0:
+        w[1] = 2.0 * (D1 - w[0])
+        w[2] = D2 - w[1] / 2.0
+    elif other == 1:
+        w[0], w[2] = D1 - w[1] / 2.0, D2 - w[1] / 2.0
+    else:
+        w[1] = 2.0 * (D2 - w[2])
+        w[0] = D1 - w[1] / 2.0
+    q = np.array([firing_for_steam(params, i, w[i], q_max) for i in range(3)])
+    q[other] = held
+    return q
+
+
+def least_fuel_firing(params: HeaderParameters, valves: ArrayLike, q_min: float, q_max: float) -> NDArray[np.float64]:
+    """The steady firing in [q_min, q_max] of least fuel that holds both segments at P_set: the
+    minimum over the one-parameter family w_2 (w_1 = D_1 − w_2/2, w_3 = D_2 − w_2/2)."""
+    D1, D2 = segment_demands(params, valves)
+
+    def firing(w2: float) -> NDArray[np.float64]:
+        return np.array([firing_for_steam(params, i, w) for i, w in enumerate((D1 - w2 / 2.0, w2, D2 - w2 / 2.0))])
+
+    def fuel(w2: float) -> float:
+        q = firing(w2)
+        return float(np.sum(q)) if np.all(np.isfinite(q)) and np.all((q >= q_min) & (q <= q_max)) else math.inf
+
+    grid = np.linspace(0.0, 2.0 * min(D1, D2), 401)
+    fuels = [fuel(w2) for w2 in grid]
+    best = int(np.argmin(fuels))
+    if not math.isfinite(fuels[best]):
+        raise ValueError(f"least_fuel_firing: no firing in [{q_min}, {q_max}] holds both segments at P_set for valves {valves}")
+    low, high = grid[max(best - 1, 0)], grid[min(best + 1, len(grid) - 1)]
+    if math.isfinite(fuel(low)) and math.isfinite(fuel(high)):
+        refined = float(minimize_scalar(fuel, bounds=(low, high), method="bounded", options={"xatol": 1e-9}).x)
+        if fuel(refined) <= fuels[best]:
+            return firing(refined)
+    return firing(float(grid[best]))

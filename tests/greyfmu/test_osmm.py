@@ -8,7 +8,8 @@ import pytest
 from greyfmu.control.gpc import CARIMA, Bounds
 from greyfmu.control.osmm import OSMMGPC, ARXStructure, boiler_groups, choose_group, regulating_efficiency
 from greyfmu.control.ts_fuzzy import Antecedent, TSModel
-from greyfmu.plants import HeaderParameters, SteamHeader
+from greyfmu.plants import FourTank, HeaderParameters, SteamHeader, least_fuel_firing, segment_demands, steady_firing
+from greyfmu.plants.steam_header import firing_for_steam
 
 # A linear 3-boiler, 2-pressure plant: y_j(k) = a y_j(k−1) + Σ_i b_ji M_i(k−1) + c_j.
 A_POLE = 0.9
@@ -105,3 +106,59 @@ def test_header_plant_efficiency_ordering_behind_the_papers_switching():
     assert loaded3[1] > loaded3[2]
     plant = SteamHeader()
     assert np.allclose(plant.pressures, 8.75) and plant.fuel.sum() == pytest.approx(16.2)  # Table 3's firing scale
+
+
+def test_four_tank_ramp_continuous_and_literal():
+    """(41)–(42): the scenario's c(k) = 1 − 0.0005 (k − 500) and the printed 1 − 0.0005 k (ramp_origin = 0)."""
+    continuous, literal = FourTank(), FourTank(ramp_origin=0)
+    assert continuous.coefficient(500) == literal.coefficient(500) == 1.0  # no change up to step 500
+    assert continuous.coefficient(501) == pytest.approx(1.0 - 0.0005)
+    assert literal.coefficient(501) == pytest.approx(1.0 - 0.0005 * 501)  # a jump to 0.75 at the change
+    assert literal.coefficient(1500) == pytest.approx(0.25) and continuous.coefficient(1500) == pytest.approx(0.5)
+
+
+OPERATING_POINTS = {"design": (0.5, 0.5), "valve 1 at 70 %": (0.7, 0.5), "valve 2 at 35 %": (0.7, 0.35)}
+
+
+def test_segment_balances_fix_each_pairs_steady_firing():
+    """§5.2's valve steps on our header: the firing a pair must reach to hold both pressures at 8.75 MPa is
+    fixed by the two segment balances, and the plant's own equilibrium at that firing has both pressures at 8.75."""
+    p = HeaderParameters()
+    plant = SteamHeader(p)
+    for valves in OPERATING_POINTS.values():
+        for pair in boiler_groups(3, 2):
+            q = steady_firing(p, pair, valves, 0.75)
+            if np.all(np.isfinite(q)):
+                assert plant.equilibrium(q, np.asarray(valves))[9:11] == pytest.approx([8.75, 8.75], abs=1e-9)
+    step1 = {pair: steady_firing(p, pair, OPERATING_POINTS["valve 1 at 70 %"], 0.75) for pair in boiler_groups(3, 2)}
+    assert np.allclose(step1[(0, 1)], step1[(0, 2)]) and step1[(0, 1)][0] == pytest.approx(1.195, abs=1e-3)  # B1 takes it all
+    assert np.isnan(step1[(1, 2)][1])  # (2,3) cannot: B2 would need more than its peak steam
+    step2 = {pair: steady_firing(p, pair, OPERATING_POINTS["valve 2 at 35 %"], 0.75) for pair in boiler_groups(3, 2)}
+    assert step2[(0, 1)][1] < 0.3  # (1,2) would need B2 below M_min = 0.3: it cannot hold both pressures
+    assert 0.3 < step2[(0, 2)][2] < 0.75 and step2[(0, 2)][0] == pytest.approx(1.195, abs=1e-3)
+
+
+def test_least_fuel_allocation_leaves_no_room_for_the_papers_saving():
+    """Table 3's 1.6 % cannot come from scheduling in this header: pair (1,3)'s forced firing is within 0.02 %
+    of the least-fuel firing at every operating point of the experiment; even a boiler 2 with 11 % more steam
+    per fuel than boiler 3 leaves less than 1 %."""
+    p = HeaderParameters()
+    for valves in OPERATING_POINTS.values():
+        least = least_fuel_firing(p, valves, 0.3, 1.2)
+        pair = steady_firing(p, (0, 2), valves, 0.75)
+        assert np.all((least >= 0.3 - 1e-9) & (least <= 1.2 + 1e-9))
+        assert plant_pressures(p, least, valves) == pytest.approx([8.75, 8.75], abs=1e-9)
+        assert 0.0 <= (pair.sum() - least.sum()) / pair.sum() < 2e-3
+        for w2 in np.linspace(0.0, 2.0 * min(segment_demands(p, valves)), 41):  # no feasible point of the family burns less
+            D1, D2 = segment_demands(p, valves)
+            q = np.array([firing_for_steam(p, i, w) for i, w in enumerate((D1 - w2 / 2, w2, D2 - w2 / 2))])
+            if np.all(np.isfinite(q)) and np.all((q >= 0.3) & (q <= 1.2)):
+                assert q.sum() >= least.sum() - 1e-9
+    better_b2 = HeaderParameters(eta_max=(0.92, 0.99, 0.90))
+    valves = OPERATING_POINTS["valve 1 at 70 %"]
+    pair, least = steady_firing(better_b2, (0, 2), valves, 0.75), least_fuel_firing(better_b2, valves, 0.3, 1.2)
+    assert 0.005 < (pair.sum() - least.sum()) / pair.sum() < 0.0161
+
+
+def plant_pressures(p, q, valves):
+    return SteamHeader(p).equilibrium(q, np.asarray(valves))[9:11]

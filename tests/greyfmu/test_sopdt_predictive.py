@@ -6,6 +6,7 @@ unconstrained least-squares minimum of criterion (11) over one or two postulated
 
 import logging
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -13,7 +14,9 @@ from scipy import signal
 
 from greyfmu.control import (
     ControlLaw,
+    HorizonWarning,
     SOPDTPredictive,
+    dominant_time_constant,
     free_response,
     law_weights,
     sampling_time_range,
@@ -192,6 +195,28 @@ def test_retune_reruns_the_offline_part_and_keeps_the_history():
     assert controller.design is before
     controller.reset()
     assert same_design(controller.design, design_of(START)) and controller.u == 0.0
+
+
+def test_horizon_above_the_papers_limit_of_20_warns_and_still_designs():
+    """Paper (abstract, §4): N "limited at maximum 20"; 20 < N <= 40 is designed with a HorizonWarning."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # N = 15 ... 20: no warning
+        assert [design_of(dict(START, T=T)).N for T in (46.0, 40.0, 34.5)] == [15, 17, 20]
+    with pytest.warns(HorizonWarning, match=r"horizon N = \[\(tau \+ 3 T0\)/T\] = 23 exceeds the paper's limit of 20 "
+                      r"\(N in 15\.\.20\); for T0 = 200 s, tau = 90 s choose T in \(32\.86, 46\] s instead of T = 30 s"):
+        d = design_of(dict(START, T=30.0))
+    assert d.N == 23
+    with pytest.warns(HorizonWarning):
+        SOPDTPredictive(**{**START, "T": 17.0})  # N = 40, the largest accepted
+
+
+def test_dominant_time_constant_rule():
+    """§2: T0 ≈ (T_r − τ)/3, T_r the transient time (±5 %); refused unless T_r > τ."""
+    assert dominant_time_constant(518.0, 90.0) == pytest.approx(428.0 / 3.0)
+    with pytest.raises(ValueError, match=r"transient time T_r must be a finite number > tau = 90.0 s, got 90.0"):
+        dominant_time_constant(90.0, 90.0)
+    with pytest.raises(ValueError, match=r"dead time tau must be a finite number >= 0 s"):
+        dominant_time_constant(100.0, -1.0)
 
 
 @pytest.mark.parametrize(

@@ -4,6 +4,7 @@ Loop: setpoint 0 → 1 at 40 s, load −0.2 on the plant input at 2500 s, 0 … 
 """
 
 import math
+import sys
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
@@ -20,6 +21,10 @@ from greyfmu.control.scheduling import ITAE
 SSP = Path(__file__).resolve().parents[2] / "ssp"
 NOMINAL, NMP, PID_LOOP = SSP / "sopdt_nominal", SSP / "sopdt_nmp", SSP / "sopdt_pid_itae"
 SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
+sys.path.insert(0, str(SSP.parent / "docs"))
+from sopdt_report import START, controller_radius, design_row, spectral_radius  # noqa: E402
+
+sys.path.remove(str(SSP.parent / "docs"))
 
 
 def simulate(scenario, case=None):
@@ -109,6 +114,58 @@ def test_non_minimum_phase_process_is_stabilised_by_a_large_X_k():
     assert r["plant.y"][after_move].min() < -0.01  # the inverse response of the zero at +1/60
 
 
+def test_horizon_rule_N_at_most_20_is_not_what_decides_stability():
+    """Paper (abstract, §4): N in 15 … 20, at most 20, "to ensure the stability and good performances".
+    Measured (exact ρ, docs/sopdt_tables.md): N = 21 … 34 are stable at X_k = 1.5 while N = 15 and 13 (m = 1)
+    are not; the X_k at which stability is lost grows with the unmodelled dead time τ + master step − m·T,
+    whatever N is."""
+    periods = (20.0, 28.0, 32.0, 40.0, 46.0, 50.0, 64.0, 80.0)
+    rows = {T: design_row({"T": T}) for T in periods}
+    for T, (controller, rho, _) in rows.items():
+        N = controller.design.N
+        if N > 20:
+            assert rho < 1.0, (T, N)  # beyond the paper's limit and stable
+        if T in (46.0, 50.0):
+            assert 13 <= N <= 15 and rho > 1.0  # inside (or just under) the paper's range and unstable
+    unmodelled = {T: START["tau"] + 2.0 - c.design.m * T for T, (c, _, _) in rows.items()}
+    for a in periods:
+        for b in periods:
+            if unmodelled[a] >= unmodelled[b] + 4.0:
+                assert rows[a][2] > rows[b][2], (a, b)  # more unmodelled delay: a larger X_k is needed
+
+
+def test_horizon_of_24_through_the_master_is_stable_and_better_than_17(nominal):
+    """T = 28 s: N = 24, m = 3 (warned, still designed): settles, setpoint IAE 374 against 423 at N = 17."""
+    r = simulate(NOMINAL, "horizon_T_28.ssv")
+    assert r["controller.N"][-1] == 24.0
+    assert settled(r) and not unstable(r)
+    assert setpoint_metrics(r)["IAE"] < setpoint_metrics(nominal)["IAE"]
+
+
+def test_raising_X_k_recovers_stability_lost_to_X_t_or_a_small_X_d():
+    """§4: "the system may be usually stabilized by increasing X_k" — it is for X_t = 1.5 … 3 and X_d = 0.3, 0.5."""
+    for tuning, recovered in (({"X_t": 1.8}, 2.0), ({"X_t": 3.0}, 4.6), ({"X_d": 0.5}, 1.9)):
+        assert spectral_radius(tuning) > 1.0  # lost at the default X_k = 1.5
+        assert spectral_radius({**tuning, "X_k": recovered}) < 1.0, tuning
+        assert controller_radius(tuning) == pytest.approx(1.0, abs=1e-9)  # the controller alone: only its integrator
+    r = simulate(NOMINAL, "remedy_xt_1.8_xk_3.0.ssv")
+    assert settled(r) and not unstable(r)
+
+
+def test_raising_X_k_cannot_recover_X_d_of_3_12_and_more():
+    """m = [2.25 X_d] = 7 for X_d >= 3.12: the controller alone (output held at 0) has a mode of 1.00033, which
+    X_k does not change (b ∝ X_k, q ∝ 1/X_k); ρ stays above 1 for every X_k up to 100 and tends to it."""
+    assert controller_radius({"X_d": 3.11}) == pytest.approx(1.0, abs=1e-9)  # m = 6: only the integrator
+    for X_d in (3.12, 3.2, 3.6):
+        radius = controller_radius({"X_d": X_d})
+        assert radius > 1.0003
+        assert controller_radius({"X_d": X_d, "X_k": 40.0}) == pytest.approx(radius, rel=1e-12)
+        rho = [spectral_radius({"X_d": X_d, "X_k": X_k}) for X_k in (1.5, 3.0, 10.0, 30.0, 100.0)]
+        assert all(r > radius for r in rho) and rho == sorted(rho, reverse=True)
+    assert controller_radius({"X_d": 3.12}) == pytest.approx(1.00033, abs=1e-5)
+    assert unstable(simulate(NOMINAL, "remedy_xd_3.2_xk_3.0.ssv"))
+
+
 def test_itae_pid_comparison_uses_the_rule_2_8():
     values = {p.get("name"): float(p[0].get("value")) for p in ElementTree.parse(PID_LOOP / "pid.ssv").iter(f"{SSV}Parameter")}
     gains = ITAE(A=0.35)(1.2, 200.0, 90.0)
@@ -165,3 +222,12 @@ def test_operator_changes_are_tunable_and_redesign_the_controller(controller_fmu
     fmu.setReal([refs["y"]], [math.nan])  # a missing measurement holds u (warning logged)
     fmu.doStep(200.0, 40.0)
     assert fmu.getReal([refs["u"]])[0] == u
+
+
+def test_horizon_above_20_is_warned_in_the_fmu_log(controller_fmu, capfd):
+    """An operator change to T0 = 300 s gives N = [(90 + 900)/40] = 24 > 20: designed, and the warning is logged."""
+    fmu, refs, _ = controller_fmu
+    fmu.setReal([refs["T0"]], [300.0])
+    fmu.doStep(0.0, 40.0)
+    assert fmu.getReal([refs["N"]]) == [24.0]
+    assert "horizon N = [(tau + 3 T0)/T] = 24 exceeds the paper's limit of 20" in capfd.readouterr().out
