@@ -13,7 +13,7 @@ import pytest
 import cosim
 from greyfmu.plants import HeaderParameters
 
-DOCS = Path(__file__).resolve().parent.parent / "docs"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
 sys.path.insert(0, str(DOCS))
 from osmm_report import (  # noqa: E402
     RELAXED_BOUNDS,
