@@ -55,8 +55,11 @@ def _parser() -> argparse.ArgumentParser:
     metrics.add_argument("result", help="result CSV or Parquet file written by cosim run")
     metrics.add_argument("--signal", required=True, help="controlled variable, e.g. plant.y")
     metrics.add_argument("--setpoint", required=True, help="setpoint signal, e.g. setpoint.y")
-    metrics.add_argument("--t0", type=float, help="start of the measurement (default: the setpoint's last change)")
-    metrics.add_argument("--t1", type=float, help="end of the measurement (default: the end of the run)")
+    metrics.add_argument("--disturbance", action="append", default=[], metavar="SIGNAL",
+                         help="a disturbance signal whose steps are events of their own, e.g. load.y (repeatable)")
+    metrics.add_argument("--t0", type=float, help="measure one window from t0 instead of one row per event "
+                                                  "(default end: the end of the run)")
+    metrics.add_argument("--t1", type=float, help="end of that one window (default start: the setpoint's last change)")
     metrics.add_argument("--band", type=float, default=0.02, help="settling band, fraction of the step (0.02)")
     metrics.add_argument("--json", action="store_true", help="print the metrics as JSON")
     metrics.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
@@ -248,21 +251,48 @@ def _pack(args) -> int:
 def _metrics(args) -> int:
     import json
 
-    from .metrics import METRICS, step_metrics
+    from .metrics import EVENT_METRICS, METRICS, Event, event_metrics, find_events, step_response
     from .results import read
     from .simulation import select
 
     result = read(args.result)
     names = [n for n in result.dtype.names if n != "time"]
     y, r = (select(names, [name])[0] for name in (args.signal, args.setpoint))
-    m = step_metrics(result["time"], result[y], result[r], t0=args.t0, t1=args.t1, band=args.band)
-    if args.json:
-        print(json.dumps(m))
+    time = result["time"]
+    if args.t0 is not None or args.t1 is not None:
+        window = step_response(time, result[y], result[r], t0=args.t0, t1=args.t1, band=args.band)
+        t0 = args.t0 if args.t0 is not None else float("nan")
+        events = [Event("window", "--t0/--t1", t0, args.t1 if args.t1 is not None else float(time[-1]),
+                        float("nan"), float("nan"))]
+        rows, keys = [window], METRICS
     else:
-        units = {"overshoot": "%", "rise_time": "s", "settling_time": "s"}
-        print(f"{y} following {r} ({args.result}):")
-        for key in METRICS:
-            print(f"  {key:14} {m[key]:.6g} {units.get(key, '')}".rstrip())
+        disturbances = {d: result[d] for d in (select(names, [g])[0] for g in args.disturbance)}
+        events = find_events(time, (r, result[r]), disturbances)
+        rows, keys = event_metrics(time, result[y], result[r], events, band=args.band), EVENT_METRICS
+    if args.json:
+        def number(x: float) -> float | None:   # JSON has no NaN: an undefined metric is null
+            return x if x == x else None
+        print(json.dumps([{"event": ev.kind, "signal": ev.signal, "t0": number(ev.t0), "t1": ev.t1,
+                           "before": number(ev.before), "after": number(ev.after),
+                           **{k: number(row.values[k]) for k in keys}, "undefined": row.undefined}
+                          for ev, row in zip(events, rows)]))
+        return 0
+    print(f"{y} following {r} ({args.result}): {len(rows)} event(s), one row each; "
+          f"settling band ±{100 * args.band:g} %")
+    header = {"IAE": "IAE", "ISE": "ISE", "ITAE": "ITAE", "overshoot": "overshoot [%]", "rise_time": "rise [s]",
+              "settling_time": "settling [s]", "peak_error": "peak error"}
+    labels = [f"{i} {'window' if ev.kind == 'window' else ev.describe()}" for i, ev in enumerate(events, 1)]
+    spans = [f"{ev.t0:g}..{ev.t1:g}" for ev in events]
+    wl, ws = max(map(len, labels + ["event"])), max(map(len, spans + ["window [s]"]))
+    cells = [[f"{row.values[k]:.5g}" if row.values[k] == row.values[k] else "-" for k in keys] for row in rows]
+    widths = [max(len(header[k]), *(len(c[j]) for c in cells)) for j, k in enumerate(keys)]
+    print(f"  {'event':{wl}}  {'window [s]':{ws}}" + "".join(f"  {header[k]:>{w}}" for k, w in zip(keys, widths)))
+    for label, span, row_cells in zip(labels, spans, cells):
+        print(f"  {label:{wl}}  {span:{ws}}" + "".join(f"  {c:>{w}}" for c, w in zip(row_cells, widths)))
+    for i, row in enumerate(rows, 1):
+        for reason in sorted(set(row.undefined.values()), key=list(row.undefined.values()).index):
+            what = ", ".join(k for k, v in row.undefined.items() if v == reason)
+            print(f"  event {i}: {what} undefined: {reason}")
     return 0
 
 
@@ -301,10 +331,27 @@ def _sweep(args) -> int:
                    executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
     for row in result.failed:
         print(f"cosim: run {row['run_id']} failed: {row['message']}", file=sys.stderr)
+    _print_undefined_metrics(result.rows, args.metrics)
     print(f"cosim: sweep: {len(result.rows)} runs ({result.ran} ran now, {result.skipped} already done and "
           f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}, results in "
           f"{output / 'runs'}")
     return 1 if result.failed else 0
+
+
+def _print_undefined_metrics(rows, metrics: list[str]) -> None:
+    """For each metric column with undefined values: in how many runs, and the first run's reason."""
+    from .sweep import parse_metric
+
+    done = [row for row in rows if row.get("status") != "failed"]
+    for m in map(parse_metric, metrics):
+        for column in m.columns():
+            missing = [row for row in done if row.get(column) is None or row[column] != row[column]]
+            if missing:
+                key = column.rsplit(":", 1)[1]
+                why = [part.split(": ", 1)[1] for part in (missing[0].get(m.reason_column()) or "").split("; ")
+                       if part.startswith(f"{key}: ")]
+                print(f"cosim: {column} undefined in {len(missing)} of {len(done)} runs"
+                      + (f" (run {missing[0]['run_id']}: {why[0]})" if why else ""), file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -43,7 +43,7 @@ import numpy as np
 from .errors import CosimError, SetupError, did_you_mean
 from .fmu import exchange_type
 from .graph import build_plan, split_system_name
-from .metrics import METRICS, step_metrics
+from .metrics import METRICS, step_response
 from .safeio import max_unpacked_bytes, unpack_limit
 from .simulation import Prepared, prepare, run
 from .ssp import NS, ParameterValue
@@ -65,6 +65,10 @@ class Metric:
 
     def columns(self) -> list[str]:
         return [f"{self.signal}:{m}" for m in METRICS]
+
+    def reason_column(self) -> str:
+        """The column saying why a metric of this signal is undefined (`cosim.metrics.Response.reasons`)."""
+        return f"undefined({self.signal})"
 
 
 @dataclass(frozen=True)
@@ -302,12 +306,14 @@ def execute(task: Task) -> dict[str, Any]:
     return row
 
 
-def _metrics(result: np.ndarray | None, metrics: Sequence[Metric]) -> dict[str, float | None]:
+def _metrics(result: np.ndarray | None, metrics: Sequence[Metric]) -> dict[str, float | str | None]:
     out: dict[str, float | None] = {}
     for m in metrics:
-        values = (step_metrics(result["time"], result[m.signal], result[m.setpoint])
-                  if result is not None and len(result) else {})
+        response = (step_response(result["time"], result[m.signal], result[m.setpoint])
+                    if result is not None and len(result) else None)
+        values = response.values if response is not None else {}
         out.update({f"{m.signal}:{k}": float(values[k]) if k in values else None for k in METRICS})
+        out[m.reason_column()] = response.reasons() if response is not None else "the run produced no samples"
     return out
 
 
@@ -321,6 +327,7 @@ def _schema(swept: Mapping[str, str], seeded: bool, metrics: Sequence[Metric]):
     fields += [("seed", pa.int64())] if seeded else []
     fields += [("status", pa.string()), ("message", pa.string()), ("wall_time", pa.float64())]
     fields += [(c, pa.float64()) for m in metrics for c in m.columns()]
+    fields += [(m.reason_column(), pa.string()) for m in metrics]
     return pa.schema(fields)
 
 
