@@ -35,11 +35,17 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                      help="parameter set applied last, names 'component.variable' (repeatable)")
     run.add_argument("--output", "-o", metavar="FILE",
-                     help="result CSV, or Parquet for a .parquet name (default: results/<name>.csv)")
-    run.add_argument("--plot", metavar="PNG", help="write a plot of --signals")
+                     help="result CSV, or Parquet for a .parquet name (default: "
+                          "results/<name>__<param set>...csv, one name per scenario and parameter sets)")
+    run.add_argument("--plot", nargs="?", const="", metavar="PNG",
+                     help="write a plot of --signals (default file: the result's name with .png)")
+    run.add_argument("--report", nargs="?", const="", metavar="HTML",
+                     help="write a self-contained HTML report of the run: plot, metrics per event, parameters, "
+                          "metadata (default file: the result's name with .html)")
     run.add_argument("--signals", nargs="+", metavar="GLOB",
                      help="signals to plot, one panel per argument; 'a,b' overlays a and b in one panel "
-                          "(default: every output)")
+                          "(default: each controller's set-point with its controlled variable, then its outputs; "
+                          "without controllers, every connected output)")
     run.add_argument("--fmu-log", choices=["errors", "all", "off"], default="errors",
                      help="FMU log messages kept to explain a failure: the FMUs' status categories "
                           "(default), every category, or none (fastest)")
@@ -63,6 +69,13 @@ def _parser() -> argparse.ArgumentParser:
     metrics.add_argument("--band", type=float, default=0.02, help="settling band, fraction of the step (0.02)")
     metrics.add_argument("--json", action="store_true", help="print the metrics as JSON")
     metrics.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+
+    report = sub.add_parser("report", help="one self-contained HTML page of a run: plot, metrics per event, "
+                                           "parameters, metadata")
+    report.add_argument("result", help="result CSV or Parquet file written by cosim run (its JSON beside it)")
+    report.add_argument("--output", "-o", metavar="HTML", help="default: the result's name with .html")
+    report.add_argument("--signals", nargs="+", metavar="GLOB", help="plot panels, as for cosim run")
+    report.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
 
     compare = sub.add_parser("compare", help="check that two results agree within tolerances (exit 1 if not)")
     compare.add_argument("reference", help="reference result (CSV or Parquet)")
@@ -113,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         limit = getattr(args, "max_unpacked", None)
         with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None):
             return {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
-                    "compare": _compare, "sweep": _sweep}[args.command](args)
+                    "report": _report, "compare": _compare, "sweep": _sweep}[args.command](args)
     except SetupError as e:
         if args.debug:
             raise
@@ -131,26 +144,32 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
+def result_stem(scenario: str, parameter_sets: list[str]) -> str:
+    """``scenario__set1__set2``: the default result name, so runs of different parameter sets
+    (cases) never overwrite each other."""
+    return "__".join([scenario] + [Path(p).stem for p in parameter_sets])
+
+
 def _run(args) -> int:
-    from .results import plot
-    from .simulation import prepare, run, select
+    from .plots import default_panels, plot
+    from .simulation import prepare, run, select, signal_info
 
     prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
                        algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir)
     try:
         structure = prepared.plan.structure
         name = structure.name or Path(args.path).stem
-        output = Path(args.output or Path("results") / f"{name}.csv")
+        output = Path(args.output or Path("results") / f"{result_stem(name, args.param_set)}.csv")
         outputs, inputs = prepared.plan.recorded()
         panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
-                  else [[n] for n in outputs])
+                  else default_panels(signal_info(prepared.plan), outputs + inputs))
         grid = prepared.grid
         print(f"cosim: {name}: {len(structure.components)} FMUs, {len(prepared.plan.routes)} connections, "
               f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
               f"{prepared.algorithm}")
         try:
             result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
-                                   keep=[n for panel in panels for n in panel] if args.plot else [])
+                                   keep=[n for panel in panels for n in panel] if args.plot is not None else [])
         except RunError:
             print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
             raise
@@ -159,9 +178,13 @@ def _run(args) -> int:
     if metadata["status"] == "discarded":
         print(f"cosim: warning: {metadata['message']}", file=sys.stderr)
     print(f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
-    if args.plot:
-        png = plot(result, panels, args.plot, title=name)
+    if args.plot is not None:
+        png = plot(result, panels, args.plot or output.with_suffix(".png"), scenario=name, metadata=metadata)
         print(f"cosim: plot: {png}")
+    if args.report is not None:
+        from .report import write_report
+        page = write_report(output, args.report or output.with_suffix(".html"), panels=panels)
+        print(f"cosim: report: {page}")
     return 0
 
 
@@ -296,6 +319,20 @@ def _metrics(args) -> int:
     return 0
 
 
+def _report(args) -> int:
+    from .report import write_report
+    from .results import read
+    from .simulation import select
+
+    panels = None
+    if args.signals:
+        names = [n for n in read(args.result).dtype.names if n != "time"]
+        panels = [select(names, g.split(",")) for g in args.signals]
+    page = write_report(args.result, args.output or Path(args.result).with_suffix(".html"), panels=panels)
+    print(f"cosim: report: {page}")
+    return 0
+
+
 def _compare(args) -> int:
     from .metrics import compare, parse_tolerance
     from .results import read
@@ -324,7 +361,7 @@ def _sweep(args) -> int:
         raise SetupError("nothing to sweep: give --set NAME=V1,V2 and/or --seeds.", element="cosim sweep")
     if args.workers is not None and args.workers < 1:
         raise SetupError(f"--workers {args.workers}: give at least 1.", element="--workers")
-    output = Path(args.output or Path("results") / f"{Path(args.path).stem}_sweep")
+    output = Path(args.output or Path("results") / f"{result_stem(Path(args.path).stem, args.param_set)}_sweep")
     result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
                    parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
                    step_size=args.step, fmu_dirs=args.fmu_dir, output=output,

@@ -30,6 +30,7 @@ class Prepared:
     grid: Grid
     algorithm: str
     step_source: str
+    parameter_sets: tuple[str, ...] = ()     # the --param-set files, in the order applied
 
     def close(self) -> None:
         self.plan.structure.close()
@@ -64,7 +65,7 @@ def prepare(path: str | Path, *, start_time: float | None = None, stop_time: flo
         algo = algorithm or structure.algorithm or "jacobi"
         if algo not in ALGORITHMS:
             raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
-        return Prepared(plan, Grid(start, stop, step), algo, source)
+        return Prepared(plan, Grid(start, stop, step), algo, source, tuple(str(p) for p in parameter_sets))
     except BaseException:
         structure.close()
         raise
@@ -161,6 +162,7 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
     meta = execution.metadata()
     structure = prepared.plan.structure
     meta["system"] = str(structure.archive or structure.ssd_file)
+    meta["scenario"] = structure.name
     # result names are paths relative to this system (loop.ctrl.u for component ctrl of subsystem loop)
     meta["root_system"] = structure.system_name
     if structure.system_outputs:
@@ -168,7 +170,21 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
                                   for o in structure.system_outputs.values()}
     meta["step_size_source"] = prepared.step_source
     meta["units"] = _units(prepared.plan)
+    meta["parameter_sets"] = list(prepared.parameter_sets)
+    meta["parameter_origins"] = {f"{sv.component}.{sv.variable.name}": sv.origin for sv in prepared.plan.start_values}
+    meta.update(signal_info(prepared.plan))
     return meta
+
+
+def signal_info(plan: Plan) -> dict:
+    """What a plot or report needs to label a result: each recorded connector's description
+    (from its FMU) and the connections (``src.var -> dst.var``, with a factor/offset if any)."""
+    variables = {f"{c}.{v.name}": v for c in plan.outputs for v in plan.outputs[c] + plan.inputs[c]}
+    connections = [f"{r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}"
+                   + (f" (x{r.factor:g} {r.offset:+g})" if (r.factor, r.offset) != (1.0, 0.0) else "")
+                   for r in plan.routes]
+    return {"descriptions": {n: v.description for n, v in variables.items() if v.description},
+            "connections": connections}
 
 
 def _units(plan: Plan) -> dict[str, str | None]:
