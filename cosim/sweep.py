@@ -391,7 +391,7 @@ def _dispatch(tasks: list[Task], executor: Executor, workers: int | None,
     elif isinstance(executor, cf.Executor):
         _collect(tasks, executor, cf.as_completed, done)
     else:
-        from distributed import Client, LocalCluster, as_completed
+        Client, LocalCluster, as_completed = _distributed()
 
         if isinstance(executor, Client):
             _collect(tasks, executor, as_completed, done)
@@ -412,6 +412,17 @@ def _dispatch(tasks: list[Task], executor: Executor, workers: int | None,
         else:
             raise SetupError(f"unknown executor {executor!r}: give 'process', 'serial', a Dask scheduler "
                              "address, 'local:N', a concurrent.futures.Executor or a distributed.Client.")
+
+
+def _distributed():
+    """Dask's distributed scheduler, an optional dependency (``pip install 'greyfmu[dask]'``)."""
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise SetupError("sweeps on a Dask cluster need Dask, which is not installed; install it with "
+                         "pip install 'greyfmu[dask]' (or run on the local process pool: --workers N).",
+                         element="--scheduler") from None
+    return Client, LocalCluster, as_completed
 
 
 def _local_workers(executor: str) -> int:
