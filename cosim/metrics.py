@@ -153,7 +153,7 @@ def _changes(time: np.ndarray, x: np.ndarray) -> list[tuple[float, float, float]
 
 
 def find_events(time: np.ndarray, setpoint: tuple[str, np.ndarray],
-                disturbances: Mapping[str, np.ndarray] = {}) -> list[Event]:
+                disturbances: Mapping[str, np.ndarray] | None = None) -> list[Event]:
     """The setpoint's changes and the named disturbances' changes, in time order (a setpoint
     change first when both happen at one sample), each window ending at the next later event.
     A run whose setpoint never changes is one setpoint event from the first sample."""
@@ -162,7 +162,7 @@ def find_events(time: np.ndarray, setpoint: tuple[str, np.ndarray],
     found = [("set-point", name, *c) for c in _changes(time, np.asarray(r, dtype=float))]
     if not found:
         found = [("set-point", name, float(time[0]), float(r[0]), float(r[0]))]
-    for signal, d in disturbances.items():
+    for signal, d in (disturbances or {}).items():
         found += [("disturbance", signal, *c) for c in _changes(time, np.asarray(d, dtype=float))]
     found.sort(key=lambda e: (e[2], e[0] != "set-point"))
     starts = sorted({e[2] for e in found})
