@@ -313,9 +313,8 @@ def _metrics(args) -> int:
     for label, span, row_cells in zip(labels, spans, cells):
         print(f"  {label:{wl}}  {span:{ws}}" + "".join(f"  {c:>{w}}" for c, w in zip(row_cells, widths)))
     for i, row in enumerate(rows, 1):
-        for reason in sorted(set(row.undefined.values()), key=list(row.undefined.values()).index):
-            what = ", ".join(k for k, v in row.undefined.items() if v == reason)
-            print(f"  event {i}: {what} undefined: {reason}")
+        for what, reason in row.grouped():
+            print(f"  event {i}: {', '.join(what)} undefined: {reason}")
     return 0
 
 

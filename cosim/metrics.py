@@ -56,6 +56,13 @@ class Response:
         """The reasons in one line (empty when every metric is defined)."""
         return "; ".join(f"{k}: {v}" for k, v in self.undefined.items())
 
+    def grouped(self) -> list[tuple[list[str], str]]:
+        """(metrics, reason) for each distinct reason, in the order of the metrics."""
+        groups: dict[str, list[str]] = {}
+        for key, why in self.undefined.items():
+            groups.setdefault(why, []).append(key)
+        return [(keys, why) for why, keys in groups.items()]
+
 
 def _window(time: np.ndarray, arrays: Sequence[np.ndarray], t1: float | None):
     if t1 is None:

@@ -78,7 +78,7 @@ def _metrics_section(result: np.ndarray, metadata: Mapping, loops: Sequence[Sequ
             cells = "".join(f"<td>{_cell(row.values[k])}</td>" for k in EVENT_METRICS)
             body.append(f"<tr><td>{i}</td><td class=t>{html.escape(ev.describe())}</td>"
                         f"<td>{ev.t0:g} – {ev.t1:g}</td>{cells}</tr>")
-            notes += [f"<li>event {i}, {html.escape(k)}: {html.escape(why)}</li>" for k, why in row.undefined.items()]
+            notes += [f"<li>event {i}, {html.escape(', '.join(keys))}: {html.escape(why)}</li>" for keys, why in row.grouped()]
         parts.append(f"<h3>{html.escape(label(measured, metadata))} following "
                      f"{html.escape(label(setpoint, metadata))}</h3>\n"
                      f"<table><tr><th>#</th><th>event</th><th>window [s]</th>{head}</tr>\n" + "\n".join(body)

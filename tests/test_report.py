@@ -95,3 +95,22 @@ def test_default_result_names_carry_the_parameter_sets(tmp_path, monkeypatch, ca
     assert main(["report", "results/pid_fopdt__pi_only.csv", "-o", "r.html"]) == 0
     assert "<h1>pid_fopdt — pi_only</h1>" in (tmp_path / "r.html").read_text()
     assert main(["report", "results/missing.csv"]) == 2
+
+
+def test_default_panels_of_a_plant_with_several_loops():
+    """The boiler's wiring (ssp/btg_boiler_following): two fuel controllers on one set-point and
+    measurement give one loop panel; a connection with a factor shows the controller's own input;
+    an unconnected set-point input is still a set-point."""
+    meta = {"connections": ["pressure_sp.y -> fuel_pi.r", "p_meas.y -> fuel_pi.y", "pressure_sp.y -> fuel_grey.r",
+                            "p_meas.y -> fuel_grey.y", "demand.y -> turbine.r", "plant.E -> turbine.y",
+                            "plant.L -> level.y (x0.001 -0.2)", "fuel_pi.u -> fuel_cmd.u1", "turbine.u -> plant.governor"],
+            "descriptions": {"pressure_sp.y": "Weighted sum of the inputs", "p_meas.y": "Weighted sum of the inputs",
+                             "fuel_pi.r": "Set-point", "fuel_pi.y": "Measured process output"}}
+    names = ["pressure_sp.y", "p_meas.y", "demand.y", "plant.E", "plant.L", "fuel_pi.u", "fuel_pi.r", "fuel_pi.y",
+             "fuel_grey.u", "fuel_grey.r", "fuel_grey.y", "turbine.u", "turbine.r", "turbine.y", "level.u",
+             "level.r", "level.y"]
+    assert default_panels(meta, names) == [["pressure_sp.y", "p_meas.y"], ["demand.y", "plant.E"],
+                                           ["level.r", "level.y"], ["fuel_pi.u"], ["fuel_grey.u"], ["turbine.u"],
+                                           ["level.u"]]
+    assert {"pressure_sp.y", "demand.y", "level.r"} <= setpoints(meta, names)
+    assert label("p_meas.y", meta) == "p_meas.y — Measured process output"   # not the Sum's generic text
