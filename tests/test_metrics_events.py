@@ -96,10 +96,15 @@ def test_cosim_metrics_prints_one_row_per_event_of_a_real_run(tmp_path, capsys):
     assert "2 disturbance load.y 0 → -1" in out and "event 2: overshoot, rise_time undefined" in out
 
 
-def test_a_sweep_row_says_why_a_metric_is_undefined(tmp_path, capsys):
+def test_a_sweep_row_says_why_a_metric_is_undefined(built_fmus, tmp_path, capsys):
+    # the FMUs by --fmu-dir: the worker process then needs no FMU provider (in the whole suite, a
+    # spawned worker inherits a sys.path on which earlier in-process runs may have left an FMU's
+    # embedded greyfmu, whose provider has no fmus/ to build from)
+    fmus = built_fmus["PID"].parent
     # 40 s: the loop (rise 8.8 s, settling 72 s after the step at 10 s) has risen but not settled
     assert main(["sweep", "ssp/pid_fopdt", "--set", "controller.Kc=8", "--stop", "40", "--metrics",
-                 "plant.y:setpoint.y", "--workers", "1", "--output", str(tmp_path), "--quiet"]) == 0
+                 "plant.y:setpoint.y", "--workers", "1", "--fmu-dir", str(fmus), "--output", str(tmp_path),
+                 "--quiet"]) == 0
     assert "plant.y:settling_time undefined in 1 of 1 runs" in capsys.readouterr().err
     import pyarrow.parquet as pq
     row, = pq.read_table(tmp_path / "sweep.parquet").to_pylist()
