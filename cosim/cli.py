@@ -35,11 +35,17 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                      help="parameter set applied last, names 'component.variable' (repeatable)")
     run.add_argument("--output", "-o", metavar="FILE",
-                     help="result CSV, or Parquet for a .parquet name (default: results/<name>.csv)")
-    run.add_argument("--plot", metavar="PNG", help="write a plot of --signals")
+                     help="result CSV, or Parquet for a .parquet name (default: "
+                          "results/<name>__<param set>...csv, one name per scenario and parameter sets)")
+    run.add_argument("--plot", nargs="?", const="", metavar="PNG",
+                     help="write a plot of --signals (default file: the result's name with .png)")
+    run.add_argument("--report", nargs="?", const="", metavar="HTML",
+                     help="write a self-contained HTML report of the run: plot, metrics per event, parameters, "
+                          "metadata (default file: the result's name with .html)")
     run.add_argument("--signals", nargs="+", metavar="GLOB",
                      help="signals to plot, one panel per argument; 'a,b' overlays a and b in one panel "
-                          "(default: every output)")
+                          "(default: each controller's set-point with its controlled variable, then its outputs; "
+                          "without controllers, every connected output)")
     run.add_argument("--fmu-log", choices=["errors", "all", "off"], default="errors",
                      help="FMU log messages kept to explain a failure: the FMUs' status categories "
                           "(default), every category, or none (fastest)")
@@ -55,11 +61,21 @@ def _parser() -> argparse.ArgumentParser:
     metrics.add_argument("result", help="result CSV or Parquet file written by cosim run")
     metrics.add_argument("--signal", required=True, help="controlled variable, e.g. plant.y")
     metrics.add_argument("--setpoint", required=True, help="setpoint signal, e.g. setpoint.y")
-    metrics.add_argument("--t0", type=float, help="start of the measurement (default: the setpoint's last change)")
-    metrics.add_argument("--t1", type=float, help="end of the measurement (default: the end of the run)")
+    metrics.add_argument("--disturbance", action="append", default=[], metavar="SIGNAL",
+                         help="a disturbance signal whose steps are events of their own, e.g. load.y (repeatable)")
+    metrics.add_argument("--t0", type=float, help="measure one window from t0 instead of one row per event "
+                                                  "(default end: the end of the run)")
+    metrics.add_argument("--t1", type=float, help="end of that one window (default start: the setpoint's last change)")
     metrics.add_argument("--band", type=float, default=0.02, help="settling band, fraction of the step (0.02)")
     metrics.add_argument("--json", action="store_true", help="print the metrics as JSON")
     metrics.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+
+    report = sub.add_parser("report", help="one self-contained HTML page of a run: plot, metrics per event, "
+                                           "parameters, metadata")
+    report.add_argument("result", help="result CSV or Parquet file written by cosim run (its JSON beside it)")
+    report.add_argument("--output", "-o", metavar="HTML", help="default: the result's name with .html")
+    report.add_argument("--signals", nargs="+", metavar="GLOB", help="plot panels, as for cosim run")
+    report.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
 
     compare = sub.add_parser("compare", help="check that two results agree within tolerances (exit 1 if not)")
     compare.add_argument("reference", help="reference result (CSV or Parquet)")
@@ -110,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         limit = getattr(args, "max_unpacked", None)
         with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None):
             return {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
-                    "compare": _compare, "sweep": _sweep}[args.command](args)
+                    "report": _report, "compare": _compare, "sweep": _sweep}[args.command](args)
     except SetupError as e:
         if args.debug:
             raise
@@ -128,26 +144,32 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
+def result_stem(scenario: str, parameter_sets: list[str]) -> str:
+    """``scenario__set1__set2``: the default result name, so runs of different parameter sets
+    (cases) never overwrite each other."""
+    return "__".join([scenario] + [Path(p).stem for p in parameter_sets])
+
+
 def _run(args) -> int:
-    from .results import plot
-    from .simulation import prepare, run, select
+    from .plots import default_panels, plot
+    from .simulation import prepare, run, select, signal_info
 
     prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
                        algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir)
     try:
         plan = prepared.plan
         name = plan.name or Path(args.path).stem
-        output = Path(args.output or Path("results") / f"{name}.csv")
+        output = Path(args.output or Path("results") / f"{result_stem(name, args.param_set)}.csv")
         outputs, inputs = plan.recorded()
         panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
-                  else [[n] for n in outputs])
+                  else default_panels(signal_info(prepared.plan), outputs + inputs))
         grid = prepared.grid
         print(f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
               f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
               f"{prepared.algorithm}")
         try:
             result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
-                                   keep=[n for panel in panels for n in panel] if args.plot else [])
+                                   keep=[n for panel in panels for n in panel] if args.plot is not None else [])
         except RunError:
             print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
             raise
@@ -156,9 +178,13 @@ def _run(args) -> int:
     if metadata["status"] == "discarded":
         print(f"cosim: warning: {metadata['message']}", file=sys.stderr)
     print(f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
-    if args.plot:
-        png = plot(result, panels, args.plot, title=name)
+    if args.plot is not None:
+        png = plot(result, panels, args.plot or output.with_suffix(".png"), scenario=name, metadata=metadata)
         print(f"cosim: plot: {png}")
+    if args.report is not None:
+        from .report import write_report
+        page = write_report(output, args.report or output.with_suffix(".html"), panels=panels)
+        print(f"cosim: report: {page}")
     return 0
 
 
@@ -247,21 +273,61 @@ def _pack(args) -> int:
 def _metrics(args) -> int:
     import json
 
-    from .metrics import METRICS, step_metrics
+    from .metrics import EVENT_METRICS, METRICS, Event, event_metrics, find_events, step_response
     from .results import read
     from .simulation import select
 
     result = read(args.result)
     names = [n for n in result.dtype.names if n != "time"]
     y, r = (select(names, [name])[0] for name in (args.signal, args.setpoint))
-    m = step_metrics(result["time"], result[y], result[r], t0=args.t0, t1=args.t1, band=args.band)
-    if args.json:
-        print(json.dumps(m))
+    time = result["time"]
+    if args.t0 is not None or args.t1 is not None:
+        window = step_response(time, result[y], result[r], t0=args.t0, t1=args.t1, band=args.band)
+        t0 = args.t0 if args.t0 is not None else float("nan")
+        events = [Event("window", "--t0/--t1", t0, args.t1 if args.t1 is not None else float(time[-1]),
+                        float("nan"), float("nan"))]
+        rows, keys = [window], METRICS
     else:
-        units = {"overshoot": "%", "rise_time": "s", "settling_time": "s"}
-        print(f"{y} following {r} ({args.result}):")
-        for key in METRICS:
-            print(f"  {key:14} {m[key]:.6g} {units.get(key, '')}".rstrip())
+        disturbances = {d: result[d] for d in (select(names, [g])[0] for g in args.disturbance)}
+        events = find_events(time, (r, result[r]), disturbances)
+        rows, keys = event_metrics(time, result[y], result[r], events, band=args.band), EVENT_METRICS
+    if args.json:
+        def number(x: float) -> float | None:   # JSON has no NaN: an undefined metric is null
+            return x if x == x else None
+        print(json.dumps([{"event": ev.kind, "signal": ev.signal, "t0": number(ev.t0), "t1": ev.t1,
+                           "before": number(ev.before), "after": number(ev.after),
+                           **{k: number(row.values[k]) for k in keys}, "undefined": row.undefined}
+                          for ev, row in zip(events, rows)]))
+        return 0
+    print(f"{y} following {r} ({args.result}): {len(rows)} event(s), one row each; "
+          f"settling band ±{100 * args.band:g} %")
+    header = {"IAE": "IAE", "ISE": "ISE", "ITAE": "ITAE", "overshoot": "overshoot [%]", "rise_time": "rise [s]",
+              "settling_time": "settling [s]", "peak_error": "peak error"}
+    labels = [f"{i} {'window' if ev.kind == 'window' else ev.describe()}" for i, ev in enumerate(events, 1)]
+    spans = [f"{ev.t0:g}..{ev.t1:g}" for ev in events]
+    wl, ws = max(map(len, labels + ["event"])), max(map(len, spans + ["window [s]"]))
+    cells = [[f"{row.values[k]:.5g}" if row.values[k] == row.values[k] else "-" for k in keys] for row in rows]
+    widths = [max(len(header[k]), *(len(c[j]) for c in cells)) for j, k in enumerate(keys)]
+    print(f"  {'event':{wl}}  {'window [s]':{ws}}" + "".join(f"  {header[k]:>{w}}" for k, w in zip(keys, widths)))
+    for label, span, row_cells in zip(labels, spans, cells):
+        print(f"  {label:{wl}}  {span:{ws}}" + "".join(f"  {c:>{w}}" for c, w in zip(row_cells, widths)))
+    for i, row in enumerate(rows, 1):
+        for what, reason in row.grouped():
+            print(f"  event {i}: {', '.join(what)} undefined: {reason}")
+    return 0
+
+
+def _report(args) -> int:
+    from .report import write_report
+    from .results import read
+    from .simulation import select
+
+    panels = None
+    if args.signals:
+        names = [n for n in read(args.result).dtype.names if n != "time"]
+        panels = [select(names, g.split(",")) for g in args.signals]
+    page = write_report(args.result, args.output or Path(args.result).with_suffix(".html"), panels=panels)
+    print(f"cosim: report: {page}")
     return 0
 
 
@@ -293,17 +359,34 @@ def _sweep(args) -> int:
         raise SetupError("nothing to sweep: give --set NAME=V1,V2 and/or --seeds.", element="cosim sweep")
     if args.workers is not None and args.workers < 1:
         raise SetupError(f"--workers {args.workers}: give at least 1.", element="--workers")
-    output = Path(args.output or Path("results") / f"{Path(args.path).stem}_sweep")
+    output = Path(args.output or Path("results") / f"{result_stem(Path(args.path).stem, args.param_set)}_sweep")
     result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
                    parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
                    step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
                    executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
     for row in result.failed:
         print(f"cosim: run {row['run_id']} failed: {row['message']}", file=sys.stderr)
+    _print_undefined_metrics(result.rows, args.metrics)
     print(f"cosim: sweep: {len(result.rows)} runs ({result.ran} ran now, {result.skipped} already done and "
           f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}, results in "
           f"{output / 'runs'}")
     return 1 if result.failed else 0
+
+
+def _print_undefined_metrics(rows, metrics: list[str]) -> None:
+    """For each metric column with undefined values: in how many runs, and the first run's reason."""
+    from .sweep import parse_metric
+
+    done = [row for row in rows if row.get("status") != "failed"]
+    for m in map(parse_metric, metrics):
+        for column in m.columns():
+            missing = [row for row in done if row.get(column) is None or row[column] != row[column]]
+            if missing:
+                key = column.rsplit(":", 1)[1]
+                why = [part.split(": ", 1)[1] for part in (missing[0].get(m.reason_column()) or "").split("; ")
+                       if part.startswith(f"{key}: ")]
+                print(f"cosim: {column} undefined in {len(missing)} of {len(done)} runs"
+                      + (f" (run {missing[0]['run_id']}: {why[0]})" if why else ""), file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -1,12 +1,20 @@
 """Control-loop metrics on results, and result comparison for regression use.
 
-`step_metrics` measures a response to the setpoint's last change (or from a given t0):
+`step_response` measures a response to the setpoint's last change (or from a given t0):
 IAE = ∫|e| dt, ISE = ∫e² dt, ITAE = ∫(t − t0)|e| dt with e = r − y (trapezoidal rule on the
 recorded samples), overshoot in % of the step, 10–90 % rise time and the settling time into
 a band of ±2 % of the step (by default).  The step is the setpoint's change at t0; measured
-from the first sample, it is the distance from the initial output to the setpoint.  Overshoot, rise and settling time are NaN when the
-setpoint does not change after t0 (a pure disturbance run) or when the response never gets
-there.  `compare` checks a candidate result against a reference signal by signal within
+from the first sample, it is the distance from the initial output to the setpoint.  A metric
+that cannot be measured (no setpoint change after t0, a response that never gets there) is
+NaN, and `Response.undefined` says why in one sentence; `step_metrics` gives the values alone.
+
+`find_events` splits a run into events, each a change of the setpoint or of a named
+disturbance signal, with the window up to the next event; `event_metrics` measures each in
+its own window (one row per event, as ``cosim metrics`` prints them): a setpoint event by
+`step_response`, a disturbance event by its peak error and its recovery time into ±2 % of
+the last setpoint step.
+
+`compare` checks a candidate result against a reference signal by signal within
 rtol/atol, with per-signal tolerances chosen by glob (`tolerance_for`), and says where each
 failing signal first leaves its band (the regression fixture `cosim.pytest_plugin` and
 ``cosim compare`` report that).
@@ -16,13 +24,16 @@ from __future__ import annotations
 import fnmatch
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import SetupError, did_you_mean
 
 METRICS = ("IAE", "ISE", "ITAE", "overshoot", "rise_time", "settling_time")
+#: an event's row: the step metrics and the largest error in its window (signed, r − y)
+EVENT_METRICS = METRICS + ("peak_error",)
+UNITS = {"overshoot": "%", "rise_time": "s", "settling_time": "s"}
 
 
 def _trapezoid(values: np.ndarray, time: np.ndarray) -> float:
@@ -35,41 +46,179 @@ def last_change(time: np.ndarray, r: np.ndarray) -> float:
     return float(time[changed[-1] + 1]) if len(changed) else float(time[0])
 
 
-def step_metrics(time: np.ndarray, y: np.ndarray, r: np.ndarray, *, t0: float | None = None,
-                 t1: float | None = None, band: float = 0.02) -> dict[str, float]:
+@dataclass(frozen=True)
+class Response:
+    """Metric values (NaN where undefined) and, for each undefined one, the reason."""
+    values: dict[str, float]
+    undefined: dict[str, str] = field(default_factory=dict)
+
+    def reasons(self) -> str:
+        """The reasons in one line (empty when every metric is defined)."""
+        return "; ".join(f"{k}: {v}" for k, v in self.undefined.items())
+
+    def grouped(self) -> list[tuple[list[str], str]]:
+        """(metrics, reason) for each distinct reason, in the order of the metrics."""
+        groups: dict[str, list[str]] = {}
+        for key, why in self.undefined.items():
+            groups.setdefault(why, []).append(key)
+        return [(keys, why) for why, keys in groups.items()]
+
+
+def _window(time: np.ndarray, arrays: Sequence[np.ndarray], t1: float | None):
+    if t1 is None:
+        return time, arrays
+    keep = time <= t1 + 1e-12 * max(1.0, abs(t1))
+    return time[keep], [a[keep] for a in arrays]
+
+
+def step_response(time: np.ndarray, y: np.ndarray, r: np.ndarray, *, t0: float | None = None,
+                  t1: float | None = None, band: float = 0.02) -> Response:
     """IAE, ISE, ITAE, overshoot [%], rise time and settling time [s after t0] of y following r,
-    over the window [t0, t1] (t1 default: the end of the run)."""
+    over the window [t0, t1] (t0 default: the setpoint's last change; t1: the end of the run),
+    with the reason for each metric that cannot be measured."""
     time, y, r = (np.asarray(a, dtype=float) for a in (time, y, r))
-    if t1 is not None:
-        keep = time <= t1 + 1e-12 * max(1.0, abs(t1))
-        time, y, r = time[keep], y[keep], r[keep]
+    time, (y, r) = _window(time, (y, r), t1)
     if t0 is None:
         t0 = last_change(time, r)
     start = int(np.searchsorted(time, t0 - 1e-12 * max(1.0, abs(t0))))
     before = max(start - 1, 0)
     t, yy, rr = time[start:], y[start:], r[start:]
     e = rr - yy
-    result = {"IAE": _trapezoid(np.abs(e), t), "ISE": _trapezoid(e * e, t),
+    values = {"IAE": _trapezoid(np.abs(e), t), "ISE": _trapezoid(e * e, t),
               "ITAE": _trapezoid((t - t0) * np.abs(e), t),
               "overshoot": float("nan"), "rise_time": float("nan"), "settling_time": float("nan")}
+    end = f"{t[-1]:g} s" if len(t) else f"{t0:g} s"
+    if len(t) < 2:
+        return Response(values, dict.fromkeys(METRICS[3:], f"the window from {t0:g} s holds fewer than two samples"))
     target = rr[-1]
     step = target - (r[start - 1] if start > 0 else y[0])   # from t = t_first: the step is from y(0)
-    if step == 0 or len(t) < 2:
-        return result
+    if step == 0:
+        why = (f"the set-point does not change at {t0:g} s (it stays {target:g} up to {end}), so there is "
+               "no step to measure against (a disturbance's effect: name the disturbance signal, cosim metrics "
+               "--disturbance)")
+        return Response(values, dict.fromkeys(METRICS[3:], why))
+    undefined = {}
     sign = np.sign(step)
-    result["overshoot"] = max(0.0, float(np.max((yy - target) * sign)) / abs(step) * 100)
+    values["overshoot"] = max(0.0, float(np.max((yy - target) * sign)) / abs(step) * 100)
     y_start = y[before]
     progress = (yy - y_start) / (target - y_start) if target != y_start else np.ones_like(yy)
     reached10 = np.nonzero(progress >= 0.1)[0]
     reached90 = np.nonzero(progress >= 0.9)[0]
     if len(reached10) and len(reached90):
-        result["rise_time"] = float(t[reached90[0]] - t[reached10[0]])
-    outside = np.nonzero(np.abs(yy - target) > band * abs(step))[0]
+        values["rise_time"] = float(t[reached90[0]] - t[reached10[0]])
+    else:
+        undefined["rise_time"] = (f"the response never reached {10 if not len(reached10) else 90} % of the step "
+                                  f"(at most {100 * float(np.max(progress)):.3g} %) between {t0:g} s and {end}")
+    values["settling_time"], why = _settling(t, np.abs(yy - target), band * abs(step), t0, band, "the step")
+    if why:
+        undefined["settling_time"] = why
+    return Response(values, undefined)
+
+
+def _settling(t: np.ndarray, error: np.ndarray, limit: float, t0: float, band: float,
+              of: str) -> tuple[float, str]:
+    """Time after t0 from which |error| stays within limit, or NaN and why not."""
+    outside = np.nonzero(error > limit)[0]
     if not len(outside):
-        result["settling_time"] = 0.0
-    elif outside[-1] + 1 < len(t):
-        result["settling_time"] = float(t[outside[-1] + 1] - t0)
-    return result
+        return 0.0, ""
+    if outside[-1] + 1 < len(t):
+        return float(t[outside[-1] + 1] - t0), ""
+    return float("nan"), (f"the response is still outside ±{100 * band:g} % of {of} (±{limit:.3g}) at "
+                          f"{t[-1]:g} s, the end of the window (error {error[-1]:.3g})")
+
+
+def step_metrics(time: np.ndarray, y: np.ndarray, r: np.ndarray, *, t0: float | None = None,
+                 t1: float | None = None, band: float = 0.02) -> dict[str, float]:
+    """The values of `step_response` (NaN where a metric cannot be measured)."""
+    return step_response(time, y, r, t0=t0, t1=t1, band=band).values
+
+
+@dataclass(frozen=True)
+class Event:
+    """A change of the setpoint (kind "set-point") or of a disturbance signal, from ``before``
+    to ``after``, starting at t0; its window ends at t1, the next event or the end of the run."""
+    kind: str
+    signal: str
+    t0: float
+    t1: float
+    before: float
+    after: float
+
+    def describe(self) -> str:
+        return f"{self.kind} {self.signal} {self.before:g} → {self.after:g}"
+
+
+def _changes(time: np.ndarray, x: np.ndarray) -> list[tuple[float, float, float]]:
+    """(t, before, after) of each run of consecutive changing samples (a ramp is one change)."""
+    idx = np.nonzero(np.diff(x))[0]
+    if not len(idx):
+        return []
+    breaks = np.nonzero(np.diff(idx) > 1)[0]
+    firsts = np.concatenate(([idx[0]], idx[breaks + 1]))
+    lasts = np.concatenate((idx[breaks], [idx[-1]]))
+    return [(float(time[f + 1]), float(x[f]), float(x[l + 1])) for f, l in zip(firsts, lasts)]
+
+
+def find_events(time: np.ndarray, setpoint: tuple[str, np.ndarray],
+                disturbances: Mapping[str, np.ndarray] | None = None) -> list[Event]:
+    """The setpoint's changes and the named disturbances' changes, in time order (a setpoint
+    change first when both happen at one sample), each window ending at the next later event.
+    A run whose setpoint never changes is one setpoint event from the first sample."""
+    time = np.asarray(time, dtype=float)
+    name, r = setpoint
+    found = [("set-point", name, *c) for c in _changes(time, np.asarray(r, dtype=float))]
+    if not found:
+        found = [("set-point", name, float(time[0]), float(r[0]), float(r[0]))]
+    for signal, d in (disturbances or {}).items():
+        found += [("disturbance", signal, *c) for c in _changes(time, np.asarray(d, dtype=float))]
+    found.sort(key=lambda e: (e[2], e[0] != "set-point"))
+    starts = sorted({e[2] for e in found})
+    events = []
+    for kind, signal, t0, before, after in found:
+        later = [s for s in starts if s > t0]
+        events.append(Event(kind, signal, t0, later[0] if later else float(time[-1]), before, after))
+    return events
+
+
+def event_metrics(time: np.ndarray, y: np.ndarray, r: np.ndarray, events: Sequence[Event], *,
+                  band: float = 0.02) -> list[Response]:
+    """One `Response` per event, measured within the event's window (`EVENT_METRICS`).
+
+    A setpoint event is measured by `step_response`.  A disturbance event has no setpoint
+    step, so no overshoot or rise time; its settling time is the recovery into ±band of the
+    last setpoint step before it (of |r| when there was none)."""
+    time, y, r = (np.asarray(a, dtype=float) for a in (time, y, r))
+    rows = []
+    scale = 0.0
+    for ev in events:
+        t, (yy, rr) = _window(time, (y, r), ev.t1)
+        start = int(np.searchsorted(t, ev.t0 - 1e-12 * max(1.0, abs(ev.t0))))
+        e = rr[start:] - yy[start:]
+        peak = float(e[np.argmax(np.abs(e))]) if len(e) else float("nan")
+        if ev.kind == "set-point":
+            resp = step_response(time, y, r, t0=ev.t0, t1=ev.t1, band=band)
+            scale = abs(ev.after - ev.before) or scale
+            rows.append(Response({**resp.values, "peak_error": peak}, resp.undefined))
+            continue
+        tt = t[start:]
+        values = {"IAE": _trapezoid(np.abs(e), tt), "ISE": _trapezoid(e * e, tt),
+                  "ITAE": _trapezoid((tt - ev.t0) * np.abs(e), tt), "overshoot": float("nan"),
+                  "rise_time": float("nan"), "settling_time": float("nan"), "peak_error": peak}
+        why = f"a disturbance event ({ev.signal} at {ev.t0:g} s) has no set-point step"
+        undefined = {"overshoot": why, "rise_time": why}
+        reference = scale or (abs(float(rr[start])) if len(rr) > start else 0.0)
+        if len(tt) < 2:
+            undefined["settling_time"] = f"the window from {ev.t0:g} s holds fewer than two samples"
+        elif reference == 0:
+            undefined["settling_time"] = ("no set-point step before it and a zero set-point: no size to "
+                                          f"take ±{100 * band:g} % of")
+        else:
+            of = "the last set-point step" if scale else "the set-point"
+            values["settling_time"], reason = _settling(tt, np.abs(e), band * reference, ev.t0, band, of)
+            if reason:
+                undefined["settling_time"] = reason
+        rows.append(Response(values, undefined))
+    return rows
 
 
 @dataclass(frozen=True)

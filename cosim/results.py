@@ -1,4 +1,4 @@
-"""Results on disk: read and write result files (CSV, Parquet), plot chosen signals (matplotlib, Agg backend)."""
+"""Results on disk: read and write result files (CSV, Parquet); `cosim.plots` draws them."""
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -50,28 +50,4 @@ def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = No
     if len(result):
         sink.write(np.column_stack([result[n] for n in columns]))
     sink.finish()
-    return path
-
-
-def plot(result: np.ndarray, panels: Sequence[Sequence[str]], path: str | Path, title: str | None = None) -> Path:
-    """One subplot per panel, the panel's signals overlaid against time, written as a PNG."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(8, 1.8 + 1.8 * len(panels)),
-                             squeeze=False)
-    for ax, names in zip(axes[:, 0], panels):
-        for name in names:
-            ax.plot(result["time"], result[name], lw=1.2, label=name)
-        ax.legend(loc="best", fontsize="small")
-        ax.grid(True, alpha=0.3)
-    axes[-1, 0].set_xlabel("time [s]")
-    if title:
-        axes[0, 0].set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -11,7 +11,7 @@ from __future__ import annotations
 import fnmatch
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +32,7 @@ class Prepared:
     grid: Grid
     algorithm: str
     step_source: str
+    parameter_sets: tuple[str, ...] = ()     # the --param-set files, in the order applied
 
     def close(self) -> None:
         self.plan.close()
@@ -85,8 +86,9 @@ def prepare(path: str | Path, *, start_time: float | None = None, stop_time: flo
     """`validate`, then `resolve_grid`; nothing is instantiated."""
     plan = validate(path, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs, use_providers=use_providers)
     try:
-        return resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step_size,
-                            algorithm=algorithm)
+        prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step_size,
+                                algorithm=algorithm)
+        return replace(prepared, parameter_sets=tuple(str(p) for p in parameter_sets))
     except BaseException:
         plan.close()
         raise
@@ -173,6 +175,7 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
     meta = execution.metadata()
     plan = prepared.plan
     meta["system"] = str(plan.files.source)
+    meta["scenario"] = plan.name
     # result names are paths relative to this system (loop.ctrl.u for component ctrl of subsystem loop)
     meta["root_system"] = plan.system_name
     if plan.system_outputs:
@@ -180,7 +183,21 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
                                   for o in plan.system_outputs.values()}
     meta["step_size_source"] = prepared.step_source
     meta["units"] = plan.units
+    meta["parameter_sets"] = list(prepared.parameter_sets)
+    meta["parameter_origins"] = {f"{sv.component}.{sv.variable.name}": sv.origin for sv in plan.start_values}
+    meta.update(signal_info(plan))
     return meta
+
+
+def signal_info(plan: Plan) -> dict:
+    """What a plot or report needs to label a result: each recorded connector's description
+    (from its FMU) and the connections (``src.var -> dst.var``, with a factor/offset if any)."""
+    variables = {f"{c}.{v.name}": v for c in plan.outputs for v in plan.outputs[c] + plan.inputs[c]}
+    connections = [f"{r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}"
+                   + (f" (x{r.factor:g} {r.offset:+g})" if (r.factor, r.offset) != (1.0, 0.0) else "")
+                   for r in plan.routes]
+    return {"descriptions": {n: v.description for n, v in variables.items() if v.description},
+            "connections": connections}
 
 
 class SystemOutputColumns:

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import CosimError, SetupError
-from ..metrics import METRICS, step_metrics
+from ..metrics import METRICS, step_response
 from ..safeio import unpack_limit
 from ..simulation import prepare, run
 from .values import Metric
@@ -62,12 +62,14 @@ def execute(task: Task) -> dict[str, Any]:
     return row
 
 
-def run_metrics(result: np.ndarray | None, metrics: Sequence[Metric]) -> dict[str, float | None]:
-    out: dict[str, float | None] = {}
+def run_metrics(result: np.ndarray | None, metrics: Sequence[Metric]) -> dict[str, float | str | None]:
+    out: dict[str, float | str | None] = {}
     for m in metrics:
-        values = (step_metrics(result["time"], result[m.signal], result[m.setpoint])
-                  if result is not None and len(result) else {})
+        response = (step_response(result["time"], result[m.signal], result[m.setpoint])
+                    if result is not None and len(result) else None)
+        values = response.values if response is not None else {}
         out.update({f"{m.signal}:{k}": float(values[k]) if k in values else None for k in METRICS})
+        out[m.reason_column()] = response.reasons() if response is not None else "the run produced no samples"
     return out
 
 
@@ -98,7 +100,7 @@ def dispatch(tasks: list[Task], executor: Executor, workers: int | None,
     elif isinstance(executor, cf.Executor):
         _collect(tasks, executor, cf.as_completed, done)
     else:
-        from distributed import Client, LocalCluster, as_completed
+        Client, LocalCluster, as_completed = _distributed()
 
         if isinstance(executor, Client):
             _collect(tasks, executor, as_completed, done)
@@ -119,6 +121,17 @@ def dispatch(tasks: list[Task], executor: Executor, workers: int | None,
         else:
             raise SetupError(f"unknown executor {executor!r}: give 'process', 'serial', a Dask scheduler "
                              "address, 'local:N', a concurrent.futures.Executor or a distributed.Client.")
+
+
+def _distributed():
+    """Dask's distributed scheduler, an optional dependency (``pip install 'greyfmu[dask]'``)."""
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise SetupError("sweeps on a Dask cluster need Dask, which is not installed; install it with "
+                         "pip install 'greyfmu[dask]' (or run on the local process pool: --workers N).",
+                         element="--scheduler") from None
+    return Client, LocalCluster, as_completed
 
 
 def local_workers(executor: str) -> int:

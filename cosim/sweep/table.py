@@ -24,6 +24,7 @@ def schema_of(swept: Mapping[str, str], seeded: bool, metrics: Sequence[Metric])
     fields += [("seed", pa.int64())] if seeded else []
     fields += [("status", pa.string()), ("message", pa.string()), ("wall_time", pa.float64())]
     fields += [(c, pa.float64()) for m in metrics for c in m.columns()]
+    fields += [(m.reason_column(), pa.string()) for m in metrics]
     return pa.schema(fields)
 
 

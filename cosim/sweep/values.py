@@ -34,6 +34,10 @@ class Metric:
     def columns(self) -> list[str]:
         return [f"{self.signal}:{m}" for m in METRICS]
 
+    def reason_column(self) -> str:
+        """The column saying why a metric of this signal is undefined (`cosim.metrics.Response.reasons`)."""
+        return f"undefined({self.signal})"
+
 
 def parse_set(text: str) -> tuple[str, list[str]]:
     """``comp.var=v1,v2,...`` (each item may be a range ``start:stop:count``) -> name, items."""

@@ -80,7 +80,7 @@ def test_metrics_cli_on_a_real_run(tmp_path, capsys):
     capsys.readouterr()
     assert main(["metrics", str(csv), "--signal", "plant.y", "--setpoint", "setpoint.y", "--json"]) == 0
     import json
-    m = json.loads(capsys.readouterr().out)
+    m, = json.loads(capsys.readouterr().out)       # one event: the set-point step at 10 s
     assert 30 < m["overshoot"] < 37 and 0 < m["settling_time"] < 140
     assert main(["metrics", str(csv), "--signal", "plant.yy", "--setpoint", "setpoint.y"]) == 2
     assert "no signal matches 'plant.yy'" in capsys.readouterr().err

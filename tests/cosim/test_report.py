@@ -1,0 +1,116 @@
+"""``cosim run --report`` / ``cosim report``: one self-contained HTML page per run, rendered in
+real headless Chromium (Debian's ``chromium``; .ci/run installs it), and the plot it embeds."""
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.cli import main
+from cosim.plots import default_panels, label, setpoints
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """pid_fopdt to 250 s (the set-point step at 10 s and the load step at 150 s), with plot and report."""
+    out = tmp_path_factory.mktemp("report")
+    csv = out / "pid.csv"
+    assert main(["run", "ssp/pid_fopdt", "-q", "--stop", "250", "-o", str(csv), "--plot", "--report"]) == 0
+    return csv
+
+
+def test_the_page_is_self_contained_and_holds_metrics_per_event_and_parameters(run):
+    page = run.with_suffix(".html").read_text()
+    assert not re.search(r"<script|<link|(src|href)=\"(https?:|//)", page)      # nothing fetched at view time
+    images = re.findall(r'<img[^>]* src="data:image/png;base64,', page)
+    assert len(images) == 1
+    # the loop's two events, found from the set-point and the signal driving the plant's load input d
+    assert "set-point setpoint.y 0 → 1" in page and "disturbance load.y 0 → -1" in page
+    assert "has no set-point step" in page                                       # why overshoot is undefined
+    assert "controller.Kc</td><td class=t>8.0345</td><td class=t>ssp/pid_fopdt/controller.ssv:7" in page
+    assert "PID.fmu" in page and "&quot;step_size&quot;: 0.1" in page
+
+
+def _chromium(*args: str, tmp: Path) -> subprocess.CompletedProcess:
+    profile = tmp / "profile"
+    profile.mkdir(exist_ok=True)
+    return subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={profile}", *args], capture_output=True,
+                          text=True, timeout=120)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (.ci/run installs Debian's chromium)")
+def test_chromium_decodes_the_figure_and_the_screenshot_shows_it(run, tmp_path):
+    page = run.with_suffix(".html").read_text()
+    # the page itself has no script; a copy with one reports what Chromium made of each <img>
+    probe = tmp_path / "probe.html"
+    probe.write_text(page.replace("</body>", "<script>document.body.setAttribute('data-images', JSON.stringify("
+                                  "[...document.images].map(i => [i.complete, i.naturalWidth, i.naturalHeight])))"
+                                  "</script></body>"))
+    dom = _chromium("--dump-dom", probe.as_uri(), tmp=tmp_path).stdout
+    found = re.search(r'data-images="([^"]*)"', dom)
+    assert found, dom[-2000:]
+    (complete, width, height), = json.loads(found.group(1).replace("&quot;", '"'))
+    assert complete and width == 900 and height > 400          # 9 in × 100 dpi, the figure decoded
+    shot = tmp_path / "shot.png"
+    _chromium("--window-size=1200,1400", f"--screenshot={shot}", run.with_suffix(".html").as_uri(), tmp=tmp_path)
+    from matplotlib.image import imread
+    pixels = (imread(shot)[..., :3] * 255).round().astype(int)
+    # matplotlib's first two line colours (set-point, process output) are on screen: the figure rendered
+    for colour in ((0x1f, 0x77, 0xb4), (0xff, 0x7f, 0x0e)):
+        assert (np.abs(pixels - colour).sum(axis=-1) < 30).sum() > 200, colour
+
+
+def test_plot_labels_set_points_and_default_panels_come_from_the_metadata(run):
+    meta = json.loads(run.with_suffix(".json").read_text())
+    names = [n for n in meta["units"]]
+    assert default_panels(meta, names) == [["setpoint.y", "plant.y"], ["controller.u"]]
+    assert setpoints(meta, names) == {"setpoint.y", "controller.r"}
+    # a Step's generic "Step output" gives way to what the signal drives
+    assert label("setpoint.y", meta) == "setpoint.y — Set-point"
+    assert label("load.y", meta).startswith("load.y — Load disturbance")
+    assert label("plant.y", meta) == "plant.y — Process output"
+    assert run.with_suffix(".png").stat().st_size > 10_000
+
+
+def test_default_result_names_carry_the_parameter_sets(tmp_path, monkeypatch, capsys):
+    scenario = Path("ssp/pid_fopdt").resolve()
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(scenario), "-q", "--stop", "5"]) == 0
+    assert main(["run", str(scenario), "-q", "--stop", "5", "--param-set", str(scenario / "pi_only.ssv"),
+                 "--plot"]) == 0
+    assert sorted(p.name for p in (tmp_path / "results").iterdir()) == [
+        "pid_fopdt.csv", "pid_fopdt.json", "pid_fopdt__pi_only.csv", "pid_fopdt__pi_only.json",
+        "pid_fopdt__pi_only.png"]
+    meta = json.loads((tmp_path / "results" / "pid_fopdt__pi_only.json").read_text())
+    assert meta["parameter_sets"] == [str(scenario / "pi_only.ssv")]
+    assert main(["report", "results/pid_fopdt__pi_only.csv", "-o", "r.html"]) == 0
+    assert "<h1>pid_fopdt — pi_only</h1>" in (tmp_path / "r.html").read_text()
+    assert main(["report", "results/missing.csv"]) == 2
+
+
+def test_default_panels_of_a_plant_with_several_loops():
+    """The boiler's wiring (ssp/btg_boiler_following): two fuel controllers on one set-point and
+    measurement give one loop panel; a connection with a factor shows the controller's own input;
+    an unconnected set-point input is still a set-point."""
+    meta = {"connections": ["pressure_sp.y -> fuel_pi.r", "p_meas.y -> fuel_pi.y", "pressure_sp.y -> fuel_grey.r",
+                            "p_meas.y -> fuel_grey.y", "demand.y -> turbine.r", "plant.E -> turbine.y",
+                            "plant.L -> level.y (x0.001 -0.2)", "fuel_pi.u -> fuel_cmd.u1", "turbine.u -> plant.governor"],
+            "descriptions": {"pressure_sp.y": "Weighted sum of the inputs", "p_meas.y": "Weighted sum of the inputs",
+                             "fuel_pi.r": "Set-point", "fuel_pi.y": "Measured process output"}}
+    names = ["pressure_sp.y", "p_meas.y", "demand.y", "plant.E", "plant.L", "fuel_pi.u", "fuel_pi.r", "fuel_pi.y",
+             "fuel_grey.u", "fuel_grey.r", "fuel_grey.y", "turbine.u", "turbine.r", "turbine.y", "level.u",
+             "level.r", "level.y"]
+    assert default_panels(meta, names) == [["pressure_sp.y", "p_meas.y"], ["demand.y", "plant.E"],
+                                           ["level.r", "level.y"], ["fuel_pi.u"], ["fuel_grey.u"], ["turbine.u"],
+                                           ["level.u"]]
+    assert {"pressure_sp.y", "demand.y", "level.r"} <= setpoints(meta, names)
+    assert label("p_meas.y", meta) == "p_meas.y — Measured process output"   # not the Sum's generic text

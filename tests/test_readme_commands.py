@@ -1,0 +1,136 @@
+"""The README's commands, extracted from it and run as a newcomer would, so the README cannot rot.
+
+Every ``bash`` block of the README's "Two commands" and "Your first hour" sections is run, in
+order, in one bash shell (``set -euo pipefail``) in a copy of this repository (the files git
+tracks or would track, with their times, and the FMUs already built).  Command 2,
+``bash tests/run.sh``, is left out: it is the command that runs this suite (CI runs exactly
+it).
+
+By default command 1's ``python3 -m venv .venv`` runs over a ``.venv`` prepared to see the
+packages of the environment running the tests (a ``.pth`` file), so ``pip install -e .`` and
+the other installs find everything present and the test costs seconds, not a 700 MB install.
+With ``COSIM_README=fresh`` nothing is prepared: the commands make a new ``.venv`` from the
+``python3`` on PATH outside this environment and install from the registry, as on a new
+machine (about a minute here, with the registry's files cached).
+"""
+from __future__ import annotations
+
+import csv
+import os
+import re
+import shutil
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SECTIONS = ("## Two commands", "## Your first hour")
+FRESH = os.environ.get("COSIM_README") == "fresh"
+
+
+def readme_commands(text: str) -> list[str]:
+    """The bash blocks of the SECTIONS, comments and ``bash tests/run.sh`` left out."""
+    commands = []
+    for heading in SECTIONS:
+        start = text.index(heading + "\n")
+        end = text.find("\n## ", start + len(heading))
+        section = text[start:end if end >= 0 else len(text)]
+        for block in re.findall(r"```bash\n(.*?)```", section, flags=re.S):
+            commands += [line for line in block.splitlines()
+                         if line.strip() and not line.lstrip().startswith("#") and line.strip() != "bash tests/run.sh"]
+    return commands
+
+
+def _copy_repository(dest: Path) -> None:
+    listed = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=ROOT,
+                            capture_output=True, text=True, check=True).stdout.split("\0")
+    for name in filter(None, listed):
+        source = ROOT / name
+        if source.is_file():
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(source, dest / name)
+    if (ROOT / "build" / "fmus").is_dir() and not FRESH:   # built FMUs stay newer than the copied sources
+        shutil.copytree(ROOT / "build" / "fmus", dest / "build" / "fmus")
+
+
+def _reuse_this_environment(clone: Path) -> None:
+    """A .venv whose site-packages see this environment's packages (site.addsitedir via .pth)."""
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(clone / ".venv")], check=True)
+    purelib = Path(sysconfig.get_paths()["purelib"])
+    target = clone / ".venv" / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages"
+    (target / "zz_reuse_test_environment.pth").write_text(f"{purelib}\n")
+
+
+@pytest.fixture(scope="module")
+def newcomer(tmp_path_factory):
+    """The README's commands run in a copy of the repository; returns (clone, output)."""
+    commands = readme_commands((ROOT / "README.md").read_text())
+    clone = tmp_path_factory.mktemp("clone")
+    _copy_repository(clone)
+    bin_dir = str(Path(sys.executable).parent)
+    path = [p for p in os.environ["PATH"].split(os.pathsep) if p != bin_dir]
+    if not FRESH:
+        _reuse_this_environment(clone)
+        path.insert(0, bin_dir)          # python3 is this environment's, as a user's would be theirs
+    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTEST_ADDOPTS")}
+    env.update(PATH=os.pathsep.join(path), MPLBACKEND="Agg", PIP_DISABLE_PIP_VERSION_CHECK="1")
+    script = "set -euo pipefail\n" + "\n".join(commands) + "\n"
+    done = subprocess.run(["bash", "-c", script], cwd=clone, env=env, capture_output=True, text=True,
+                          timeout=1800)
+    output = done.stdout + done.stderr
+    assert done.returncode == 0, f"README commands failed (exit {done.returncode}):\n{script}\n{output[-6000:]}"
+    return clone, output
+
+
+def test_the_readme_has_the_first_hour_commands():
+    commands = readme_commands((ROOT / "README.md").read_text())
+    assert commands[0].startswith('PY=$(command -v python3 || command -v python) && "$PY" -m venv .venv && '
+                                  '. .venv/bin/activate && ')
+    for step in ("cosim metrics", "--param-set", "ssp/pid_mass_damper", "cosim sweep", "cosim-update-references"):
+        assert any(step in c for c in commands), step
+
+
+def test_command_1_installs_into_the_venv_and_writes_results_plot_and_report(newcomer):
+    clone, output = newcomer
+    for suffix in (".csv", ".json", ".png", ".html"):
+        assert (clone / "results" / f"pid_fopdt{suffix}").stat().st_size > 0, suffix
+    assert "cosim: report: results/pid_fopdt.html" in output
+    assert (clone / ".venv" / "bin" / "cosim").is_file()         # the console script is the venv's own
+
+
+def test_metrics_give_one_row_per_event(newcomer):
+    _, output = newcomer
+    rows = re.findall(r"^  (\d) (set-point setpoint\.y 0 → 1|disturbance load\.y 0 → -1) +\S+ +(.*)$", output, re.M)
+    assert [r[:2] for r in rows] == [("1", "set-point setpoint.y 0 → 1"), ("2", "disturbance load.y 0 → -1")]
+    overshoot = float(rows[0][2].split()[3])
+    assert 33 <= overshoot < 34                                    # the README says 33 %
+
+
+def test_parameter_sets_and_the_third_party_plant_get_their_own_results(newcomer):
+    clone, _ = newcomer
+    results = clone / "results"
+    assert (results / "pid_fopdt__pi_only.png").is_file() and (results / "pid_fopdt__pi_only.csv").is_file()
+    assert (results / "pid_mass_damper.png").is_file()
+
+
+def test_the_sweep_is_a_closed_loop_with_finite_metrics_as_the_readme_says(newcomer):
+    clone, _ = newcomer
+    with open(clone / "results" / "pid_fopdt_sweep" / "sweep.csv") as f:
+        rows = sorted(csv.DictReader(f), key=lambda r: float(r["controller.Kc"]))
+    assert [float(r["controller.Kc"]) for r in rows] == [4, 6, 8]
+    assert all(r["status"] == "completed" and r["undefined(plant.y)"] == "" for r in rows)
+    overshoot = [float(r["plant.y:overshoot"]) for r in rows]
+    rise = [float(r["plant.y:rise_time"]) for r in rows]
+    settling = [float(r["plant.y:settling_time"]) for r in rows]
+    assert round(overshoot[0]) == 23 and round(overshoot[-1]) == 34 and overshoot == sorted(overshoot)
+    assert (rise[0], rise[-1]) == (pytest.approx(16.4), pytest.approx(8.8))
+    assert (round(settling[0]), round(settling[-1])) == (106, 72)
+
+
+def test_the_regression_test_writes_then_checks_its_reference(newcomer):
+    clone, output = newcomer
+    assert (clone / "tests" / "references" / "test_my_loop.csv").is_file()
+    assert len(re.findall(r"^1 passed", output, re.M)) == 2
