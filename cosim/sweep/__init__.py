@@ -19,8 +19,9 @@ Values go in the way ``--param-set`` values do (SSP 1.0 parameter precedence: ap
 last, beating component- and system-level bindings), and every name and value is checked
 by the master's own validation (`cosim.parameters.check_values`) before the first run starts.
 Runs go to a local process pool (``spawn`` start method: FMUs loaded in the parent are
-never forked), run serially in this process, or go to a Dask distributed cluster; Dask
-workers must see the scenario and the output folder at the same paths.
+never forked), run serially in this process, or go to a Dask distributed cluster whose
+workers need only this package installed: the scenario is packed once and broadcast to them,
+and each run's result files come back to this process (`.shipping`, `.cluster`).
 """
 from __future__ import annotations
 
@@ -32,7 +33,9 @@ from typing import Any
 
 from ..safeio import max_unpacked_bytes
 from ..simulation import prepare
-from .dispatch import Executor, Task, dispatch, local_workers, run_metrics
+from .cluster import dispatch_cluster, local_workers
+from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
+from .shipping import package_of
 from .table import finished_before, read_table, schema_of, write_table
 from .values import (
     Metric,
@@ -91,6 +94,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
         identity = identity_of(prepared, parameter_sets)
         runs, types = plan_runs(prepared, sets, seeds, seed_parameters, identity)
         grid, algo = prepared.grid, prepared.algorithm
+        package = package_of(prepared) if is_cluster(executor) else None
     finally:
         prepared.close()
     swept_types = {name: types[name] for name in sets}
@@ -136,7 +140,10 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
 
     write_table([rows[i] for i in sorted(rows)], schema, csv, parquet)
     try:
-        dispatch(tasks, executor, workers, finished)
+        if package is not None:
+            dispatch_cluster(tasks, executor, package, finished)
+        else:
+            dispatch(tasks, executor, workers, finished)
     finally:
         if bar is not None:
             bar.close()

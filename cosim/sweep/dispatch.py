@@ -1,6 +1,6 @@
-"""Running a sweep's runs: one run in a worker (`execute`), and the engines that hand the
-runs out: serially in this process, a local process pool (``spawn``: FMUs loaded in the
-parent are never forked), any `concurrent.futures.Executor`, or a Dask cluster."""
+"""Running a sweep's runs: one run in a worker (`execute`), and the local engines that hand
+the runs out: serially in this process, a local process pool (``spawn``: FMUs loaded in the
+parent are never forked) or any `concurrent.futures.Executor` (a Dask cluster: `.cluster`)."""
 from __future__ import annotations
 
 import concurrent.futures as cf
@@ -86,67 +86,45 @@ def dispatch(tasks: list[Task], executor: Executor, workers: int | None,
             try:
                 row = execute(task)
             except Exception as e:  # noqa: BLE001 -- as in a worker: a failed row, not a stopped sweep
-                row = _failed(task, e)
+                row = failed_row(task, e)
             done(task, row)
     elif executor == "process":
         context = multiprocessing.get_context("spawn")
         pool = cf.ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=context)
         try:
-            _collect(tasks, pool, cf.as_completed, done)
+            _collect(tasks, pool, done)
         finally:             # on Ctrl-C, runs not started yet are dropped instead of awaited
             pool.shutdown(wait=True, cancel_futures=True)
     elif isinstance(executor, cf.Executor):
-        _collect(tasks, executor, cf.as_completed, done)
+        _collect(tasks, executor, done)
     else:
-        from distributed import Client, LocalCluster, as_completed
-
-        if isinstance(executor, Client):
-            _collect(tasks, executor, as_completed, done)
-        elif isinstance(executor, str) and executor.startswith("local:"):
-            n = local_workers(executor)
-            with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                              dashboard_address=None) as cluster, Client(cluster) as client:
-                _collect(tasks, client, as_completed, done)
-        elif isinstance(executor, str):
-            try:
-                client = Client(executor, timeout=10)
-            except OSError as e:
-                raise SetupError(f"cannot reach the Dask scheduler ({e}).", element="--scheduler",
-                                 hint="Start one with 'dask scheduler' and workers with 'dask worker "
-                                      "ADDRESS', or use --scheduler local:N.") from None
-            with client:
-                _collect(tasks, client, as_completed, done)
-        else:
-            raise SetupError(f"unknown executor {executor!r}: give 'process', 'serial', a Dask scheduler "
-                             "address, 'local:N', a concurrent.futures.Executor or a distributed.Client.")
+        raise SetupError(f"unknown executor {executor!r}: give 'process', 'serial', a Dask scheduler "
+                         "address, 'local:N', a concurrent.futures.Executor or a distributed.Client.")
 
 
-def local_workers(executor: str) -> int:
-    """N of ``local:N`` (a Dask LocalCluster of N worker processes)."""
-    n = executor.split(":", 1)[1]
-    if not n.isdigit() or int(n) < 1:
-        raise SetupError(f"'{executor}': give local:N with N the number of worker processes.",
-                         element="--scheduler")
-    return int(n)
+def is_cluster(executor: Executor) -> bool:
+    """Whether the runs go to Dask (an address, ``local:N`` or a Client) rather than a local engine."""
+    if isinstance(executor, str):
+        return executor not in ("process", "serial")
+    if isinstance(executor, cf.Executor):
+        return False
+    from distributed import Client
+    return isinstance(executor, Client)
 
 
-def _collect(tasks: list[Task], engine, as_completed, done) -> None:
+def _collect(tasks: list[Task], engine: cf.Executor, done) -> None:
     """Submit every run; a worker that dies or raises makes that run a failed row, not a stopped sweep."""
-    futures = {engine.submit(execute, task, **_dask_options(engine)): task for task in tasks}
-    for future in as_completed(list(futures)):
+    futures = {engine.submit(execute, task): task for task in tasks}
+    for future in cf.as_completed(list(futures)):
         task = futures[future]
         try:
             row = future.result()
         except Exception as e:  # noqa: BLE001 -- a crashed worker process or a lost Dask worker
-            row = _failed(task, e)
+            row = failed_row(task, e)
         done(task, row)
 
 
-def _failed(task: Task, error: Exception) -> dict[str, Any]:
+def failed_row(task: Task, error: Exception) -> dict[str, Any]:
     return {"run_id": task.run_id, "status": "failed", "message": f"{type(error).__name__}: {error}",
             "wall_time": None, **run_metrics(None, task.metrics)}
 
-
-def _dask_options(engine) -> dict[str, Any]:
-    """Dask caches results of equal calls ("pure"); a run writes files, so it is never pure."""
-    return {} if isinstance(engine, cf.Executor) else {"pure": False}

@@ -1,0 +1,71 @@
+"""Running a sweep's runs on a Dask cluster whose workers share no filesystem with the client.
+
+The scenario goes to the workers once, as a package broadcast by content hash (`.shipping`);
+each run is submitted with Dask ``retries``: a run whose worker dies is run again on another
+worker by the scheduler, and a run whose every try raised (or whose workers kept dying,
+Dask's ``KilledWorker``) is a failed row with the message.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import SetupError
+from .dispatch import Task, failed_row
+from .shipping import Package, deliver, execute_shipped, parameter_set_bytes, scatter_package
+
+#: tries of a run after its first that raised (a lost worker is rescheduled by the scheduler itself)
+RETRIES = 2
+
+
+def local_workers(executor: str) -> int:
+    """N of ``local:N`` (a Dask LocalCluster of N worker processes)."""
+    n = executor.split(":", 1)[1]
+    if not n.isdigit() or int(n) < 1:
+        raise SetupError(f"'{executor}': give local:N with N the number of worker processes.",
+                         element="--scheduler")
+    return int(n)
+
+
+def dispatch_cluster(tasks: list[Task], executor, package: Package,
+                     done: Callable[[Task, dict[str, Any]], None]) -> None:
+    """Hand the runs to a Dask ``Client``, a ``local:N`` cluster or a scheduler address."""
+    if not tasks:
+        return
+    from distributed import Client, LocalCluster
+
+    if isinstance(executor, Client):
+        _collect(tasks, executor, package, done)
+    elif executor.startswith("local:"):
+        with LocalCluster(n_workers=local_workers(executor), threads_per_worker=1, processes=True,
+                          dashboard_address=None) as cluster, Client(cluster) as client:
+            _collect(tasks, client, package, done)
+    else:
+        try:
+            client = Client(executor, timeout=10)
+        except OSError as e:
+            raise SetupError(f"cannot reach the Dask scheduler ({e}).", element="--scheduler",
+                             hint="Start one with 'dask scheduler' and workers with 'dask worker "
+                                  "ADDRESS', or use --scheduler local:N.") from None
+        with client:
+            _collect(tasks, client, package, done)
+
+
+def _collect(tasks: list[Task], client, package: Package, done) -> None:
+    from distributed import as_completed
+
+    shipped = scatter_package(client, package)
+    # a run writes files, so it is never "pure" (Dask would reuse the result of an equal call)
+    futures = {client.submit(execute_shipped, task, shipped, parameter_set_bytes(task), pure=False,
+                             retries=RETRIES): task for task in tasks}
+    try:
+        for future in as_completed(list(futures)):
+            task = futures[future]
+            try:
+                row, files = future.result()
+                deliver(task, files)
+            except Exception as e:  # noqa: BLE001 -- every try raised, or its workers kept dying
+                row = failed_row(task, e)
+            done(task, row)
+    finally:          # on Ctrl-C the runs not finished are cancelled, not left on the cluster
+        client.cancel(list(futures))
