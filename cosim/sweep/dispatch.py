@@ -6,9 +6,13 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing
 import os
+import signal
+import tempfile
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -89,12 +93,7 @@ def dispatch(tasks: list[Task], executor: Executor, workers: int | None,
                 row = failed_row(task, e)
             done(task, row)
     elif executor == "process":
-        context = multiprocessing.get_context("spawn")
-        pool = cf.ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=context)
-        try:
-            _collect(tasks, pool, done)
-        finally:             # on Ctrl-C, runs not started yet are dropped instead of awaited
-            pool.shutdown(wait=True, cancel_futures=True)
+        _pool_sweep(tasks, workers or os.cpu_count() or 1, done)
     elif isinstance(executor, cf.Executor):
         _collect(tasks, executor, done)
     else:
@@ -122,6 +121,72 @@ def _collect(tasks: list[Task], engine: cf.Executor, done) -> None:
         except Exception as e:  # noqa: BLE001 -- a crashed worker process or a lost Dask worker
             row = failed_row(task, e)
         done(task, row)
+
+
+def _pool_sweep(tasks: list[Task], workers: int, done: Callable[[Task, dict[str, Any]], None]) -> None:
+    """The runs on a local pool of ``workers`` spawned processes.
+
+    A process that dies (an FMU calling abort(), a segfault) breaks the whole pool, and every
+    unfinished run raises ``BrokenProcessPool``: the runs that had started then (each worker
+    marks the run it is in with a file) are each rerun alone in a fresh process, where one
+    that dies again is a failed row; the runs not started yet go to a fresh pool.
+    """
+    remaining = tasks
+    while remaining:
+        broken, started = _pool_round(remaining, workers, done)
+        if broken and not started:      # the processes died outside any run: no progress to make
+            for task in broken:
+                done(task, failed_row(task, BrokenProcessPool("the pool's worker processes died before "
+                                                              "starting this run")))
+            return
+        for task in started:
+            _, alone = _pool_round([task], 1, done)
+            if alone:
+                done(task, failed_row(task, BrokenProcessPool(
+                    "the worker process died during this run, and again when it was rerun alone "
+                    "in a fresh process (an FMU that aborts or crashes?)")))
+        remaining = [t for t in broken if t not in started]
+
+
+def _pool_round(tasks: list[Task], workers: int, done) -> tuple[list[Task], list[Task]]:
+    """One pool for ``tasks``: the runs a dying process left unfinished, and those of them that had started."""
+    broken: list[Task] = []
+    with tempfile.TemporaryDirectory(prefix="cosim-sweep-started-") as marks:
+        pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                      initializer=_ignore_interrupt)
+        try:
+            futures = {pool.submit(_execute_marked, task, marks): task for task in tasks}
+            for future in cf.as_completed(list(futures)):
+                task = futures[future]
+                try:
+                    row = future.result()
+                except BrokenProcessPool:
+                    broken.append(task)
+                    continue
+                except Exception as e:  # noqa: BLE001 -- a run that raised: a failed row
+                    row = failed_row(task, e)
+                done(task, row)
+        except BaseException:  # Ctrl-C: stop the runs now instead of waiting for them
+            for process in list(pool._processes.values()):   # the pool offers no public way to kill them
+                process.terminate()
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+        started = [t for t in broken if (Path(marks) / t.run_id).exists()]
+    return broken, started
+
+
+def _ignore_interrupt() -> None:
+    """Pool processes leave Ctrl-C to the parent, which stops them (no traceback from each)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _execute_marked(task: Task, marks: str) -> dict[str, Any]:
+    mark = Path(marks) / task.run_id
+    mark.touch()
+    row = execute(task)
+    mark.unlink()
+    return row
 
 
 def failed_row(task: Task, error: Exception) -> dict[str, Any]:
