@@ -8,7 +8,9 @@ it runs the Cartesian product of those lists (times the seeds, when given) and w
   parameter set, so ``cosim run SCENARIO --param-set OUTPUT/runs/<id>.ssv`` repeats it;
 - ``OUTPUT/sweep.csv`` and ``OUTPUT/sweep.parquet``: one row per run (id, swept values, seed,
   status, message, wall time, the requested step metrics), rewritten as runs finish, so a
-  sweep stopped halfway keeps every finished row.
+  sweep stopped halfway keeps every finished row;
+- ``OUTPUT/sweep.png`` (when metrics are asked for): each metric against each swept parameter,
+  seeds and the other parameters as spread (`.figure`).
 
 The run id is a hash of everything that decides the result: the scenario's files, every
 FMU's GUID and file contents, the parameter sets, the swept values, the seed and the time
@@ -35,6 +37,7 @@ from ..safeio import max_unpacked_bytes
 from ..simulation import prepare
 from .cluster import dispatch_cluster, local_workers
 from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
+from .figure import summary_figure
 from .shipping import package_of
 from .table import finished_before, read_table, schema_of, write_table
 from .values import (
@@ -61,6 +64,7 @@ class SweepResult:
     csv: Path
     parquet: Path
     columns: list[str] = field(default_factory=list)
+    figure: Path | None = None
 
     @property
     def failed(self) -> list[dict[str, Any]]:
@@ -148,4 +152,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
         if bar is not None:
             bar.close()
     ordered = [{name: rows[i].get(name) for name in schema.names} for i in sorted(rows)]
-    return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv, parquet=parquet, columns=schema.names)
+    figure = summary_figure(ordered, list(sets) or (["seed"] if seeds else []),
+                            [c for m in metric_list for c in m.columns()], output / "sweep.png", scenario.name)
+    return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv, parquet=parquet, columns=schema.names,
+                       figure=figure)

@@ -76,6 +76,17 @@ def test_pool_runs_every_combination_and_records_it(pool_sweep):
         assert meta["parameters"]["noise.seed"] == row["seed"]
 
 
+def test_the_summary_figure_has_a_panel_per_metric_and_swept_parameter(pool_sweep, tmp_path, scenario):
+    import matplotlib.image
+
+    result, out = pool_sweep
+    assert result.figure == out / "sweep.png"
+    height, width, _ = matplotlib.image.imread(result.figure).shape
+    assert (height, width) == (round(2.3 * len(METRICS) * 110), round((3.6 * len(SETS) + 0.8) * 110))
+    plain = sweep(scenario, {"plant.T": ["15"]}, output=tmp_path, executor="serial", stop_time=2.0)
+    assert plain.figure is None and not (tmp_path / "sweep.png").exists()      # no metrics, no figure
+
+
 def test_metrics_are_those_of_the_run_csv(pool_sweep):
     result, out = pool_sweep
     for row in result.rows:
