@@ -12,7 +12,7 @@ from typing import Any
 
 from ..errors import SetupError
 from .dispatch import Task, failed_row
-from .shipping import Package, deliver, execute_shipped, parameter_set_bytes, scatter_package
+from .shipping import Package, deliver, execute_shipped, parameter_set_bytes, publish_package
 
 #: tries of a run after its first that raised (a lost worker is rescheduled by the scheduler itself)
 RETRIES = 2
@@ -54,7 +54,7 @@ def dispatch_cluster(tasks: list[Task], executor, package: Package,
 def _collect(tasks: list[Task], client, package: Package, done) -> None:
     from distributed import as_completed
 
-    shipped = scatter_package(client, package)
+    shipped = publish_package(client, package)
     # a run writes files, so it is never "pure" (Dask would reuse the result of an equal call)
     futures = {client.submit(execute_shipped, task, shipped, parameter_set_bytes(task), pure=False,
                              retries=RETRIES): task for task in tasks}

@@ -1,8 +1,8 @@
 """Sweeps on a cluster that shares no filesystem with the client.
 
 The client packs the scenario once into an SSP archive (the SSD, every ``.ssv`` beside it and
-every FMU, as ``cosim pack`` writes it: `package_of`), Dask broadcasts it to every worker under
-a key naming its SHA-256 (`scatter_package`), and a worker unpacks it once into its own cache,
+every FMU, as ``cosim pack`` writes it: `package_of`), Dask hands it to every worker under a
+key naming its SHA-256 (`publish_package`), and a worker unpacks it once into its own cache,
 ``$TMPDIR/cosim-sweep/<sha256>/`` (`unpacked`).  Each run carries the bytes of its parameter
 sets (the sweep's ``--param-set`` files and the run's own ``.ssv``); the worker runs it in a
 temporary folder and returns the table row with the run's result files (``<id>.csv`` and
@@ -45,9 +45,16 @@ def package_of(prepared: Prepared) -> Package:
     return Package(hashlib.sha256(data).hexdigest(), data)
 
 
-def scatter_package(client, package: Package):
-    """Broadcast ``package`` to every worker (and to workers that join later, from a peer)."""
-    return client.scatter({package.key: package}, broadcast=True)[package.key]
+def publish_package(client, package: Package):
+    """``package`` as a Dask future every run depends on; each worker fetches it once (from the
+    client or a peer) and keeps it.  It is a task returning the package rather than scattered
+    data: the scheduler keeps the task, so a package lost with every worker that held it (a run
+    that kills each worker it lands on) is made again instead of cancelling the sweep."""
+    return client.submit(_package, package, key=package.key)
+
+
+def _package(package: Package) -> Package:
+    return package
 
 
 def cache_folder() -> Path:

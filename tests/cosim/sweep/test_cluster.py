@@ -116,9 +116,11 @@ def test_a_worker_that_sees_no_scenario_and_no_output_folder_runs_the_sweep(clus
                                    any((ROOT / "build").iterdir()), out.is_dir() and any(out.iterdir())])
         assert list(seen.values()) == [[False, False, False]]
         remote = sweep(SCENARIO, sets, metrics=[METRIC], output=out, executor=client)
-        cached = client.run(lambda: sorted(p.name for p in Path("/tmp/cosim-sweep").iterdir()))
+        cached = client.run(lambda: [sorted(p.name for p in Path("/tmp/cosim-sweep").iterdir()),
+                                     any((ROOT / "build").iterdir())])
     _same_rows(remote, local)
-    assert len(list(cached.values())[0]) == 1             # the package was unpacked once there
+    folders, built = list(cached.values())[0]
+    assert len(folders) == 1 and not built     # the package unpacked once there; no FMU built there
     for row in remote.rows:                              # result files written by the client, as today
         for suffix in (".csv", ".json", ".ssv"):
             assert (out / "runs" / f"{row['run_id']}{suffix}").is_file()

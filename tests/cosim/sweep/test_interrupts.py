@@ -63,3 +63,16 @@ def test_ctrl_c_stops_the_sweep_at_once_and_keeps_the_finished_runs(aborting, tm
     # a run lasts several seconds: stopping at once means well before the running ones could end
     print(f"stopped {stopped_after:.2f} s after SIGINT; runs took {[round(r['wall_time'], 2) for r in rows]} s")
     assert stopped_after < min(r["wall_time"] for r in rows), (stopped_after, [r["wall_time"] for r in rows])
+
+
+def test_a_run_that_kills_every_dask_worker_it_lands_on_is_a_failed_row(aborting, tmp_path):
+    # the scheduler reruns a run whose worker died on another worker (the nannies restart them)
+    # until it has killed distributed.scheduler.allowed-failures + 1 of them: then Dask's
+    # KilledWorker, a failed row with its message, and the sweep ends.  (Runs sharing a worker
+    # with it when it dies lose that try too, so this sweep has it alone.)
+    pytest.importorskip("distributed")
+    result = sweep(aborting, {"crash.abort_time": ["0.5"]}, output=tmp_path, executor="local:2")
+    [row] = result.rows
+    assert row["status"] == "failed"
+    assert row["message"].startswith("KilledWorker:") and "workers died" in row["message"], row["message"]
+    assert read_table(tmp_path / "sweep.parquet")[0]["status"] == "failed"
