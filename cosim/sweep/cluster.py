@@ -3,7 +3,8 @@
 The scenario goes to the workers once, as a package broadcast by content hash (`.shipping`);
 each run is submitted with Dask ``retries``: a run whose worker dies is run again on another
 worker by the scheduler, and a run whose every try raised (or whose workers kept dying,
-Dask's ``KilledWorker``) is a failed row with the message.
+Dask's ``KilledWorker``, tried once more alone, since a dying worker takes the runs beside it
+with it) is a failed row with the message.
 """
 from __future__ import annotations
 
@@ -52,20 +53,40 @@ def dispatch_cluster(tasks: list[Task], executor, package: Package,
 
 
 def _collect(tasks: list[Task], client, package: Package, done) -> None:
-    from distributed import as_completed
-
+    """Every run at once; those that ended in ``KilledWorker`` again one at a time (see `_run`)."""
     shipped = publish_package(client, package)
+    suspects = [task for task, _ in _run(tasks, client, shipped, done)]
+    for task in suspects:
+        for _, outcome in _run([task], client, shipped, done):
+            row = failed_row(task, outcome)
+            done(task, {**row, "message": f"{row['message']} Rerun alone, it killed its workers again."})
+
+
+def _run(tasks: list[Task], client, shipped, done) -> list[tuple[Task, Exception]]:
+    """Submit ``tasks``; ``done`` for each that returned or raised, the tasks whose workers kept dying.
+
+    A worker that dies takes every run it held with it, and each of those counts a try: a run
+    that kills its workers (an FMU that aborts) can make the runs beside it ``KilledWorker`` too,
+    so those are returned to be tried again alone.
+    """
+    from distributed import KilledWorker, as_completed
+
     # a run writes files, so it is never "pure" (Dask would reuse the result of an equal call)
     futures = {client.submit(execute_shipped, task, shipped, parameter_set_bytes(task), pure=False,
                              retries=RETRIES): task for task in tasks}
+    killed: list[tuple[Task, Exception]] = []
     try:
         for future in as_completed(list(futures)):
             task = futures[future]
             try:
                 row, files = future.result()
                 deliver(task, files)
-            except Exception as e:  # noqa: BLE001 -- every try raised, or its workers kept dying
+            except KilledWorker as e:
+                killed.append((task, e))
+                continue
+            except Exception as e:  # noqa: BLE001 -- every try raised
                 row = failed_row(task, e)
             done(task, row)
     finally:          # on Ctrl-C the runs not finished are cancelled, not left on the cluster
         client.cancel(list(futures))
+    return killed

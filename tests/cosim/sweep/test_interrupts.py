@@ -68,11 +68,14 @@ def test_ctrl_c_stops_the_sweep_at_once_and_keeps_the_finished_runs(aborting, tm
 def test_a_run_that_kills_every_dask_worker_it_lands_on_is_a_failed_row(aborting, tmp_path):
     # the scheduler reruns a run whose worker died on another worker (the nannies restart them)
     # until it has killed distributed.scheduler.allowed-failures + 1 of them: then Dask's
-    # KilledWorker, a failed row with its message, and the sweep ends.  (Runs sharing a worker
-    # with it when it dies lose that try too, so this sweep has it alone.)
+    # KilledWorker.  The runs beside it on a dying worker may end so too: each is tried once more
+    # alone, where the innocent ones complete and the culprit is a failed row with its message.
     pytest.importorskip("distributed")
-    result = sweep(aborting, {"crash.abort_time": ["0.5"]}, output=tmp_path, executor="local:2")
-    [row] = result.rows
-    assert row["status"] == "failed"
-    assert row["message"].startswith("KilledWorker:") and "workers died" in row["message"], row["message"]
-    assert read_table(tmp_path / "sweep.parquet")[0]["status"] == "failed"
+    times = ["1e9", "0.5", "2e9"]
+    result = sweep(aborting, {"crash.abort_time": times}, output=tmp_path, executor="local:2")
+    by_time = {r["crash.abort_time"]: r for r in result.rows}
+    assert by_time[1e9]["status"] == by_time[2e9]["status"] == "completed"
+    assert by_time[0.5]["status"] == "failed"
+    assert by_time[0.5]["message"].startswith("KilledWorker:") and "workers died" in by_time[0.5]["message"]
+    assert "Rerun alone, it killed its workers again." in by_time[0.5]["message"]
+    assert len(read_table(tmp_path / "sweep.parquet")) == 3
