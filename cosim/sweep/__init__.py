@@ -22,7 +22,7 @@ last, beating component- and system-level bindings), and every name and value is
 by the master's own validation (`cosim.parameters.check_values`) before the first run starts.
 Runs go to a local process pool (``spawn`` start method: FMUs loaded in the parent are
 never forked), run serially in this process, or go to a Dask distributed cluster whose
-workers need only this package installed: the scenario is packed once and broadcast to them,
+workers need only this package installed: the scenario is packed once and handed to them,
 and each run's result files come back to this process (`.shipping`, `.cluster`).
 """
 from __future__ import annotations

@@ -209,8 +209,8 @@ def plan_runs(prepared: Prepared, sets: Mapping[str, Sequence[Value]], seeds: Se
         raise SetupError(f"{', '.join(sorted(overlap))} is both swept with --set and set by --seeds.",
                          element="--set")
     every = [ParameterValue(name, types[name], v, SOURCE, 0) for name, vs in typed.items() for v in vs]
-    every += [ParameterValue(name, types[name], typed_values(s, types[name], name, "--seeds")[0], "cosim sweep --seeds", 0)
-              for name in seed_names for s in seeds]
+    every += [ParameterValue(name, types[name], typed_values(s, types[name], name, "--seeds")[0],
+                             "cosim sweep --seeds", 0) for name in seed_names for s in seeds]
     check_values(prepared.plan, every)      # the master's messages for names, types, ranges
     runs = []
     for index, combo in enumerate(product(*typed.values(), *([seeds] if seeds else []))):

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from cosim.cli import main
 from cosim.sweep import read_table, sweep
 
 distributed = pytest.importorskip("distributed")
@@ -93,9 +94,9 @@ def _unshare_works() -> str | None:
     return None if probe.returncode == 0 else (probe.stderr.strip() or f"exit status {probe.returncode}")
 
 
-def _same_rows(remote, local) -> None:
-    assert [r["run_id"] for r in remote.rows] == [r["run_id"] for r in local.rows]
-    for a, b in zip(remote.rows, local.rows):
+def _same_rows(remote: list[dict], local) -> None:
+    assert [r["run_id"] for r in remote] == [r["run_id"] for r in local.rows]
+    for a, b in zip(remote, local.rows):
         assert a["status"] == b["status"] == "completed", a["message"]
         for key in [c for c in local.columns if c.startswith(METRIC.split(":")[0] + ":")]:
             assert (math.isnan(a[key]) and math.isnan(b[key])) or abs(a[key] - b[key]) <= 1e-12, key
@@ -115,17 +116,20 @@ def test_a_worker_that_sees_no_scenario_and_no_output_folder_runs_the_sweep(clus
         seen = client.run(lambda: [os.path.exists(ROOT / SCENARIO / "SystemStructure.ssd"),
                                    any((ROOT / "build").iterdir()), out.is_dir() and any(out.iterdir())])
         assert list(seen.values()) == [[False, False, False]]
-        remote = sweep(SCENARIO, sets, metrics=[METRIC], output=out, executor=client)
+        # the command of the issue, reaching the scheduler by its address
+        set_args = [a for name, values in sets.items() for a in ("--set", f"{name}={','.join(values)}")]
+        assert main(["sweep", SCENARIO, *set_args, "--metrics", METRIC, "--scheduler", cluster.address,
+                     "--output", str(out), "--quiet"]) == 0
         cached = client.run(lambda: [sorted(p.name for p in Path("/tmp/cosim-sweep").iterdir()),
                                      any((ROOT / "build").iterdir())])
+    remote = read_table(out / "sweep.parquet")
     _same_rows(remote, local)
     folders, built = list(cached.values())[0]
     assert len(folders) == 1 and not built     # the package unpacked once there; no FMU built there
-    for row in remote.rows:                              # result files written by the client, as today
+    for row in remote:                                   # result files written by the client, as today
         for suffix in (".csv", ".json", ".ssv"):
             assert (out / "runs" / f"{row['run_id']}{suffix}").is_file()
         assert json.loads((out / "runs" / f"{row['run_id']}.json").read_text())["status"] == "completed"
-    assert [r["run_id"] for r in read_table(out / "sweep.parquet")] == [r["run_id"] for r in local.rows]
 
 
 def test_a_worker_killed_during_a_sweep_costs_only_a_retry_of_its_runs(cluster, tmp_path):
@@ -149,4 +153,4 @@ def test_a_worker_killed_during_a_sweep_costs_only_a_retry_of_its_runs(cluster, 
         thread.join(300)
     assert finished_at_kill < len(local.rows)
     assert busy                          # worker a had runs when it died
-    _same_rows(outcome["result"], local)
+    _same_rows(outcome["result"].rows, local)
