@@ -8,7 +8,9 @@ with it) is a failed row with the message.
 """
 from __future__ import annotations
 
+import signal
 from collections.abc import Callable
+from contextlib import contextmanager
 from typing import Any
 
 from ..errors import SetupError
@@ -28,18 +30,34 @@ def local_workers(executor: str) -> int:
     return int(n)
 
 
+@contextmanager
+def _local_cluster(workers: int):
+    """A LocalCluster of ``workers`` processes that leave Ctrl-C to this one (they start with SIGINT
+    ignored, which spawned Pythons keep), so Ctrl-C stops the sweep without a traceback from each."""
+    from distributed import LocalCluster
+
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    try:
+        yield cluster
+    finally:
+        cluster.close()
+
+
 def dispatch_cluster(tasks: list[Task], executor, package: Package,
                      done: Callable[[Task, dict[str, Any]], None]) -> None:
     """Hand the runs to a Dask ``Client``, a ``local:N`` cluster or a scheduler address."""
     if not tasks:
         return
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if isinstance(executor, Client):
         _collect(tasks, executor, package, done)
     elif executor.startswith("local:"):
-        with LocalCluster(n_workers=local_workers(executor), threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
+        with _local_cluster(local_workers(executor)) as cluster, Client(cluster) as client:
             _collect(tasks, client, package, done)
     else:
         try:
