@@ -118,7 +118,7 @@ def _collect(tasks: list[Task], engine: cf.Executor, done) -> None:
         task = futures[future]
         try:
             row = future.result()
-        except Exception as e:  # noqa: BLE001 -- a crashed worker process or a lost Dask worker
+        except Exception as e:  # noqa: BLE001 -- a run that raised, or a worker of the executor that died
             row = failed_row(task, e)
         done(task, row)
 
