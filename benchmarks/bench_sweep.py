@@ -1,13 +1,19 @@
 """Sweep speed-up: the same 20 runs one after the other in one process, then on a process pool.
 
     python benchmarks/bench_sweep.py [--scenario ssp/grey_noise] [--runs 20] [--stop 10000] [--workers 2]
-                                     [--dask]
+                                     [--dask] [--cluster]
 
 Both sweeps go through `cosim.sweep.sweep` with the same scenario and seeds 1..RUNS (the
 scenario's band-limited white noise seed), so each run does the same work: prepare, run,
 write the result CSV and metadata, compute the step metrics.  ``serial`` runs them in this
 process; ``process`` hands them to a spawn-started pool of ``--workers`` processes
-(``--dask`` also times a Dask LocalCluster of as many worker processes).  The default stop
+(``--dask`` also times a Dask LocalCluster of as many worker processes; ``--cluster`` a real
+``dask scheduler`` with ``--workers`` separate ``dask worker`` processes reached by address, the
+scenario shipped to them as a package, and the per-run cost of that shipping: the time
+`cosim.sweep.shipping` adds around one run -- pickling the run and its parameter sets, the
+worker's unpacked copy of the package, writing the parameter sets, reading the result files
+back and writing them on the client -- for the first run, which unpacks the package, and the
+mean of the others, against a 1 s run).  The default stop
 time makes one ``grey_noise`` run (8 FMUs, 0.1 s step) take about 10 s on our 2-core
 machine.  Prints the wall times, the speed-up and whether the two tables agree (same run
 ids, same metrics).  Run it by hand on an otherwise idle machine; it takes minutes.  Before and
@@ -18,11 +24,15 @@ share the cores), against which the sweep's speed-up is to be read.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import multiprocessing
+import pickle
+import subprocess
 import sys
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -76,6 +86,66 @@ def same_tables(a, b) -> str:
     return f"same metrics: {metrics(a) == metrics(b)}, same run ids: {ids}"
 
 
+@contextmanager
+def dask_cluster(workers: int, folder: Path):
+    """A ``dask scheduler`` and WORKERS ``dask worker`` processes (one thread each); yields the address."""
+    dask = str(Path(sys.executable).with_name("dask"))
+    file = folder / "scheduler.json"
+    processes = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                   "--scheduler-file", str(file)], stderr=subprocess.DEVNULL)]
+    try:
+        while not (file.is_file() and file.read_text()):
+            time.sleep(0.2)
+        address = json.loads(file.read_text())["address"]
+        processes += [subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-nanny",
+                                        "--no-dashboard"], stderr=subprocess.DEVNULL) for _ in range(workers)]
+        from distributed import Client
+        with Client(address) as client:
+            client.wait_for_workers(workers, timeout=120)
+        yield address
+    finally:
+        for p in processes:
+            p.terminate()
+            p.wait()
+
+
+def shipping_overhead(scenario: str, runs: int, stop: float, folder: Path) -> tuple[float, float, float]:
+    """Seconds shipping adds around the first run and (mean) around the others, and a run's own seconds."""
+    from cosim.safeio import max_unpacked_bytes
+    from cosim.simulation import prepare
+    from cosim.structure import ParameterValue
+    from cosim.sweep.dispatch import Task
+    from cosim.sweep.shipping import deliver, execute_shipped, package_of, parameter_set_bytes
+    from cosim.sweep.values import Metric, write_ssv
+
+    prepared = prepare(scenario, stop_time=stop)
+    try:
+        package, grid, algorithm = package_of(prepared), prepared.grid, prepared.algorithm
+    finally:
+        prepared.close()
+    tempfile.tempdir = str(folder / "worker_tmp")     # this "worker" starts with an empty cache
+    Path(tempfile.tempdir).mkdir()
+    (folder / "runs").mkdir()
+    overheads, walls = [], []
+    for seed in range(1, runs + 1):
+        ssv = folder / "runs" / f"run{seed}.ssv"
+        write_ssv(ssv, [ParameterValue("noise.seed", "Integer", seed, "bench", 0)], name="bench")
+        task = Task(f"run{seed}", scenario, (str(ssv),), (), grid.start, grid.stop, grid.step, algorithm,
+                    str(folder / "runs" / f"run{seed}.csv"), (Metric("measurement.y", "u.y"),),
+                    max_unpacked_bytes()[0])
+        began = time.perf_counter()
+        shipped_task, sets = pickle.loads(pickle.dumps((task, parameter_set_bytes(task))))
+        row, files = pickle.loads(pickle.dumps(execute_shipped(shipped_task, package, sets)))
+        deliver(task, files)
+        total = time.perf_counter() - began
+        if row["status"] != "completed":
+            sys.exit(f"shipped run {seed}: {row['message']}")
+        overheads.append(total - row["wall_time"])
+        walls.append(row["wall_time"])
+    tempfile.tempdir = None
+    return overheads[0], sum(overheads[1:]) / max(1, len(overheads) - 1), sum(walls) / len(walls)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", default=str(ROOT / "ssp" / "grey_noise"))
@@ -83,6 +153,8 @@ def main() -> None:
     parser.add_argument("--stop", type=float, default=10000.0, help="stop time [s] of each run")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--dask", action="store_true", help="also time a Dask LocalCluster")
+    parser.add_argument("--cluster", action="store_true",
+                        help="also time a dask scheduler and --workers dask worker processes, and the shipping")
     args = parser.parse_args()
     print(f"machine: a CPU-bound loop in {args.workers} processes runs {machine_speedup(args.workers):.2f}x "
           "faster than one after the other")
@@ -96,6 +168,18 @@ def main() -> None:
                             Path(tmp) / "dask")
             print(f"speed-up Dask LocalCluster ({args.workers} workers) / serial: {serial / dask:.2f}x; "
                   f"{same_tables(a, c)}")
+        if args.cluster:
+            with dask_cluster(args.workers, Path(tmp)) as address:
+                cluster, d = timed("cluster", args.scenario, args.runs, args.stop, address, args.workers,
+                                   Path(tmp) / "cluster")
+            print(f"speed-up Dask cluster ({args.workers} dask worker processes, scenario shipped) / serial: "
+                  f"{serial / cluster:.2f}x, / process pool: {pool / cluster:.2f}x; {same_tables(a, d)}")
+            (Path(tmp) / "shipping").mkdir()
+            first, after, run_seconds = shipping_overhead(args.scenario, min(args.runs, 6), args.stop,
+                                                          Path(tmp) / "shipping")
+            print(f"shipping: {first * 1e3:.1f} ms around the first run (unpacking the package), "
+                  f"{after * 1e3:.1f} ms around each later one = {after / 1.0:.2%} of a 1 s run "
+                  f"(these runs: {run_seconds:.2f} s, overhead {after / run_seconds:.2%})")
     print(f"machine after: {machine_speedup(args.workers):.2f}x")
 
 

@@ -351,7 +351,7 @@ def _compare(args) -> int:
 
 
 def _sweep(args) -> int:
-    from .sweep import parse_seeds, parse_set, sweep
+    from .sweep import parse_seeds, parse_set, read_table, sweep
 
     sets = dict(parse_set(text) for text in args.sets)
     seeds = parse_seeds(args.seeds) if args.seeds else []
@@ -360,10 +360,17 @@ def _sweep(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise SetupError(f"--workers {args.workers}: give at least 1.", element="--workers")
     output = Path(args.output or Path("results") / f"{result_stem(Path(args.path).stem, args.param_set)}_sweep")
-    result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
-                   parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
-                   step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
-                   executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
+    try:
+        result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
+                       parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
+                       step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
+                       executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
+    except KeyboardInterrupt:
+        table = output / "sweep.csv"
+        kept = len(read_table(output / "sweep.parquet")) if table.is_file() else 0
+        print(f"cosim: sweep interrupted; {kept} finished runs are in {table} (run the same command "
+              "again to do the rest)", file=sys.stderr)
+        return 130
     for row in result.failed:
         print(f"cosim: run {row['run_id']} failed: {row['message']}", file=sys.stderr)
     _print_undefined_metrics(result.rows, args.metrics)

@@ -8,7 +8,9 @@ it runs the Cartesian product of those lists (times the seeds, when given) and w
   parameter set, so ``cosim run SCENARIO --param-set OUTPUT/runs/<id>.ssv`` repeats it;
 - ``OUTPUT/sweep.csv`` and ``OUTPUT/sweep.parquet``: one row per run (id, swept values, seed,
   status, message, wall time, the requested step metrics), rewritten as runs finish, so a
-  sweep stopped halfway keeps every finished row.
+  sweep stopped halfway keeps every finished row;
+- ``OUTPUT/sweep.png`` (when metrics are asked for): each metric against each swept parameter,
+  seeds and the other parameters as spread (`.figure`).
 
 The run id is a hash of everything that decides the result: the scenario's files, every
 FMU's GUID and file contents, the parameter sets, the swept values, the seed and the time
@@ -19,8 +21,9 @@ Values go in the way ``--param-set`` values do (SSP 1.0 parameter precedence: ap
 last, beating component- and system-level bindings), and every name and value is checked
 by the master's own validation (`cosim.parameters.check_values`) before the first run starts.
 Runs go to a local process pool (``spawn`` start method: FMUs loaded in the parent are
-never forked), run serially in this process, or go to a Dask distributed cluster; Dask
-workers must see the scenario and the output folder at the same paths.
+never forked), run serially in this process, or go to a Dask distributed cluster whose
+workers need only this package installed: the scenario is packed once and handed to them,
+and each run's result files come back to this process (`.shipping`, `.cluster`).
 """
 from __future__ import annotations
 
@@ -32,7 +35,10 @@ from typing import Any
 
 from ..safeio import max_unpacked_bytes
 from ..simulation import prepare
-from .dispatch import Executor, Task, dispatch, local_workers, run_metrics
+from .cluster import dispatch_cluster, local_workers
+from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
+from .figure import summary_figure
+from .shipping import package_of
 from .table import finished_before, read_table, schema_of, write_table
 from .values import (
     Metric,
@@ -58,6 +64,7 @@ class SweepResult:
     csv: Path
     parquet: Path
     columns: list[str] = field(default_factory=list)
+    figure: Path | None = None
 
     @property
     def failed(self) -> list[dict[str, Any]]:
@@ -91,6 +98,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
         identity = identity_of(prepared, parameter_sets)
         runs, types = plan_runs(prepared, sets, seeds, seed_parameters, identity)
         grid, algo = prepared.grid, prepared.algorithm
+        package = package_of(prepared) if is_cluster(executor) else None
     finally:
         prepared.close()
     swept_types = {name: types[name] for name in sets}
@@ -136,9 +144,15 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
 
     write_table([rows[i] for i in sorted(rows)], schema, csv, parquet)
     try:
-        dispatch(tasks, executor, workers, finished)
+        if package is not None:
+            dispatch_cluster(tasks, executor, package, finished)
+        else:
+            dispatch(tasks, executor, workers, finished)
     finally:
         if bar is not None:
             bar.close()
     ordered = [{name: rows[i].get(name) for name in schema.names} for i in sorted(rows)]
-    return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv, parquet=parquet, columns=schema.names)
+    figure = summary_figure(ordered, list(sets) or (["seed"] if seeds else []),
+                            [c for m in metric_list for c in m.columns()], output / "sweep.png", scenario.name)
+    return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv, parquet=parquet, columns=schema.names,
+                       figure=figure)

@@ -1,14 +1,18 @@
-"""Running a sweep's runs: one run in a worker (`execute`), and the engines that hand the
-runs out: serially in this process, a local process pool (``spawn``: FMUs loaded in the
-parent are never forked), any `concurrent.futures.Executor`, or a Dask cluster."""
+"""Running a sweep's runs: one run in a worker (`execute`), and the local engines that hand
+the runs out: serially in this process, a local process pool (``spawn``: FMUs loaded in the
+parent are never forked) or any `concurrent.futures.Executor` (a Dask cluster: `.cluster`)."""
 from __future__ import annotations
 
 import concurrent.futures as cf
 import multiprocessing
 import os
+import signal
+import tempfile
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -88,78 +92,116 @@ def dispatch(tasks: list[Task], executor: Executor, workers: int | None,
             try:
                 row = execute(task)
             except Exception as e:  # noqa: BLE001 -- as in a worker: a failed row, not a stopped sweep
-                row = _failed(task, e)
+                row = failed_row(task, e)
             done(task, row)
     elif executor == "process":
-        context = multiprocessing.get_context("spawn")
-        pool = cf.ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=context)
-        try:
-            _collect(tasks, pool, cf.as_completed, done)
-        finally:             # on Ctrl-C, runs not started yet are dropped instead of awaited
-            pool.shutdown(wait=True, cancel_futures=True)
+        _pool_sweep(tasks, workers or os.cpu_count() or 1, done)
     elif isinstance(executor, cf.Executor):
-        _collect(tasks, executor, cf.as_completed, done)
+        _collect(tasks, executor, done)
     else:
-        Client, LocalCluster, as_completed = _distributed()
-
-        if isinstance(executor, Client):
-            _collect(tasks, executor, as_completed, done)
-        elif isinstance(executor, str) and executor.startswith("local:"):
-            n = local_workers(executor)
-            with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                              dashboard_address=None) as cluster, Client(cluster) as client:
-                _collect(tasks, client, as_completed, done)
-        elif isinstance(executor, str):
-            try:
-                client = Client(executor, timeout=10)
-            except OSError as e:
-                raise SetupError(f"cannot reach the Dask scheduler ({e}).", element="--scheduler",
-                                 hint="Start one with 'dask scheduler' and workers with 'dask worker "
-                                      "ADDRESS', or use --scheduler local:N.") from None
-            with client:
-                _collect(tasks, client, as_completed, done)
-        else:
-            raise SetupError(f"unknown executor {executor!r}: give 'process', 'serial', a Dask scheduler "
-                             "address, 'local:N', a concurrent.futures.Executor or a distributed.Client.")
+        raise SetupError(f"unknown executor {executor!r}: give 'process', 'serial', a Dask scheduler "
+                         "address, 'local:N', a concurrent.futures.Executor or a distributed.Client.")
 
 
-def _distributed():
+def is_cluster(executor: Executor) -> bool:
+    """Whether the runs go to Dask (an address, ``local:N`` or a Client) rather than a local engine."""
+    if isinstance(executor, str):
+        return executor not in ("process", "serial")
+    if isinstance(executor, cf.Executor):
+        return False
+    return isinstance(executor, distributed().Client)
+
+
+def distributed():
     """Dask's distributed scheduler, an optional dependency (``pip install 'greyfmu[dask]'``)."""
     try:
-        from distributed import Client, LocalCluster, as_completed
+        import distributed
     except ImportError:
         raise SetupError("sweeps on a Dask cluster need Dask, which is not installed; install it with "
                          "pip install 'greyfmu[dask]' (or run on the local process pool: --workers N).",
                          element="--scheduler") from None
-    return Client, LocalCluster, as_completed
+    return distributed
 
 
-def local_workers(executor: str) -> int:
-    """N of ``local:N`` (a Dask LocalCluster of N worker processes)."""
-    n = executor.split(":", 1)[1]
-    if not n.isdigit() or int(n) < 1:
-        raise SetupError(f"'{executor}': give local:N with N the number of worker processes.",
-                         element="--scheduler")
-    return int(n)
-
-
-def _collect(tasks: list[Task], engine, as_completed, done) -> None:
+def _collect(tasks: list[Task], engine: cf.Executor, done) -> None:
     """Submit every run; a worker that dies or raises makes that run a failed row, not a stopped sweep."""
-    futures = {engine.submit(execute, task, **_dask_options(engine)): task for task in tasks}
-    for future in as_completed(list(futures)):
+    futures = {engine.submit(execute, task): task for task in tasks}
+    for future in cf.as_completed(list(futures)):
         task = futures[future]
         try:
             row = future.result()
-        except Exception as e:  # noqa: BLE001 -- a crashed worker process or a lost Dask worker
-            row = _failed(task, e)
+        except Exception as e:  # noqa: BLE001 -- a run that raised, or a worker of the executor that died
+            row = failed_row(task, e)
         done(task, row)
 
 
-def _failed(task: Task, error: Exception) -> dict[str, Any]:
+def _pool_sweep(tasks: list[Task], workers: int, done: Callable[[Task, dict[str, Any]], None]) -> None:
+    """The runs on a local pool of ``workers`` spawned processes.
+
+    A process that dies (an FMU calling abort(), a segfault) breaks the whole pool, and every
+    unfinished run raises ``BrokenProcessPool``: the runs that had started then (each worker
+    marks the run it is in with a file) are each rerun alone in a fresh process, where one
+    that dies again is a failed row; the runs not started yet go to a fresh pool.
+    """
+    remaining = tasks
+    while remaining:
+        broken, started = _pool_round(remaining, workers, done)
+        if broken and not started:      # the processes died outside any run: no progress to make
+            for task in broken:
+                done(task, failed_row(task, BrokenProcessPool("the pool's worker processes died before "
+                                                              "starting this run")))
+            return
+        for task in started:
+            _, alone = _pool_round([task], 1, done)
+            if alone:
+                done(task, failed_row(task, BrokenProcessPool(
+                    "the worker process died during this run, and again when it was rerun alone "
+                    "in a fresh process (an FMU that aborts or crashes?)")))
+        remaining = [t for t in broken if t not in started]
+
+
+def _pool_round(tasks: list[Task], workers: int, done) -> tuple[list[Task], list[Task]]:
+    """One pool for ``tasks``: the runs a dying process left unfinished, and those of them that had started."""
+    broken: list[Task] = []
+    with tempfile.TemporaryDirectory(prefix="cosim-sweep-started-") as marks:
+        pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                      initializer=_ignore_interrupt)
+        try:
+            futures = {pool.submit(_execute_marked, task, marks): task for task in tasks}
+            for future in cf.as_completed(list(futures)):
+                task = futures[future]
+                try:
+                    row = future.result()
+                except BrokenProcessPool:
+                    broken.append(task)
+                    continue
+                except Exception as e:  # noqa: BLE001 -- a run that raised: a failed row
+                    row = failed_row(task, e)
+                done(task, row)
+        except BaseException:  # Ctrl-C: stop the runs now instead of waiting for them
+            for process in list(pool._processes.values()):   # the pool offers no public way to kill them
+                process.terminate()
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+        started = [t for t in broken if (Path(marks) / t.run_id).exists()]
+    return broken, started
+
+
+def _ignore_interrupt() -> None:
+    """Pool processes leave Ctrl-C to the parent, which stops them (no traceback from each)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _execute_marked(task: Task, marks: str) -> dict[str, Any]:
+    mark = Path(marks) / task.run_id
+    mark.touch()
+    row = execute(task)
+    mark.unlink()
+    return row
+
+
+def failed_row(task: Task, error: Exception) -> dict[str, Any]:
     return {"run_id": task.run_id, "status": "failed", "message": f"{type(error).__name__}: {error}",
             "wall_time": None, **run_metrics(None, task.metrics)}
 
-
-def _dask_options(engine) -> dict[str, Any]:
-    """Dask caches results of equal calls ("pure"); a run writes files, so it is never pure."""
-    return {} if isinstance(engine, cf.Executor) else {"pure": False}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -23,6 +24,10 @@ from ..structure import ParameterValue
 Value = float | int | bool | str
 _RANGE = re.compile(r"^\s*([-+0-9.eE]+)\s*:\s*([-+0-9.eE]+)\s*:\s*(\d+)\s*$")
 SOURCE = "cosim sweep --set"
+#: the range of an FMI 2.0 Integer (fmi2Integer is a C int)
+INTEGER_RANGE = (-2**31, 2**31 - 1)
+#: the most runs one sweep may plan (a typo such as --seeds 1..1000000000 is refused, not allocated)
+MAX_RUNS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -48,14 +53,15 @@ def parse_set(text: str) -> tuple[str, list[str]]:
     return name.strip(), [v.strip() for v in values.split(",")]
 
 
-def parse_seeds(text: str) -> list[int]:
-    """``1..20`` (inclusive) or ``1,5,9`` -> the seeds."""
+def parse_seeds(text: str) -> Sequence[int]:
+    """``1..20`` (inclusive; a lazy range, so a huge one costs nothing before `plan_runs` refuses
+    it) or ``1,5,9`` -> the seeds."""
     try:
         if ".." in text:
             first, last = (int(x) for x in text.split(".."))
             if last < first:
                 raise ValueError
-            return list(range(first, last + 1))
+            return range(first, last + 1)
         return [int(x) for x in text.split(",")]
     except ValueError:
         raise SetupError(f"'{text}' is not a list of seeds: give FIRST..LAST (e.g. 1..20) or "
@@ -74,11 +80,14 @@ def parse_metric(text: str | Metric | tuple[str, str]) -> Metric:
     return Metric(signal, setpoint)
 
 
-def typed_values(raw: Value, var_type: str, name: str) -> list[Value]:
-    """A --set item as values of the FMU variable's type; a range item gives several."""
-    where = {"element": "--set", "variable": name}
+def typed_values(raw: Value, var_type: str, name: str, element: str = "--set") -> list[Value]:
+    """A --set item (or a seed, ``element="--seeds"``) as values of the FMU variable's type; a range
+    item gives several."""
+    where = {"element": element, "variable": name}
     if isinstance(raw, str) and var_type in ("Real", "Integer") and (m := _RANGE.match(raw)):
         start, stop, count = float(m[1]), float(m[2]), int(m[3])
+        if not (math.isfinite(start) and math.isfinite(stop)) or not 1 <= count <= MAX_RUNS:
+            raise SetupError(f"the range {raw} needs finite ends and a count from 1 to {MAX_RUNS}.", **where)
         points = np.linspace(start, stop, count)
         if var_type == "Integer":
             if not all(float(p).is_integer() for p in points):
@@ -87,11 +96,11 @@ def typed_values(raw: Value, var_type: str, name: str) -> list[Value]:
         return [float(p) for p in points]
     try:
         if var_type == "Real" and not isinstance(raw, bool):
-            return [float(raw)]
+            if not math.isfinite(number := float(raw)):
+                raise SetupError(f"'{raw}' is not a finite number; {name} is a Real.", **where)
+            return [number]
         if var_type == "Integer" and not isinstance(raw, bool):
-            number = float(raw)
-            if number.is_integer():
-                return [int(number)]
+            return [_integer(raw, where)]
         elif var_type == "Boolean":
             if isinstance(raw, bool):
                 return [raw]
@@ -102,6 +111,32 @@ def typed_values(raw: Value, var_type: str, name: str) -> list[Value]:
     except ValueError:
         pass
     raise SetupError(f"'{raw}' is not a {var_type} value, which the FMU declares for this variable.", **where)
+
+
+def _integer(raw: Value, where: dict[str, str]) -> int:
+    """An Integer item (``12``, ``1e3``) inside the FMI 2.0 Integer range."""
+    try:
+        number = raw if isinstance(raw, int) else int(str(raw).strip())
+    except ValueError:
+        as_float = float(raw)
+        if not as_float.is_integer():
+            raise
+        number = int(as_float)
+    lo, hi = INTEGER_RANGE
+    if not lo <= number <= hi:
+        raise SetupError(f"{number} is outside the range of an FMI 2.0 Integer [{lo}, {hi}].", **where)
+    return number
+
+
+def _check_size(typed: Mapping[str, Sequence[Value]], seeds: Sequence[int]) -> None:
+    """Refuse a sweep of more than MAX_RUNS runs, naming its size, before anything is allocated."""
+    counts = [len(v) for v in typed.values()] + ([len(seeds)] if seeds else [])
+    if math.prod(counts) > MAX_RUNS:
+        factors = [f"{n} values of {name}" for name, n in zip(typed, counts)] + \
+                  ([f"{len(seeds)} seeds"] if seeds else [])
+        raise SetupError(f"the sweep has {math.prod(counts):,} runs ({' x '.join(factors)}); one sweep may "
+                         f"have at most {MAX_RUNS:,}.", element="--set" if typed else "--seeds",
+                         hint="Split it into several sweeps into the same --output folder.")
 
 
 # --------------------------------------------------------------------------- planning
@@ -169,6 +204,7 @@ def plan_runs(prepared: Prepared, sets: Mapping[str, Sequence[Value]], seeds: Se
             raise SetupError("no values given.", element="--set", variable=name)
         types[name] = exchange_type(_variable(prepared, name))
         typed[name] = list(dict.fromkeys(v for raw in raw_values for v in typed_values(raw, types[name], name)))
+    _check_size(typed, seeds)
     seed_names = _seed_parameters(prepared, seed_parameters) if seeds else []
     for name in seed_names:
         types[name] = exchange_type(_variable(prepared, name))
@@ -177,8 +213,8 @@ def plan_runs(prepared: Prepared, sets: Mapping[str, Sequence[Value]], seeds: Se
         raise SetupError(f"{', '.join(sorted(overlap))} is both swept with --set and set by --seeds.",
                          element="--set")
     every = [ParameterValue(name, types[name], v, SOURCE, 0) for name, vs in typed.items() for v in vs]
-    every += [ParameterValue(name, types[name], typed_values(s, types[name], name)[0], "cosim sweep --seeds", 0)
-              for name in seed_names for s in seeds]
+    every += [ParameterValue(name, types[name], typed_values(s, types[name], name, "--seeds")[0],
+                             "cosim sweep --seeds", 0) for name in seed_names for s in seeds]
     check_values(prepared.plan, every)      # the master's messages for names, types, ranges
     runs = []
     for index, combo in enumerate(product(*typed.values(), *([seeds] if seeds else []))):

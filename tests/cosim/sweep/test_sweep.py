@@ -76,6 +76,17 @@ def test_pool_runs_every_combination_and_records_it(pool_sweep):
         assert meta["parameters"]["noise.seed"] == row["seed"]
 
 
+def test_the_summary_figure_has_a_panel_per_metric_and_swept_parameter(pool_sweep, tmp_path, scenario):
+    import matplotlib.image
+
+    result, out = pool_sweep
+    assert result.figure == out / "sweep.png"
+    height, width, _ = matplotlib.image.imread(result.figure).shape
+    assert (height, width) == (round(2.3 * len(METRICS) * 110), round((3.6 * len(SETS) + 0.8) * 110))
+    plain = sweep(scenario, {"plant.T": ["15"]}, output=tmp_path, executor="serial", stop_time=2.0)
+    assert plain.figure is None and not (tmp_path / "sweep.png").exists()      # no metrics, no figure
+
+
 def test_metrics_are_those_of_the_run_csv(pool_sweep):
     result, out = pool_sweep
     for row in result.rows:
@@ -168,6 +179,13 @@ def test_a_refused_value_is_a_failed_row_and_the_others_complete(scenario, tmp_p
     (["--seeds", "1,2", "--seed-parameter", "noise.sed"], "Did you mean 'seed'"),
     (["--set", "plant.T=1,2", "--scheduler", "local:two"], "give local:N"),
     (["--seeds", "1,2", "--set", "noise.seed=3"], "both swept with --set and set by --seeds"),
+    # issue 17: every value checked before the first run
+    (["--set", "plant.tau=4,nan"], "'nan' is not a finite number"),
+    (["--set", "plant.T=1:inf:3"], "is not a Real value"),
+    (["--seeds", f"1,{2**32 + 1}"], "4294967297 is outside the range of an FMI 2.0 Integer [-2147483648, 2147483647]"),
+    (["--set", f"controller.integral_mode=1,{2**31}"], "outside the range of an FMI 2.0 Integer"),
+    (["--seeds", "1..1000000000"], "the sweep has 1,000,000,000 runs (1000000000 seeds)"),
+    (["--set", "plant.T=1:2:2000", "--set", "controller.Kc=1:2:1000"], "the sweep has 2,000,000 runs"),
 ])
 def test_bad_arguments_are_refused_before_any_run(scenario, tmp_path, capsys, args, expected):
     assert main(["sweep", str(scenario), *args, "--output", str(tmp_path / "out"), "--quiet"]) == 2
@@ -183,7 +201,7 @@ def test_seeds_need_a_seed_parameter(built_fmus, tmp_path):
 
 def test_argument_forms():
     assert parse_set("plant.T=1, 2,3") == ("plant.T", ["1", "2", "3"])
-    assert parse_seeds("1..4") == [1, 2, 3, 4] and parse_seeds("1,5,9") == [1, 5, 9]
+    assert list(parse_seeds("1..4")) == [1, 2, 3, 4] and parse_seeds("1,5,9") == [1, 5, 9]
 
 
 def test_range_values_are_evenly_spaced_and_typed_by_the_variable(scenario, tmp_path):

@@ -1,0 +1,114 @@
+"""Sweeps on a cluster that shares no filesystem with the client.
+
+The client packs the scenario once into an SSP archive (the SSD, every ``.ssv`` beside it and
+every FMU, as ``cosim pack`` writes it: `package_of`), Dask hands it to every worker under a
+key naming its SHA-256 (`publish_package`), and a worker unpacks it once into its own cache,
+``$TMPDIR/cosim-sweep/<sha256>/`` (`unpacked`).  Each run carries the bytes of its parameter
+sets (the sweep's ``--param-set`` files and the run's own ``.ssv``); the worker runs it in a
+temporary folder and returns the table row with the run's result files (``<id>.csv`` and
+``<id>.json``), which the client writes into ``OUTPUT/runs/`` (`deliver`).  A worker needs only
+this package installed.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from ..pack import pack
+from ..safeio import extract_archive
+from ..simulation import Prepared
+from ..ssp import SSD_NAME
+from .dispatch import Task, execute
+
+
+@dataclass(frozen=True)
+class Package:
+    """A scenario packed as an SSP archive, named by the SHA-256 of its bytes."""
+    digest: str
+    data: bytes
+
+    @property
+    def key(self) -> str:
+        """The Dask key the package is broadcast under: equal scenarios share one copy."""
+        return f"cosim-scenario-{self.digest}"
+
+
+def package_of(prepared: Prepared) -> Package:
+    """The prepared scenario packed as `cosim.pack.pack` writes it (FMUs already built)."""
+    with tempfile.TemporaryDirectory(prefix="cosim-pack-") as tmp:
+        data = pack(prepared.plan, Path(tmp) / "scenario.ssp").read_bytes()
+    return Package(hashlib.sha256(data).hexdigest(), data)
+
+
+def publish_package(client, package: Package):
+    """``package`` as a Dask future every run depends on; each worker fetches it once (from the
+    client or a peer) and keeps it.  It is a task returning the package rather than scattered
+    data: the scheduler keeps the task, so a package lost with every worker that held it (a run
+    that kills each worker it lands on) is made again instead of cancelling the sweep."""
+    return client.submit(_package, package, key=package.key)
+
+
+def _package(package: Package) -> Package:
+    return package
+
+
+def cache_folder() -> Path:
+    return Path(tempfile.gettempdir()) / "cosim-sweep"
+
+
+def unpacked(package: Package, max_unpacked: int) -> Path:
+    """This worker's unpacked copy of ``package`` (unpacked on first use, then reused)."""
+    folder = cache_folder() / package.digest
+    if (folder / SSD_NAME).is_file():
+        return folder
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f"{package.digest}.", dir=folder.parent))
+    try:
+        archive = staging / "scenario.ssp"
+        archive.write_bytes(package.data)
+        if hashlib.sha256(archive.read_bytes()).hexdigest() != package.digest:
+            raise OSError(f"the scenario package arrived damaged (SHA-256 is not {package.digest})")
+        extract_archive(archive, staging / "scenario", max_unpacked, required=SSD_NAME)
+        try:
+            os.rename(staging / "scenario", folder)   # atomic: a worker racing us keeps its copy
+        except OSError:
+            if not (folder / SSD_NAME).is_file():
+                raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return folder
+
+
+def execute_shipped(task: Task, package: Package, parameter_sets: tuple[bytes, ...]) -> tuple[dict[str, Any],
+                                                                                          dict[str, bytes]]:
+    """Run ``task`` on a worker from the shipped package; the row and the run's result files."""
+    scenario = unpacked(package, task.max_unpacked)
+    with tempfile.TemporaryDirectory(prefix=f"cosim-run-{task.run_id}-") as tmp:
+        sets = []
+        for i, data in enumerate(parameter_sets):
+            path = Path(tmp) / f"parameters_{i}.ssv"
+            path.write_bytes(data)
+            sets.append(str(path))
+        here = replace(task, scenario=str(scenario), parameter_sets=tuple(sets), fmu_dirs=(),
+                       csv=str(Path(tmp) / f"{task.run_id}.csv"))
+        row = execute(here)
+        files = {p.name: p.read_bytes() for p in Path(tmp).iterdir() if p.name.startswith(task.run_id)}
+    return row, files
+
+
+def parameter_set_bytes(task: Task) -> tuple[bytes, ...]:
+    return tuple(Path(p).read_bytes() for p in task.parameter_sets)
+
+
+def deliver(task: Task, files: dict[str, bytes]) -> None:
+    """Write a run's result files where a local run would have written them."""
+    folder = Path(task.csv).parent
+    for name, data in files.items():
+        tmp = folder / f"{name}.part"
+        tmp.write_bytes(data)
+        os.replace(tmp, folder / name)
