@@ -35,6 +35,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq, minimize_scalar
 
+from greyfmu.plants.integration import rk4
+
 
 @dataclass(frozen=True)
 class HeaderParameters:
@@ -128,16 +130,7 @@ class SteamHeader:
         u, v = np.asarray(u, dtype=float), np.clip(np.asarray(v, dtype=float), 0.0, None)
         if h == 0.0:
             return
-        n = max(1, math.ceil(h / self.max_substep - 1e-9))
-        dt = h / n
-        x = self.x
-        for _ in range(n):
-            k1 = self.derivative(x, u, v)
-            k2 = self.derivative(x + 0.5 * dt * k1, u, v)
-            k3 = self.derivative(x + 0.5 * dt * k2, u, v)
-            k4 = self.derivative(x + dt * k3, u, v)
-            x = x + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        self.x = x
+        self.x = rk4(lambda _, x: self.derivative(x, u, v), self.x, h, self.max_substep)
 
     @property
     def pressures(self) -> NDArray[np.float64]:
