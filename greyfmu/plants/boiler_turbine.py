@@ -152,6 +152,7 @@ class BoilerTurbine:
         self.reset()
 
     def reset(self) -> None:
+        """Back to the start operating point (state, valve positions, no disturbance)."""
         self.x = self.start.state.copy()
         self.actuators = [Actuator(p, r) for p, r in zip(self.start.valves, self.rates)]
         self.fuel_disturbance = 0.0
@@ -164,9 +165,12 @@ class BoilerTurbine:
     def level(self) -> float:
         return drum_level(self.x, self.valves, self.fuel_disturbance)
 
-    def advance(self, h: float, commands: Sequence[float], fuel_disturbance: float = 0.0) -> None:
-        """Integrate [t, t + h] with the commands [%] and the fuel disturbance [%] held."""
-        paths = [a.trajectory(c, h) for a, c in zip(self.actuators, commands)]
+    def advance(self, t: float, h: float, u: Sequence[float], d: float = 0.0) -> np.ndarray:
+        """Integrate [t, t + h] with the valve commands u = (fuel, governor, feedwater) [%] and the fuel
+        disturbance d [%] held; returns the outputs y = (P, E, L) at t + h (the unit is time-invariant:
+        t only follows the ``Plant`` contract)."""
+        fuel_disturbance = d
+        paths = [a.trajectory(c, h) for a, c in zip(self.actuators, u)]
 
         def f(s: float, state: np.ndarray) -> np.ndarray:
             return derivatives(state, [Actuator.at(p, s) for p in paths], fuel_disturbance)
@@ -175,3 +179,4 @@ class BoilerTurbine:
         for a, p in zip(self.actuators, paths):
             a.position = Actuator.at(p, h)
         self.fuel_disturbance = fuel_disturbance
+        return np.array([self.x[0], self.x[1], self.level])

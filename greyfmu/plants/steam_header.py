@@ -94,6 +94,7 @@ class SteamHeader:
         self.reset()
 
     def reset(self) -> None:
+        """Back to the equilibrium of ``u0``, ``v0``."""
         self.x = self.x0.copy()
 
     def equilibrium(self, u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -123,14 +124,16 @@ class SteamHeader:
             ]
         )
 
-    def advance(self, h: float, u: ArrayLike, v: ArrayLike) -> None:
-        """Integrate over a step of length h with firing demands u (p.u.) and valve openings v (fraction)."""
+    def advance(self, t: float, h: float, u: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
+        """Integrate [t, t + h] with firing demands u (p.u.) and valve openings v (fraction) held; returns
+        the header pressures at t + h (time-invariant: t only follows the ``Plant`` contract)."""
         if h < 0.0:
             raise ValueError(f"SteamHeader: step h must be >= 0, got {h}")
         u, v = np.asarray(u, dtype=float), np.clip(np.asarray(v, dtype=float), 0.0, None)
         if h == 0.0:
-            return
+            return self.pressures
         self.x = rk4(lambda _, x: self.derivative(x, u, v), self.x, h, self.max_substep)
+        return self.pressures
 
     @property
     def pressures(self) -> NDArray[np.float64]:
@@ -165,7 +168,7 @@ def excitation_run(
     v = np.asarray(plant.v0, dtype=float)
     for k in range(samples):
         Y[k] = plant.pressures
-        plant.advance(Ts, M[k], v)
+        plant.advance(k * Ts, Ts, M[k], v)
     return Y, M
 
 
