@@ -18,7 +18,7 @@ from greyfmu.signals.clock import SampleClock
 
 
 class StochasticLTI:
-    """``advance(t, h, u)`` integrates [t, t + h] exactly with u held from t (zero-order hold); ``output(d)``.
+    """``advance(t, h, u, d)`` integrates [t, t + h] exactly with u held from t (zero-order hold), returns ``output(d)``.
 
     The step is split where any delayed input switches and where a new noise sample starts; each
     piece is solved with ``e^{Aδ}`` and ``∫_0^δ e^{As} ds`` (exact for singular A), so the result
