@@ -95,7 +95,7 @@ def plant_parameters(example: Example) -> dict[str, float | int]:
     """StochasticLTI parameters of an example, without noise (the regulation set switches it on)."""
     plant = example.plant
     tau = np.where(plant.B != 0.0, example.tau, 0.0)
-    values: dict[str, float | int] = {"n": plant.n, "m": plant.m, "p": plant.p, "noise_period": example.T}
+    values: dict[str, float | int] = {"n": plant.n, "m": plant.m, "p": plant.p, "noise_period": example.Ts}
     for name, matrix in {"A": plant.A, "B": plant.B, "tau": tau, "C": plant.C, "V": plant.V}.items():
         values.update(matrix_parameters(name, matrix, skip_zeros=False))
     values.update(matrix_parameters("Qeta", np.zeros((plant.p, plant.p)), skip_zeros=False))
@@ -113,13 +113,13 @@ def regulation_parameters(example: Example) -> dict[str, float | int]:
 def write_scenarios() -> None:
     for name, (make, times, stop, _) in SCENARIOS.items():
         example = make()
-        design = design_digital_pi(example.plant, example.T, example.tau, example.alpha, example.beta,
+        design = design_digital_pi(example.plant, example.Ts, example.tau, example.alpha, example.beta,
                                    example.q, example.r)
         folder = ROOT / "ssp" / name
         folder.mkdir(parents=True, exist_ok=True)
         write_design_ssv(design, folder / "controller.ssv")
         if (example.alpha, example.beta) != UNIT_DISC:
-            unit = design_digital_pi(example.plant, example.T, example.tau, *UNIT_DISC, example.q, example.r)
+            unit = design_digital_pi(example.plant, example.Ts, example.tau, *UNIT_DISC, example.q, example.r)
             write_design_ssv(unit, folder / "unit_disc.ssv", component="controller",
                              comment=f"{example.name}: the same digital PI designed in the unit disc (alpha = 1, "
                                      "beta = 0, the paper's Example 2) instead of the scenario's disc; "
@@ -140,7 +140,7 @@ def write_scenarios() -> None:
                    f"-1 on y1 at {times[1]:g} and on y2 at {times[2]:g}. The controller precedes the plant so "
                    "Gauss-Seidel hands u(kT) to the plant at kT (no extra delay).")
         text = _HEADER.format(comment=comment, name=name) + _sources(times) + controller + plant
-        text += _FOOTER.format(connections="\n".join(_connect(a, b) for a, b in connections), stop=stop, step=example.T)
+        text += _FOOTER.format(connections="\n".join(_connect(a, b) for a, b in connections), stop=stop, step=example.Ts)
         (folder / "SystemStructure.ssd").write_text(text)
     _write_decentralised()
 
@@ -161,12 +161,12 @@ def _write_decentralised() -> None:
                           name="dpi_wood_berry_decentral") + _sources(times)
     for i in (1, 2):
         text += _component(f"pi{i}", "PID", {"r": "input", "y": "input", "u": "output"},
-                           {"Kc": BLT[f"Kc{i}"], "Ti": BLT[f"Ti{i}"], "Td": 0.0, "Ts": example.T})
+                           {"Kc": BLT[f"Kc{i}"], "Ti": BLT[f"Ti{i}"], "Td": 0.0, "Ts": example.Ts})
     text += _component("plant", "StochasticLTI", {"u1": "input", "u2": "input", "d1": "input", "d2": "input",
                                                    "y1": "output", "y2": "output"}, "plant.ssv")
     connections = [("ref1.y", "pi1.r"), ("ref2.y", "pi2.r"), ("plant.y1", "pi1.y"), ("plant.y2", "pi2.y"),
                    ("pi1.u", "plant.u1"), ("pi2.u", "plant.u2"), ("dist1.y", "plant.d1"), ("dist2.y", "plant.d2")]
-    text += _FOOTER.format(connections="\n".join(_connect(a, b) for a, b in connections), stop=stop, step=example.T)
+    text += _FOOTER.format(connections="\n".join(_connect(a, b) for a, b in connections), stop=stop, step=example.Ts)
     (folder / "SystemStructure.ssd").write_text(text)
 
 
@@ -197,14 +197,14 @@ def variances(result: np.ndarray, inputs: list[str]) -> list[float]:
 def report(results: dict) -> str:
     lines = ["| loop | E{y1²} | E{y2²} | E{u1²} | E{u2²} |", "|---|---|---|---|---|"]
     for name, example in [("dpi_ch47", ch47()), ("dpi_wood_berry", wood_berry())]:
-        design = design_digital_pi(example.plant, example.T, example.tau, example.alpha, example.beta,
+        design = design_digital_pi(example.plant, example.Ts, example.tau, example.alpha, example.beta,
                                    example.q, example.r)
         var_y, var_u = stationary_variances(design, example.Q_eta)
         simulated = variances(results[name]["regulation"], ["controller.u1", "controller.u2"])
         lines.append(f"| {name} digital PI, simulated | " + " | ".join(f"{v:.4g}" for v in simulated) + " |")
         lines.append(f"| {name} digital PI, Lyapunov | " + " | ".join(f"{v:.4g}" for v in [*var_y, *var_u]) + " |")
         if (example.alpha, example.beta) != UNIT_DISC:
-            unit = design_digital_pi(example.plant, example.T, example.tau, *UNIT_DISC, example.q, example.r)
+            unit = design_digital_pi(example.plant, example.Ts, example.tau, *UNIT_DISC, example.q, example.r)
             var_y, var_u = stationary_variances(unit, example.Q_eta)
             simulated = variances(results[f"{name}_unit_disc"]["regulation"], ["controller.u1", "controller.u2"])
             lines.append(f"| {name} digital PI, unit disc (unit_disc.ssv), simulated | "

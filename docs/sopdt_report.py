@@ -41,7 +41,7 @@ TABLES = ROOT / "docs" / "sopdt_tables.md"
 MASTER_STEP = 2.0
 """The scenarios' step: the controller's output reaches the plant one step after its sample."""
 SETPOINT_TIME, LOAD_TIME, STOP_TIME = 40.0, 2500.0, 5000.0
-START = dict(K=1.2, T0=200.0, tau=90.0, T=40.0)
+START = dict(K=1.2, T0=200.0, tau=90.0, Ts=40.0)
 """The paper's starting data (§3); the other tuning defaults are SOPDTPredictive's: the paper's."""
 
 STUDIES = [
@@ -66,7 +66,7 @@ def loop_matrix(tuning: dict, T4: float = 0.0, master_step: float = MASTER_STEP)
     State: plant state x(kT), the applied inputs u_{k−1} … u_{k−L}, the outputs Y_{k−1}, Y_{k−2}.
     """
     controller = SOPDTPredictive(**{**START, **tuning})
-    d, T = controller.design, controller.T
+    d, T = controller.design, controller.Ts
     plant = ThirdOrderPlant(T4=T4)
     delay_samples, fraction = divmod(plant.tau + master_step, T)
     delay_samples = int(delay_samples)
@@ -169,13 +169,13 @@ def design_row(tuning: dict) -> tuple[SOPDTPredictive, float, float]:
     return controller, rho, limit
 
 
-def sweep_cells(parameter: str, variable: str, value: float, folder: Path) -> tuple[SOPDTPredictive, str]:
+def sweep_cells(parameter: str, value: float, folder: Path) -> tuple[SOPDTPredictive, str]:
     """The controller for ``parameter = value`` and its row's cells from ρ on (stability, limit, master-run metrics);
-    ``variable`` is the FMU's name of the parameter (the sample time T is ``Ts``)."""
+    ``parameter`` is also the FMU's name of it."""
     controller, rho, limit = design_row({parameter: value})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", HorizonWarning)
-        m = loop_metrics(run(NOMINAL, {f"controller.{variable}": value}, folder))
+        m = loop_metrics(run(NOMINAL, {f"controller.{parameter}": value}, folder))
     return controller, (
         f"{rho:.4f} | {'yes' if rho < 1 else '**no**'} | {fmt(limit, 3)} | {fmt(m['IAE'])} | {fmt(m['overshoot'])} | "
         f"{fmt(m['settling_time'], 0)} | {fmt(m['load_IAE'])} |"
@@ -191,7 +191,7 @@ def horizon_tables(folder: Path) -> list[str]:
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for T in HORIZON_PERIODS:
-        controller, cells = sweep_cells("T", "Ts", T, folder)
+        controller, cells = sweep_cells("Ts", T, folder)
         d = controller.design
         lines.append(f"| {T:g} | {d.N} | {d.m} | {START['tau'] + MASTER_STEP - d.m * T:g} s | {cells}")
     T_r = transient_time(ThirdOrderPlant())
@@ -205,7 +205,7 @@ def horizon_tables(folder: Path) -> list[str]:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for T0 in sorted([*DOMINANT_TIME_CONSTANTS, round(T0_rule, 1)]):
-        controller, cells = sweep_cells("T0", "T0", T0, folder)
+        controller, cells = sweep_cells("T0", T0, folder)
         lines.append(f"| {T0:g} | {controller.design.N} | {cells}")
     lines += [
         "",

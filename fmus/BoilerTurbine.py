@@ -46,4 +46,4 @@ class BoilerTurbine(GreyfmuSlave):
         self.unit = Unit(start, (self.rate_fuel, self.rate_governor, self.rate_feedwater), self.max_substep)
 
     def advance(self, t: float, h: float) -> None:
-        self.unit.advance(h, (self.fuel, self.governor, self.feedwater), self.fuel_disturbance)
+        self.unit.advance(t, h, (self.fuel, self.governor, self.feedwater), self.fuel_disturbance)

@@ -11,7 +11,7 @@ from greyfmu.control.digital_pi.examples import ch47
 from greyfmu.signals import SampleClock
 
 _EXAMPLE = ch47()
-_DEFAULT = design_digital_pi(_EXAMPLE.plant, _EXAMPLE.T, _EXAMPLE.tau, _EXAMPLE.alpha, _EXAMPLE.beta,
+_DEFAULT = design_digital_pi(_EXAMPLE.plant, _EXAMPLE.Ts, _EXAMPLE.tau, _EXAMPLE.alpha, _EXAMPLE.beta,
                              _EXAMPLE.q, _EXAMPLE.r)
 
 
@@ -32,7 +32,7 @@ class DigitalPI(GreyfmuSlave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         a = _DEFAULT.augmented
-        self.parameter("Ts", _DEFAULT.T, "Sample time T", unit="s", minimum=1e-12)
+        self.parameter("Ts", _DEFAULT.Ts, "Sample time T", unit="s", minimum=1e-12)
         self.parameter("na", a.order, "Order of the augmented plant (9)/(10): n + D m", minimum=1, maximum=MAX_ORDER)
         self.parameter("m", a.Hp.shape[1], "Number of inputs = outputs", minimum=1, maximum=MAX_CHANNELS)
         self._shapes = {

@@ -106,4 +106,4 @@ class GainScheduledPID(GreyfmuSlave):
 
     def advance(self, t: float, h: float) -> None:
         for _ in self.clock.samples_in(t, h):
-            self.controller.step(self.r, self.y, self._scheduling_variable())
+            self.controller.step(self.r, self.y, W=self._scheduling_variable())

@@ -2,12 +2,10 @@
 
 import copy
 import functools
-import logging
 from typing import Any
 
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Variability
-from pythonfmu.enums import Fmi2Status
 
 from _slave import REQUIREMENTS, GreyfmuSlave
 from greyfmu.control import OSMMGPC as OSMMController
@@ -29,19 +27,6 @@ def initial_models(Ts: float, duration: float, rules: int, seed: int) -> tuple[t
         Y, M = excitation_run(SteamHeader(), boilers, duration, Ts, seed=3 * seed + g)
         models.append(tuple(identify_group_models(Y, M, boilers, structure, rules)))
     return tuple(models)
-
-
-class _FmuLog(logging.Handler):
-    """Forwards greyfmu warnings (fallbacks) to the FMU logger."""
-
-    def __init__(self, slave: GreyfmuSlave) -> None:
-        super().__init__(logging.WARNING)
-        self.slave = slave
-        slave.stepping = False
-
-    def emit(self, record: logging.LogRecord) -> None:
-        if self.slave.stepping:
-            self.slave.log(f"{self.slave.instance_name}: {record.getMessage()}", Fmi2Status.warning)
 
 
 class OSMMGPC(GreyfmuSlave):
@@ -99,15 +84,7 @@ class OSMMGPC(GreyfmuSlave):
             method=METHODS[self.method], forgetting=self.forgetting, omega=self.omega,
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)
-        if not hasattr(self, "_handler"):
-            self._handler = _FmuLog(self)
-            for name in ("greyfmu.control.gpc", "greyfmu.control.osmm", "greyfmu.control.ts_fuzzy"):
-                logging.getLogger(name).addHandler(self._handler)
 
     def advance(self, t: float, h: float) -> None:
-        self.stepping = True  # only this instance's warnings reach its logger
-        try:
-            for _ in self.clock.samples_in(t, h):
-                self.controller.step([self.r1, self.r2], [self.y1, self.y2])
-        finally:
-            self.stepping = False
+        for _ in self.clock.samples_in(t, h):
+            self.controller.step([self.r1, self.r2], [self.y1, self.y2])

@@ -1,15 +1,12 @@
 """Predictive controller FMU of Cîrtoaje et al.: a thin wrapper around greyfmu.control.SOPDTPredictive."""
 
 import math
-import warnings
-from collections.abc import Callable
 from typing import Any
 
 from pythonfmu import DefaultExperiment, Fmi2Variability
 from pythonfmu.enums import Fmi2Status
 
 from _slave import REQUIREMENTS, GreyfmuSlave
-from greyfmu.control import HorizonWarning
 from greyfmu.control import SOPDTPredictive as SOPDTPredictiveController
 from greyfmu.signals import SampleClock
 
@@ -57,21 +54,10 @@ class SOPDTPredictive(GreyfmuSlave):
         self.parameter(name, start, description, unit=unit, retune=self._retune)
 
     def _retune(self, name: str, value: float) -> None:
-        self._forward_horizon_warning(lambda: self.controller.retune(**{name: value}))
-
-    def _forward_horizon_warning(self, design: Callable[[], None]) -> None:
-        """Run an off-line design; an N > 20 HorizonWarning goes to the FMU logger as a warning."""
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", HorizonWarning)
-            design()
-        for warning in caught:
-            self.log(f"{self.instance_name}: {warning.message}", Fmi2Status.warning)
+        """An N > 20 HorizonWarning of the new design reaches the FMU log (the slave base forwards it)."""
+        self.controller.retune(**{name: value})
 
     def build(self) -> None:
-        self._forward_horizon_warning(self._build_controller)
-        self.clock = SampleClock(self.Ts, self.experiment_start)
-
-    def _build_controller(self) -> None:
         self.controller = SOPDTPredictiveController(
             self.K,
             self.T0,
@@ -87,6 +73,7 @@ class SOPDTPredictive(GreyfmuSlave):
             **self.output_limits(),
             u0=self.u0,
         )
+        self.clock = SampleClock(self.Ts, self.experiment_start)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """A NaN measurement is the controller's documented case (hold u, log), not an input error."""

@@ -48,4 +48,4 @@ class SteamHeader(GreyfmuSlave):
         self.plant = SteamHeaderPlant(params, np.full(3, self.u0), (0.5, 0.5), self.max_substep)
 
     def advance(self, t: float, h: float) -> None:
-        self.plant.advance(h, [self.u1, self.u2, self.u3], [self.v1 / 100.0, self.v2 / 100.0])
+        self.plant.advance(t, h, [self.u1, self.u2, self.u3], [self.v1 / 100.0, self.v2 / 100.0])

@@ -50,7 +50,7 @@ class StochasticLTI(GreyfmuSlave):
                     unit = "s" if name == "tau" else None
                     self.parameter(f"{name}_{i + 1}_{j + 1}", start, f"{text}, row {i + 1}, column {j + 1}",
                                    unit=unit, minimum=0.0 if name == "tau" else None)
-        self.parameter("noise_period", _DEFAULT.T, "Hold time of each innovation sample (the controller's T)",
+        self.parameter("noise_period", _DEFAULT.Ts, "Hold time of each innovation sample (the controller's T)",
                        unit="s", minimum=1e-12)
         self.parameter("seed", 0, "Seed of the innovation sequence")
         for i in range(1, MAX_CHANNELS + 1):

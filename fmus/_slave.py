@@ -10,6 +10,7 @@ communication step).  This base class
   master set, and ``exit_initialization_mode`` reports invalid parameters),
 - refuses non-finite inputs and outputs in ``do_step``: it logs a message naming the
   variable and returns an error status instead of passing NaN on,
+- forwards greyfmu's warnings raised in ``build``, ``advance`` and a retune to the FMU log,
 - answers ``fmi2Get*``/``fmi2Set*`` through accessors compiled once per list of value
   references (see `CompiledAccessors`), instead of pythonfmu's generic per-variable lookup.
 """
@@ -19,6 +20,7 @@ from __future__ import annotations
 import math
 from abc import abstractmethod
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from operator import attrgetter
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element
@@ -26,6 +28,8 @@ from xml.etree.ElementTree import Element
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import ScalarVariable
+
+from greyfmu.forwarding import forward_warnings
 
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
 
@@ -130,7 +134,8 @@ class GreyfmuSlave(Fmi2Slave):
                 self._built = False
                 return
             try:
-                retune(name, value)
+                with self.forwarding_warnings():
+                    retune(name, value)
             except ValueError as refusal:
                 self.log(f"{self.instance_name}: {refusal}; {name} stays {getattr(self, name)}", Fmi2Status.warning)
                 return
@@ -235,7 +240,8 @@ class GreyfmuSlave(Fmi2Slave):
                 return self._error(f"input {name} = {value} at t = {current_time} s is not a finite number")
         if not self._built:
             self._ensure_built()
-        self.advance(current_time, step_size)
+        with self.forwarding_warnings():
+            self.advance(current_time, step_size)
         self.current_time = current_time + step_size
         for vr, output_value in self._outputs.items():  # the objects are built: no getter's build check
             value = output_value()
@@ -349,11 +355,16 @@ class GreyfmuSlave(Fmi2Slave):
         fmi2Fatal, reaches the master."""
         if not self._built:
             try:
-                self.build()
+                with self.forwarding_warnings():
+                    self.build()
             except (ValueError, ArithmeticError) as error:
                 self.log(f"{self.instance_name}: invalid parameters: {error}", Fmi2Status.error)
                 raise
             self._built = True
+
+    def forwarding_warnings(self) -> AbstractContextManager[None]:
+        """A context in which greyfmu's warnings (``greyfmu.forwarding``) reach this instance's FMU log as fmi2Warning."""
+        return forward_warnings(lambda message: self.log(f"{self.instance_name}: {message}", Fmi2Status.warning))
 
     def _error(self, message: str) -> bool:
         self.log(f"{self.instance_name}: {message}", Fmi2Status.error)

@@ -18,9 +18,12 @@ from __future__ import annotations
 import math
 from abc import abstractmethod
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from typing import Any, ClassVar
 
 from pythonfmu3 import Float64, Fmi3Causality, Fmi3Slave, Fmi3Status, Fmi3StepResult, Fmi3Variability, Int32
+
+from greyfmu.forwarding import forward_warnings
 
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
 
@@ -97,7 +100,8 @@ class GreyfmuSlave3(Fmi3Slave):
             if not math.isfinite(value):
                 return self._error(f"input {name} = {value} at t = {current_time} s is not a finite number")
         self._ensure_built()
-        self.advance(current_time, step_size)
+        with self.forwarding_warnings():
+            self.advance(current_time, step_size)
         self.time = current_time + step_size
         for name, output_value in self._output_values.items():
             value = output_value()
@@ -108,11 +112,16 @@ class GreyfmuSlave3(Fmi3Slave):
     def _ensure_built(self) -> None:
         if not self._built:
             try:
-                self.build()
+                with self.forwarding_warnings():
+                    self.build()
             except (ValueError, ArithmeticError) as error:
                 self.log(f"{self.instance_name}: invalid parameters: {error}", Fmi3Status.error)
                 raise
             self._built = True
+
+    def forwarding_warnings(self) -> AbstractContextManager[None]:
+        """A context in which greyfmu's warnings (``greyfmu.forwarding``) reach this instance's FMU log as a warning."""
+        return forward_warnings(lambda message: self.log(f"{self.instance_name}: {message}", Fmi3Status.warning))
 
     def _error(self, message: str) -> Fmi3StepResult:
         self.log(f"{self.instance_name}: {message}", Fmi3Status.error)

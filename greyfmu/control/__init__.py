@@ -1,4 +1,4 @@
-"""Controllers as plain classes: one ``step`` per sample, ``reset()`` to start over."""
+"""Controllers as plain classes following `greyfmu.contract.Controller`: one ``step`` per sample, ``reset()`` to start over."""
 
 from greyfmu.control.pid import PID, DerivativeOn, IntegralMode, integral_step
 

@@ -154,6 +154,23 @@ def smoothed_reference(y: ArrayLike, r: ArrayLike, alpha: float, N1: int, N2: in
     return (r + alpha**steps * (y - r)).ravel()
 
 
+def cost_weights(
+    output_weight: float | ArrayLike, move_weight: float | ArrayLike, costed: int, Nu: int, outputs: int, inputs: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Λ = diag λ(j) over the ``costed`` = N2 − N1 + 1 predicted outputs and Q = diag Q(j) over the Nu moves of (34)."""
+    Lambda = np.diag(horizon_weights(output_weight, costed, outputs, "output_weight").ravel())
+    Q = np.diag(horizon_weights(move_weight, Nu, inputs, "move_weight").ravel())
+    return Lambda, Q
+
+
+def qp_terms(
+    G: NDArray[np.float64], Lambda: NDArray[np.float64], Q: NDArray[np.float64], f: NDArray[np.float64], w: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Cost (34) as ½ ΔUᵀ H ΔU + gᵀ ΔU: with the predictions ŷ = G ΔU + f (37) and the reference w (36),
+    J = (ŷ − w)ᵀ Λ (ŷ − w) + ΔUᵀ Q ΔU gives H = 2 (Gᵀ Λ G + Q), g = 2 Gᵀ Λ (f − w)."""
+    return 2.0 * (G.T @ Lambda @ G + Q), 2.0 * G.T @ Lambda @ (f - w)
+
+
 @dataclass
 class Bounds:
     """Constraints (35) on the manipulated variables, per input (scalars broadcast)."""
@@ -288,15 +305,21 @@ class GPC:
             raise ValueError(f"GPC: need 1 <= N1 <= N2 and Nu >= 1, got N1={self.N1}, N2={self.N2}, Nu={self.Nu}")
         if not 0.0 <= self.alpha < 1.0:
             raise ValueError(f"GPC: reference smoothing alpha must be in [0, 1), got {self.alpha}")
+        self.Lambda, self.Q = cost_weights(
+            self.output_weight, self.move_weight, self.N2 - self.N1 + 1, self.Nu, self.model.outputs, self.model.inputs
+        )
+        self._initial_model = self.model
+        self.reset()
+
+    def reset(self) -> None:
+        """Return to the state right after construction (initial model, input u0, no history)."""
         m, n = self.model.outputs, self.model.inputs
-        self.Lambda = np.diag(horizon_weights(self.output_weight, self.N2 - self.N1 + 1, m, "output_weight").ravel())
-        self.Q = np.diag(horizon_weights(self.move_weight, self.Nu, n, "move_weight").ravel())
         self.u = np.broadcast_to(np.asarray(self.u0, dtype=float), (n,)).copy()
         self.y_past = np.zeros((m, 0))
         self.du_past = np.zeros((n, 64))
         self.plan: NDArray[np.float64] | None = None
         self.last_path = ""
-        self.set_model(self.model)
+        self.set_model(self._initial_model)
 
     def set_model(self, model: CARIMA) -> None:
         if (model.outputs, model.inputs) != (self.model.outputs, self.model.inputs):
@@ -311,9 +334,7 @@ class GPC:
         y = np.asarray(y, dtype=float)
         f = self.pred.free_response(self.y_past, self.du_past)
         w = smoothed_reference(y, r, self.alpha, self.N1, self.N2)
-        G = self.pred.G
-        H = 2.0 * (G.T @ self.Lambda @ G + self.Q)
-        g = 2.0 * G.T @ self.Lambda @ (f - w)
+        H, g = qp_terms(self.pred.G, self.Lambda, self.Q, f, w)
         return solve_moves(H, g, self.u, self.bounds, self.Nu, self.plan, self.solver)
 
     def observe(self, y: ArrayLike) -> None:

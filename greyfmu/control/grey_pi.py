@@ -67,6 +67,7 @@ class GrayPredictivePI:
         return self.predictor.mode
 
     def reset(self) -> None:
+        """Return to the state right after construction (PI at u0, empty prediction window)."""
         self.pi.reset()
         self.predictor.reset()
         self.e = 0.0

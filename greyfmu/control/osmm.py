@@ -31,7 +31,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from greyfmu.control.gpc import CARIMA, Bounds, Prediction, QPResult, prediction, smoothed_reference, solve_moves, horizon_weights
+from greyfmu.control.gpc import (
+    CARIMA, Bounds, Prediction, QPResult, cost_weights, prediction, qp_terms, smoothed_reference, solve_moves,
+)
 from greyfmu.control.ts_fuzzy import FuzzyRLS, Method, TSModel, antecedent_from_partition, batch_wls, gustafson_kessel
 
 logger = logging.getLogger(__name__)
@@ -124,15 +126,23 @@ class OSMMGPC:
     solver: str = "daqp"
 
     def __post_init__(self) -> None:
-        self.M = np.asarray(self.M0, dtype=float).copy()
-        self.n = len(self.M)
+        self.n = len(np.asarray(self.M0, dtype=float))
         self.m = len(self.models[0])
+        self.Lambda, self.Q = cost_weights(self.output_weight, self.move_weight, self.N2 - self.N1 + 1, self.Nu, self.m, self.m)
+        self._initial_consequents = [[model.consequents.copy() for model in row] for row in self.models]
+        self.reset()
+
+    def reset(self) -> None:
+        """Return to the state right after construction: firing M0, the initial TS models (the
+        estimators update them in place), fresh estimators, no history, the first group."""
+        for row, initial in zip(self.models, self._initial_consequents):
+            for model, consequents in zip(row, initial):
+                model.consequents = consequents.copy()
+        self.M = np.asarray(self.M0, dtype=float).copy()
         depth = max(self.structure.na, self.structure.nb) + 1
         self.y_past: NDArray[np.float64] | None = None
         self.M_past = np.repeat(self.M[:, None], depth, axis=1)  # M_past[:, s] = M(k−1−s)
         self.estimators = [[FuzzyRLS(model, self.method, self.forgetting, self.omega) for model in row] for row in self.models]
-        self.Lambda = np.diag(horizon_weights(self.output_weight, self.N2 - self.N1 + 1, self.m, "output_weight").ravel())
-        self.Q = np.diag(horizon_weights(self.move_weight, self.Nu, self.m, "move_weight").ravel())
         self.group = 0 if self.fixed_group is None else self.fixed_group
         self.efficiencies = np.zeros(len(self.groups))
         self.last_path = ""
@@ -198,8 +208,7 @@ class OSMMGPC:
             dM_past = np.hstack([dM_past, np.zeros((len(boilers), u_depth - dM_past.shape[1]))])
         f = pred.free_response(self.y_past, dM_past)
         w = smoothed_reference(y, r, self.alpha, self.N1, self.N2)
-        H = 2.0 * (pred.G.T @ self.Lambda @ pred.G + self.Q)
-        g = 2.0 * pred.G.T @ self.Lambda @ (f - w)
+        H, g = qp_terms(pred.G, self.Lambda, self.Q, f, w)
         selected = Bounds(
             *(np.broadcast_to(np.asarray(v, dtype=float), (self.n,))[boilers] for v in
               (self.bounds.u_min, self.bounds.u_max, self.bounds.du_min, self.bounds.du_max))

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from enum import IntEnum
 
+from greyfmu.control.limits import OutputLimits
+
 
 class IntegralMode(IntEnum):
     """How the integral term follows a change of Kc or Ti (thesis §2.3.2).
@@ -125,23 +127,15 @@ class PID:
             raise ValueError(f"PID: sample time Ts must be a finite number > 0, got {Ts}")
         if not N > 0.0:
             raise ValueError(f"PID: derivative filter factor N must be > 0, got {N}")
-        if not u_min <= u_max:
-            raise ValueError(f"PID: output limits need u_min <= u_max, got u_min = {u_min}, u_max = {u_max}")
-        if not du_max >= 0.0:
-            raise ValueError(f"PID: rate limit du_max must be >= 0 (0 = none), got {du_max}")
-        if not (math.isfinite(u0) and u_min <= u0 <= u_max):
-            raise ValueError(f"PID: initial output u0 must lie in [u_min, u_max] = [{u_min}, {u_max}], got {u0}")
+        self.limits = OutputLimits("PID", Ts, u_min, u_max, du_max)
+        self.limits.check_start(u0)
         self.Ts = Ts
         self.N = N
-        self.u_min = u_min
-        self.u_max = u_max
-        self.du_max = du_max
         self.integral_mode = IntegralMode(integral_mode)
         self.u0 = u0
         self.anti_windup = bool(anti_windup)
         self.derivative_on = DerivativeOn(derivative_on)
         self._initial_gains = (Kc, Ti, Td)
-        self._du_per_sample = du_max * Ts if du_max > 0.0 else math.inf
         self.reset()
 
     def reset(self) -> None:
@@ -183,5 +177,4 @@ class PID:
         return integral_step(self.integral_mode, self.I, e, self.Kc, self.Ti, self._Kc_prev, self._Ti_prev, self.Ts)
 
     def _limit(self, v: float) -> float:
-        v = min(max(v, self.u - self._du_per_sample), self.u + self._du_per_sample)
-        return min(max(v, self.u_min), self.u_max)
+        return self.limits.apply(v, self.u)

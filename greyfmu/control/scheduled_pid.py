@@ -22,7 +22,7 @@ class GainScheduledPID(Generic[W]):
     output, a set-point or an exogenous variable) or the `ITAE` rule fed with the process
     parameters (``lambda p: itae(*p)``, W a tuple (Kp, T, τ)).
 
-    ``step(r, y, W)`` is one sample k: the gains scheduled at W(k) are handed to
+    ``step(r, y, W=W)`` is one sample k: the gains scheduled at W(k) are handed to
     ``PID.set_gains`` and the PID law runs, so the integral mode (2.10)/(2.11)/(2.12) sees
     Kc(k−1), Ti(k−1) and Kc(k), Ti(k) exactly as in `greyfmu.control.pid.integral_step`.
     The first sample's gains are also taken as the gains before it, so the bias u0 is not
@@ -73,8 +73,9 @@ class GainScheduledPID(Generic[W]):
         """Control error r − y at the last sample (0 before the first)."""
         return 0.0 if self.pid is None else self.pid.e
 
-    def step(self, r: float, y: float, W: W) -> float:
-        """One sample with set-point r, measurement y and scheduling variable W; returns u(k)."""
+    def step(self, r: float, y: float, *, W: W) -> float:
+        """One sample with set-point r, measurement y and scheduling variable W (a keyword: an extra
+        measured input of the ``Controller`` protocol); returns u(k)."""
         try:
             gains = self.schedule(W)
         except ValueError as error:

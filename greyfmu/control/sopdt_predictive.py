@@ -27,10 +27,12 @@ from enum import IntEnum
 
 import numpy as np
 
+from greyfmu.control.limits import OutputLimits
+
 logger = logging.getLogger(__name__)
 
 N_MIN, N_MAX = 15, 20
-"""Recommended range of the prediction horizon N = [(τ + 3·T0)/T] (paper §2 and §4)."""
+"""Recommended range of the prediction horizon N = [(τ + 3·T0)/Ts] (paper §2 and §4)."""
 N_LIMIT = 40
 """Largest horizon accepted: beyond it the sampling period is far too short for the paper's method."""
 
@@ -52,9 +54,9 @@ class ControlLaw(IntEnum):
     """(15)-(17): one value on [t, t+2], a second one on [t+2, t+N]."""
 
 
-def horizon_length(T0: float, tau: float, T: float) -> int:
-    """Prediction horizon N = integer part of (τ + 3·T0)/T (paper §2; 17 for the starting data)."""
-    return math.floor((tau + 3.0 * T0) / T + 1e-9)
+def horizon_length(T0: float, tau: float, Ts: float) -> int:
+    """Prediction horizon N = integer part of (τ + 3·T0)/Ts (paper §2; 17 for the starting data)."""
+    return math.floor((tau + 3.0 * T0) / Ts + 1e-9)
 
 
 def dominant_time_constant(T_r: float, tau: float) -> float:
@@ -70,7 +72,7 @@ def dominant_time_constant(T_r: float, tau: float) -> float:
 
 
 def sampling_time_range(T0: float, tau: float) -> tuple[float, float]:
-    """Sampling periods T for which N = [(τ + 3·T0)/T] lies in 15..20: the interval (L/21, L/15], L = τ + 3·T0.
+    """Sampling periods Ts for which N = [(τ + 3·T0)/Ts] lies in 15..20: the interval (L/21, L/15], L = τ + 3·T0.
 
     For the starting data (T0 = 200 s, τ = 90 s) this is (32.86 s, 46 s]; the paper's T = 40 s lies in it.
     """
@@ -96,7 +98,7 @@ class SOPDTDesign:
     T0: float
     tau: float
     xi: float
-    T: float
+    Ts: float
     X_k: float
     X_t: float
     X_d: float
@@ -105,9 +107,9 @@ class SOPDTDesign:
     T2: float
     """(2): 0.5ξ·X_t·T0."""
     m: int
-    """Integer dead time [X_d·τ/T]."""
+    """Integer dead time [X_d·τ/Ts]."""
     N: int
-    """Prediction horizon [(τ + 3·T0)/T]."""
+    """Prediction horizon [(τ + 3·T0)/Ts]."""
     a1: float
     a2: float
     b: float
@@ -121,14 +123,14 @@ def sopdt_design(
     K: float,
     T0: float,
     tau: float,
-    T: float,
+    Ts: float,
     *,
     xi: float = 0.6,
     X_k: float = 1.5,
     X_t: float = 1.0,
     X_d: float = 1.0,
 ) -> SOPDTDesign:
-    """Off-line computation of the paper's §2 from the process data K, T0, τ, ξ, T and the tuning X_k, X_t, X_d.
+    """Off-line computation of the paper's §2 from the process data K, T0, τ, ξ, Ts and the tuning X_k, X_t, X_d.
 
     Refuses K ≤ 0, T0 ≤ 0, τ < 0, ξ outside (0, 1], X_k/X_t ≤ 0, X_d < 0, N > 40 and m ≥ N,
     each with a message giving the allowed range.  Warns (``HorizonWarning``) for 20 < N ≤ 40:
@@ -137,39 +139,39 @@ def sopdt_design(
     _check_process(K, T0, tau)
     if not (math.isfinite(xi) and 0.0 < xi <= 1.0):
         raise ValueError(f"SOPDTPredictive: time-constant allocation xi must lie in (0, 1], got {xi}")
-    if not (math.isfinite(T) and T > 0.0):
-        raise ValueError(f"SOPDTPredictive: sampling period T must be a finite number > 0 s, got {T}")
+    if not (math.isfinite(Ts) and Ts > 0.0):
+        raise ValueError(f"SOPDTPredictive: sampling period Ts must be a finite number > 0 s, got {Ts}")
     for name, value in (("X_k", X_k), ("X_t", X_t)):
         if not (math.isfinite(value) and value > 0.0):
             raise ValueError(f"SOPDTPredictive: adjustment coefficient {name} must be a finite number > 0, got {value}")
     if not (math.isfinite(X_d) and X_d >= 0.0):
         raise ValueError(f"SOPDTPredictive: adjustment coefficient X_d must be a finite number >= 0, got {X_d}")
-    N = horizon_length(T0, tau, T)
+    N = horizon_length(T0, tau, Ts)
     if N > N_LIMIT:
         low, high = sampling_time_range(T0, tau)
         raise ValueError(
-            f"SOPDTPredictive: horizon N = [(tau + 3 T0)/T] = {N} exceeds {N_LIMIT}; allowed N <= {N_LIMIT}, "
-            f"i.e. T >= {(tau + 3 * T0) / (N_LIMIT + 1):.4g} s (recommended: N in {N_MIN}..{N_MAX}, "
-            f"T in ({low:.4g}, {high:.4g}] s)"
+            f"SOPDTPredictive: horizon N = [(tau + 3 T0)/Ts] = {N} exceeds {N_LIMIT}; allowed N <= {N_LIMIT}, "
+            f"i.e. Ts >= {(tau + 3 * T0) / (N_LIMIT + 1):.4g} s (recommended: N in {N_MIN}..{N_MAX}, "
+            f"Ts in ({low:.4g}, {high:.4g}] s)"
         )
     if N > N_MAX:
         low, high = sampling_time_range(T0, tau)
         warnings.warn(
-            f"SOPDTPredictive: horizon N = [(tau + 3 T0)/T] = {N} exceeds the paper's limit of {N_MAX} "
-            f"(N in {N_MIN}..{N_MAX}); for T0 = {T0:g} s, tau = {tau:g} s choose T in ({low:.4g}, {high:.4g}] s "
-            f"instead of T = {T:g} s",
+            f"SOPDTPredictive: horizon N = [(tau + 3 T0)/Ts] = {N} exceeds the paper's limit of {N_MAX} "
+            f"(N in {N_MIN}..{N_MAX}); for T0 = {T0:g} s, tau = {tau:g} s choose Ts in ({low:.4g}, {high:.4g}] s "
+            f"instead of Ts = {Ts:g} s",
             HorizonWarning,
             stacklevel=2,
         )
-    m = math.floor(X_d * tau / T + 1e-9)
+    m = math.floor(X_d * tau / Ts + 1e-9)
     if m >= N:
         raise ValueError(
-            f"SOPDTPredictive: integer dead time m = [X_d tau/T] = {m} must be less than the horizon N = {N} "
+            f"SOPDTPredictive: integer dead time m = [X_d tau/Ts] = {m} must be less than the horizon N = {N} "
             f"(allowed 0 <= m <= {N - 1}); reduce X_d or tau"
         )
     T1 = (1.0 - 0.5 * xi) * X_t * T0
     T2 = 0.5 * xi * X_t * T0
-    c1, c2 = math.exp(-T / T1), math.exp(-T / T2)
+    c1, c2 = math.exp(-Ts / T1), math.exp(-Ts / T2)
     a1, a2 = -(c1 + c2), c1 * c2
     b = X_k * K * (1.0 + a1 + a2)
     g = np.zeros(N + 1)
@@ -179,7 +181,7 @@ def sopdt_design(
         g[i + m] = h
         h_prev2, h_prev1 = h_prev1, h
     E = float(np.sum(g[m:] ** 2))
-    return SOPDTDesign(K, T0, tau, xi, T, X_k, X_t, X_d, T1, T2, m, N, a1, a2, b, g, E)
+    return SOPDTDesign(K, T0, tau, xi, Ts, X_k, X_t, X_d, T1, T2, m, N, a1, a2, b, g, E)
 
 
 def law_weights(design: SOPDTDesign, law: ControlLaw | int) -> np.ndarray:
@@ -224,17 +226,17 @@ def free_response(design: SOPDTDesign, Y: tuple[float, float, float], u_past: np
 
 
 class SOPDTPredictive:
-    """Predictive controller of Cîrtoaje et al. on model (1), sampled every T (one ``step`` per sample).
+    """Predictive controller of Cîrtoaje et al. on model (1), sampled every Ts (the paper's T; one ``step`` per sample).
 
     ``step(r, y)``: measured output Y_t = y, setpoint r; returns u_t =
     ``u_{t−1} + X_p·Σ_{i=m}^{N} q_i·e_{t+i}`` (law (7), (12) or (15); ``law_weights``), then
-    limited to ``u_{t−1} ± du_max·T`` (rate limit in units per second, 0 = none) and to
+    limited to ``u_{t−1} ± du_max·Ts`` (rate limit in units per second, 0 = none) and to
     ``[u_min, u_max]``.  The predicted errors are ``e_{t+i} = w_{t+i} − y_{t+i}`` (8) with the
     free response (9)-(10) computed from the *applied* (limited) past inputs, so the limits
     cause no windup.
 
     Reference trajectory (paper Fig. 5): with ``T_ref > 0`` the setpoint is approached along
-    ``w_{t+i} = r − α^i (r − Y_t)``, ``α = exp(−T/T_ref)``; ``T_ref = 0`` gives w = r.
+    ``w_{t+i} = r − α^i (r − Y_t)``, ``α = exp(−Ts/T_ref)``; ``T_ref = 0`` gives w = r.
 
     Bumpless start: before the first sample the past outputs equal the first measurement
     and the past inputs equal ``u0``.  A NaN measurement holds the output (Δu = 0), is
@@ -251,7 +253,7 @@ class SOPDTPredictive:
         K: float,
         T0: float,
         tau: float,
-        T: float,
+        Ts: float,
         *,
         xi: float = 0.6,
         X_k: float = 1.5,
@@ -265,16 +267,9 @@ class SOPDTPredictive:
         du_max: float = 0.0,
         u0: float = 0.0,
     ) -> None:
-        if not u_min <= u_max:
-            raise ValueError(f"SOPDTPredictive: output limits need u_min <= u_max, got u_min = {u_min}, u_max = {u_max}")
-        if not du_max >= 0.0:
-            raise ValueError(f"SOPDTPredictive: rate limit du_max must be >= 0 (0 = none), got {du_max}")
-        if not (math.isfinite(u0) and u_min <= u0 <= u_max):
-            raise ValueError(f"SOPDTPredictive: initial output u0 must lie in [u_min, u_max] = [{u_min}, {u_max}], got {u0}")
-        self.T = T
-        self.u_min = u_min
-        self.u_max = u_max
-        self.du_max = du_max
+        self.limits = OutputLimits("SOPDTPredictive", Ts, u_min, u_max, du_max)
+        self.limits.check_start(u0)
+        self.Ts = Ts
         self.u0 = u0
         self._settings = dict(K=K, T0=T0, tau=tau, xi=xi, X_k=X_k, X_t=X_t, X_d=X_d, X_p=X_p, law=law, T_ref=T_ref)
         self._initial_settings = dict(self._settings)
@@ -302,14 +297,14 @@ class SOPDTPredictive:
             law = ControlLaw(s["law"])
         except ValueError:
             raise ValueError(f"SOPDTPredictive: law must be 7, 12 or 15 (the paper's equation numbers), got {s['law']}") from None
-        design = sopdt_design(s["K"], s["T0"], s["tau"], self.T, xi=s["xi"], X_k=s["X_k"], X_t=s["X_t"], X_d=s["X_d"])
+        design = sopdt_design(s["K"], s["T0"], s["tau"], self.Ts, xi=s["xi"], X_k=s["X_k"], X_t=s["X_t"], X_d=s["X_d"])
         self.design = design
         self.law = law
         self.X_p = float(s["X_p"])
         self.T_ref = float(s["T_ref"])
         self.weights = law_weights(design, law)
         """q_m … q_N of the selected law (``law_weights``)."""
-        alpha = math.exp(-self.T / self.T_ref) if self.T_ref > 0.0 else 0.0
+        alpha = math.exp(-self.Ts / self.T_ref) if self.T_ref > 0.0 else 0.0
         self.approach = alpha ** np.arange(design.m, design.N + 1) if self.T_ref > 0.0 else np.zeros(design.N + 1 - design.m)
         """α^i for i = m … N: w_{t+i} = r − α^i (r − Y_t) (zeros without a reference trajectory)."""
 
@@ -345,10 +340,7 @@ class SOPDTPredictive:
         self.e = r - y
         u_prev = self.u
         if measured:
-            v = u_prev + self.X_p * float(np.dot(self.weights, errors))
-            rate = self.du_max * self.T if self.du_max > 0.0 else math.inf
-            v = min(max(v, u_prev - rate), u_prev + rate)
-            self.u = min(max(v, self.u_min), self.u_max)
+            self.u = self.limits.apply(u_prev + self.X_p * float(np.dot(self.weights, errors)), u_prev)
         self._u_past.appendleft(self.u)
         self._Y_past.appendleft(y)
         return self.u

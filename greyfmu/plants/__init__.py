@@ -1,4 +1,4 @@
-"""Plant models as plain classes integrated exactly or accurately over a caller's step."""
+"""Plant models following `greyfmu.contract.Plant`, integrated exactly or accurately over a caller's step."""
 
 from greyfmu.plants.delay import DelayLine
 from greyfmu.plants.fopdt import FOPDT

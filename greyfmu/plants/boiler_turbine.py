@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from greyfmu.plants.integration import rk4
+
 #: Thesis (4.2b): rate limits of fuel, governor and feedwater valves [%/s].
 THESIS_RATES = (0.7, 2.0, 5.0)
 #: The thesis's variant-pressure operating line, ch. 4: load [MW] -> throttle pressure [kgf/cm²]
@@ -150,6 +152,7 @@ class BoilerTurbine:
         self.reset()
 
     def reset(self) -> None:
+        """Back to the start operating point (state, valve positions, no disturbance)."""
         self.x = self.start.state.copy()
         self.actuators = [Actuator(p, r) for p, r in zip(self.start.valves, self.rates)]
         self.fuel_disturbance = 0.0
@@ -162,24 +165,18 @@ class BoilerTurbine:
     def level(self) -> float:
         return drum_level(self.x, self.valves, self.fuel_disturbance)
 
-    def advance(self, h: float, commands: Sequence[float], fuel_disturbance: float = 0.0) -> None:
-        """Integrate [t, t + h] with the commands [%] and the fuel disturbance [%] held."""
-        paths = [a.trajectory(c, h) for a, c in zip(self.actuators, commands)]
-        n = max(1, math.ceil(h / self.max_substep - 1e-9))
-        dt = h / n
-        x = self.x
+    def advance(self, t: float, h: float, u: Sequence[float], d: float = 0.0) -> np.ndarray:
+        """Integrate [t, t + h] with the valve commands u = (fuel, governor, feedwater) [%] and the fuel
+        disturbance d [%] held; returns the outputs y = (P, E, L) at t + h (the unit is time-invariant:
+        t only follows the ``Plant`` contract)."""
+        fuel_disturbance = d
+        paths = [a.trajectory(c, h) for a, c in zip(self.actuators, u)]
 
         def f(s: float, state: np.ndarray) -> np.ndarray:
             return derivatives(state, [Actuator.at(p, s) for p in paths], fuel_disturbance)
 
-        for i in range(n):
-            s = i * dt
-            k1 = f(s, x)
-            k2 = f(s + dt / 2, x + dt / 2 * k1)
-            k3 = f(s + dt / 2, x + dt / 2 * k2)
-            k4 = f(s + dt, x + dt * k3)
-            x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        self.x = x
+        self.x = rk4(f, self.x, h, self.max_substep)
         for a, p in zip(self.actuators, paths):
             a.position = Actuator.at(p, h)
         self.fuel_disturbance = fuel_disturbance
+        return np.array([self.x[0], self.x[1], self.level])

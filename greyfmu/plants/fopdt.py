@@ -48,5 +48,6 @@ class FOPDT:
         return self._lag.y
 
     def reset(self) -> None:
+        """Back to the equilibrium at y0 (input y0/K on all of the past)."""
         self._lag.reset()
         self._inputs.reset()

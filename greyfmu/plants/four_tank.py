@@ -78,6 +78,7 @@ class FourTank:
         self.reset()
 
     def reset(self) -> None:
+        """Back to the levels h0 at k = 0."""
         self.h = self.h0.copy()
         self.k = 0
         self._root3 = DelayLine(math.sqrt(self.h0[2]))

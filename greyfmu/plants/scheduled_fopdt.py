@@ -143,6 +143,7 @@ class ScheduledFOPDT:
         self.reset()
 
     def reset(self) -> None:
+        """Back to x = y = y0 on all of the past."""
         self.t: float | None = None
         self.x = self.y0
         self._x_history = _History(self.y0)

@@ -67,5 +67,6 @@ class SecondOrder:
         return self.y
 
     def reset(self) -> None:
+        """Back to rest at y0 (input y0/K on all of the past)."""
         self._inputs.reset()
         self._state = np.array([self.y0, 0.0])

@@ -35,6 +35,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq, minimize_scalar
 
+from greyfmu.plants.integration import rk4
+
 
 @dataclass(frozen=True)
 class HeaderParameters:
@@ -92,6 +94,7 @@ class SteamHeader:
         self.reset()
 
     def reset(self) -> None:
+        """Back to the equilibrium of ``u0``, ``v0``."""
         self.x = self.x0.copy()
 
     def equilibrium(self, u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -121,23 +124,16 @@ class SteamHeader:
             ]
         )
 
-    def advance(self, h: float, u: ArrayLike, v: ArrayLike) -> None:
-        """Integrate over a step of length h with firing demands u (p.u.) and valve openings v (fraction)."""
+    def advance(self, t: float, h: float, u: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
+        """Integrate [t, t + h] with firing demands u (p.u.) and valve openings v (fraction) held; returns
+        the header pressures at t + h (time-invariant: t only follows the ``Plant`` contract)."""
         if h < 0.0:
             raise ValueError(f"SteamHeader: step h must be >= 0, got {h}")
         u, v = np.asarray(u, dtype=float), np.clip(np.asarray(v, dtype=float), 0.0, None)
         if h == 0.0:
-            return
-        n = max(1, math.ceil(h / self.max_substep - 1e-9))
-        dt = h / n
-        x = self.x
-        for _ in range(n):
-            k1 = self.derivative(x, u, v)
-            k2 = self.derivative(x + 0.5 * dt * k1, u, v)
-            k3 = self.derivative(x + 0.5 * dt * k2, u, v)
-            k4 = self.derivative(x + dt * k3, u, v)
-            x = x + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        self.x = x
+            return self.pressures
+        self.x = rk4(lambda _, x: self.derivative(x, u, v), self.x, h, self.max_substep)
+        return self.pressures
 
     @property
     def pressures(self) -> NDArray[np.float64]:
@@ -172,7 +168,7 @@ def excitation_run(
     v = np.asarray(plant.v0, dtype=float)
     for k in range(samples):
         Y[k] = plant.pressures
-        plant.advance(Ts, M[k], v)
+        plant.advance(k * Ts, Ts, M[k], v)
     return Y, M
 
 

@@ -18,7 +18,7 @@ from greyfmu.signals.clock import SampleClock
 
 
 class StochasticLTI:
-    """``advance(t, h, u)`` integrates [t, t + h] exactly with u held from t (zero-order hold); ``output(d)``.
+    """``advance(t, h, u, d)`` integrates [t, t + h] exactly with u held from t (zero-order hold), returns ``output(d)``.
 
     The step is split where any delayed input switches and where a new noise sample starts; each
     piece is solved with ``e^{Aδ}`` and ``∫_0^δ e^{As} ds`` (exact for singular A), so the result
@@ -49,6 +49,7 @@ class StochasticLTI:
         self.reset()
 
     def reset(self) -> None:
+        """Back to x0 at t0 with empty input histories and the noise sequence from its start."""
         self.x = self.x0.copy()
         self._inputs = [DelayLine(0.0) for _ in range(self.B.shape[1])]
         self._rng = np.random.default_rng(self.seed)
@@ -73,8 +74,8 @@ class StochasticLTI:
         """Value at time s of the held signal recorded in ``line``."""
         return next(line.segments(s, 0.0, 0.0))[1]
 
-    def advance(self, t: float, h: float, u: np.ndarray) -> None:
-        """Integrate over [t, t + h] with the input u held from t."""
+    def advance(self, t: float, h: float, u: np.ndarray, d: np.ndarray | float = 0.0) -> np.ndarray:
+        """Integrate over [t, t + h] with the input u held from t; returns the output ``output(d)`` at t + h."""
         if h < 0.0:
             raise ValueError(f"StochasticLTI: step h must be >= 0, got {h}")
         u = np.asarray(u, dtype=float)
@@ -102,3 +103,4 @@ class StochasticLTI:
         for line in self._inputs:
             line.prune(t + h, longest)
         self.time = t + h
+        return self.output(d)

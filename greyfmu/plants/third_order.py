@@ -91,5 +91,6 @@ class ThirdOrderPlant:
         return self.y
 
     def reset(self) -> None:
+        """Back to the equilibrium at y0 (input y0/K on all of the past)."""
         self.x = np.full(3, self.y0 / self.K)
         self._inputs.reset()

@@ -15,22 +15,22 @@ _BLOCK = 1024
 class BandLimitedWhiteNoise:
     """Held Gaussian samples approximating white noise of power spectral density ``power``.
 
-    Sample j is drawn from N(0, power/sample_time) and held on
-    ``[t0 + j·sample_time, t0 + (j+1)·sample_time)``, as Simulink's Band-Limited White
-    Noise block does (its "noise power" is the PSD height; dividing by the sample time
+    Sample j is drawn from N(0, power/Ts) and held on
+    ``[t0 + j·Ts, t0 + (j+1)·Ts)``, as Simulink's Band-Limited White
+    Noise block does (its "noise power" is the PSD height; dividing by the sample time Ts
     keeps the integrated power independent of it).  The sequence is that of
     ``numpy.random.default_rng(seed).standard_normal()``, so ``value(t)`` depends only on
     the parameters and ``t``, not on how often or in which order it is asked.
     Times before ``t0`` return sample 0.
     """
 
-    def __init__(self, power: float, sample_time: float, seed: int = 0, t0: float = 0.0) -> None:
+    def __init__(self, power: float, Ts: float, seed: int = 0, t0: float = 0.0) -> None:
         if not (math.isfinite(power) and power >= 0.0):
             raise ValueError(f"BandLimitedWhiteNoise: power must be a finite number >= 0, got {power}")
         self.power = power
         self.seed = seed
-        self.clock = SampleClock(sample_time, t0)
-        self._scale = math.sqrt(power / sample_time)
+        self.clock = SampleClock(Ts, t0)
+        self._scale = math.sqrt(power / Ts)
         self._rng = np.random.default_rng(seed)
         self._block_index = -1
         self._block = np.empty(0)

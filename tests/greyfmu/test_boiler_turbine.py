@@ -55,9 +55,9 @@ def test_unreachable_level_is_refused():
 def test_actuators_obey_the_thesis_rate_limits():
     unit = BoilerTurbine(equilibrium(76.0))
     start = unit.valves
-    unit.advance(10.0, (100.0, 0.0, 100.0))
+    unit.advance(0.0, 10.0, (100.0, 0.0, 100.0))
     assert unit.valves == pytest.approx((start[0] + 7.0, start[1] - 20.0, start[2] + 50.0))
-    unit.advance(100.0, (-5.0, 150.0, 60.0))
+    unit.advance(10.0, 100.0, (-5.0, 150.0, 60.0))
     assert unit.valves == pytest.approx((0.0, 100.0, 60.0))       # clipped to 0..100 %
 
 
@@ -65,8 +65,8 @@ def test_result_does_not_depend_on_the_communication_step():
     runs = {}
     for h in (0.1, 1.0, 5.0):
         unit = BoilerTurbine(equilibrium(76.0))
-        for _ in range(int(round(200 / h))):
-            unit.advance(h, (45.0, 70.0, 52.0), fuel_disturbance=2.0)
+        for k in range(int(round(200 / h))):
+            unit.advance(k * h, h, (45.0, 70.0, 52.0), d=2.0)
         runs[h] = unit.x.copy()
     assert np.max(np.abs(runs[0.1] - runs[5.0])) < 1e-6
     assert np.max(np.abs(runs[0.1] - equilibrium(76.0).state)) > 1.0       # it did move

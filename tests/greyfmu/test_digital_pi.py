@@ -125,7 +125,7 @@ def test_disc_lqr_is_the_lq_gain_of_the_scaled_system():
 @pytest.mark.parametrize("alpha, beta", [(0.2, 0.7), (1.0, 0.0)])
 def test_ch47_poles_in_the_disc(alpha, beta):
     example = ch47()
-    design = design_digital_pi(example.plant, example.T, example.tau, alpha, beta, 10.0, 1.0)
+    design = design_digital_pi(example.plant, example.Ts, example.tau, alpha, beta, 10.0, 1.0)
     assert design.closed_loop_poles.size == 8                                  # the paper's 8×8 loop
     assert in_disc(design.closed_loop_poles, alpha, beta)
     np.testing.assert_allclose(reference_dc_gain(design), np.eye(2), atol=1e-9)
@@ -137,7 +137,7 @@ def test_ch47_example_2_design():
     3 of 8 are reproduced: the slow pole 0.9998 (the plant zero −0.018 mapped to e^{−0.018 T}) and the two
     delay poles at z ≈ 0 (0.0001, 0)."""
     example = ch47()
-    design = design_digital_pi(example.plant, example.T, example.tau, 1.0, 0.0, 10.0, 1.0)
+    design = design_digital_pi(example.plant, example.Ts, example.tau, 1.0, 0.0, 10.0, 1.0)
     poles = design.closed_loop_poles
     assert np.min(np.abs(poles - 0.9998)) < 5e-5
     paper = [0.9998, 0.4697 + 0.0613j, 0.4697 - 0.0613j, 0.4990 + 0.0100j, 0.4990 - 0.0100j, 0.4799, 0.0001, 0.0]
@@ -150,7 +150,7 @@ def test_ch47_example_2_design():
 @pytest.mark.parametrize("alpha, beta", [(1.0, 0.0), (0.3, 0.7), (0.2, 0.7)])
 def test_wood_berry_poles_in_the_disc(alpha, beta):
     example = wood_berry()
-    design = design_digital_pi(example.plant, example.T, example.tau, alpha, beta, 10.0, 1.0)
+    design = design_digital_pi(example.plant, example.Ts, example.tau, alpha, beta, 10.0, 1.0)
     assert design.augmented.order == 4 + 8 * 2      # τ = 7 + T/2 min: d = 8 samples of u1 held
     assert in_disc(design.closed_loop_poles, alpha, beta)
     np.testing.assert_allclose(reference_dc_gain(design), np.eye(2), atol=1e-8)
@@ -159,7 +159,7 @@ def test_wood_berry_poles_in_the_disc(alpha, beta):
 
 def test_controller_class_equals_the_closed_loop_matrices():
     example = ch47()
-    design = design_digital_pi(example.plant, example.T, example.tau, 1.0, 0.0, 10.0, 1.0)
+    design = design_digital_pi(example.plant, example.Ts, example.tau, 1.0, 0.0, 10.0, 1.0)
     A, B_r, _, C_y, _ = closed_loop(design)
     aug = design.augmented
     controller = DigitalPI.from_design(design)
@@ -228,11 +228,11 @@ def test_paper_disc_accepted_with_its_residual_reported():
     former 1e-6 threshold refused this design), yet every pole lies in the disc (max |z − β|/α = 0.878)."""
     example = wood_berry()
     assert (example.alpha, example.beta) == (0.2, 0.7)
-    design = design_digital_pi(example.plant, example.T, example.tau, 0.2, 0.7, 10.0, 1.0)
+    design = design_digital_pi(example.plant, example.Ts, example.tau, 0.2, 0.7, 10.0, 1.0)
     assert 1e-6 < design.riccati_backward_error < 0.1
     radius = np.abs(design.closed_loop_poles - 0.7).max() / 0.2
     assert radius == pytest.approx(0.878, abs=2e-3)
-    unit = design_digital_pi(example.plant, example.T, example.tau, *UNIT_DISC, 10.0, 1.0)
+    unit = design_digital_pi(example.plant, example.Ts, example.tau, *UNIT_DISC, 10.0, 1.0)
     assert unit.riccati_backward_error < 1e-12
 
 
@@ -253,7 +253,7 @@ def test_divergent_innovation_observer_refused():
     example = ch47()
     plant = ContinuousPlant(example.plant.A, example.plant.B, example.plant.C, np.zeros((4, 2)))
     with pytest.raises(DesignError, match="innovation observer would diverge"):
-        design_digital_pi(plant, example.T, example.tau, 1.0, 0.0, 10.0, 1.0)
+        design_digital_pi(plant, example.Ts, example.tau, 1.0, 0.0, 10.0, 1.0)
 
 
 # --- property: random stabilisable systems ----------------------------------------------------------------------
@@ -301,7 +301,7 @@ def test_fraction_of_random_systems_designed():
 def test_block_companion_form(make):
     """(12)-(13): x = T_o x_o gives G_o = T_o⁻¹ G T_o in block companion form and C_o = C T_o = [I, 0]."""
     example = make()
-    discrete = c2d(example.plant, example.T, example.tau)
+    discrete = c2d(example.plant, example.Ts, example.tau)
     companion = block_companion(discrete.G, discrete.C)
     np.testing.assert_allclose(companion.to_companion(discrete.G @ companion.T_o), companion.Go, atol=1e-12)
     np.testing.assert_allclose(discrete.C @ companion.T_o, np.hstack([np.eye(2), np.zeros((2, 2))]), atol=1e-12)
@@ -319,7 +319,7 @@ def test_armax_14_holds_with_K_equal_D_minus_G(make):
     """The plant's samples satisfy (14) exactly with G_oi of (13) and D_i = G_oi + K_oi, K_o = T_o⁻¹ Γ: least
     squares on closed-loop data with the true innovations in the regressor returns them to 1e-9."""
     example = make()
-    discrete = c2d(example.plant, example.T, example.tau)
+    discrete = c2d(example.plant, example.Ts, example.tau)
     companion = block_companion(discrete.G, discrete.C)
     lags = augment_delay(discrete).lags
     N = 600
@@ -387,7 +387,7 @@ def test_els_convergence_condition_fails_for_both_plants(make, margin):
     """C(z) = I + D_1 z⁻¹ + D_2 z⁻² of the true innovation model: C⁻¹ − I/2 is not strictly positive real
     (CH-47: a root of C at 0.99982, the plant zero −0.018 seen by the Kalman predictor)."""
     example = make()
-    discrete = c2d(example.plant, example.T, example.tau)
+    discrete = c2d(example.plant, example.Ts, example.tau)
     companion = block_companion(discrete.G, discrete.C)
     D = companion.Go_blocks + companion.to_companion(discrete.Gamma).reshape(2, 2, 2)
     assert els_convergence_margin(D) == pytest.approx(margin, abs=0.01)

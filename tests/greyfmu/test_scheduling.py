@@ -211,8 +211,8 @@ def test_scheduled_pid_uses_the_pid_integral_modes_worked_example():
     for mode, expected in ((1, 60.5), (2, 100.5), (3, 5.0 * (60.0 / 4.5 + 0.1))):
         gains = iter([Gains(4.5, 15.0, 0.0), Gains(5.0, 10.0, 0.0)])
         pid = GainScheduledPID(lambda _: next(gains), 1.0, integral_mode=mode, u0=60.0)
-        assert pid.step(0.0, 0.0, None) == 60.0
-        assert pid.step(1.0, 0.0, None) == pytest.approx(5.0 + expected, abs=1e-12)
+        assert pid.step(0.0, 0.0, W=None) == 60.0
+        assert pid.step(1.0, 0.0, W=None) == pytest.approx(5.0 + expected, abs=1e-12)
         assert pid.pid.I == integral_step(mode, 60.0, 1.0, 5.0, 10.0, 4.5, 15.0, 1.0)
 
 
@@ -227,21 +227,21 @@ def test_scheduled_pid_equals_a_pid_with_the_same_gain_sequence():
             if plain is None:
                 plain = PID(*gains, 0.1, integral_mode=mode, u0=1.0)
             plain.set_gains(*gains)
-            assert scheduled.step(r, y, w) == plain.step(r, y)
+            assert scheduled.step(r, y, W=w) == plain.step(r, y)
             assert scheduled.gains == gains
 
 
 def test_scheduled_pid_holds_the_gains_on_a_nan_scheduling_variable(caplog):
     pid = GainScheduledPID(GainSchedule(BTG), 1.0)
-    pid.step(1.0, 0.0, 100.0)
+    pid.step(1.0, 0.0, W=100.0)
     held = pid.gains
     with caplog.at_level(logging.WARNING):
-        u = pid.step(1.0, 0.0, math.nan)
+        u = pid.step(1.0, 0.0, W=math.nan)
     assert math.isfinite(u) and pid.gains == held and pid.held_samples == 1
     assert "holding" in caplog.text
     fresh = GainScheduledPID(GainSchedule(BTG), 1.0)
     with pytest.raises(ValueError):
-        fresh.step(1.0, 0.0, math.nan)
+        fresh.step(1.0, 0.0, W=math.nan)
     assert fresh.u == 0.0 and fresh.gains is None
 
 

@@ -24,21 +24,21 @@ from greyfmu.control import (
 )
 from greyfmu.plants import ThirdOrderPlant
 
-START = dict(K=1.2, T0=200.0, tau=90.0, T=40.0)  # the paper's starting data (§3)
+START = dict(K=1.2, T0=200.0, tau=90.0, Ts=40.0)  # the paper's starting data (§3)
 DESIGNS = [
     dict(START),
     dict(START, xi=1.0, X_k=2.0, X_t=0.7, X_d=1.6),
     dict(START, xi=0.3, X_t=1.4, X_d=0.2),  # m = 0
     dict(START, X_d=0.5),  # m = 1
-    dict(K=2.0, T0=10.0, tau=29.0, T=3.0),  # m = 9, N = 19
-    dict(K=1.0, T0=5.0, tau=60.0, T=4.0, X_d=1.1),  # m = 16 = N − 2
-    dict(K=1.0, T0=5.0, tau=60.0, T=4.0, X_d=1.15),  # m = 17 = N − 1: (15) degenerates to (7)
+    dict(K=2.0, T0=10.0, tau=29.0, Ts=3.0),  # m = 9, N = 19
+    dict(K=1.0, T0=5.0, tau=60.0, Ts=4.0, X_d=1.1),  # m = 16 = N − 2
+    dict(K=1.0, T0=5.0, tau=60.0, Ts=4.0, X_d=1.15),  # m = 17 = N − 1: (15) degenerates to (7)
 ]
 
 
 def design_of(case):
     case = dict(case)
-    return sopdt_design(case.pop("K"), case.pop("T0"), case.pop("tau"), case.pop("T"), **case)
+    return sopdt_design(case.pop("K"), case.pop("T0"), case.pop("tau"), case.pop("Ts"), **case)
 
 
 def same_design(a, b):
@@ -60,8 +60,8 @@ def test_starting_data_give_the_printed_m_and_N():
     assert (d.T1, d.T2) == pytest.approx((140.0, 60.0))  # (2) with ξ = 0.6, X_t = 1
     low, high = sampling_time_range(200.0, 90.0)
     assert low < 40.0 <= high and (low, high) == pytest.approx((690 / 21, 46.0))
-    for T in (low * 1.0001, high):  # the ends of the advised range give N = 20 and N = 15
-        assert design_of(dict(START, T=T)).N in (15, 20)
+    for Ts in (low * 1.0001, high):  # the ends of the advised range give N = 20 and N = 15
+        assert design_of(dict(START, Ts=Ts)).N in (15, 20)
 
 
 def test_coefficients_are_the_poles_and_gain_of_model_1():
@@ -184,7 +184,7 @@ def test_retune_reruns_the_offline_part_and_keeps_the_history():
     controller.retune(tau=130.0)  # the operator changes τ: m and N change (paper §2)
     assert (controller.design.m, controller.design.N) == (3, 18)
     controller.retune(X_d=1.5, X_k=2.0, xi=1.0, X_t=0.8, K=1.0, T0=180.0)
-    assert same_design(controller.design, design_of(dict(K=1.0, T0=180.0, tau=130.0, T=40.0, xi=1.0, X_k=2.0, X_t=0.8, X_d=1.5)))
+    assert same_design(controller.design, design_of(dict(K=1.0, T0=180.0, tau=130.0, Ts=40.0, xi=1.0, X_k=2.0, X_t=0.8, X_d=1.5)))
     assert controller.u == u
     d = controller.design
     expected = u + 0.6 * float(np.dot(law_weights(d, 7), 1.0 - free_response(d, (0.0, 0.0, 0.0), np.array([u, 0.0, 0.0, 0.0]))[d.m :]))
@@ -201,13 +201,13 @@ def test_horizon_above_the_papers_limit_of_20_warns_and_still_designs():
     """Paper (abstract, §4): N "limited at maximum 20"; 20 < N <= 40 is designed with a HorizonWarning."""
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # N = 15 ... 20: no warning
-        assert [design_of(dict(START, T=T)).N for T in (46.0, 40.0, 34.5)] == [15, 17, 20]
-    with pytest.warns(HorizonWarning, match=r"horizon N = \[\(tau \+ 3 T0\)/T\] = 23 exceeds the paper's limit of 20 "
-                      r"\(N in 15\.\.20\); for T0 = 200 s, tau = 90 s choose T in \(32\.86, 46\] s instead of T = 30 s"):
-        d = design_of(dict(START, T=30.0))
+        assert [design_of(dict(START, Ts=Ts)).N for Ts in (46.0, 40.0, 34.5)] == [15, 17, 20]
+    with pytest.warns(HorizonWarning, match=r"horizon N = \[\(tau \+ 3 T0\)/Ts\] = 23 exceeds the paper's limit of 20 "
+                      r"\(N in 15\.\.20\); for T0 = 200 s, tau = 90 s choose Ts in \(32\.86, 46\] s instead of Ts = 30 s"):
+        d = design_of(dict(START, Ts=30.0))
     assert d.N == 23
     with pytest.warns(HorizonWarning):
-        SOPDTPredictive(**{**START, "T": 17.0})  # N = 40, the largest accepted
+        SOPDTPredictive(**{**START, "Ts": 17.0})  # N = 40, the largest accepted
 
 
 def test_dominant_time_constant_rule():
@@ -228,8 +228,8 @@ def test_dominant_time_constant_rule():
         (dict(tau=-1.0), r"tau must be a finite number >= 0"),
         (dict(xi=0.0), r"xi must lie in \(0, 1\]"),
         (dict(xi=1.2), r"xi must lie in \(0, 1\]"),
-        (dict(T=10.0), r"N = \[\(tau \+ 3 T0\)/T\] = 69 exceeds 40; allowed N <= 40"),
-        (dict(X_d=8.0), r"m = \[X_d tau/T\] = 18 must be less than the horizon N = 17 \(allowed 0 <= m <= 16\)"),
+        (dict(Ts=10.0), r"N = \[\(tau \+ 3 T0\)/Ts\] = 69 exceeds 40; allowed N <= 40"),
+        (dict(X_d=8.0), r"m = \[X_d tau/Ts\] = 18 must be less than the horizon N = 17 \(allowed 0 <= m <= 16\)"),
         (dict(X_p=1.5), r"X_p must lie in \(0, 1\]"),
         (dict(law=8), r"law must be 7, 12 or 15"),
     ],

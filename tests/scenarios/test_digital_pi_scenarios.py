@@ -17,7 +17,7 @@ def at(result, name, t):
 
 
 def design_of(example):
-    return design_digital_pi(example.plant, example.T, example.tau, example.alpha, example.beta, example.q, example.r)
+    return design_digital_pi(example.plant, example.Ts, example.tau, example.alpha, example.beta, example.q, example.r)
 
 
 @pytest.fixture(scope="module", params=sorted(CASES))
@@ -32,7 +32,7 @@ def test_static_decoupling_and_disturbance_rejection(deterministic):
     name, result = deterministic
     t2, t3, t4, stop = CASES[name][1]
     for t, expected in [(t2, (1.0, 0.0)), (t3, (1.0, 1.0)), (t4, (1.0, 1.0)), (stop, (1.0, 1.0))]:
-        before = t - CASES[name][0]().T
+        before = t - CASES[name][0]().Ts
         assert at(result, "plant.y1", before) == pytest.approx(expected[0], abs=5e-3)
         assert at(result, "plant.y2", before) == pytest.approx(expected[1], abs=5e-3)
 
@@ -43,7 +43,7 @@ def test_cosimulation_equals_the_designed_discrete_loop(deterministic):
     example = CASES[name][0]()
     A, B_r, _, C_y, _ = closed_loop(design_of(example))
     xi = np.zeros(A.shape[0])
-    steps = int(round(CASES[name][1][0] / example.T))
+    steps = int(round(CASES[name][1][0] / example.Ts))
     expected = []
     for _ in range(steps):
         expected.append(C_y @ xi)

@@ -120,7 +120,7 @@ def test_horizon_rule_N_at_most_20_is_not_what_decides_stability():
     are not; the X_k at which stability is lost grows with the unmodelled dead time τ + master step − m·T,
     whatever N is."""
     periods = (20.0, 28.0, 32.0, 40.0, 46.0, 50.0, 64.0, 80.0)
-    rows = {T: design_row({"T": T}) for T in periods}
+    rows = {T: design_row({"Ts": T}) for T in periods}
     for T, (controller, rho, _) in rows.items():
         N = controller.design.N
         if N > 20:
@@ -230,4 +230,4 @@ def test_horizon_above_20_is_warned_in_the_fmu_log(controller_fmu, capfd):
     fmu.setReal([refs["T0"]], [300.0])
     fmu.doStep(0.0, 40.0)
     assert fmu.getReal([refs["N"]]) == [24.0]
-    assert "horizon N = [(tau + 3 T0)/T] = 24 exceeds the paper's limit of 20" in capfd.readouterr().out
+    assert "horizon N = [(tau + 3 T0)/Ts] = 24 exceeds the paper's limit of 20" in capfd.readouterr().out

@@ -31,16 +31,19 @@ class DigitalPI:
 
     @classmethod
     def from_design(cls, design: DigitalPIDesign) -> DigitalPI:
+        """The controller of a design (its augmented observer model and gains)."""
         a = design.augmented
         return cls(a.Gp, a.Hp, a.Gammap, a.Cp, design.F, design.K1, design.K2, design.Hc)
 
     def reset(self) -> None:
+        """Back to zero observer state, integrator, output and error."""
         self.x_hat = np.zeros(self.Gp.shape[0])
         self.z = np.zeros(self.Hc.shape[0])
         self.u = np.zeros(self.Hp.shape[1])
         self.e = np.zeros(self.Cp.shape[0])
 
     def step(self, r: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """One sample with set-points r and measurements y; returns u(k) (law (18)/(36), then the observer update)."""
         y = np.asarray(y, dtype=float)
         self.e = np.asarray(r, dtype=float) - y
         self.u = -self.F @ self.x_hat - self.K2 @ self.z + self.K1 @ self.e

@@ -33,7 +33,7 @@ class DigitalPIDesign:
     ``riccati_backward_error`` is the relative residual of (26) (`DiscLQR.backward_error`), reported.
     """
 
-    T: float
+    Ts: float
     alpha: float
     beta: float
     discrete: DiscretePlant
@@ -66,7 +66,7 @@ def _weight(value: float | np.ndarray, size: int) -> np.ndarray:
     return matrix * np.eye(size) if matrix.ndim == 0 else matrix
 
 
-def design_digital_pi(plant: ContinuousPlant, T: float, tau: float | np.ndarray, alpha: float, beta: float,
+def design_digital_pi(plant: ContinuousPlant, Ts: float, tau: float | np.ndarray, alpha: float, beta: float,
                       Q: float | np.ndarray, R: float | np.ndarray, Hc: np.ndarray | None = None) -> DigitalPIDesign:
     """Design the centralised digital PI: discretise (5)-(8), augment (9)/(10), cascade with the PI
     (16)-(17), LQR in the disc |z − β| < α (25)-(27), K1 = G_p(0)^{-1}, split (21), observer.
@@ -75,7 +75,7 @@ def design_digital_pi(plant: ContinuousPlant, T: float, tau: float | np.ndarray,
     or matrices; ``Hc`` defaults to the identity (the paper's Example 2).  Raises `DesignError`.
     """
     K1 = static_decoupling(plant)
-    discrete = c2d(plant, T, tau)
+    discrete = c2d(plant, Ts, tau)
     aug = augment_delay(discrete)
     Hc = np.eye(plant.p) if Hc is None else np.atleast_2d(np.asarray(Hc, dtype=float))
     if Hc.shape != (plant.p, plant.p) or np.linalg.matrix_rank(Hc) < plant.p:
@@ -88,7 +88,7 @@ def design_digital_pi(plant: ContinuousPlant, T: float, tau: float | np.ndarray,
     na = aug.order
     F = Kbar[:, :na] - K1 @ aug.Cp                                    # (21), sign of K1 as in the module note
     K2 = Kbar[:, na:]                                                 # (21)
-    return DigitalPIDesign(T, alpha, beta, discrete, aug, Gbar, Hbar, Kbar, lqr.P, K1, K2, F, Hc,
+    return DigitalPIDesign(Ts, alpha, beta, discrete, aug, Gbar, Hbar, Kbar, lqr.P, K1, K2, F, Hc,
                            np.linalg.eigvals(Gbar - Hbar @ Kbar), np.linalg.eigvals(Go), lqr.backward_error)
 
 

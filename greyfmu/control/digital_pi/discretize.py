@@ -3,7 +3,7 @@
 Plant (1): ``dx/dt = A x + B u(t − τ) + V η``, ``y = C x + η``.  The input delay may be one
 number (the paper) or one delay per entry of B (``tau[i, j]`` delays ``u_j`` in row i), which
 a transfer matrix with different dead times per element (Wood–Berry) needs.  Entries with
-the same delay form one *delay term*; each term τ = (d − 1)T + τ', 0 < τ' ≤ T, γ = τ'/T (3)
+the same delay form one *delay term*; each term τ = (d − 1)Ts + τ', 0 < τ' ≤ Ts, γ = τ'/Ts (3)
 contributes ``H0 u(k − d + 1) + H1 u(k − d)`` to x(k + 1) with (6)-(7).  τ = 0 is the limit
 τ' = 0 (d = 1, γ = 0): H0 = H, H1 = 0, the delay-free model (11).
 """
@@ -60,7 +60,7 @@ class ContinuousPlant:
 
 @dataclass(frozen=True)
 class DelayTerm:
-    """One input-delay term of (4): ``x(k+1) += H0 u(k − d + 1) + H1 u(k − d)`` for a delay (d − 1)T + γT."""
+    """One input-delay term of (4): ``x(k+1) += H0 u(k − d + 1) + H1 u(k − d)`` for a delay (d − 1)Ts + γTs."""
 
     d: int
     gamma: float
@@ -76,7 +76,7 @@ class DiscretePlant:
     Gamma: np.ndarray
     C: np.ndarray
     terms: tuple[DelayTerm, ...]
-    T: float
+    Ts: float
 
     @property
     def H(self) -> np.ndarray:
@@ -94,13 +94,13 @@ class DiscretePlant:
         return self.terms[0]
 
 
-def split_delay(tau: float, T: float) -> tuple[int, float]:
-    """(3): ``τ = (d − 1)T + τ'`` with 0 < τ' ≤ T; returns (d, γ = τ'/T).  τ = 0 gives (1, 0.0)."""
-    if not (math.isfinite(T) and T > 0.0):
-        raise DesignError(f"sample time T must be a finite number > 0, got {T}")
+def split_delay(tau: float, Ts: float) -> tuple[int, float]:
+    """(3): ``τ = (d − 1)Ts + τ'`` with 0 < τ' ≤ Ts; returns (d, γ = τ'/Ts).  τ = 0 gives (1, 0.0)."""
+    if not (math.isfinite(Ts) and Ts > 0.0):
+        raise DesignError(f"sample time Ts must be a finite number > 0, got {Ts}")
     if not (math.isfinite(tau) and tau >= 0.0):
         raise DesignError(f"input delay tau must be a finite number >= 0, got {tau}")
-    periods = tau / T
+    periods = tau / Ts
     if periods <= DELAY_TOLERANCE:
         return 1, 0.0
     d = math.ceil(periods - DELAY_TOLERANCE * max(1.0, periods))
@@ -130,16 +130,16 @@ def delay_groups(B: np.ndarray, tau: float | np.ndarray) -> list[tuple[float, np
     return [(delay, np.where(tau_array == delay, B, 0.0)) for delay in delays]
 
 
-def c2d(plant: ContinuousPlant, T: float, tau: float | np.ndarray = 0.0) -> DiscretePlant:
-    """Discretise (1) at sample time T with zero-order hold: G (5), H0 (6), H1 (7), Γ (8) per delay term."""
-    split_delay(0.0, T)                           # validates T
-    G, Phi_T = integral_expm(plant.A, T)
+def c2d(plant: ContinuousPlant, Ts: float, tau: float | np.ndarray = 0.0) -> DiscretePlant:
+    """Discretise (1) at sample time Ts with zero-order hold: G (5), H0 (6), H1 (7), Γ (8) per delay term."""
+    split_delay(0.0, Ts)                           # validates Ts
+    G, Phi_T = integral_expm(plant.A, Ts)
     terms = []
     for delay, B_delay in delay_groups(plant.B, tau):
-        d, gamma = split_delay(delay, T)
-        _, Phi_early = integral_expm(plant.A, (1.0 - gamma) * T)
+        d, gamma = split_delay(delay, Ts)
+        _, Phi_early = integral_expm(plant.A, (1.0 - gamma) * Ts)
         H0 = Phi_early @ B_delay                  # (6): (G^{1−γ} − I) A^{-1} B
         H1 = (Phi_T - Phi_early) @ B_delay        # (7): (G − G^{1−γ}) A^{-1} B
         terms.append(DelayTerm(d, gamma, H0, H1))
     Gamma = Phi_T @ plant.V                       # (8): (G − I) A^{-1} V
-    return DiscretePlant(G, Gamma, plant.C, tuple(terms), T)
+    return DiscretePlant(G, Gamma, plant.C, tuple(terms), Ts)

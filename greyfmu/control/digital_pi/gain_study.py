@@ -1,7 +1,7 @@
 """The identified Kalman gain against the DARE one as the data length grows (issue 15; Zhou et al.
 (2006) (12)-(14)): the experiment behind docs/digital_pi.md's identification table.
 
-Data: the stochastic plant (1)-(2) sampled at T — the augmented discrete model (9)/(10), which the
+Data: the stochastic plant (1)-(2) sampled at Ts — the augmented discrete model (9)/(10), which the
 StochasticLTI plant reproduces exactly (tests/greyfmu/test_digital_pi.py) — driven by innovations of
 covariance Q_η and run under an LQ state feedback (unit disc, Q = I, R = I: any stabilising
 controller would do; CH-47 is open-loop unstable) plus a white dither on every input.  ELS sees
@@ -59,7 +59,7 @@ class GainComparison:
 
 def closed_loop_records(example: Example, N: int, seed: int, dither: float) -> tuple[np.ndarray, np.ndarray]:
     """(y, u) records of N samples of the plant under the data-collection loop described above."""
-    aug = augment_delay(c2d(example.plant, example.T, example.tau))
+    aug = augment_delay(c2d(example.plant, example.Ts, example.tau))
     feedback = dlqr_disc(aug.Gp, aug.Hp, np.eye(aug.order), np.eye(aug.Hp.shape[1])).K
     rng = np.random.default_rng(seed)
     p, m = aug.Cp.shape[0], aug.Hp.shape[1]
@@ -90,7 +90,7 @@ def markov_parameters(aug: AugmentedPlant, count: int) -> np.ndarray:
 
 def compare_gains(example: Example, N: int, seed: int, dither: float, validation: int = 4000) -> GainComparison:
     """Identify from N samples (seed) by both routes, validate on ``validation`` fresh samples (seed + 1)."""
-    discrete = c2d(example.plant, example.T, example.tau)
+    discrete = c2d(example.plant, example.Ts, example.tau)
     aug = augment_delay(discrete)
     companion = block_companion(discrete.G, discrete.C)
     r = companion.Go_blocks.shape[0]
@@ -98,7 +98,7 @@ def compare_gains(example: Example, N: int, seed: int, dither: float, validation
     y, u = closed_loop_records(example, N, seed, dither)
     y_val, u_val = closed_loop_records(example, validation, seed + 1, dither)
     keep = slice(validation // 10, None)
-    design = design_digital_pi(example.plant, example.T, example.tau, example.alpha, example.beta, example.q, example.r)
+    design = design_digital_pi(example.plant, example.Ts, example.tau, example.alpha, example.beta, example.q, example.r)
 
     def error(K: np.ndarray) -> float:
         return float(np.linalg.norm(K - K_true) / np.linalg.norm(K_true))

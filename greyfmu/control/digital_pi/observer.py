@@ -36,7 +36,7 @@ def kalman_innovation(G: np.ndarray, C: np.ndarray, W: np.ndarray, Rv: np.ndarra
     return Gamma, Q_eta
 
 
-def continuous_noise_gain(A: np.ndarray, T: float, Gamma: np.ndarray) -> np.ndarray:
-    """V of (1) whose discretisation (8) ``Γ = (G − I) A^{-1} V`` is the given Γ (η held over T)."""
-    _, Phi = integral_expm(A, T)
+def continuous_noise_gain(A: np.ndarray, Ts: float, Gamma: np.ndarray) -> np.ndarray:
+    """V of (1) whose discretisation (8) ``Γ = (G − I) A^{-1} V`` is the given Γ (η held over Ts)."""
+    _, Phi = integral_expm(A, Ts)
     return np.linalg.solve(Phi, Gamma)

@@ -27,7 +27,7 @@ def design_parameters(design: DigitalPIDesign) -> dict[str, float | int]:
     if na > MAX_ORDER or m > MAX_CHANNELS:
         raise DesignError(f"the DigitalPI FMU takes at most order {MAX_ORDER} and {MAX_CHANNELS} channels, "
                           f"the design has order {na} and {m} channels")
-    values: dict[str, float | int] = {"Ts": float(design.T), "na": int(na), "m": int(m)}
+    values: dict[str, float | int] = {"Ts": float(design.Ts), "na": int(na), "m": int(m)}
     matrices = {"Gp": a.Gp, "Hp": a.Hp, "Gammap": a.Gammap, "Cp": a.Cp, "F": design.F, "K1": design.K1,
                 "K2": design.K2, "Hc": design.Hc}
     for name, matrix in matrices.items():
@@ -39,6 +39,6 @@ def write_design_ssv(design: DigitalPIDesign, path: str | Path, component: str |
                      comment: str = "") -> Path:
     """Write the design as a parameter set for the DigitalPI FMU; with ``component`` the names are
     ``component.variable`` (a system-level set), else plain (a component's ParameterBinding)."""
-    note = comment or (f"Digital PI design (Zhou et al. 2006): T = {design.T}, alpha = {design.alpha}, "
+    note = comment or (f"Digital PI design (Zhou et al. 2006): T = {design.Ts}, alpha = {design.alpha}, "
                        f"beta = {design.beta}; written by greyfmu.control.digital_pi.write_design_ssv")
     return write_parameter_set(path, component or "controller", design_parameters(design), note, component)
