@@ -155,6 +155,8 @@ def _run(args) -> int:
         prepared.close()
     if metadata["status"] == "discarded":
         print(f"cosim: warning: {metadata['message']}", file=sys.stderr)
+    elif metadata["status"] == "terminated":
+        print(f"cosim: {metadata['message']}", file=sys.stderr)
     print(f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
     if args.plot:
         png = plot(result, panels, args.plot, title=name)
@@ -165,8 +167,12 @@ def _run(args) -> int:
 def _validate(args) -> int:
     prepared = _prepare_with_placeholder_grid(args)
     plan = prepared.plan
+    e = plan.experiment
+    stop = f"stop {e.stop_time:g} s" if e.stop_time is not None else "no stop time in the SSD (run needs --stop)"
+    step = f"step {e.step_size:g} s ({e.step_size_source})" if e.step_size is not None \
+        else "no step size in the SSD (run needs --step)"
     print(f"cosim: {args.path}: valid — {len(plan.fmus)} FMUs, {len(plan.routes)} connections, "
-          f"{len(plan.start_values)} parameter values; step {prepared.grid.step:g} s ({prepared.step_source})")
+          f"{len(plan.start_values)} parameter values; {stop}; {step}")
     prepared.close()
     return 0
 

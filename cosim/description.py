@@ -169,6 +169,11 @@ def _kind(md: ModelDescription, path: Path, implementation: str, where: str, fil
         raise SetupError(f"{path.name} is an FMI {md.fmiVersion} FMU; this master runs FMI 2.0 and 3.0 FMUs.",
                          file=file, element=where)
     has_cs, has_me = md.coSimulation is not None, md.modelExchange is not None
+    if not has_cs and not has_me:  # FMI 3.0 allows an FMU with only Scheduled Execution
+        interfaces = "only a Scheduled Execution interface" if md.scheduledExecution is not None \
+            else "neither a Co-Simulation nor a Model Exchange interface"
+        raise SetupError(f"{path.name} has {interfaces}; this master runs Co-Simulation FMUs (FMI 2.0 and 3.0) "
+                         "and FMI 2.0 Model Exchange FMUs.", file=file, element=where)
     if implementation == "CoSimulation" and not has_cs:
         raise SetupError(f"implementation='CoSimulation' but {path.name} has no Co-Simulation interface.",
                          file=file, element=where)

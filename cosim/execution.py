@@ -280,7 +280,8 @@ class Execution:
         return names, arrays
 
     def run(self, recorder: Recorder, progress=None) -> None:
-        """Step from start to stop; ``status`` ends as completed, discarded or failed."""
+        """Step from start to stop; ``status`` ends as completed, terminated (an FMU ended the run
+        after a valid step, recorded), discarded (an FMU could not complete a step) or failed."""
         grid = self.grid
         steppers = [(name, self.instances[name].do_step, self.instances[name].component) for name in self.order]
         gs = [(name, self.instances[name].do_step, self.instances[name].component)
@@ -289,6 +290,7 @@ class Execution:
         n_steps = grid.steps
         stride = max(1, n_steps // 200)
         recorder.record(grid.start)
+        self._recorder = recorder
         self.status = "running"
         started = _time.perf_counter()
         try:
@@ -304,14 +306,18 @@ class Execution:
                 t = time(k)
                 t_next = time(k + 1)
                 h = t_next - t
+                ended: list[tuple[str, str]] = []
                 if gauss_seidel:
-                    if self._gauss_seidel_step(gs, t, h, t_next):
+                    if self._gauss_seidel_step(gs, t, h, t_next, ended):
                         return
                 else:
                     for name, do_step, c in steppers:
                         s = do_step(c, t, h, 1)
-                        if s and self._step_status(s, name, t):
+                        if s and self._step_status(s, name, t, h, ended):
                             return
+                if ended:
+                    self._terminate(ended, t_next)
+                    return
                 exchange(t_next)
                 record(t_next)
                 self.last_time = t_next
@@ -319,12 +325,12 @@ class Execution:
                 progress.update(min(block + stride, n_steps) - block)
         self.status = "completed"
 
-    def _gauss_seidel_step(self, gs, t: float, h: float, t_next: float) -> bool:
+    def _gauss_seidel_step(self, gs, t: float, h: float, t_next: float, ended: list) -> bool:
         """Each FMU in dependency order: inputs from the freshest outputs, step, read outputs."""
         for name, do_step, c in gs:
             self._route_into(name, t)
             s = do_step(c, t, h, 1)
-            if s and self._step_status(s, name, t):
+            if s and self._step_status(s, name, t, h, ended):
                 return True
             for fn, cc, vr, n, ptr in self._get[name]:
                 s = fn(cc, vr, n, ptr)
@@ -332,19 +338,37 @@ class Execution:
                     self._check(s, name, t_next, "Get")
         return False
 
-    def _step_status(self, status: int, comp: str, t: float) -> bool:
-        """True when the run must end cleanly (discard); raises on error; False on warning."""
+    def _step_status(self, status: int, comp: str, t: float, h: float, ended: list[tuple[str, str]]) -> bool:
+        """After a status other than OK: False on Warning; raises on Error and Fatal.  On Discard
+        (or FMI 3.0 terminateSimulation), when the FMU's outputs are valid at the end of the step
+        (fmi2LastSuccessfulTime = t + h, or an FMI 3.0 step that completed) the component goes
+        into ``ended`` and the others still step, so that communication point is recorded
+        (`_terminate`); otherwise the run ends now at the last good time (True)."""
         if status == FMI_WARNING:
             return False
         inst = self.instances[comp]
         if status == FMI_DISCARD:
+            valid_until, reason = inst.step_end(t, h)
+            t_next = t + h
+            if valid_until is not None and math.isclose(valid_until, t_next, rel_tol=1e-12, abs_tol=1e-12):
+                ended.append((comp, reason))
+                return False
             self.status = "discarded"
-            self.message = (f"component '{comp}' ({inst.desc.path.name}) returned Discard from {inst.api}DoStep at "
-                            f"t = {t:g}; the run ended at the last good time {self.last_time:g}."
-                            f"{inst.last_messages()}")
+            self.message = (f"component '{comp}' ({inst.desc.path.name}): {reason} at t = {t:g} (step {h:g}); "
+                            f"the run ended at the last good time {self.last_time:g}.{inst.last_messages()}")
             return True
         self._check(status, comp, t, "DoStep")
         return False
+
+    def _terminate(self, ended: list[tuple[str, str]], t_end: float) -> None:
+        """FMUs ended the run after a step whose outputs are valid: record that point, then stop."""
+        self._exchange(t_end)
+        self._recorder.record(t_end)
+        self.last_time = t_end
+        self.status = "terminated"
+        self.message = "; ".join(f"component '{comp}' ({self.instances[comp].desc.path.name}): {reason} at "
+                                 f"t = {t_end:g}" for comp, reason in ended) \
+            + f"; the run ended there, that point recorded (stop time {self.grid.stop:g})."
 
     def close(self) -> None:
         for inst in self.instances.values():

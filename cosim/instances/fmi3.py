@@ -17,8 +17,8 @@ are thin closures over the raw fmi3 functions; the differences they absorb:
   the whole input array (read once, then only the master writes it) and writes
   it back whole.
 * ``fmi3DoStep`` reports ``terminateSimulation`` through an out-argument
-  (FMI 3.0 §4.2.4); the run then ends as it does after fmi2 Discard, with a
-  message.  Instances are created with ``eventModeUsed = earlyReturnAllowed =
+  (FMI 3.0 §4.2.4): ``do_step`` then returns Discard, as fmi2DoStep does, and
+  ``step_end`` says the step completed (OK or Warning: its outputs are valid).  Instances are created with ``eventModeUsed = earlyReturnAllowed =
   false``, so ``eventHandlingNeeded`` and ``earlyReturn`` carry nothing here.
 * there is no ``fmi2SetupExperiment``: start and stop time go to
   ``fmi3EnterInitializationMode`` (FMI 3.0 §2.3.2).
@@ -61,6 +61,7 @@ class FMI3Instance(InstanceBase):
         self.slave = FMU3Slave(guid=desc.md.guid, unzipDirectory=unzip_dir,
                                modelIdentifier=desc.model_identifier, instanceName=name)
         self._start, self._stop = 0.0, None
+        self._end: tuple[float | None, str] = (None, "fmi3DoStep returned Discard")
         raw = self.slave._functions
         self.do_step = self._do_step_adapter(raw["fmi3DoStep"])
         self.get = {t: self._get_adapter(t) for t in FMI3_FUNCTIONS}
@@ -75,12 +76,20 @@ class FMI3Instance(InstanceBase):
 
         def do_step(component, t: float, h: float, no_prior_state: int) -> int:
             status = raw(component, t, h, no_prior_state, *out)
-            if terminate.value and status <= FMI_WARNING:
-                self.messages.append(f"fmi3DoStep(t = {t:g}, h = {h:g}) returned {STATUS[status]} with "
-                                     "terminateSimulation = true: the run ends as after Discard")
+            if terminate.value and status <= FMI_WARNING:  # the step completed: its outputs are valid
+                self._end = (t + h, f"fmi3DoStep returned {STATUS[status]} with terminateSimulation = true")
                 return FMI_DISCARD
+            if status == FMI_DISCARD:
+                self._end = (last.value if last.value > t else None,
+                             f"fmi3DoStep returned Discard with terminateSimulation = "
+                             f"{'true' if terminate.value else 'false'} and lastSuccessfulTime = {last.value:g}")
             return status
         return do_step
+
+    def step_end(self, t: float, h: float) -> tuple[float | None, str]:
+        """What ``do_step`` kept when it ended the run: t + h after OK or Warning with
+        terminateSimulation (the step completed, FMI 3.0 §4.2.4), lastSuccessfulTime after Discard."""
+        return self._end
 
     def _get_adapter(self, type_name: str) -> Adapter:
         suffix, ctype = FMI3_FUNCTIONS[type_name]

@@ -7,6 +7,7 @@ Expected values are computed here from each FMU's documented behaviour.
 """
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -161,15 +162,24 @@ def test_pid3_is_a_valid_fmi3_fmu_with_true_dependencies():
     assert {o.variable.name: o.dependencies for o in md.outputs} == {"u": [], "e": []}
 
 
-def test_terminate_simulation_ends_the_run_like_a_discard(tmp_path, fmus):
-    """Echo3 sets terminateSimulation in fmi3DoStep once n < 0 (here n = -1 from the start)."""
+def test_terminate_simulation_records_the_step_that_asked(tmp_path, fmus):
+    """Echo3 sets terminateSimulation in fmi3DoStep once n < 0 (here n = -1 from the start), with
+    status OK: that step completed, so its communication point is recorded, as fmpy records it
+    (issue 21, item 2), and the metadata says why the run ended."""
+    import fmpy
+
     comps = {"e": ("Echo3.fmu", {"n": "input", "twice": "output"})}
     folder = _system(tmp_path, fmus, comps, [], stop=1.0, step=H, parameters={"e": {"n": -1}})
-    with pytest.warns(RuntimeWarning, match="terminateSimulation = true") as caught:
-        r = cosim.simulate(folder)
-    assert "Discard" in str(caught[0].message) and "last good time 0" in str(caught[0].message)
-    np.testing.assert_array_equal(r["time"], [0.0])
-    np.testing.assert_array_equal(r["e.twice"], [-2])
+    out = tmp_path / "o.csv"
+    r = cosim.simulate(folder, output=out)
+    reference = fmpy.simulate_fmu(str(fmus["Echo3"]), stop_time=1.0, output_interval=H, start_values={"n": -1},
+                                  output=["twice"])
+    np.testing.assert_allclose(r["time"], reference["time"], atol=1e-12)
+    np.testing.assert_array_equal(r["time"], [0.0, H])
+    np.testing.assert_array_equal(r["e.twice"], reference["twice"])
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["status"] == "terminated"
+    assert "fmi3DoStep returned OK with terminateSimulation = true at t = 0.1" in meta["message"]
 
 
 def test_fmi3_fmu_log_explains_a_failure(tmp_path):

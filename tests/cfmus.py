@@ -1,0 +1,127 @@
+"""Small FMI 2.0 and FMI 3.0 Co-Simulation FMUs compiled from C at test time (gcc), for the
+behaviours pythonfmu cannot produce: fmi2DoStep returning Discard with fmi2LastSuccessfulTime
+and fmi2Terminated, fmi3DoStep returning OK with terminateSimulation = true.
+
+A test gives the model description and the model's C body; the body defines
+
+* ``static void calculate(S *s)``: the outputs from the inputs and states (called before every
+  get, so an output that depends on an input is direct feedthrough);
+* ``static int step(S *s, double t, double h)``: advance from t by h, return the FMI status
+  (0 OK, 2 Discard); it may set ``s->terminate`` and lower ``s->last`` (the last successful time, t + h
+  unless it does).
+
+Variables are addressed by value reference into ``s->r`` (Real/Float64), ``s->i``
+(Integer/Int32) and ``s->b`` (Boolean), 64 of each; the model description's start values are
+the body's business (``static void start(S *s)``, called at instantiation).  Every other FMI
+function of the interface is a stub returning Error, so fmpy finds all the symbols it loads.
+"""
+from __future__ import annotations
+
+import re
+import subprocess
+import zipfile
+from pathlib import Path
+
+from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
+
+COMMON = r"""
+#include <stdlib.h>
+#include <string.h>
+#include <stdbool.h>
+typedef struct { double r[64]; int i[64]; int b[64]; double time; int terminate; double last; } S;
+"""
+
+FMI2 = COMMON + r"""
+typedef unsigned int VR;
+const char *fmi2GetTypesPlatform(void) { return "default"; }
+const char *fmi2GetVersion(void) { return "2.0"; }
+static void start(S *s);
+static void calculate(S *s);
+static int step(S *s, double t, double h);
+void *fmi2Instantiate(const char *n, int type, const char *guid, const char *res, const void *cb, int vis, int log) {
+    S *s = calloc(1, sizeof(S)); start(s); return s; }
+void fmi2FreeInstance(void *c) { free(c); }
+int fmi2SetDebugLogging(void *c, int on, size_t n, const char *cats[]) { return 0; }
+int fmi2SetupExperiment(void *c, int tolDef, double tol, double t0, int stopDef, double stop) {
+    ((S *)c)->time = t0; ((S *)c)->last = t0; return 0; }
+int fmi2EnterInitializationMode(void *c) { return 0; }
+int fmi2ExitInitializationMode(void *c) { return 0; }
+int fmi2Terminate(void *c) { return 0; }
+int fmi2Reset(void *c) { return 3; }
+int fmi2GetReal(void *c, const VR vr[], size_t n, double v[]) {
+    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = s->r[vr[k]]; return 0; }
+int fmi2GetInteger(void *c, const VR vr[], size_t n, int v[]) {
+    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = s->i[vr[k]]; return 0; }
+int fmi2GetBoolean(void *c, const VR vr[], size_t n, int v[]) {
+    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = s->b[vr[k]]; return 0; }
+int fmi2SetReal(void *c, const VR vr[], size_t n, const double v[]) {
+    S *s = c; for (size_t k = 0; k < n; k++) s->r[vr[k]] = v[k]; return 0; }
+int fmi2SetInteger(void *c, const VR vr[], size_t n, const int v[]) {
+    S *s = c; for (size_t k = 0; k < n; k++) s->i[vr[k]] = v[k]; return 0; }
+int fmi2SetBoolean(void *c, const VR vr[], size_t n, const int v[]) {
+    S *s = c; for (size_t k = 0; k < n; k++) s->b[vr[k]] = v[k]; return 0; }
+int fmi2DoStep(void *c, double t, double h, int noPrior) {
+    S *s = c; s->last = t + h; int status = step(s, t, h); s->time = s->last; return status; }
+int fmi2GetRealStatus(void *c, int kind, double *v) {
+    if (kind != 2) return 3; *v = ((S *)c)->last; return 0; }   /* fmi2LastSuccessfulTime */
+int fmi2GetBooleanStatus(void *c, int kind, int *v) {
+    if (kind != 3) return 3; *v = ((S *)c)->terminate; return 0; }   /* fmi2Terminated */
+"""
+
+FMI3 = COMMON + r"""
+typedef unsigned int VR;
+const char *fmi3GetVersion(void) { return "3.0"; }
+static void start(S *s);
+static void calculate(S *s);
+static int step(S *s, double t, double h);
+void *fmi3InstantiateCoSimulation(const char *n, const char *token, const char *res, bool vis, bool log,
+        bool eventMode, bool earlyReturn, const VR req[], size_t nreq, void *env, void *logger, void *inter) {
+    S *s = calloc(1, sizeof(S)); start(s); return s; }
+void fmi3FreeInstance(void *c) { free(c); }
+int fmi3SetDebugLogging(void *c, bool on, size_t n, const char *cats[]) { return 0; }
+int fmi3EnterInitializationMode(void *c, bool tolDef, double tol, double t0, bool stopDef, double stop) {
+    ((S *)c)->time = t0; ((S *)c)->last = t0; return 0; }
+int fmi3ExitInitializationMode(void *c) { return 0; }
+int fmi3Terminate(void *c) { return 0; }
+int fmi3Reset(void *c) { return 3; }
+int fmi3GetFloat64(void *c, const VR vr[], size_t n, double v[], size_t nv) {
+    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = s->r[vr[k]]; return 0; }
+int fmi3GetInt32(void *c, const VR vr[], size_t n, int v[], size_t nv) {
+    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = s->i[vr[k]]; return 0; }
+int fmi3GetBoolean(void *c, const VR vr[], size_t n, bool v[], size_t nv) {
+    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = s->b[vr[k]]; return 0; }
+int fmi3SetFloat64(void *c, const VR vr[], size_t n, const double v[], size_t nv) {
+    S *s = c; for (size_t k = 0; k < n; k++) s->r[vr[k]] = v[k]; return 0; }
+int fmi3SetInt32(void *c, const VR vr[], size_t n, const int v[], size_t nv) {
+    S *s = c; for (size_t k = 0; k < n; k++) s->i[vr[k]] = v[k]; return 0; }
+int fmi3SetBoolean(void *c, const VR vr[], size_t n, const bool v[], size_t nv) {
+    S *s = c; for (size_t k = 0; k < n; k++) s->b[vr[k]] = v[k]; return 0; }
+int fmi3DoStep(void *c, double t, double h, bool noPrior, bool *event, bool *terminate, bool *early, double *last) {
+    S *s = c; s->last = t + h; int status = step(s, t, h); s->time = s->last;
+    *event = false; *early = false; *terminate = s->terminate; *last = s->last; return status; }
+"""
+
+PLATFORM = {"2.0": "linux64", "3.0": "x86_64-linux"}
+
+
+def build_c_fmu(dest: Path, identifier: str, model_description: str, body: str, fmi: str = "2.0") -> Path:
+    """Compile ``body`` (see the module docstring) into ``dest/<identifier>.fmu`` with
+    ``model_description`` as its modelDescription.xml."""
+    prelude, api = (FMI2, FMU2Slave) if fmi == "2.0" else (FMI3, FMU3Slave)
+    prefix = "fmi2" if fmi == "2.0" else "fmi3"
+    source = prelude + body
+    defined = set(re.findall(rf"\b({prefix}\w+)\s*\(", source))
+    stubs = "".join(f"int {name}() {{ return 3; }}\n" for name in dir(api)
+                    if name.startswith(prefix) and name not in defined)
+    build = dest / f"{identifier}_build"
+    build.mkdir(parents=True, exist_ok=True)
+    (build / "model.c").write_text(source + stubs)
+    library = build / f"{identifier}.so"
+    subprocess.run(["gcc", "-std=gnu11", "-shared", "-fPIC", "-O1", "-o", str(library), str(build / "model.c")],
+                   check=True, capture_output=True, text=True)
+    fmu = dest / f"{identifier}.fmu"
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("modelDescription.xml", model_description)
+        archive.write(library, f"binaries/{PLATFORM[fmi]}/{identifier}.so")
+    return fmu
