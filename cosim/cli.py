@@ -196,7 +196,7 @@ def _info(args) -> int:
     prepared = _prepare_with_placeholder_grid(args)
     plan = prepared.plan
     e, hierarchy = plan.experiment, plan.structure.hierarchy
-    print(f"system {plan.name!r} ({plan.files.ssd_file})")
+    print(f"system {plan.name!r} ({plan.files.display})")
     print(f"  experiment: start {e.start_time}, stop {e.stop_time}, step {e.step_size} "
           f"({e.step_size_source or 'none in the SSD'}), algorithm {e.algorithm or 'jacobi'}")
     if hierarchy is not None and (hierarchy.systems or hierarchy.connectors):

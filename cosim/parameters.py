@@ -84,7 +84,7 @@ def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescri
     An open connector that gets no value is refused, naming it and what it feeds; a value for
     a connector that a connection drives is refused.
     """
-    open_connectors, driven, file = structure.open_connectors, structure.driven_connectors, str(structure.ssd_file)
+    open_connectors, driven, file = structure.open_connectors, structure.driven_connectors, structure.display
     out: list[ParameterValue] = []
     bound: set[str] = set()
     for p in values:
@@ -100,7 +100,7 @@ def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescri
         out += [_through_hops(structure, fmus, units, p, target, comp, conn, hops)
                 for comp, conn, hops in target.sinks]
     for path, target in open_connectors.items():
-        if path not in bound:
+        if path not in bound and target.sinks:
             fed = ", ".join(f"{comp}.{conn}" for comp, conn, _ in target.sinks)
             raise SetupError(f"system connector '{path}' (kind {target.kind}) has no driver and no value; it "
                              f"feeds {fed}.", file=file, element=f"ssd:Connector (line {target.line})",

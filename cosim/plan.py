@@ -39,7 +39,7 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
     """Check the structure against its FMUs (``fmu_paths``: `cosim.resources.locate_fmus`) and
     order it; ``extra_parameters`` are applied last (command-line parameter sets).  Nothing
     given is changed."""
-    file = str(structure.ssd_file)
+    file = structure.display
     fmus = {name: describe(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})", file,
                            comp.implementation)
             for name, comp in structure.components.items()}
@@ -72,7 +72,7 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
 # --------------------------------------------------------------------------- connectors and connections
 
 def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
-    file = str(structure.ssd_file)
+    file = structure.display
     outputs: dict[str, list[ModelVariable]] = {}
     inputs: dict[str, list[ModelVariable]] = {}
     for name, comp in structure.components.items():
@@ -112,7 +112,7 @@ def _check_exchangeable(desc: FMUDescription, var: ModelVariable, where: str, fi
 
 
 def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
-    file = str(structure.ssd_file)
+    file = structure.display
     routes: list[Route] = []
     driven: dict[tuple[str, str], Connection] = {}
     for c in structure.connections:
@@ -158,7 +158,7 @@ def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescriptio
 
 def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], element: str, connector: str,
               where: str) -> ModelVariable:
-    file = str(structure.ssd_file)
+    file = structure.display
     if element not in structure.components:
         raise SetupError(f"unknown component '{element}'.", file=file, element=where,
                          hint=did_you_mean(element, structure.components))
@@ -182,7 +182,7 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVar
     A Real one is recorded as the root connector's value: the output, read in its FMU's unit,
     taken hop by hop to the root connector's unit (`cosim.routing.hops_map`; the connector's own
     unit if it declares one, else the unit carried along the path)."""
-    file = str(structure.ssd_file)
+    file = structure.display
     recorded: dict[str, RecordedOutput] = {}
     for out in structure.system_outputs.values():
         where = f"ssd:Connector '{out.name}' of the root system (line {out.line})"

@@ -56,7 +56,7 @@ def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: floa
     """The time grid and algorithm of a run: the arguments given, else the SSD's default
     experiment and annotations (`cosim.structure.Experiment`); a missing stop time or step
     size, or an unknown algorithm, is refused."""
-    experiment, file = plan.experiment, str(plan.files.ssd_file)
+    experiment, file = plan.experiment, plan.files.display
     start = start_time if start_time is not None else (experiment.start_time or 0.0)
     stop = stop_time if stop_time is not None else experiment.stop_time
     if stop is None:

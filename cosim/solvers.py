@@ -35,7 +35,7 @@ def check_model_exchange(structure: SystemStructure, fmus: dict[str, FMUDescript
     ignored), and no discrete-time inputs on one, which FMI 2.0 lets an importer set only in
     Event Mode (§3.2.3) while this master sets inputs at communication points in
     Continuous-Time Mode."""
-    file = str(structure.ssd_file)
+    file = structure.display
     for name, comp in structure.components.items():
         desc = fmus[name]
         if comp.solver is not None and desc.kind != "fmi2-me":

@@ -171,8 +171,9 @@ class SystemOutput:
 
 @dataclass
 class OpenConnector:
-    """A system connector without a driver that feeds component inputs or parameters;
-    a ParameterBinding naming ``path`` gives it its (constant) value."""
+    """A system connector without a driver, and the component inputs or parameters it feeds
+    (none: a value for it has no effect); a ParameterBinding naming ``path`` gives it its
+    (constant) value."""
     path: str
     kind: str
     line: int
@@ -194,6 +195,17 @@ class ScenarioFiles:
     def source(self) -> Path:
         """What the user gave: the archive, else the SSD."""
         return self.archive or self.ssd_file
+
+    @property
+    def display(self) -> str:
+        """The SSD as messages name it: ``archive.ssp!SystemStructure.ssd`` inside an archive
+        (its extraction folder is temporary), else its path."""
+        return display_name(self.ssd_file, self.archive)
+
+
+def display_name(ssd_file: Path, archive: Path | None) -> str:
+    """`ScenarioFiles.display`."""
+    return f"{archive}!{ssd_file.name}" if archive is not None else str(ssd_file)
 
 
 @dataclass(frozen=True)
@@ -252,6 +264,11 @@ class SystemStructure:
     open_connectors: dict[str, OpenConnector] = field(default_factory=dict)
     #: paths of the system connectors a connection drives (they cannot also be given a value)
     driven_connectors: set[str] = field(default_factory=set)
+
+    @property
+    def display(self) -> str:
+        """The SSD as messages name it (`ScenarioFiles.display`)."""
+        return display_name(self.ssd_file, self.archive)
 
     def close(self) -> None:
         if self._tmp is not None:
