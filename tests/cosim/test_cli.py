@@ -72,6 +72,30 @@ def test_pack_makes_an_archive_that_validates(tmp_path, built_fmus, capsys):
     assert "valid — 2 FMUs" in capsys.readouterr().out
 
 
+def test_pack_types_every_component_for_omsimulator(tmp_path, built_fmus):
+    """OMSimulator reads only Components with type="application/x-fmu-sharedlibrary" (issue 21,
+    item 5): pack writes it where the SSD omits it and changes nothing else; the archive runs
+    as the folder does."""
+    from lxml import etree
+
+    import cosim
+
+    folder = _system(tmp_path, built_fmus, stop=1.0, step=0.5)
+    archive = tmp_path / "pair.ssp"
+    assert main(["pack", str(folder), "-o", str(archive)]) == 0
+    with zipfile.ZipFile(archive) as z:
+        packed = etree.fromstring(z.read("SystemStructure.ssd"))
+    ns = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
+    components = packed.findall(".//ssd:Component", ns)
+    assert len(components) == 2 and {c.get("type") for c in components} == {"application/x-fmu-sharedlibrary"}
+    for c in components:
+        del c.attrib["type"]
+    original = etree.parse(str(folder / "SystemStructure.ssd")).getroot()
+    assert etree.tostring(packed, method="c14n") == etree.tostring(original, method="c14n")
+    ours, theirs = cosim.simulate(archive), cosim.simulate(folder)
+    assert ours.dtype == theirs.dtype and all((ours[n] == theirs[n]).all() for n in ours.dtype.names)
+
+
 @pytest.mark.parametrize("argv, message", [
     (["sweep", "{folder}"], "nothing to sweep"),
     (["sweep", "{folder}", "--seeds", "1..2", "--workers", "0"], "--workers 0: give at least 1"),
