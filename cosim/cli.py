@@ -43,6 +43,15 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--fmu-log", choices=["errors", "all", "off"], default="errors",
                      help="FMU log messages kept to explain a failure: the FMUs' status categories "
                           "(default), every category, or none (fastest)")
+    run.add_argument("--loops", choices=["iterate", "delay"], default="iterate",
+                     help="algebraic loops of direct feedthrough: solved by iteration at every communication "
+                          "point (default), or broken by one step of delay, as libcosim runs them")
+    run.add_argument("--loop-tolerance", type=float, nargs=2, default=(1e-10, 1e-12), metavar=("RTOL", "ATOL"),
+                     help="convergence of a loop: every loop output changes by at most ATOL + RTOL·|y| in an "
+                          "iteration (default 1e-10 1e-12)")
+    run.add_argument("--loop-iterations", type=int, default=100, help="iterations before a loop fails (100)")
+    run.add_argument("--relaxation", type=float, default=1.0, help="relaxation factor in (0, 1] (1: plain "
+                                                                    "fixed point)")
     run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
     validate = sub.add_parser("validate", help="check a system without running it")
@@ -132,8 +141,13 @@ def _run(args) -> int:
     from .results import plot
     from .simulation import prepare, run, select
 
+    from .loops import LoopSettings
+
+    settings = LoopSettings(rtol=args.loop_tolerance[0], atol=args.loop_tolerance[1],
+                            max_iterations=args.loop_iterations, relaxation=args.relaxation)
     prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
-                       algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir)
+                       algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
+                       loops=args.loops)
     try:
         plan = prepared.plan
         name = plan.name or Path(args.path).stem
@@ -147,7 +161,8 @@ def _run(args) -> int:
               f"{prepared.algorithm}")
         try:
             result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
-                                   keep=[n for panel in panels for n in panel] if args.plot else [])
+                                   keep=[n for panel in panels for n in panel] if args.plot else [],
+                                   loop_settings=settings)
         except RunError:
             print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
             raise
@@ -173,6 +188,8 @@ def _validate(args) -> int:
         else "no step size in the SSD (run needs --step)"
     print(f"cosim: {args.path}: valid — {len(plan.fmus)} FMUs, {len(plan.routes)} connections, "
           f"{len(plan.start_values)} parameter values; {stop}; {step}")
+    for loop in plan.algebraic_loops:
+        print(f"cosim: algebraic loop (run solves it by iteration; --loops delay breaks it): {loop.describe()}")
     prepared.close()
     return 0
 

@@ -14,7 +14,9 @@ At every communication point (and during initialisation) the exchange reads
 all outputs, then re-reads the outputs of direct-feedthrough FMUs after
 setting their inputs, in dependency order, so a chain of feedthrough blocks
 (sums, gains) settles within the instant instead of lagging one step per
-block.  Without feedthrough this is plain Jacobi, as libcosim does it.
+block.  Without feedthrough this is plain Jacobi, as libcosim does it.  An
+algebraic loop of direct feedthrough is solved by repeating that settling sweep
+(`cosim.loops.LoopSolver`), or broken by one step of delay (``loops="delay"``).
 
 Values move through preallocated ctypes arrays with one batched get and one
 batched set per FMU and type; routing is precomputed NumPy index arrays.
@@ -24,6 +26,7 @@ from __future__ import annotations
 import ctypes
 import math
 import time as _time
+import warnings
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -32,6 +35,7 @@ import numpy as np
 from .errors import RunError, SetupError
 from .description import FMUDescription, exchange_type
 from .instances import STATUS, Instance, Unzipped, open_instance
+from .loops import LoopSettings, LoopSolver, Watched
 from .structure import Plan
 from .observers import Recorder
 
@@ -149,7 +153,8 @@ class _Typed:
 class Execution:
     """One run of a plan on a grid with an algorithm, feeding a recorder."""
 
-    def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi", fmu_log: str = "errors"):
+    def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi", fmu_log: str = "errors",
+                 loop_settings: LoopSettings | None = None):
         if algorithm not in ALGORITHMS:
             raise SetupError(f"unknown algorithm '{algorithm}'; choose one of {', '.join(ALGORITHMS)}.",
                              element="algorithm")
@@ -160,12 +165,25 @@ class Execution:
         self.order = list(plan.components)
         self.typed = [_Typed(plan, t, self.order) for t in TYPES
                       if any(exchange_type(v) == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
+        self.loop_solver = self._loop_solver(loop_settings or LoopSettings()) \
+            if plan.algebraic_loops and plan.loop_mode == "iterate" else None
+        if plan.algebraic_loops and plan.loop_mode == "delay":
+            warnings.warn("algebraic loop broken by one step of delay (--loops delay): "
+                          + "; ".join(loop.describe() for loop in plan.algebraic_loops), RuntimeWarning, stacklevel=2)
         self.instances: dict[str, Instance] = {}
         self._unzipped = Unzipped()
         self.last_time = grid.start
         self.loop_seconds = 0.0
         self.status = "not started"
         self.message = ""
+
+    def _loop_solver(self, settings: LoopSettings) -> LoopSolver:
+        """`cosim.loops.LoopSolver` over the exchange's output buffers: the loop outputs of each type."""
+        loop_outputs = {f"{c}.{v}" for loop in self.plan.algebraic_loops for c, v in loop.outputs}
+        watched = [Watched(ty.Y, np.array([i for i, n in enumerate(ty.out_names) if n in loop_outputs],
+                                          dtype=np.intp), ty.type_name == "Real")
+                   for ty in self.typed if not ty.strings]
+        return LoopSolver(self.plan.algebraic_loops, watched, settings)
 
     # ----------------------------------------------------------------- set-up
 
@@ -247,18 +265,25 @@ class Execution:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
                 self._check(s, comp, t, "Get")
-        for comp in self.plan.feedthrough_sequence:
-            self._route_into(comp, t)
-            for fn, c, vr, n, ptr in self._get[comp]:
-                s = fn(c, vr, n, ptr)
-                if s > FMI_WARNING:
-                    self._check(s, comp, t, "Get")
+        if self.loop_solver is None:
+            self._settle(t)
+        else:
+            self.loop_solver.solve(t, self._settle)
         for ty in self.typed:
             ty.route()
         for fn, c, vr, n, ptr, comp in self._all_set:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
                 self._check(s, comp, t, "Set")
+
+    def _settle(self, t: float) -> None:
+        """One sweep of the feedthrough sequence: each component's inputs set, its outputs re-read."""
+        for comp in self.plan.feedthrough_sequence:
+            self._route_into(comp, t)
+            for fn, c, vr, n, ptr in self._get[comp]:
+                s = fn(c, vr, n, ptr)
+                if s > FMI_WARNING:
+                    self._check(s, comp, t, "Get")
 
     def _route_into(self, comp: str, t: float) -> None:
         for ty in self.typed:
@@ -381,11 +406,19 @@ class Execution:
             meta["solver"] = self.plan.solvers[name].as_dict()
         return meta
 
+    def _loop_metadata(self) -> dict | None:
+        if self.loop_solver is not None:
+            return self.loop_solver.metadata()
+        if self.plan.algebraic_loops:
+            return {"mode": "delay", "loops": [loop.describe() for loop in self.plan.algebraic_loops]}
+        return None
+
     def metadata(self) -> dict:
         return {
             "algorithm": self.algorithm,
             "gauss_seidel_order": self.plan.gauss_seidel_order if self.algorithm == "gauss-seidel" else None,
             "feedthrough_sequence": self.plan.feedthrough_sequence,
+            "algebraic_loops": self._loop_metadata(),
             "start_time": self.grid.start, "stop_time": self.grid.stop, "step_size": self.grid.step,
             "status": self.status, "last_time": self.last_time, "message": self.message,
             "steps": self.grid.steps, "loop_seconds": self.loop_seconds,

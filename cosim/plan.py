@@ -16,7 +16,7 @@ from fmpy.model_description import ModelVariable
 
 from .description import FMUDescription, describe, exchange_type, unit_of
 from .errors import SetupError, did_you_mean
-from .graph import feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
+from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
 from .parameters import resolve_parameters
 from .routing import connector_unit, hops_map, source_view, transformations
 from .solvers import check_model_exchange, solvers_of
@@ -24,6 +24,8 @@ from .structure import (
     Connection,
     Experiment,
     Hop,
+    LOOP_MODES,
+    LoopMode,
     ParameterValue,
     Plan,
     RecordedOutput,
@@ -35,11 +37,14 @@ from .units import IDENTITY, SystemUnits, fmu_units
 
 
 def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
-               extra_parameters: Sequence[ParameterValue] = ()) -> Plan:
+               extra_parameters: Sequence[ParameterValue] = (), loops: LoopMode = "iterate") -> Plan:
     """Check the structure against its FMUs (``fmu_paths``: `cosim.resources.locate_fmus`) and
-    order it; ``extra_parameters`` are applied last (command-line parameter sets).  Nothing
-    given is changed."""
+    order it; ``extra_parameters`` are applied last (command-line parameter sets); ``loops``:
+    how algebraic loops are run (`cosim.loops`).  Nothing given is changed."""
     file = structure.display
+    if loops not in LOOP_MODES:
+        raise SetupError(f"unknown loop handling '{loops}'; choose one of {', '.join(LOOP_MODES)}.",
+                         element="--loops")
     fmus = {name: describe(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})", file,
                            comp.implementation)
             for name, comp in structure.components.items()}
@@ -52,9 +57,13 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
     system_outputs = _system_outputs(structure, outputs, units)
     recorded_units = _recorded_units(structure, outputs, inputs, system_outputs)
     dependencies = {name: desc.output_dependencies for name, desc in fmus.items()}
-    order = variable_order(routes, {c: [v.name for v in vs] for c, vs in outputs.items()}, dependencies,
-                           file)
+    output_names = {c: [v.name for v in vs] for c, vs in outputs.items()}
+    found = algebraic_loops(routes, output_names, dependencies)
+    order = variable_order(routes, output_names, dependencies, file, cut=found)
     feedthrough = feedthrough_sequence(order, routes, dependencies)
+    if loops == "delay":  # a component on a loop is read once per communication point, as libcosim reads all
+        delayed = {c for loop in found for c in loop.components}
+        feedthrough = [c for c in feedthrough if c not in delayed]
     read_once, set_once = settling_shortcuts(feedthrough, routes)
     return Plan(structure=structure, name=structure.name, system_name=structure.system_name,
                 files=ScenarioFiles(structure.ssd_file, structure.base_dir, structure.archive),
@@ -63,6 +72,7 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
                 components=dict(structure.components), fmus=fmus, solvers=solvers_of(structure, fmus),
                 routes=routes, start_values=start_values, outputs=outputs, inputs=inputs,
                 feedthrough_sequence=feedthrough, read_in_settling_only=read_once, set_in_settling_only=set_once,
+                algebraic_loops=found, loop_mode=loops,
                 gauss_seidel_order=gauss_seidel_order(list(structure.components), routes),
                 system_outputs=system_outputs, columns=_columns(structure, outputs, inputs),
                 units=recorded_units, unit_scopes=units)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 from fmpy.model_description import ModelVariable
 
@@ -291,6 +292,34 @@ class Route:
     offset: float
 
 
+#: How the master treats an algebraic loop (`cosim.loops`): solve it by iteration at every
+#: communication point, or break it by one step of delay (libcosim's behaviour).
+LoopMode = Literal["iterate", "delay"]
+LOOP_MODES: tuple[LoopMode, ...] = ("iterate", "delay")
+
+
+@dataclass(frozen=True)
+class AlgebraicLoop:
+    """A strongly connected set of connected variables through direct feedthrough
+    (`cosim.graph.algebraic_loops`): outputs that depend on each other at the same instant."""
+    #: one cycle through the loop, as ('out' | 'in', component, variable) nodes, back to its start
+    path: tuple[tuple[str, str, str], ...]
+    #: every variable of the loop
+    variables: frozenset[tuple[str, str, str]]
+
+    @property
+    def components(self) -> list[str]:
+        return list(dict.fromkeys(c for _, c, _ in sorted(self.variables, key=lambda n: (n[1], n[2]))))
+
+    @property
+    def outputs(self) -> list[tuple[str, str]]:
+        """(component, output) of the loop: the values iterated on."""
+        return sorted((c, v) for kind, c, v in self.variables if kind == "out")
+
+    def describe(self) -> str:
+        return " -> ".join(f"{c}.{v} ({k}put)" for k, c, v in self.path)
+
+
 @dataclass
 class StartValue:
     component: str
@@ -336,7 +365,10 @@ class Plan:
     outputs: dict[str, list[ModelVariable]]
     inputs: dict[str, list[ModelVariable]]
     #: components whose outputs must be re-read after their inputs are set at a
-    #: communication point (direct feedthrough), in dependency order; may repeat
+    #: communication point (direct feedthrough), in dependency order; may repeat.  With
+    #: ``loop_mode`` "iterate" it includes the components of algebraic loops (the sweep the
+    #: loop solver repeats); with "delay" they are left out (read once per communication
+    #: point: every connection out of them one step late, as libcosim runs them).
     feedthrough_sequence: list[str]
     #: Gauss-Seidel order: upstream first, SSD order inside a loop
     gauss_seidel_order: list[str]
@@ -352,6 +384,9 @@ class Plan:
     #: components of the feedthrough sequence whose outputs nobody reads before the settling
     #: re-reads them: the exchange skips their first read (`cosim.graph.settling_shortcuts`)
     read_in_settling_only: set[str] = field(default_factory=set)
+    #: the algebraic loops of direct feedthrough (`cosim.graph.algebraic_loops`)
+    algebraic_loops: list[AlgebraicLoop] = field(default_factory=list)
+    loop_mode: LoopMode = "iterate"
     #: components of the feedthrough sequence whose inputs are final when the settling sets
     #: them: the exchange does not set them again
     set_in_settling_only: set[str] = field(default_factory=set)
