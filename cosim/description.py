@@ -111,15 +111,18 @@ def _dimension_size(dimension) -> int:
 
 
 #: The exchange types of the master (the FMI 2.0 type names) for the FMI types it connects.
-_EXCHANGE_TYPES: dict[str, ExchangeType] = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean",
-                                            "String": "String", "Float64": "Real", "Int32": "Integer"}
+_EXCHANGE_TYPES: dict[str, ExchangeType] = {
+    "Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String", "Enumeration": "Integer",
+    "Float64": "Real", "Float32": "Real", "Int8": "Integer", "UInt8": "Integer", "Int16": "Integer",
+    "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer", "Int64": "Integer", "UInt64": "Integer"}
 
 
 def exchange_type(variable: ModelVariable) -> ExchangeType | None:
     """How the master exchanges ``variable``: "Real" (C double), "Integer" (C int), "Boolean"
-    or "String", for FMI 2.0 variables of those types and FMI 3.0 Float64, Int32, Boolean and
-    String; None for the types it does not connect (FMI 2.0 Enumeration, FMI 3.0 Float32,
-    Int8..UInt64 but Int32, Enumeration, Binary, Clock)."""
+    or "String", for FMI 2.0 variables of those types and Enumeration (an Integer, FMI 2.0
+    §2.2.3), FMI 3.0 Float64 and Float32 (Real), Int8..UInt64 and Enumeration (Integer; a value
+    beyond 32 bits is refused when read, `cosim.instances.fmi3`), Boolean and String; None for
+    the types it does not connect (FMI 3.0 Binary, Clock)."""
     return _EXCHANGE_TYPES.get(variable.type)
 
 

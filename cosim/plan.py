@@ -96,7 +96,8 @@ def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription
                                  f"causality='{var.causality}'.", file=file, element=where, variable=conn.name)
             if var.causality in ("input", "output"):
                 _check_exchangeable(desc, var, where, file)
-            if conn.type is not None and conn.type != exchange_type(var):
+            if conn.type is not None and conn.type not in (exchange_type(var), var.type) \
+                    and not (conn.type == "Enumeration" and var.type == "Enumeration"):
                 raise SetupError(f"declared as {conn.type} but the FMU {desc.path.name} declares {var.type}.",
                                  file=file, element=where, variable=conn.name)
             if exchange_type(var) == "Real":  # FMI 2.0 Real, FMI 3.0 Float64: the types with a unit
@@ -114,8 +115,8 @@ def _check_exchangeable(desc: FMUDescription, var: ModelVariable, where: str, fi
     one element is named as ``vector[1]``, see `FMUDescription.variable`)."""
     if exchange_type(var) is None:
         raise SetupError(f"{var.name} has the type {var.type} in {desc.path.name}; connectors of that type are "
-                         "not supported (FMI 2.0 Real, Integer, Boolean, String and FMI 3.0 Float64, Int32, "
-                         "Boolean, String are).", file=file, element=where, variable=var.name)
+                         "not supported (FMI 2.0 Real, Integer, Boolean, String, Enumeration and FMI 3.0 Float64, "
+                         "Float32, Int8..UInt64, Enumeration, Boolean, String are).", file=file, element=where, variable=var.name)
     if var.dimensions:
         raise SetupError(f"{var.name} is an array in {desc.path.name}; a connector carries one element, "
                          f"named {var.name}[1] for the first one.", file=file, element=where, variable=var.name)

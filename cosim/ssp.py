@@ -348,7 +348,7 @@ def _read_parameter_set(pset: etree._Element, display: str) -> list[ParameterVal
             value = int(text)
         elif kind == "Boolean":
             value = text in ("true", "1")
-        elif kind == "String":
+        elif kind in ("String", "Enumeration"):  # an Enumeration value is an item name (SSP 1.0 ssv)
             value = text
         else:
             raise SetupError(f"{kind} parameter values are not supported.", file=display,

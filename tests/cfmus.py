@@ -11,7 +11,8 @@ A test gives the model description and the model's C body; the body defines
   unless it does).
 
 Variables are addressed by value reference into ``s->r`` (Real/Float64), ``s->i``
-(Integer/Int32) and ``s->b`` (Boolean), 64 of each; the model description's start values are
+(Integer/Int32), ``s->b`` (Boolean) and, FMI 3.0 only, ``s->f`` (Float32) and ``s->l``
+(Int8..UInt64, Enumeration), 64 of each; the model description's start values are
 the body's business (``static void start(S *s)``, called at instantiation).  Every other FMI
 function of the interface is a stub returning Error, so fmpy finds all the symbols it loads.
 """
@@ -29,8 +30,20 @@ COMMON = r"""
 #include <stdlib.h>
 #include <string.h>
 #include <stdbool.h>
-typedef struct { double r[64]; int i[64]; int b[64]; double time; int terminate; double last; } S;
+typedef struct { double r[64]; int i[64]; int b[64]; float f[64]; long long l[64]; double time; int terminate;
+                 double last; } S;
 """
+
+#: the FMI 3.0 getters and setters of the other numeric types: Float32 in ``s->f``, the
+#: integer types (Int8..UInt64, and Enumeration, an Int64) in ``s->l``
+FMI3_OTHER_TYPES = "".join(
+    f"int fmi3Get{t}(void *c, const VR vr[], size_t n, {ct} v[], size_t nv) {{\n"
+    f"    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = ({ct}) s->{a}[vr[k]]; return 0; }}\n"
+    f"int fmi3Set{t}(void *c, const VR vr[], size_t n, const {ct} v[], size_t nv) {{\n"
+    f"    S *s = c; for (size_t k = 0; k < n; k++) s->{a}[vr[k]] = v[k]; return 0; }}\n"
+    for t, ct, a in [("Float32", "float", "f"), ("Int8", "signed char", "l"), ("UInt8", "unsigned char", "l"),
+                     ("Int16", "short", "l"), ("UInt16", "unsigned short", "l"), ("UInt32", "unsigned int", "l"),
+                     ("Int64", "long long", "l"), ("UInt64", "unsigned long long", "l")])
 
 FMI2 = COMMON + r"""
 typedef unsigned int VR;
@@ -100,7 +113,7 @@ int fmi3SetBoolean(void *c, const VR vr[], size_t n, const bool v[], size_t nv) 
 int fmi3DoStep(void *c, double t, double h, bool noPrior, bool *event, bool *terminate, bool *early, double *last) {
     S *s = c; s->last = t + h; int status = step(s, t, h); s->time = s->last;
     *event = false; *early = false; *terminate = s->terminate; *last = s->last; return status; }
-"""
+""" + FMI3_OTHER_TYPES
 
 PLATFORM = {"2.0": "linux64", "3.0": "x86_64-linux"}
 

@@ -92,8 +92,8 @@ class FMI2Instance(InstanceBase):
         vr = [variable.valueReference]
         if variable.type == "String":  # fmpy's setString encodes to UTF-8 itself
             self.slave.setString(vr, [str(value)])
-        else:
-            {"Real": self.slave.setReal, "Integer": self.slave.setInteger,
+        else:  # an Enumeration is set as an Integer (FMI 2.0 §2.2.3)
+            {"Real": self.slave.setReal, "Integer": self.slave.setInteger, "Enumeration": self.slave.setInteger,
              "Boolean": self.slave.setBoolean}[variable.type](vr, [value])
 
     def step_end(self, t: float, h: float) -> tuple[float | None, str]:

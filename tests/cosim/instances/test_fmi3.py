@@ -205,11 +205,11 @@ def _refused(tmp_path, fmus, components, connections=(), **kw) -> str:
     return str(error.value)
 
 
-@pytest.mark.parametrize("connector, type_name", [("int64", "Int64"), ("enumeration", "Enumeration")])
-def test_unsupported_fmi3_type_is_refused(tmp_path, fmus, connector, type_name):
-    err = _refused(tmp_path, fmus, {"m": ("FMU3Model.fmu", {connector: "input"})})
-    assert f"{connector} has the type {type_name} in FMU3Model.fmu" in err and "not supported" in err
-    assert "SystemStructure.ssd" in err and "ssd:Connector" in err
+@pytest.mark.parametrize("connector", ["int64", "enumeration"])
+def test_fmi3_int64_and_enumeration_connectors_are_accepted(tmp_path, fmus, connector):
+    """Refused before issue 21 (item 6); exchanged as Integer now (tests/cosim/test_fmi_types.py)."""
+    folder = _system(tmp_path, fmus, {"m": ("FMU3Model.fmu", {connector: "input"})}, [])
+    cosim.prepare(folder).close()
 
 
 def test_whole_array_connector_is_refused(tmp_path, fmus):
@@ -239,9 +239,8 @@ def test_declared_connector_type_must_match_the_fmi3_type(tmp_path, fmus):
 
 @pytest.mark.parametrize("fmu, variable, message", [
     ("Echo3.fmu", "v", "arrays and their elements cannot be given values by this master (v is an array)"),
-    ("FMU3Model.fmu", "int64", "Int64 variables cannot be given values by this master (int64 is Int64)"),
 ])
-def test_array_and_unsupported_parameters_are_refused(tmp_path, fmus, fmu, variable, message):
+def test_array_parameters_are_refused(tmp_path, fmus, fmu, variable, message):
     err = _refused(tmp_path, fmus, {"c": (fmu, {})}, parameters={"c": {variable: 1}})
     assert message in err and f"ssv:Parameter '{variable}'" in err
 
