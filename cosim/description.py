@@ -22,7 +22,7 @@ from .errors import SetupError, did_you_mean
 #: The interface the master drives an FMU through (`describe`).
 Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me"]
 #: How the master exchanges a variable (`exchange_type`): the FMI 2.0 type names.
-ExchangeType = Literal["Real", "Integer", "Boolean", "String"]
+ExchangeType = Literal["Real", "Integer", "Boolean", "String", "Binary"]
 
 #: SSP 1.0 Component ``implementation`` values (SystemStructureDescription.xsd).
 IMPLEMENTATIONS = ("any", "CoSimulation", "ModelExchange")
@@ -65,7 +65,7 @@ class FMUDescription:
         known = next((e for e in self.elements.values() if e.name == name), None)
         if known is not None:
             return known
-        if len(array.dimensions) != 1 or array.type == "String":
+        if len(array.dimensions) != 1 or array.type in ("String", "Binary"):
             raise SetupError(f"'{array.name}' is a {len(array.dimensions)}-dimensional {array.type} array; only "
                              "elements of one-dimensional numeric and Boolean arrays can be connected.",
                              file=file, element=where, variable=name)
@@ -114,15 +114,16 @@ def _dimension_size(dimension) -> int:
 _EXCHANGE_TYPES: dict[str, ExchangeType] = {
     "Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String", "Enumeration": "Integer",
     "Float64": "Real", "Float32": "Real", "Int8": "Integer", "UInt8": "Integer", "Int16": "Integer",
-    "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer", "Int64": "Integer", "UInt64": "Integer"}
+    "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer", "Int64": "Integer", "UInt64": "Integer",
+    "Binary": "Binary"}
 
 
 def exchange_type(variable: ModelVariable) -> ExchangeType | None:
     """How the master exchanges ``variable``: "Real" (C double), "Integer" (C int), "Boolean"
     or "String", for FMI 2.0 variables of those types and Enumeration (an Integer, FMI 2.0
     §2.2.3), FMI 3.0 Float64 and Float32 (Real), Int8..UInt64 and Enumeration (Integer; a value
-    beyond 32 bits is refused when read, `cosim.instances.fmi3`), Boolean and String; None for
-    the types it does not connect (FMI 3.0 Binary, Clock)."""
+    beyond 32 bits is refused when read, `cosim.instances.fmi3`), Boolean, String and Binary
+    (exchanged, not recorded); None for the type it does not connect (FMI 3.0 Clock)."""
     return _EXCHANGE_TYPES.get(variable.type)
 
 

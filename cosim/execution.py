@@ -35,12 +35,15 @@ import numpy as np
 from .errors import RunError, SetupError
 from .description import FMUDescription, exchange_type
 from .instances import STATUS, Instance, Unzipped, open_instance
+from .instances.fmi3 import BinaryValue
 from .loops import LoopSettings, LoopSolver, Watched
 from .structure import Plan
 from .observers import Recorder
 
 #: exchange types (`cosim.description.exchange_type`) and their buffers' C types, as fmi2 declares them
-TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p}
+#: (Binary, FMI 3.0 only: a pointer and a size, `cosim.instances.fmi3.BinaryValue`)
+TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p,
+         "Binary": BinaryValue}
 ALGORITHMS = ("jacobi", "gauss-seidel")
 FMI_WARNING, FMI_DISCARD = 1, 2
 
@@ -71,22 +74,27 @@ class Grid:
 class _Typed:
     """Outputs (Y) and inputs (U) of one exchange type for all components, in ctypes memory.
 
-    Strings (char*) are not numbers: they are routed by a Python loop over the pairs of
-    buffer positions, never transformed, and not recorded (the recorder and the CSV hold
-    numeric signals only).  An FMU's string is valid only until its next FMI call (FMI 2.0
-    §2.1.7), so every string get is followed by a copy into memory the buffer owns (`get_call`).
+    Strings (char*) and Binary values (pointer and size) are not numbers: they are routed by
+    a Python loop over the pairs of buffer positions, never transformed, and not recorded (the
+    recorder and the CSV hold numeric signals only).  An FMU's string or binary is valid only
+    until its next FMI call (FMI 2.0 §2.1.7, FMI 3.0 §2.2.6.2), so every get is followed by a
+    copy into memory the buffer owns (`get_call`); a routed Binary keeps that memory alive
+    (``owners``) as long as the input holds it.
     """
 
     def __init__(self, plan: Plan, type_name: str, order: list[str]):
         ctype = TYPES[type_name]
         self.type_name = type_name
-        self.strings = type_name == "String"
+        self.strings = type_name in ("String", "Binary")
+        self.binary = type_name == "Binary"
         outs = [(c, v) for c in order for v in plan.outputs[c] if exchange_type(v) == type_name]
         ins = [(c, v) for c in order for v in plan.inputs[c] if exchange_type(v) == type_name]
         self.out_names = [f"{c}.{v.name}" for c, v in outs]
         self.in_names = [f"{c}.{v.name}" for c, v in ins]
         self.Ybuf = (ctype * max(1, len(outs)))()
         self.Ubuf = (ctype * max(1, len(ins)))()
+        #: Binary only: the memory each buffer position points to, kept alive here
+        self.owners = {id(self.Ybuf): [None] * len(outs), id(self.Ubuf): [None] * len(ins)}
         if not self.strings:
             self.Y = np.ctypeslib.as_array(self.Ybuf)[:len(outs)]
             self.U = np.ctypeslib.as_array(self.Ubuf)[:len(ins)]
@@ -127,6 +135,10 @@ class _Typed:
             Y, U = self.Ybuf, self.Ubuf
             for i, j in zip(src.tolist(), dst.tolist()):
                 U[j] = Y[i]
+            if self.binary:
+                Yown, Uown = self.owners[id(Y)], self.owners[id(U)]
+                for i, j in zip(src.tolist(), dst.tolist()):
+                    Uown[j] = Yown[i]
         elif identity:
             self.U[dst] = self.Y[src]
         else:
@@ -141,6 +153,18 @@ class _Typed:
         bytes, writing it back makes the array keep them)."""
         if not self.strings:
             return get
+        if self.binary:
+            owners = self.owners[id(buf)]
+
+            def get_owned_binary(component, vrs, count, values) -> int:
+                status = get(component, vrs, count, values)
+                if status <= FMI_WARNING:
+                    for i in range(start, start + n):
+                        data = ctypes.string_at(buf[i].data, buf[i].size) if buf[i].size else b""
+                        owners[i] = ctypes.create_string_buffer(data, max(1, len(data)))
+                        buf[i].data = ctypes.cast(owners[i], type(buf[i].data))
+                return status
+            return get_owned_binary
 
         def get_owned(component, vrs, count, values) -> int:
             status = get(component, vrs, count, values)

@@ -116,7 +116,7 @@ def _check_exchangeable(desc: FMUDescription, var: ModelVariable, where: str, fi
     if exchange_type(var) is None:
         raise SetupError(f"{var.name} has the type {var.type} in {desc.path.name}; connectors of that type are "
                          "not supported (FMI 2.0 Real, Integer, Boolean, String, Enumeration and FMI 3.0 Float64, "
-                         "Float32, Int8..UInt64, Enumeration, Boolean, String are).", file=file, element=where, variable=var.name)
+                         "Float32, Int8..UInt64, Enumeration, Boolean, String, Binary are).", file=file, element=where, variable=var.name)
     if var.dimensions:
         raise SetupError(f"{var.name} is an array in {desc.path.name}; a connector carries one element, "
                          f"named {var.name}[1] for the first one.", file=file, element=where, variable=var.name)
@@ -223,10 +223,10 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVar
 def _columns(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
              inputs: dict[str, list[ModelVariable]]) -> list[str]:
     """The recorded connectors component by component in SSD order, connectors as each component
-    lists them: every output and input but String ones (exchanged, not recorded)."""
+    lists them: every output and input but String and Binary ones (exchanged, not recorded)."""
     columns = []
     for name, comp in structure.components.items():
-        recorded = {v.name for v in outputs[name] + inputs[name] if exchange_type(v) != "String"}
+        recorded = {v.name for v in outputs[name] + inputs[name] if exchange_type(v) not in ("String", "Binary")}
         columns += [f"{name}.{conn}" for conn in comp.connectors if conn in recorded]
     return columns
 

@@ -393,10 +393,11 @@ class Plan:
 
     def recorded(self) -> tuple[list[str], list[str]]:
         """The result names of the recorded outputs (the root system's output connectors last)
-        and inputs: every connector but String ones, which are exchanged, not recorded
+        and inputs: every connector but String and Binary ones, which are exchanged, not recorded
         (`cosim.execution.Execution.recorder_sources`)."""
         def names(group: dict[str, list[ModelVariable]]) -> list[str]:
-            return [f"{c}.{v.name}" for c, vs in group.items() for v in vs if exchange_type(v) != "String"]
+            return [f"{c}.{v.name}" for c, vs in group.items() for v in vs
+                    if exchange_type(v) not in ("String", "Binary")]
         return names(self.outputs) + list(self.system_outputs), names(self.inputs)
 
     def close(self) -> None:

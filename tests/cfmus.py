@@ -12,7 +12,8 @@ A test gives the model description and the model's C body; the body defines
 
 Variables are addressed by value reference into ``s->r`` (Real/Float64), ``s->i``
 (Integer/Int32), ``s->b`` (Boolean) and, FMI 3.0 only, ``s->f`` (Float32) and ``s->l``
-(Int8..UInt64, Enumeration), 64 of each; the model description's start values are
+(Int8..UInt64, Enumeration), 64 of each, and Binary values of up to 16 bytes in
+``s->bytes[vr]`` (length ``s->nbytes[vr]``); the model description's start values are
 the body's business (``static void start(S *s)``, called at instantiation).  Every other FMI
 function of the interface is a stub returning Error, so fmpy finds all the symbols it loads.
 """
@@ -30,8 +31,8 @@ COMMON = r"""
 #include <stdlib.h>
 #include <string.h>
 #include <stdbool.h>
-typedef struct { double r[64]; int i[64]; int b[64]; float f[64]; long long l[64]; double time; int terminate;
-                 double last; } S;
+typedef struct { double r[64]; int i[64]; int b[64]; float f[64]; long long l[64];
+                 unsigned char bytes[64][16]; size_t nbytes[64]; double time; int terminate; double last; } S;
 """
 
 #: the FMI 3.0 getters and setters of the other numeric types: Float32 in ``s->f``, the
@@ -113,6 +114,14 @@ int fmi3SetBoolean(void *c, const VR vr[], size_t n, const bool v[], size_t nv) 
 int fmi3DoStep(void *c, double t, double h, bool noPrior, bool *event, bool *terminate, bool *early, double *last) {
     S *s = c; s->last = t + h; int status = step(s, t, h); s->time = s->last;
     *event = false; *early = false; *terminate = s->terminate; *last = s->last; return status; }
+int fmi3GetBinary(void *c, const VR vr[], size_t n, size_t sizes[], const unsigned char *v[], size_t nv) {
+    S *s = c; calculate(s);
+    for (size_t k = 0; k < n; k++) { sizes[k] = s->nbytes[vr[k]]; v[k] = s->bytes[vr[k]]; } return 0; }
+int fmi3SetBinary(void *c, const VR vr[], size_t n, const size_t sizes[], const unsigned char *const v[], size_t nv) {
+    S *s = c;
+    for (size_t k = 0; k < n; k++) {
+        size_t m = sizes[k] < 16 ? sizes[k] : 16; memcpy(s->bytes[vr[k]], v[k], m); s->nbytes[vr[k]] = m; }
+    return 0; }
 """ + FMI3_OTHER_TYPES
 
 PLATFORM = {"2.0": "linux64", "3.0": "x86_64-linux"}

@@ -31,7 +31,7 @@ import ctypes
 from collections.abc import Callable
 
 import numpy as np
-from fmpy.fmi3 import FMU3Slave
+from fmpy.fmi3 import FMU3Slave, fmi3Binary
 from fmpy.model_description import ModelVariable
 
 from ..description import ArrayElement, FMUDescription, exchange_type
@@ -61,6 +61,11 @@ FMI3_TYPES: dict[str, tuple[str, type]] = {
 }
 
 
+class BinaryValue(ctypes.Structure):
+    """One Binary value in the exchange buffer: fmi3GetBinary's pointer and size together."""
+    _fields_ = [("data", fmi3Binary), ("size", ctypes.c_size_t)]
+
+
 def _integer_range(ctype: type) -> tuple[int, int]:
     bits = 8 * ctypes.sizeof(ctype)
     return (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if ctype(-1).value == -1 else (0, (1 << bits) - 1)
@@ -85,6 +90,7 @@ class FMI3Instance(InstanceBase):
         self.do_step = self._do_step_adapter(raw["fmi3DoStep"])
         self.get = {t: self._get_adapter(t) for t in FMI3_FUNCTIONS}
         self.set = {t: self._set_adapter(t) for t in FMI3_FUNCTIONS}
+        self.get["Binary"], self.set["Binary"] = self._binary_adapters()
 
     # ----------------------------------------------------------------- hot-loop adapters
 
@@ -172,6 +178,32 @@ class FMI3Instance(InstanceBase):
                     return status
             return FMI_OK
         return set_
+
+    def _binary_adapters(self) -> tuple[Adapter, Adapter]:
+        """fmi3GetBinary/fmi3SetBinary take the sizes and the pointers as two arrays; the exchange
+        buffer holds `BinaryValue` pairs: scalar Binary variables only (no arrays)."""
+        raw_get, raw_set = self.slave._functions["fmi3GetBinary"], self.slave._functions["fmi3SetBinary"]
+        scratch: dict[int, tuple] = {}
+
+        def arrays(n: int) -> tuple:
+            if n not in scratch:
+                scratch[n] = ((ctypes.c_size_t * n)(), (fmi3Binary * n)())
+            return scratch[n]
+
+        def get(component, vrs, n: int, values) -> int:
+            sizes, pointers = arrays(n)
+            status = raw_get(component, vrs, n, sizes, pointers, n)
+            if status <= FMI_WARNING:
+                for i in range(n):
+                    values[i].data, values[i].size = pointers[i], sizes[i]
+            return status
+
+        def set_(component, vrs, n: int, values) -> int:
+            sizes, pointers = arrays(n)
+            for i in range(n):
+                pointers[i], sizes[i] = values[i].data, values[i].size
+            return raw_set(component, vrs, n, sizes, pointers, n)
+        return get, set_
 
     def _gather(self, vrs, n: int, values, type_name: str) -> _Gather:
         return _Gather(vrs, n, values, self.desc.elements, self._by_reference, self.slave._functions, type_name)

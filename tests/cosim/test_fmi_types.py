@@ -185,3 +185,47 @@ def test_values_that_do_not_fit_are_refused_naming_the_variable(tmp_path, typed)
                           ssd_text("wide", comps, [], stop=STOP, step=H, parameters={"a": {"scale": 1_000_000_000}}))
     with pytest.raises(RunError, match=r"UInt64 u64 = 3000000000 cannot be represented in the master's 32-bit"):
         cosim.simulate(folder)
+
+
+BYTES3 = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="Bytes3" instantiationToken="{9e0c0000-0000-4000-8000-000000000004}">
+  <CoSimulation modelIdentifier="Bytes3" canHandleVariableCommunicationStepSize="true"/>
+  <ModelVariables>
+    <Float64 name="time" valueReference="63" causality="independent" variability="continuous"/>
+    <Binary name="blob" valueReference="40" causality="output" variability="discrete"/>
+    <Binary name="bin" valueReference="41" causality="input" variability="discrete"><Start value=""/></Binary>
+    <Int32 name="length" valueReference="42" causality="output" variability="discrete"/>
+    <Int32 name="checksum" valueReference="43" causality="output" variability="discrete"/>
+  </ModelVariables>
+  <ModelStructure>
+    <Output valueReference="40" dependencies=""/><Output valueReference="42" dependencies="41"/>
+    <Output valueReference="43" dependencies="41"/>
+  </ModelStructure>
+</fmiModelDescription>
+"""
+#: blob = k bytes of value k + 1 (k = steps taken, at most 16); length and checksum (the byte sum) of bin
+BYTES3_BODY = """
+static void start(S *s) {}
+static void calculate(S *s) {
+    int k = s->i[62] < 16 ? s->i[62] : 16;
+    s->nbytes[40] = k; for (int j = 0; j < k; j++) s->bytes[40][j] = (unsigned char) (k + 1);
+    s->i[42] = (int) s->nbytes[41]; int sum = 0; for (size_t j = 0; j < s->nbytes[41]; j++) sum += s->bytes[41][j];
+    s->i[43] = sum; }
+static int step(S *s, double t, double h) { s->i[62] += 1; return 0; }
+"""
+
+
+def test_fmi3_binary_is_exchanged_not_recorded(tmp_path):
+    """a.blob (k bytes of k + 1 after k steps) reaches b.bin at the same instant (b's length and
+    checksum depend on it); the Binary connectors are not result columns."""
+    fmu = build_c_fmu(tmp_path / "fmu", "Bytes3", BYTES3, BYTES3_BODY, "3.0")
+    comps = {"a": ("Bytes3.fmu", {"blob": "output"}),
+             "b": ("Bytes3.fmu", {"bin": "input", "length": "output", "checksum": "output"})}
+    res = cosim.simulate(write_system(tmp_path / "bytes", {"Bytes3.fmu": fmu},
+                                      ssd_text("bytes", comps, [("a", "blob", "b", "bin")], stop=STOP, step=H)))
+    k = np.arange(11)
+    assert set(res.dtype.names) == {"time", "b.length", "b.checksum"}
+    np.testing.assert_array_equal(res["b.length"], k)
+    np.testing.assert_array_equal(res["b.checksum"], k * (k + 1))
+    alone = fmpy.simulate_fmu(str(fmu), stop_time=STOP, output_interval=H, output=["length", "checksum"])
+    np.testing.assert_array_equal(alone["length"], 0)      # unconnected, bin keeps its empty start value
