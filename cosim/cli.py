@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from .errors import CosimError, RunError, SetupError
@@ -160,9 +161,13 @@ def _run(args) -> int:
               f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
               f"{prepared.algorithm}")
         try:
-            result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
-                                   keep=[n for panel in panels for n in panel] if args.plot else [],
-                                   loop_settings=settings)
+            with warnings.catch_warnings(record=True) as caught:  # printed as cosim's own warnings
+                warnings.simplefilter("always", RuntimeWarning)
+                result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
+                                       keep=[n for panel in panels for n in panel] if args.plot else [],
+                                       loop_settings=settings)
+            for warning in caught:
+                print(f"cosim: warning: {warning.message}", file=sys.stderr)
         except RunError:
             print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
             raise

@@ -182,3 +182,21 @@ def test_a_diverging_loop_fails_clearly_and_relaxation_makes_it_converge(tmp_pat
     y_p = (2.0 * 2.0 + 1.0) / (1.0 - 2.0 * -1.0)
     np.testing.assert_allclose(res["p.y"], y_p, rtol=1e-9)
     np.testing.assert_allclose(res["q.y"], -y_p + 2.0, rtol=1e-9)
+
+
+def test_cli_names_the_loop_and_runs_it_both_ways(tmp_path, cfmus, capsys):
+    from cosim.cli import main
+
+    folder = _system(tmp_path / "crane", cfmus, "crane")
+    assert main(["validate", str(folder)]) == 0
+    printed = capsys.readouterr().out
+    assert "cosim: algebraic loop (run solves it by iteration; --loops delay breaks it): " in printed
+    assert "boom.x (output)" in printed
+    for mode in ("iterate", "delay"):
+        out = tmp_path / f"{mode}.csv"
+        assert main(["run", str(folder), "-o", str(out), "-q", "--loops", mode]) == 0
+        assert json.loads(out.with_suffix(".json").read_text())["algebraic_loops"]["mode"] == mode
+        warned = "cosim: warning: algebraic loop broken by one step of delay" in capsys.readouterr().err
+        assert warned == (mode == "delay")
+    assert main(["run", str(folder), "-o", str(tmp_path / "x.csv"), "-q", "--relaxation", "0"]) == 2
+    assert "the relaxation factor must be in (0, 1]; got 0.0" in capsys.readouterr().err
