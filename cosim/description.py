@@ -20,7 +20,9 @@ from fmpy.model_description import ModelDescription, ModelVariable
 from .errors import SetupError, did_you_mean
 
 #: The interface the master drives an FMU through (`describe`).
-Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me"]
+Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me", "fmi3-me"]
+#: The kinds the master integrates (Model Exchange, `cosim.instances.me`).
+MODEL_EXCHANGE: tuple[Kind, ...] = ("fmi2-me", "fmi3-me")
 #: How the master exchanges a variable (`exchange_type`): the FMI 2.0 type names.
 ExchangeType = Literal["Real", "Integer", "Boolean", "String", "Binary"]
 
@@ -41,7 +43,7 @@ class FMUDescription:
 
     @property
     def model_identifier(self) -> str:
-        interface = self.md.modelExchange if self.kind == "fmi2-me" else self.md.coSimulation
+        interface = self.md.modelExchange if self.kind in MODEL_EXCHANGE else self.md.coSimulation
         return interface.modelIdentifier
 
     #: Array elements named by connectors (``vector[2]``), by the value reference the master
@@ -165,7 +167,7 @@ def describe(path: Path, where: str, file: str, implementation: str = "any") -> 
 
 def _kind(md: ModelDescription, path: Path, implementation: str, where: str, file: str) -> Kind:
     """The interface the master drives: the SSD's ``implementation`` if the FMU has it, else
-    Co-Simulation when present, else Model Exchange (FMI 2.0 only)."""
+    Co-Simulation when present, else Model Exchange."""
     if implementation not in IMPLEMENTATIONS:
         raise SetupError(f"implementation='{implementation}' is not one of {', '.join(IMPLEMENTATIONS)} "
                          "(SSP 1.0 Component).", file=file, element=where)
@@ -176,8 +178,8 @@ def _kind(md: ModelDescription, path: Path, implementation: str, where: str, fil
     if not has_cs and not has_me:  # FMI 3.0 allows an FMU with only Scheduled Execution
         interfaces = "only a Scheduled Execution interface" if md.scheduledExecution is not None \
             else "neither a Co-Simulation nor a Model Exchange interface"
-        raise SetupError(f"{path.name} has {interfaces}; this master runs Co-Simulation FMUs (FMI 2.0 and 3.0) "
-                         "and FMI 2.0 Model Exchange FMUs.", file=file, element=where)
+        raise SetupError(f"{path.name} has {interfaces}; this master runs Co-Simulation and Model Exchange "
+                         "FMUs (FMI 2.0 and 3.0).", file=file, element=where)
     if implementation == "CoSimulation" and not has_cs:
         raise SetupError(f"implementation='CoSimulation' but {path.name} has no Co-Simulation interface.",
                          file=file, element=where)
@@ -186,11 +188,7 @@ def _kind(md: ModelDescription, path: Path, implementation: str, where: str, fil
                          file=file, element=where)
     use_me = implementation == "ModelExchange" or (implementation == "any" and not has_cs)
     if md.fmiVersion == "3.0":
-        if use_me:
-            raise SetupError(f"{path.name} would run through its FMI 3.0 Model Exchange interface; this master "
-                             "hosts Model Exchange FMUs of FMI 2.0 and FMI 3.0 Co-Simulation FMUs.",
-                             file=file, element=where)
-        return "fmi3-cs"
+        return "fmi3-me" if use_me else "fmi3-cs"
     return "fmi2-me" if use_me else "fmi2-cs"
 
 

@@ -426,7 +426,7 @@ class Execution:
 
     def _component_metadata(self, name: str, d: FMUDescription) -> dict:
         meta = {"fmu": str(d.path), "guid": d.md.guid, "generation_tool": d.md.generationTool, "interface": d.kind}
-        if d.kind == "fmi2-me":  # integrated by the master (cosim.instances.me)
+        if d.kind in ("fmi2-me", "fmi3-me"):  # integrated by the master (cosim.instances.me)
             meta["solver"] = self.plan.solvers[name].as_dict()
         return meta
 

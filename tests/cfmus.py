@@ -25,7 +25,7 @@ import zipfile
 from pathlib import Path
 
 from fmpy.fmi2 import FMU2Slave
-from fmpy.fmi3 import FMU3Slave
+from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 COMMON = r"""
 #include <stdlib.h>
@@ -124,18 +124,49 @@ int fmi3SetBinary(void *c, const VR vr[], size_t n, const size_t sizes[], const 
     return 0; }
 """ + FMI3_OTHER_TYPES
 
+#: FMI 3.0 Model Exchange (``model_exchange=True``): the body also defines ``#define NX``
+#: (states in ``s->r[0..NX-1]``), ``NZ``, ``static void derivatives(S *s, double dx[])``,
+#: ``static void indicators(S *s, double z[])`` and ``static void event(S *s)`` (Event Mode).
+FMI3_ME = r"""
+static void derivatives(S *s, double dx[]);
+static void indicators(S *s, double z[]);
+static void event(S *s);
+void *fmi3InstantiateModelExchange(const char *n, const char *token, const char *res, bool vis, bool log,
+        void *env, void *logger) { S *s = calloc(1, sizeof(S)); start(s); return s; }
+int fmi3EnterContinuousTimeMode(void *c) { return 0; }
+int fmi3EnterEventMode(void *c) { return 0; }
+int fmi3SetTime(void *c, double t) { ((S *)c)->time = t; return 0; }
+int fmi3GetNumberOfContinuousStates(void *c, size_t *n) { *n = NX; return 0; }
+int fmi3GetNumberOfEventIndicators(void *c, size_t *n) { *n = NZ; return 0; }
+int fmi3SetContinuousStates(void *c, const double x[], size_t nx) {
+    S *s = c; for (size_t k = 0; k < nx; k++) s->r[k] = x[k]; return 0; }
+int fmi3GetContinuousStates(void *c, double x[], size_t nx) {
+    S *s = c; for (size_t k = 0; k < nx; k++) x[k] = s->r[k]; return 0; }
+int fmi3GetContinuousStateDerivatives(void *c, double dx[], size_t nx) { derivatives((S *)c, dx); return 0; }
+int fmi3GetEventIndicators(void *c, double z[], size_t nz) { indicators((S *)c, z); return 0; }
+int fmi3GetNominalsOfContinuousStates(void *c, double x[], size_t nx) {
+    for (size_t k = 0; k < nx; k++) x[k] = 1.0; return 0; }
+int fmi3CompletedIntegratorStep(void *c, bool noPrior, bool *enterEventMode, bool *terminate) {
+    *enterEventMode = false; *terminate = false; return 0; }
+int fmi3UpdateDiscreteStates(void *c, bool *needUpdate, bool *terminate, bool *nominalsChanged, bool *valuesChanged,
+        bool *nextDefined, double *next) {
+    event((S *)c); *needUpdate = false; *terminate = false; *nominalsChanged = false; *valuesChanged = true;
+    *nextDefined = false; *next = 0.0; return 0; }
+"""
+
 PLATFORM = {"2.0": "linux64", "3.0": "x86_64-linux"}
 
 
-def build_c_fmu(dest: Path, identifier: str, model_description: str, body: str, fmi: str = "2.0") -> Path:
+def build_c_fmu(dest: Path, identifier: str, model_description: str, body: str, fmi: str = "2.0",
+                model_exchange: bool = False) -> Path:
     """Compile ``body`` (see the module docstring) into ``dest/<identifier>.fmu`` with
-    ``model_description`` as its modelDescription.xml."""
-    prelude, api = (FMI2, FMU2Slave) if fmi == "2.0" else (FMI3, FMU3Slave)
+    ``model_description`` as its modelDescription.xml; ``model_exchange``: FMI 3.0 only."""
+    prelude, apis = (FMI2, [FMU2Slave]) if fmi == "2.0" else (FMI3, [FMU3Slave, FMU3Model])
     prefix = "fmi2" if fmi == "2.0" else "fmi3"
-    source = prelude + body
+    source = prelude + body + (FMI3_ME if model_exchange else "")
     defined = set(re.findall(rf"\b({prefix}\w+)\s*\(", source))
-    stubs = "".join(f"int {name}() {{ return 3; }}\n" for name in dir(api)
-                    if name.startswith(prefix) and name not in defined)
+    names = sorted({name for api in apis for name in dir(api) if name.startswith(prefix)} - defined)
+    stubs = "".join(f"int {name}() {{ return 3; }}\n" for name in names)
     build = dest / f"{identifier}_build"
     build.mkdir(parents=True, exist_ok=True)
     (build / "model.c").write_text(source + stubs)

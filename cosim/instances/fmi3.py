@@ -79,15 +79,20 @@ class FMI3Instance(InstanceBase):
 
     api = "fmi3"
 
+    #: fmpy's class for the FMI 3.0 interface the instance drives, and its instantiation function
+    interface = FMU3Slave
+    instantiate_function = "fmi3InstantiateCoSimulation"
+
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
         super().__init__(name, desc)
-        self.slave = FMU3Slave(guid=desc.md.guid, unzipDirectory=unzip_dir,
-                               modelIdentifier=desc.model_identifier, instanceName=name)
+        self.slave = self.interface(guid=desc.md.guid, unzipDirectory=unzip_dir,
+                                    modelIdentifier=desc.model_identifier, instanceName=name)
         self._start, self._stop = 0.0, None
         self._end: tuple[float | None, str] = (None, "fmi3DoStep returned Discard")
         self._by_reference = {v.valueReference: v for v in desc.md.modelVariables}
         raw = self.slave._functions
-        self.do_step = self._do_step_adapter(raw["fmi3DoStep"])
+        if isinstance(self.slave, FMU3Slave):  # Co-Simulation; a Model Exchange instance steps by its own method
+            self.do_step = self._do_step_adapter(raw["fmi3DoStep"])
         self.get = {t: self._get_adapter(t) for t in FMI3_FUNCTIONS}
         self.set = {t: self._set_adapter(t) for t in FMI3_FUNCTIONS}
         self.get["Binary"], self.set["Binary"] = self._binary_adapters()
@@ -219,7 +224,7 @@ class FMI3Instance(InstanceBase):
         try:
             self.slave.instantiate(loggingOn=logging_on, logMessage=self._log)
         except Exception as e:
-            raise SetupError(f"fmi3InstantiateCoSimulation failed for {self.desc.path.name} (instantiation "
+            raise SetupError(f"{self.instantiate_function} failed for {self.desc.path.name} (instantiation "
                              f"token {self.desc.md.guid}): {e}." + self.last_messages(),
                              element=f"component '{self.name}'") from None
         self.component = self.slave.component

@@ -32,11 +32,13 @@ import math
 
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model, fmi2EventInfo, fmi2False
+from fmpy.fmi3 import FMU3Model
 
 from ..description import FMUDescription
 from ..structure import SolverSettings
 from .base import STATUS
 from .fmi2 import FMI2Instance
+from .fmi3 import FMI3Instance
 
 FMI_OK, FMI_DISCARD, FMI_ERROR = 0, 2, 3
 #: Events handled within one communication step before the FMU is declared to chatter.
@@ -51,26 +53,22 @@ class _NoInput:
         pass
 
 
-class MEInstance(FMI2Instance):
-    """One FMI 2.0 Model Exchange instance stepped like a Co-Simulation slave.
+class Integrated:
+    """The master's integration of a Model Exchange FMU (see the module docstring), for either
+    FMI version: the instance classes give the FMI calls that differ (`MEInstance` for FMI 2.0,
+    `ME3Instance` for FMI 3.0): ``_solver_functions`` (the raw functions CVODE calls back, by
+    role), ``_discrete_iteration`` and ``_read_inputs``."""
 
-    ``get``/``set`` are the FMU's raw fmi2Get/fmi2Set functions.  ``events`` counts the
-    events handled by kind ("input", "time", "state", "step").  The set-up calls, the log
-    messages and ``free`` are `FMI2Instance`'s.
-    """
+    #: role -> raw FMI function name, for `_new_solver`
+    _solver_functions: dict[str, str]
 
-    interface = FMU2Model
-
-    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, settings: SolverSettings):
-        super().__init__(name, desc, unzip_dir)
-        md = desc.md
-        raw = self.slave._functions
+    def _init_integration(self, md, settings: SolverSettings) -> None:
         self.settings = settings
-        self._raw = raw
+        self._raw = self.slave._functions
         self._nx = md.numberOfContinuousStates
         self._nz = md.numberOfEventIndicators
         self._needs_completed_step = bool(md.modelExchange.needsCompletedIntegratorStep)
-        inputs = [v.valueReference for v in md.modelVariables if v.causality == "input"]
+        inputs = [v.valueReference for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")]
         self._input_vrs = (ctypes.c_uint * max(1, len(inputs)))(*inputs)
         self._n_inputs = len(inputs)
         self._inputs = (ctypes.c_double * max(1, len(inputs)))()
@@ -87,19 +85,9 @@ class MEInstance(FMI2Instance):
         """Events handled so far, by kind."""
         return dict(self._events)
 
-    # ----------------------------------------------------------------- set-up
-
-    def setup_experiment(self, start: float, stop: float) -> None:
-        """fmi2SetupExperiment with the solver's tolerance (the FMU may use it internally)."""
-        self._start = start
-        self.slave.setupExperiment(tolerance=self.settings.rtol, startTime=start, stopTime=stop)
-
-    def exit_initialization_mode(self) -> None:
-        """Leave Initialization Mode, then run the initial event iteration and enter
-        Continuous-Time Mode (FMI 2.0 §3.2.3: the model is in Event Mode after
-        fmi2ExitInitializationMode; §3.2.4's loop), so outputs reflect the initial state; start
-        the solver."""
-        self.slave.exitInitializationMode()
+    def _start_integration(self) -> None:
+        """After Initialization Mode (the FMU is in Event Mode, FMI 2.0 §3.2.3, FMI 3.0 §3.2):
+        the initial event iteration, Continuous-Time Mode, the solver."""
         if self._discrete_iteration():
             raise RuntimeError("the FMU requested termination during its initial event iteration")
         self.slave.enterContinuousTimeMode()
@@ -108,13 +96,10 @@ class MEInstance(FMI2Instance):
 
     def _new_solver(self):
         from fmpy.sundials import CVodeSolver
-        return CVodeSolver(nx=self._nx, nz=self._nz, get_x=self._checked("fmi2GetContinuousStates"),
-                           set_x=self._checked("fmi2SetContinuousStates"),
-                           get_dx=self._checked("fmi2GetDerivatives"),
-                           get_z=self._checked("fmi2GetEventIndicators"),
-                           get_nominals=self._checked("fmi2GetNominalsOfContinuousStates"),
-                           set_time=self._checked("fmi2SetTime"), input=_NoInput(), startTime=self._start,
-                           relativeTolerance=self.settings.rtol)
+        f = {role: self._checked(name) for role, name in self._solver_functions.items()}
+        return CVodeSolver(nx=self._nx, nz=self._nz, get_x=f["get_x"], set_x=f["set_x"], get_dx=f["get_dx"],
+                           get_z=f["get_z"], get_nominals=f["get_nominals"], set_time=f["set_time"],
+                           input=_NoInput(), startTime=self._start, relativeTolerance=self.settings.rtol)
 
     def _checked(self, function: str):
         """The raw FMI function bound to this instance, for the solver's callbacks: a status
@@ -127,11 +112,6 @@ class MEInstance(FMI2Instance):
                 self._callback_failure = (status, function)
             return status
         return call
-
-    def free(self) -> None:
-        """Free the solver (its callbacks call into the FMU), then the instance as `FMI2Instance`."""
-        self._solver = None
-        super().free()
 
     # ----------------------------------------------------------------- stepping
 
@@ -207,6 +187,45 @@ class MEInstance(FMI2Instance):
                              f"t = {time:g}")
         return status
 
+    def _terminated(self, time: float) -> int:
+        self.messages.append(f"[Discard] the FMU requested terminateSimulation at t = {time:g}")
+        return FMI_DISCARD
+
+class MEInstance(Integrated, FMI2Instance):
+    """One FMI 2.0 Model Exchange instance stepped like a Co-Simulation slave.
+
+    ``get``/``set`` are the FMU's raw fmi2Get/fmi2Set functions.  ``events`` counts the
+    events handled by kind ("input", "time", "state", "step").  The set-up calls, the log
+    messages and ``free`` are `FMI2Instance`'s.
+    """
+
+    interface = FMU2Model
+    _solver_functions = {"get_x": "fmi2GetContinuousStates", "set_x": "fmi2SetContinuousStates",
+                         "get_dx": "fmi2GetDerivatives", "get_z": "fmi2GetEventIndicators",
+                         "get_nominals": "fmi2GetNominalsOfContinuousStates", "set_time": "fmi2SetTime"}
+
+    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, settings: SolverSettings):
+        FMI2Instance.__init__(self, name, desc, unzip_dir)
+        self._init_integration(desc.md, settings)
+
+    def setup_experiment(self, start: float, stop: float) -> None:
+        """fmi2SetupExperiment with the solver's tolerance (the FMU may use it internally)."""
+        self._start = start
+        self.slave.setupExperiment(tolerance=self.settings.rtol, startTime=start, stopTime=stop)
+
+    def exit_initialization_mode(self) -> None:
+        """Leave Initialization Mode, then run the initial event iteration and enter
+        Continuous-Time Mode (FMI 2.0 §3.2.3: the model is in Event Mode after
+        fmi2ExitInitializationMode; §3.2.4's loop), so outputs reflect the initial state; start
+        the solver."""
+        self.slave.exitInitializationMode()
+        self._start_integration()
+
+    def free(self) -> None:
+        """Free the solver (its callbacks call into the FMU), then the instance as `FMI2Instance`."""
+        self._solver = None
+        FMI2Instance.free(self)
+
     def _discrete_iteration(self) -> bool:
         """fmi2NewDiscreteStates until no new discrete states are needed; keeps the next time
         event.  True if the FMU asks to terminate."""
@@ -219,9 +238,6 @@ class MEInstance(FMI2Instance):
         self._next_event = info.nextEventTime if info.nextEventTimeDefined != fmi2False else None
         return False
 
-    def _terminated(self, time: float) -> int:
-        self.messages.append(f"[Discard] the FMU requested terminateSimulation at t = {time:g}")
-        return FMI_DISCARD
 
     def _read_inputs(self) -> bytes:
         """The inputs as set by the execution (fmi2GetReal on every input), to detect a jump."""
@@ -230,6 +246,58 @@ class MEInstance(FMI2Instance):
         status = self._raw["fmi2GetReal"](self.component, self._input_vrs, self._n_inputs, self._inputs)
         if status > 1:
             raise FMICallException(function="fmi2GetReal", status=status)
+        return bytes(self._inputs)
+
+
+
+class ME3Instance(Integrated, FMI3Instance):
+    """One FMI 3.0 Model Exchange instance, integrated as `MEInstance` integrates FMI 2.0 ones
+    (FMI 3.0 §3: the same states, derivatives, event indicators and modes; the discrete-state
+    iteration is fmi3UpdateDiscreteStates).  Exchange and set-up are `FMI3Instance`'s."""
+
+    interface = FMU3Model
+    instantiate_function = "fmi3InstantiateModelExchange"
+    _solver_functions = {"get_x": "fmi3GetContinuousStates", "set_x": "fmi3SetContinuousStates",
+                         "get_dx": "fmi3GetContinuousStateDerivatives", "get_z": "fmi3GetEventIndicators",
+                         "get_nominals": "fmi3GetNominalsOfContinuousStates", "set_time": "fmi3SetTime"}
+
+    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, settings: SolverSettings):
+        FMI3Instance.__init__(self, name, desc, unzip_dir)
+        self._init_integration(desc.md, settings)
+
+    def setup_experiment(self, start: float, stop: float) -> None:
+        self._start = start
+        FMI3Instance.setup_experiment(self, start, stop)
+
+    def enter_initialization_mode(self) -> None:
+        self.slave.enterInitializationMode(tolerance=self.settings.rtol, startTime=self._start, stopTime=self._stop)
+
+    def exit_initialization_mode(self) -> None:
+        self.slave.exitInitializationMode()
+        self._start_integration()
+
+    def free(self) -> None:
+        self._solver = None
+        FMI3Instance.free(self)
+
+    def _discrete_iteration(self) -> bool:
+        """fmi3UpdateDiscreteStates until no update is needed; keeps the next time event.
+        True if the FMU asks to terminate."""
+        needed = True
+        while needed:
+            needed, terminate, _, _, next_defined, next_time = self.slave.updateDiscreteStates()
+            if terminate:
+                return True
+        self._next_event = next_time if next_defined else None
+        return False
+
+    def _read_inputs(self) -> bytes:
+        if not self._n_inputs:
+            return b""
+        status = self._raw["fmi3GetFloat64"](self.component, self._input_vrs, self._n_inputs, self._inputs,
+                                             self._n_inputs)
+        if status > 1:
+            raise FMICallException(function="fmi3GetFloat64", status=status)
         return bytes(self._inputs)
 
 

@@ -243,11 +243,3 @@ def test_declared_connector_type_must_match_the_fmi3_type(tmp_path, fmus):
 def test_array_parameters_are_refused(tmp_path, fmus, fmu, variable, message):
     err = _refused(tmp_path, fmus, {"c": (fmu, {})}, parameters={"c": {variable: 1}})
     assert message in err and f"ssv:Parameter '{variable}'" in err
-
-
-def test_fmi3_model_exchange_only_fmu_is_refused(tmp_path, fmus):
-    """Echo3 with its interface element renamed to ModelExchange: an FMI 3.0 ME-only FMU."""
-    me_only = edited_copy(fmus["Echo3"], tmp_path / "Echo3.fmu",
-                          lambda xml: xml.replace("<CoSimulation ", "<ModelExchange "))
-    err = _refused(tmp_path, {**fmus, "Echo3": me_only}, {"e": ("Echo3.fmu", {})})
-    assert "Echo3.fmu would run through its FMI 3.0 Model Exchange interface" in err
