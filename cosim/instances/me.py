@@ -3,7 +3,9 @@
 An FMI 2.0 Model Exchange FMU has no ``fmi2DoStep``; it gives derivatives and
 event indicators, and the importer integrates (FMI 2.0 §3).  `MEInstance`
 wraps fmpy's `FMU2Model` behind the same small interface as a Co-Simulation
-`cosim.instances.fmi2.FMI2Instance`, so the execution steps it like any other component:
+`cosim.instances.fmi2.FMI2Instance`, so the execution steps it like any other component
+(`ME3Instance` does the same for FMI 3.0 on fmpy's `FMU3Model`, FMI 3.0 §3; the integration
+both share is `Integrated`):
 ``do_step(component, t, h, flag)`` integrates from t to t + h with the inputs
 held (zero-order hold) using fmpy's `CVodeSolver` (SUNDIALS CVODE, BDF with a
 dense Newton solver, so stiff plants are stable at any communication step).
@@ -62,7 +64,9 @@ class Integrated:
     #: role -> raw FMI function name, for `_new_solver`
     _solver_functions: dict[str, str]
 
-    def _init_integration(self, md, settings: SolverSettings) -> None:
+    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, settings: SolverSettings):
+        super().__init__(name, desc, unzip_dir)  # the FMI 2.0 or FMI 3.0 instance (next in the MRO)
+        md = desc.md
         self.settings = settings
         self._raw = self.slave._functions
         self._nx = md.numberOfContinuousStates
@@ -85,9 +89,12 @@ class Integrated:
         """Events handled so far, by kind."""
         return dict(self._events)
 
-    def _start_integration(self) -> None:
-        """After Initialization Mode (the FMU is in Event Mode, FMI 2.0 §3.2.3, FMI 3.0 §3.2):
-        the initial event iteration, Continuous-Time Mode, the solver."""
+    def exit_initialization_mode(self) -> None:
+        """Leave Initialization Mode, then run the initial event iteration and enter
+        Continuous-Time Mode (the model is in Event Mode after exitInitializationMode, FMI 2.0
+        §3.2.3 and §3.2.4's loop, FMI 3.0 §3.2), so outputs reflect the initial state; start the
+        solver."""
+        self.slave.exitInitializationMode()
         if self._discrete_iteration():
             raise RuntimeError("the FMU requested termination during its initial event iteration")
         self.slave.enterContinuousTimeMode()
@@ -100,6 +107,11 @@ class Integrated:
         return CVodeSolver(nx=self._nx, nz=self._nz, get_x=f["get_x"], set_x=f["set_x"], get_dx=f["get_dx"],
                            get_z=f["get_z"], get_nominals=f["get_nominals"], set_time=f["set_time"],
                            input=_NoInput(), startTime=self._start, relativeTolerance=self.settings.rtol)
+
+    def free(self) -> None:
+        """Free the solver (its callbacks call into the FMU), then the instance."""
+        self._solver = None
+        super().free()
 
     def _checked(self, function: str):
         """The raw FMI function bound to this instance, for the solver's callbacks: a status
@@ -204,27 +216,10 @@ class MEInstance(Integrated, FMI2Instance):
                          "get_dx": "fmi2GetDerivatives", "get_z": "fmi2GetEventIndicators",
                          "get_nominals": "fmi2GetNominalsOfContinuousStates", "set_time": "fmi2SetTime"}
 
-    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, settings: SolverSettings):
-        FMI2Instance.__init__(self, name, desc, unzip_dir)
-        self._init_integration(desc.md, settings)
-
     def setup_experiment(self, start: float, stop: float) -> None:
         """fmi2SetupExperiment with the solver's tolerance (the FMU may use it internally)."""
         self._start = start
         self.slave.setupExperiment(tolerance=self.settings.rtol, startTime=start, stopTime=stop)
-
-    def exit_initialization_mode(self) -> None:
-        """Leave Initialization Mode, then run the initial event iteration and enter
-        Continuous-Time Mode (FMI 2.0 §3.2.3: the model is in Event Mode after
-        fmi2ExitInitializationMode; §3.2.4's loop), so outputs reflect the initial state; start
-        the solver."""
-        self.slave.exitInitializationMode()
-        self._start_integration()
-
-    def free(self) -> None:
-        """Free the solver (its callbacks call into the FMU), then the instance as `FMI2Instance`."""
-        self._solver = None
-        FMI2Instance.free(self)
 
     def _discrete_iteration(self) -> bool:
         """fmi2NewDiscreteStates until no new discrete states are needed; keeps the next time
@@ -261,24 +256,12 @@ class ME3Instance(Integrated, FMI3Instance):
                          "get_dx": "fmi3GetContinuousStateDerivatives", "get_z": "fmi3GetEventIndicators",
                          "get_nominals": "fmi3GetNominalsOfContinuousStates", "set_time": "fmi3SetTime"}
 
-    def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, settings: SolverSettings):
-        FMI3Instance.__init__(self, name, desc, unzip_dir)
-        self._init_integration(desc.md, settings)
-
     def setup_experiment(self, start: float, stop: float) -> None:
         self._start = start
         FMI3Instance.setup_experiment(self, start, stop)
 
     def enter_initialization_mode(self) -> None:
         self.slave.enterInitializationMode(tolerance=self.settings.rtol, startTime=self._start, stopTime=self._stop)
-
-    def exit_initialization_mode(self) -> None:
-        self.slave.exitInitializationMode()
-        self._start_integration()
-
-    def free(self) -> None:
-        self._solver = None
-        FMI3Instance.free(self)
 
     def _discrete_iteration(self) -> bool:
         """fmi3UpdateDiscreteStates until no update is needed; keeps the next time event.
