@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from .errors import CosimError, RunError, SetupError
@@ -49,6 +50,15 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--fmu-log", choices=["errors", "all", "off"], default="errors",
                      help="FMU log messages kept to explain a failure: the FMUs' status categories "
                           "(default), every category, or none (fastest)")
+    run.add_argument("--loops", choices=["iterate", "delay"], default="iterate",
+                     help="algebraic loops of direct feedthrough: solved by iteration at every communication "
+                          "point (default), or broken by one step of delay, as libcosim runs them")
+    run.add_argument("--loop-tolerance", type=float, nargs=2, default=(1e-10, 1e-12), metavar=("RTOL", "ATOL"),
+                     help="convergence of a loop: every loop output changes by at most ATOL + RTOL·|y| in an "
+                          "iteration (default 1e-10 1e-12)")
+    run.add_argument("--loop-iterations", type=int, default=100, help="iterations before a loop fails (100)")
+    run.add_argument("--relaxation", type=float, default=1.0, help="relaxation factor in (0, 1] (1: plain "
+                                                                    "fixed point)")
     run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
     validate = sub.add_parser("validate", help="check a system without running it")
@@ -154,8 +164,13 @@ def _run(args) -> int:
     from .plots import default_panels, plot
     from .simulation import prepare, run, select, signal_info
 
+    from .loops import LoopSettings
+
+    settings = LoopSettings(rtol=args.loop_tolerance[0], atol=args.loop_tolerance[1],
+                            max_iterations=args.loop_iterations, relaxation=args.relaxation)
     prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
-                       algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir)
+                       algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
+                       loops=args.loops)
     try:
         plan = prepared.plan
         name = plan.name or Path(args.path).stem
@@ -168,8 +183,13 @@ def _run(args) -> int:
               f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
               f"{prepared.algorithm}")
         try:
-            result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
-                                   keep=[n for panel in panels for n in panel] if args.plot is not None else [])
+            with warnings.catch_warnings(record=True) as caught:  # printed as cosim's own warnings
+                warnings.simplefilter("always", RuntimeWarning)
+                result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
+                                       keep=[n for panel in panels for n in panel] if args.plot is not None else [],
+                                       loop_settings=settings)
+            for warning in caught:
+                print(f"cosim: warning: {warning.message}", file=sys.stderr)
         except RunError:
             print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
             raise
@@ -177,6 +197,8 @@ def _run(args) -> int:
         prepared.close()
     if metadata["status"] == "discarded":
         print(f"cosim: warning: {metadata['message']}", file=sys.stderr)
+    elif metadata["status"] == "terminated":
+        print(f"cosim: {metadata['message']}", file=sys.stderr)
     print(f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
     if args.plot is not None:
         png = plot(result, panels, args.plot or output.with_suffix(".png"), scenario=name, metadata=metadata)
@@ -191,8 +213,14 @@ def _run(args) -> int:
 def _validate(args) -> int:
     prepared = _prepare_with_placeholder_grid(args)
     plan = prepared.plan
+    e = plan.experiment
+    stop = f"stop {e.stop_time:g} s" if e.stop_time is not None else "no stop time in the SSD (run needs --stop)"
+    step = f"step {e.step_size:g} s ({e.step_size_source})" if e.step_size is not None \
+        else "no step size in the SSD (run needs --step)"
     print(f"cosim: {args.path}: valid — {len(plan.fmus)} FMUs, {len(plan.routes)} connections, "
-          f"{len(plan.start_values)} parameter values; step {prepared.grid.step:g} s ({prepared.step_source})")
+          f"{len(plan.start_values)} parameter values; {stop}; {step}")
+    for loop in plan.algebraic_loops:
+        print(f"cosim: algebraic loop (run solves it by iteration; --loops delay breaks it): {loop.describe()}")
     prepared.close()
     return 0
 
@@ -216,7 +244,7 @@ def _info(args) -> int:
     prepared = _prepare_with_placeholder_grid(args)
     plan = prepared.plan
     e, hierarchy = plan.experiment, plan.structure.hierarchy
-    print(f"system {plan.name!r} ({plan.files.ssd_file})")
+    print(f"system {plan.name!r} ({plan.files.display})")
     print(f"  experiment: start {e.start_time}, stop {e.stop_time}, step {e.step_size} "
           f"({e.step_size_source or 'none in the SSD'}), algorithm {e.algorithm or 'jacobi'}")
     if hierarchy is not None and (hierarchy.systems or hierarchy.connectors):

@@ -20,9 +20,11 @@ from fmpy.model_description import ModelDescription, ModelVariable
 from .errors import SetupError, did_you_mean
 
 #: The interface the master drives an FMU through (`describe`).
-Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me"]
+Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me", "fmi3-me"]
+#: The kinds the master integrates (Model Exchange, `cosim.instances.me`).
+MODEL_EXCHANGE: tuple[Kind, ...] = ("fmi2-me", "fmi3-me")
 #: How the master exchanges a variable (`exchange_type`): the FMI 2.0 type names.
-ExchangeType = Literal["Real", "Integer", "Boolean", "String"]
+ExchangeType = Literal["Real", "Integer", "Boolean", "String", "Binary"]
 
 #: SSP 1.0 Component ``implementation`` values (SystemStructureDescription.xsd).
 IMPLEMENTATIONS = ("any", "CoSimulation", "ModelExchange")
@@ -41,7 +43,7 @@ class FMUDescription:
 
     @property
     def model_identifier(self) -> str:
-        interface = self.md.modelExchange if self.kind == "fmi2-me" else self.md.coSimulation
+        interface = self.md.modelExchange if self.kind in MODEL_EXCHANGE else self.md.coSimulation
         return interface.modelIdentifier
 
     #: Array elements named by connectors (``vector[2]``), by the value reference the master
@@ -65,7 +67,7 @@ class FMUDescription:
         known = next((e for e in self.elements.values() if e.name == name), None)
         if known is not None:
             return known
-        if len(array.dimensions) != 1 or array.type == "String":
+        if len(array.dimensions) != 1 or array.type in ("String", "Binary"):
             raise SetupError(f"'{array.name}' is a {len(array.dimensions)}-dimensional {array.type} array; only "
                              "elements of one-dimensional numeric and Boolean arrays can be connected.",
                              file=file, element=where, variable=name)
@@ -111,15 +113,19 @@ def _dimension_size(dimension) -> int:
 
 
 #: The exchange types of the master (the FMI 2.0 type names) for the FMI types it connects.
-_EXCHANGE_TYPES: dict[str, ExchangeType] = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean",
-                                            "String": "String", "Float64": "Real", "Int32": "Integer"}
+_EXCHANGE_TYPES: dict[str, ExchangeType] = {
+    "Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String", "Enumeration": "Integer",
+    "Float64": "Real", "Float32": "Real", "Int8": "Integer", "UInt8": "Integer", "Int16": "Integer",
+    "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer", "Int64": "Integer", "UInt64": "Integer",
+    "Binary": "Binary"}
 
 
 def exchange_type(variable: ModelVariable) -> ExchangeType | None:
     """How the master exchanges ``variable``: "Real" (C double), "Integer" (C int), "Boolean"
-    or "String", for FMI 2.0 variables of those types and FMI 3.0 Float64, Int32, Boolean and
-    String; None for the types it does not connect (FMI 2.0 Enumeration, FMI 3.0 Float32,
-    Int8..UInt64 but Int32, Enumeration, Binary, Clock)."""
+    or "String", for FMI 2.0 variables of those types and Enumeration (an Integer, FMI 2.0
+    §2.2.3), FMI 3.0 Float64 and Float32 (Real), Int8..UInt64 and Enumeration (Integer; a value
+    beyond 32 bits is refused when read, `cosim.instances.fmi3`), Boolean, String and Binary
+    (exchanged, not recorded); None for the type it does not connect (FMI 3.0 Clock)."""
     return _EXCHANGE_TYPES.get(variable.type)
 
 
@@ -161,7 +167,7 @@ def describe(path: Path, where: str, file: str, implementation: str = "any") -> 
 
 def _kind(md: ModelDescription, path: Path, implementation: str, where: str, file: str) -> Kind:
     """The interface the master drives: the SSD's ``implementation`` if the FMU has it, else
-    Co-Simulation when present, else Model Exchange (FMI 2.0 only)."""
+    Co-Simulation when present, else Model Exchange."""
     if implementation not in IMPLEMENTATIONS:
         raise SetupError(f"implementation='{implementation}' is not one of {', '.join(IMPLEMENTATIONS)} "
                          "(SSP 1.0 Component).", file=file, element=where)
@@ -169,6 +175,11 @@ def _kind(md: ModelDescription, path: Path, implementation: str, where: str, fil
         raise SetupError(f"{path.name} is an FMI {md.fmiVersion} FMU; this master runs FMI 2.0 and 3.0 FMUs.",
                          file=file, element=where)
     has_cs, has_me = md.coSimulation is not None, md.modelExchange is not None
+    if not has_cs and not has_me:  # FMI 3.0 allows an FMU with only Scheduled Execution
+        interfaces = "only a Scheduled Execution interface" if md.scheduledExecution is not None \
+            else "neither a Co-Simulation nor a Model Exchange interface"
+        raise SetupError(f"{path.name} has {interfaces}; this master runs Co-Simulation and Model Exchange "
+                         "FMUs (FMI 2.0 and 3.0).", file=file, element=where)
     if implementation == "CoSimulation" and not has_cs:
         raise SetupError(f"implementation='CoSimulation' but {path.name} has no Co-Simulation interface.",
                          file=file, element=where)
@@ -177,11 +188,7 @@ def _kind(md: ModelDescription, path: Path, implementation: str, where: str, fil
                          file=file, element=where)
     use_me = implementation == "ModelExchange" or (implementation == "any" and not has_cs)
     if md.fmiVersion == "3.0":
-        if use_me:
-            raise SetupError(f"{path.name} would run through its FMI 3.0 Model Exchange interface; this master "
-                             "hosts Model Exchange FMUs of FMI 2.0 and FMI 3.0 Co-Simulation FMUs.",
-                             file=file, element=where)
-        return "fmi3-cs"
+        return "fmi3-me" if use_me else "fmi3-cs"
     return "fmi2-me" if use_me else "fmi2-cs"
 
 

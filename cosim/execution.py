@@ -14,7 +14,9 @@ At every communication point (and during initialisation) the exchange reads
 all outputs, then re-reads the outputs of direct-feedthrough FMUs after
 setting their inputs, in dependency order, so a chain of feedthrough blocks
 (sums, gains) settles within the instant instead of lagging one step per
-block.  Without feedthrough this is plain Jacobi, as libcosim does it.
+block.  Without feedthrough this is plain Jacobi, as libcosim does it.  An
+algebraic loop of direct feedthrough is solved by repeating that settling sweep
+(`cosim.loops.LoopSolver`), or broken by one step of delay (``loops="delay"``).
 
 Values move through preallocated ctypes arrays with one batched get and one
 batched set per FMU and type; routing is precomputed NumPy index arrays.
@@ -24,6 +26,7 @@ from __future__ import annotations
 import ctypes
 import math
 import time as _time
+import warnings
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -32,11 +35,15 @@ import numpy as np
 from .errors import RunError, SetupError
 from .description import FMUDescription, exchange_type
 from .instances import STATUS, Instance, Unzipped, open_instance
+from .instances.fmi3 import BinaryValue
+from .loops import LoopSettings, LoopSolver, Watched
 from .structure import Plan
 from .observers import Recorder
 
 #: exchange types (`cosim.description.exchange_type`) and their buffers' C types, as fmi2 declares them
-TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p}
+#: (Binary, FMI 3.0 only: a pointer and a size, `cosim.instances.fmi3.BinaryValue`)
+TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p,
+         "Binary": BinaryValue}
 ALGORITHMS = ("jacobi", "gauss-seidel")
 FMI_WARNING, FMI_DISCARD = 1, 2
 
@@ -67,22 +74,27 @@ class Grid:
 class _Typed:
     """Outputs (Y) and inputs (U) of one exchange type for all components, in ctypes memory.
 
-    Strings (char*) are not numbers: they are routed by a Python loop over the pairs of
-    buffer positions, never transformed, and not recorded (the recorder and the CSV hold
-    numeric signals only).  An FMU's string is valid only until its next FMI call (FMI 2.0
-    §2.1.7), so every string get is followed by a copy into memory the buffer owns (`get_call`).
+    Strings (char*) and Binary values (pointer and size) are not numbers: they are routed by
+    a Python loop over the pairs of buffer positions, never transformed, and not recorded (the
+    recorder and the CSV hold numeric signals only).  An FMU's string or binary is valid only
+    until its next FMI call (FMI 2.0 §2.1.7, FMI 3.0 §2.2.6.2), so every get is followed by a
+    copy into memory the buffer owns (`get_call`); a routed Binary keeps that memory alive
+    (``owners``) as long as the input holds it.
     """
 
     def __init__(self, plan: Plan, type_name: str, order: list[str]):
         ctype = TYPES[type_name]
         self.type_name = type_name
-        self.strings = type_name == "String"
+        self.strings = type_name in ("String", "Binary")
+        self.binary = type_name == "Binary"
         outs = [(c, v) for c in order for v in plan.outputs[c] if exchange_type(v) == type_name]
         ins = [(c, v) for c in order for v in plan.inputs[c] if exchange_type(v) == type_name]
         self.out_names = [f"{c}.{v.name}" for c, v in outs]
         self.in_names = [f"{c}.{v.name}" for c, v in ins]
         self.Ybuf = (ctype * max(1, len(outs)))()
         self.Ubuf = (ctype * max(1, len(ins)))()
+        #: Binary only: the memory each buffer position points to, kept alive here
+        self.owners = {id(self.Ybuf): [None] * len(outs), id(self.Ubuf): [None] * len(ins)}
         if not self.strings:
             self.Y = np.ctypeslib.as_array(self.Ybuf)[:len(outs)]
             self.U = np.ctypeslib.as_array(self.Ubuf)[:len(ins)]
@@ -123,6 +135,10 @@ class _Typed:
             Y, U = self.Ybuf, self.Ubuf
             for i, j in zip(src.tolist(), dst.tolist()):
                 U[j] = Y[i]
+            if self.binary:
+                Yown, Uown = self.owners[id(Y)], self.owners[id(U)]
+                for i, j in zip(src.tolist(), dst.tolist()):
+                    Uown[j] = Yown[i]
         elif identity:
             self.U[dst] = self.Y[src]
         else:
@@ -137,6 +153,18 @@ class _Typed:
         bytes, writing it back makes the array keep them)."""
         if not self.strings:
             return get
+        if self.binary:
+            owners = self.owners[id(buf)]
+
+            def get_owned_binary(component, vrs, count, values) -> int:
+                status = get(component, vrs, count, values)
+                if status <= FMI_WARNING:
+                    for i in range(start, start + n):
+                        data = ctypes.string_at(buf[i].data, buf[i].size) if buf[i].size else b""
+                        owners[i] = ctypes.create_string_buffer(data, max(1, len(data)))
+                        buf[i].data = ctypes.cast(owners[i], type(buf[i].data))
+                return status
+            return get_owned_binary
 
         def get_owned(component, vrs, count, values) -> int:
             status = get(component, vrs, count, values)
@@ -149,7 +177,8 @@ class _Typed:
 class Execution:
     """One run of a plan on a grid with an algorithm, feeding a recorder."""
 
-    def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi", fmu_log: str = "errors"):
+    def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi", fmu_log: str = "errors",
+                 loop_settings: LoopSettings | None = None):
         if algorithm not in ALGORITHMS:
             raise SetupError(f"unknown algorithm '{algorithm}'; choose one of {', '.join(ALGORITHMS)}.",
                              element="algorithm")
@@ -160,12 +189,25 @@ class Execution:
         self.order = list(plan.components)
         self.typed = [_Typed(plan, t, self.order) for t in TYPES
                       if any(exchange_type(v) == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
+        self.loop_solver = self._loop_solver(loop_settings or LoopSettings()) \
+            if plan.algebraic_loops and plan.loop_mode == "iterate" else None
+        if plan.algebraic_loops and plan.loop_mode == "delay":
+            warnings.warn("algebraic loop broken by one step of delay (--loops delay): "
+                          + "; ".join(loop.describe() for loop in plan.algebraic_loops), RuntimeWarning, stacklevel=2)
         self.instances: dict[str, Instance] = {}
         self._unzipped = Unzipped()
         self.last_time = grid.start
         self.loop_seconds = 0.0
         self.status = "not started"
         self.message = ""
+
+    def _loop_solver(self, settings: LoopSettings) -> LoopSolver:
+        """`cosim.loops.LoopSolver` over the exchange's output buffers: the loop outputs of each type."""
+        loop_outputs = {f"{c}.{v}" for loop in self.plan.algebraic_loops for c, v in loop.outputs}
+        watched = [Watched(ty.Y, np.array([i for i, n in enumerate(ty.out_names) if n in loop_outputs],
+                                          dtype=np.intp), ty.type_name == "Real")
+                   for ty in self.typed if not ty.strings]
+        return LoopSolver(self.plan.algebraic_loops, watched, settings)
 
     # ----------------------------------------------------------------- set-up
 
@@ -247,18 +289,25 @@ class Execution:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
                 self._check(s, comp, t, "Get")
-        for comp in self.plan.feedthrough_sequence:
-            self._route_into(comp, t)
-            for fn, c, vr, n, ptr in self._get[comp]:
-                s = fn(c, vr, n, ptr)
-                if s > FMI_WARNING:
-                    self._check(s, comp, t, "Get")
+        if self.loop_solver is None:
+            self._settle(t)
+        else:
+            self.loop_solver.solve(t, self._settle)
         for ty in self.typed:
             ty.route()
         for fn, c, vr, n, ptr, comp in self._all_set:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
                 self._check(s, comp, t, "Set")
+
+    def _settle(self, t: float) -> None:
+        """One sweep of the feedthrough sequence: each component's inputs set, its outputs re-read."""
+        for comp in self.plan.feedthrough_sequence:
+            self._route_into(comp, t)
+            for fn, c, vr, n, ptr in self._get[comp]:
+                s = fn(c, vr, n, ptr)
+                if s > FMI_WARNING:
+                    self._check(s, comp, t, "Get")
 
     def _route_into(self, comp: str, t: float) -> None:
         for ty in self.typed:
@@ -280,7 +329,8 @@ class Execution:
         return names, arrays
 
     def run(self, recorder: Recorder, progress=None) -> None:
-        """Step from start to stop; ``status`` ends as completed, discarded or failed."""
+        """Step from start to stop; ``status`` ends as completed, terminated (an FMU ended the run
+        after a valid step, recorded), discarded (an FMU could not complete a step) or failed."""
         grid = self.grid
         steppers = [(name, self.instances[name].do_step, self.instances[name].component) for name in self.order]
         gs = [(name, self.instances[name].do_step, self.instances[name].component)
@@ -289,6 +339,7 @@ class Execution:
         n_steps = grid.steps
         stride = max(1, n_steps // 200)
         recorder.record(grid.start)
+        self._recorder = recorder
         self.status = "running"
         started = _time.perf_counter()
         try:
@@ -304,14 +355,18 @@ class Execution:
                 t = time(k)
                 t_next = time(k + 1)
                 h = t_next - t
+                ended: list[tuple[str, str]] = []
                 if gauss_seidel:
-                    if self._gauss_seidel_step(gs, t, h, t_next):
+                    if self._gauss_seidel_step(gs, t, h, t_next, ended):
                         return
                 else:
                     for name, do_step, c in steppers:
                         s = do_step(c, t, h, 1)
-                        if s and self._step_status(s, name, t):
+                        if s and self._step_status(s, name, t, h, ended):
                             return
+                if ended:
+                    self._terminate(ended, t_next)
+                    return
                 exchange(t_next)
                 record(t_next)
                 self.last_time = t_next
@@ -319,12 +374,12 @@ class Execution:
                 progress.update(min(block + stride, n_steps) - block)
         self.status = "completed"
 
-    def _gauss_seidel_step(self, gs, t: float, h: float, t_next: float) -> bool:
+    def _gauss_seidel_step(self, gs, t: float, h: float, t_next: float, ended: list) -> bool:
         """Each FMU in dependency order: inputs from the freshest outputs, step, read outputs."""
         for name, do_step, c in gs:
             self._route_into(name, t)
             s = do_step(c, t, h, 1)
-            if s and self._step_status(s, name, t):
+            if s and self._step_status(s, name, t, h, ended):
                 return True
             for fn, cc, vr, n, ptr in self._get[name]:
                 s = fn(cc, vr, n, ptr)
@@ -332,19 +387,37 @@ class Execution:
                     self._check(s, name, t_next, "Get")
         return False
 
-    def _step_status(self, status: int, comp: str, t: float) -> bool:
-        """True when the run must end cleanly (discard); raises on error; False on warning."""
+    def _step_status(self, status: int, comp: str, t: float, h: float, ended: list[tuple[str, str]]) -> bool:
+        """After a status other than OK: False on Warning; raises on Error and Fatal.  On Discard
+        (or FMI 3.0 terminateSimulation), when the FMU's outputs are valid at the end of the step
+        (fmi2LastSuccessfulTime = t + h, or an FMI 3.0 step that completed) the component goes
+        into ``ended`` and the others still step, so that communication point is recorded
+        (`_terminate`); otherwise the run ends now at the last good time (True)."""
         if status == FMI_WARNING:
             return False
         inst = self.instances[comp]
         if status == FMI_DISCARD:
+            valid_until, reason = inst.step_end(t, h)
+            t_next = t + h
+            if valid_until is not None and math.isclose(valid_until, t_next, rel_tol=1e-12, abs_tol=1e-12):
+                ended.append((comp, reason))
+                return False
             self.status = "discarded"
-            self.message = (f"component '{comp}' ({inst.desc.path.name}) returned Discard from {inst.api}DoStep at "
-                            f"t = {t:g}; the run ended at the last good time {self.last_time:g}."
-                            f"{inst.last_messages()}")
+            self.message = (f"component '{comp}' ({inst.desc.path.name}): {reason} at t = {t:g} (step {h:g}); "
+                            f"the run ended at the last good time {self.last_time:g}.{inst.last_messages()}")
             return True
         self._check(status, comp, t, "DoStep")
         return False
+
+    def _terminate(self, ended: list[tuple[str, str]], t_end: float) -> None:
+        """FMUs ended the run after a step whose outputs are valid: record that point, then stop."""
+        self._exchange(t_end)
+        self._recorder.record(t_end)
+        self.last_time = t_end
+        self.status = "terminated"
+        self.message = "; ".join(f"component '{comp}' ({self.instances[comp].desc.path.name}): {reason} at "
+                                 f"t = {t_end:g}" for comp, reason in ended) \
+            + f"; the run ended there, that point recorded (stop time {self.grid.stop:g})."
 
     def close(self) -> None:
         for inst in self.instances.values():
@@ -353,15 +426,23 @@ class Execution:
 
     def _component_metadata(self, name: str, d: FMUDescription) -> dict:
         meta = {"fmu": str(d.path), "guid": d.md.guid, "generation_tool": d.md.generationTool, "interface": d.kind}
-        if d.kind == "fmi2-me":  # integrated by the master (cosim.instances.me)
+        if d.kind in ("fmi2-me", "fmi3-me"):  # integrated by the master (cosim.instances.me)
             meta["solver"] = self.plan.solvers[name].as_dict()
         return meta
+
+    def _loop_metadata(self) -> dict | None:
+        if self.loop_solver is not None:
+            return self.loop_solver.metadata()
+        if self.plan.algebraic_loops:
+            return {"mode": "delay", "loops": [loop.describe() for loop in self.plan.algebraic_loops]}
+        return None
 
     def metadata(self) -> dict:
         return {
             "algorithm": self.algorithm,
             "gauss_seidel_order": self.plan.gauss_seidel_order if self.algorithm == "gauss-seidel" else None,
             "feedthrough_sequence": self.plan.feedthrough_sequence,
+            "algebraic_loops": self._loop_metadata(),
             "start_time": self.grid.start, "stop_time": self.grid.stop, "step_size": self.grid.step,
             "status": self.status, "last_time": self.last_time, "message": self.message,
             "steps": self.grid.steps, "loop_seconds": self.loop_seconds,

@@ -32,7 +32,8 @@ System connectors are handled explicitly, never dropped:
 * root ``output`` connectors are recorded under their own name as an alias of the
   component output driving them (`SystemOutput`); an undriven one is refused;
 * unconnected connectors, and outputs of a nested system that feed nothing,
-  have no effect, like an unconnected connector of a component.
+  have no effect, like an unconnected connector of a component; a value for one
+  is accepted and has no effect either (an `OpenConnector` without sinks).
 
 ParameterBindings of a nested system name variables relative to it and are
 prefixed with its path; SSP 1.0 (ParameterBindings) gives bindings at a higher
@@ -231,7 +232,12 @@ class _Resolver:
             elif src not in self.driver:
                 self._open(src)
         for node, conn in self.walker.system_connectors.items():
-            if node[1] == "" and conn.kind == "output" and node not in self.driver:
+            root_output = node[1] == "" and conn.kind == "output"
+            if not root_output and node not in self.driver and node_name(node) not in self.open_connectors:
+                # feeds nothing: a value for it is accepted and has no effect (OMSimulator's systems give them)
+                self.open_connectors[node_name(node)] = OpenConnector(node_name(node), conn.kind, conn.line, [],
+                                                                      conn.unit)
+            if root_output and node not in self.driver:
                 raise SetupError(f"output connector '{node[2]}' of the root system is not driven by any "
                                  "connection.", file=self.file, element=f"ssd:Connector (line {conn.line})",
                                  variable=node[2], hint="Connect a component output to it, or remove it.")

@@ -1,7 +1,8 @@
 """The orders a plan follows, from the connection graph alone: no FMU is read here.
 
-* `variable_order`: connected variables in dependency order (Tarjan's strongly connected
-  components; a direct-feedthrough cycle is an algebraic loop, refused);
+* `algebraic_loops`: the direct-feedthrough cycles (Tarjan's strongly connected components);
+* `variable_order`: connected variables in dependency order, the dependencies inside the
+  given loops left out (a cycle left is refused);
 * `feedthrough_sequence`: the components to settle at each communication point;
 * `settling_shortcuts`: the FMI calls the exchange may leave out while settling;
 * `gauss_seidel_order`: components upstream first, SSD order inside a loop.
@@ -12,10 +13,10 @@ The inputs are names: components, variables, and each component's output depende
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Collection, Hashable, Mapping, Sequence
 
 from .errors import SetupError
-from .structure import Route
+from .structure import AlgebraicLoop, Route
 
 #: A node of the variable graph: ("out" | "in", component, variable).
 Variable = tuple[str, str, str]
@@ -23,17 +24,15 @@ Variable = tuple[str, str, str]
 Dependencies = Mapping[str, Mapping[str, Sequence[str]]]
 
 
-def variable_order(routes: Sequence[Route], outputs: Mapping[str, Sequence[str]], dependencies: Dependencies,
-                   file: str) -> list[Variable]:
-    """Topological order of connected variables and output connectors; a direct-feedthrough
-    cycle is an error.
-
-    Nodes are ('out'|'in', component, variable); edges go along connections and,
-    inside a component, from a connected input to each output that depends on it.
-    """
+def _variable_graph(routes: Sequence[Route], outputs: Mapping[str, Sequence[str]], dependencies: Dependencies,
+                    cut: Collection[AlgebraicLoop] = ()) -> tuple[list[Variable], dict[Variable, list[Variable]]]:
+    """Nodes ('out'|'in', component, variable) and edges: along connections and, inside a
+    component, from a connected input to each output that depends on it, except the
+    dependencies inside the loops ``cut``."""
     edges: dict[Variable, list[Variable]] = defaultdict(list)
     nodes: list[Variable] = []
     connected_in = _connected_inputs(routes)
+    inside = [loop.variables for loop in cut]
     for r in routes:
         a, b = ("out", r.src, r.src_var.name), ("in", r.dst, r.dst_var.name)
         edges[a].append(b)
@@ -43,9 +42,27 @@ def variable_order(routes: Sequence[Route], outputs: Mapping[str, Sequence[str]]
             out = ("out", comp, name)
             nodes.append(out)
             for dep in dependencies[comp].get(name, []):
-                if dep in connected_in[comp]:
-                    edges[("in", comp, dep)].append(out)
-    nodes = list(dict.fromkeys(nodes))
+                source = ("in", comp, dep)
+                if dep in connected_in[comp] and not any(source in v and out in v for v in inside):
+                    edges[source].append(out)
+    return list(dict.fromkeys(nodes)), edges
+
+
+def algebraic_loops(routes: Sequence[Route], outputs: Mapping[str, Sequence[str]],
+                    dependencies: Dependencies) -> list[AlgebraicLoop]:
+    """The direct-feedthrough cycles of the variable graph (Tarjan's strongly connected
+    components with more than one variable), each with one cycle through it for messages."""
+    nodes, edges = _variable_graph(routes, outputs, dependencies)
+    return [AlgebraicLoop(tuple(cycle_path(scc, edges)), frozenset(scc))
+            for scc in tarjan(nodes, edges) if len(scc) > 1][::-1]
+
+
+def variable_order(routes: Sequence[Route], outputs: Mapping[str, Sequence[str]], dependencies: Dependencies,
+                   file: str, cut: Collection[AlgebraicLoop] = ()) -> list[Variable]:
+    """Topological order of connected variables and output connectors, with the
+    dependencies inside the loops ``cut`` left out; a remaining direct-feedthrough cycle is
+    an error."""
+    nodes, edges = _variable_graph(routes, outputs, dependencies, cut)
     cycles = [scc for scc in tarjan(nodes, edges) if len(scc) > 1]
     if cycles:
         text = "; ".join(" -> ".join(f"{c}.{v} ({k}put)" for k, c, v in cycle_path(scc, edges))

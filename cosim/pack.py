@@ -1,24 +1,43 @@
 """Pack a validated scenario into a standard SSP archive.
 
-The archive holds ``SystemStructure.ssd`` as written, every ``.ssv`` beside it
-(subfolders included) and each component's FMU at the path its ``source``
-names (``resources/<Name>.fmu``), so other SSP tools (libcosim, fmpy.ssp,
+The archive holds ``SystemStructure.ssd`` as written but for one attribute, every
+``.ssv`` beside it (subfolders included) and each component's FMU at the path its
+``source`` names (``resources/<Name>.fmu``), so other SSP tools (libcosim, fmpy.ssp,
 OMSimulator) load it as it is.
+
+The attribute: every ``ssd:Component`` without a ``type`` gets
+``type="application/x-fmu-sharedlibrary"``, the default SSP 1.0 gives it (all our
+components are FMUs); OMSimulator reads only Components that carry it and otherwise
+fails with ``KeyError: CRef['setpoint']`` (measured, issue 21).
 """
 from __future__ import annotations
 
 import zipfile
 from pathlib import Path, PurePosixPath
 
+from lxml import etree
+
 from .errors import SetupError
-from .safeio import check_member_name
-from .ssp import SSD_NAME
+from .safeio import check_member_name, parse_xml
+from .ssp import NS, SSD_NAME
 from .structure import Plan
+
+#: SSP 1.0 ssd:Component type of an FMU (the default of the attribute)
+FMU_TYPE = "application/x-fmu-sharedlibrary"
+
+
+def typed_ssd(ssd: Path, display: str) -> bytes:
+    """The SSD with ``type`` written on every ssd:Component that omits it (see the module docstring)."""
+    tree = parse_xml(ssd, display)
+    for component in tree.getroot().iterfind(".//ssd:Component", NS):
+        if component.get("type") is None:
+            component.set("type", FMU_TYPE)
+    return etree.tostring(tree, xml_declaration=True, encoding="UTF-8")
 
 
 def pack(plan: Plan, output: Path) -> Path:
     files = plan.files
-    members: dict[str, Path] = {SSD_NAME: files.ssd_file}
+    members: dict[str, Path] = {}
     for ssv in sorted(files.base_dir.rglob("*.ssv")):
         members[ssv.relative_to(files.base_dir).as_posix()] = ssv
     for name, comp in plan.components.items():
@@ -32,6 +51,7 @@ def pack(plan: Plan, output: Path) -> Path:
     output.parent.mkdir(parents=True, exist_ok=True)
     tmp = output.with_suffix(output.suffix + ".part")
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr(SSD_NAME, typed_ssd(files.ssd_file, files.display))
         for member, path in members.items():
             z.write(path, member)
     tmp.replace(output)

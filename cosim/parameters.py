@@ -84,7 +84,7 @@ def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescri
     An open connector that gets no value is refused, naming it and what it feeds; a value for
     a connector that a connection drives is refused.
     """
-    open_connectors, driven, file = structure.open_connectors, structure.driven_connectors, str(structure.ssd_file)
+    open_connectors, driven, file = structure.open_connectors, structure.driven_connectors, structure.display
     out: list[ParameterValue] = []
     bound: set[str] = set()
     for p in values:
@@ -100,7 +100,7 @@ def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescri
         out += [_through_hops(structure, fmus, units, p, target, comp, conn, hops)
                 for comp, conn, hops in target.sinks]
     for path, target in open_connectors.items():
-        if path not in bound:
+        if path not in bound and target.sinks:
             fed = ", ".join(f"{comp}.{conn}" for comp, conn, _ in target.sinks)
             raise SetupError(f"system connector '{path}' (kind {target.kind}) has no driver and no value; it "
                              f"feeds {fed}.", file=file, element=f"ssd:Connector (line {target.line})",
@@ -170,8 +170,11 @@ def _coerce(p: ParameterValue, var: ModelVariable, where: str):
         what = "arrays and their elements" if kind is not None else f"{var.type} variables"
         raise SetupError(f"{what} cannot be given values by this master ({var.name} is "
                          f"{'an array' if kind else var.type}); it sets scalars of the FMI 2.0 types Real, "
-                         "Integer, Boolean, String and the FMI 3.0 types Float64, Int32, Boolean, String.",
+                         "Integer, Boolean, String, Enumeration and the FMI 3.0 types Float64, Float32, "
+                         "Int8..UInt64, Enumeration, Boolean, String.",
                          file=p.file, element=where, variable=var.name)
+    if p.type == "Enumeration":
+        return _enumeration_item(p, var, where)
     if kind == p.type:
         return p.value
     if kind == "Real" and p.type == "Integer":
@@ -180,3 +183,15 @@ def _coerce(p: ParameterValue, var: ModelVariable, where: str):
         return int(p.value)
     raise SetupError(f"a {p.type} value ({p.value}) is given for a {var.type} variable.", file=p.file,
                      element=where, variable=var.name)
+
+
+def _enumeration_item(p: ParameterValue, var: ModelVariable, where: str) -> int:
+    """The value of the item an ``ssv:Enumeration`` names, in the variable's declared type."""
+    items = {item.name: int(item.value) for item in (var.declaredType.items if var.declaredType else [])}
+    if var.type != "Enumeration" or not items:
+        raise SetupError(f"an Enumeration value ('{p.value}') is given for a {var.type} variable.", file=p.file,
+                         element=where, variable=var.name)
+    if p.value not in items:
+        raise SetupError(f"'{p.value}' is not an item of {var.declaredType.name} (items: {', '.join(items)}).",
+                         file=p.file, element=where, variable=var.name, hint=did_you_mean(p.value, items))
+    return items[p.value]

@@ -16,7 +16,7 @@ from fmpy.model_description import ModelVariable
 
 from .description import FMUDescription, describe, exchange_type, unit_of
 from .errors import SetupError, did_you_mean
-from .graph import feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
+from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
 from .parameters import resolve_parameters
 from .routing import connector_unit, hops_map, source_view, transformations
 from .solvers import check_model_exchange, solvers_of
@@ -24,6 +24,8 @@ from .structure import (
     Connection,
     Experiment,
     Hop,
+    LOOP_MODES,
+    LoopMode,
     ParameterValue,
     Plan,
     RecordedOutput,
@@ -35,11 +37,14 @@ from .units import IDENTITY, SystemUnits, fmu_units
 
 
 def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
-               extra_parameters: Sequence[ParameterValue] = ()) -> Plan:
+               extra_parameters: Sequence[ParameterValue] = (), loops: LoopMode = "iterate") -> Plan:
     """Check the structure against its FMUs (``fmu_paths``: `cosim.resources.locate_fmus`) and
-    order it; ``extra_parameters`` are applied last (command-line parameter sets).  Nothing
-    given is changed."""
-    file = str(structure.ssd_file)
+    order it; ``extra_parameters`` are applied last (command-line parameter sets); ``loops``:
+    how algebraic loops are run (`cosim.loops`).  Nothing given is changed."""
+    file = structure.display
+    if loops not in LOOP_MODES:
+        raise SetupError(f"unknown loop handling '{loops}'; choose one of {', '.join(LOOP_MODES)}.",
+                         element="--loops")
     fmus = {name: describe(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})", file,
                            comp.implementation)
             for name, comp in structure.components.items()}
@@ -52,9 +57,13 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
     system_outputs = _system_outputs(structure, outputs, units)
     recorded_units = _recorded_units(structure, outputs, inputs, system_outputs)
     dependencies = {name: desc.output_dependencies for name, desc in fmus.items()}
-    order = variable_order(routes, {c: [v.name for v in vs] for c, vs in outputs.items()}, dependencies,
-                           file)
+    output_names = {c: [v.name for v in vs] for c, vs in outputs.items()}
+    found = algebraic_loops(routes, output_names, dependencies)
+    order = variable_order(routes, output_names, dependencies, file, cut=found)
     feedthrough = feedthrough_sequence(order, routes, dependencies)
+    if loops == "delay":  # a component on a loop is read once per communication point, as libcosim reads all
+        delayed = {c for loop in found for c in loop.components}
+        feedthrough = [c for c in feedthrough if c not in delayed]
     read_once, set_once = settling_shortcuts(feedthrough, routes)
     return Plan(structure=structure, name=structure.name, system_name=structure.system_name,
                 files=ScenarioFiles(structure.ssd_file, structure.base_dir, structure.archive),
@@ -63,6 +72,7 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
                 components=dict(structure.components), fmus=fmus, solvers=solvers_of(structure, fmus),
                 routes=routes, start_values=start_values, outputs=outputs, inputs=inputs,
                 feedthrough_sequence=feedthrough, read_in_settling_only=read_once, set_in_settling_only=set_once,
+                algebraic_loops=found, loop_mode=loops,
                 gauss_seidel_order=gauss_seidel_order(list(structure.components), routes),
                 system_outputs=system_outputs, columns=_columns(structure, outputs, inputs),
                 units=recorded_units, unit_scopes=units)
@@ -72,7 +82,7 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
 # --------------------------------------------------------------------------- connectors and connections
 
 def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
-    file = str(structure.ssd_file)
+    file = structure.display
     outputs: dict[str, list[ModelVariable]] = {}
     inputs: dict[str, list[ModelVariable]] = {}
     for name, comp in structure.components.items():
@@ -86,7 +96,8 @@ def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription
                                  f"causality='{var.causality}'.", file=file, element=where, variable=conn.name)
             if var.causality in ("input", "output"):
                 _check_exchangeable(desc, var, where, file)
-            if conn.type is not None and conn.type != exchange_type(var):
+            if conn.type is not None and conn.type not in (exchange_type(var), var.type) \
+                    and not (conn.type == "Enumeration" and var.type == "Enumeration"):
                 raise SetupError(f"declared as {conn.type} but the FMU {desc.path.name} declares {var.type}.",
                                  file=file, element=where, variable=conn.name)
             if exchange_type(var) == "Real":  # FMI 2.0 Real, FMI 3.0 Float64: the types with a unit
@@ -104,15 +115,15 @@ def _check_exchangeable(desc: FMUDescription, var: ModelVariable, where: str, fi
     one element is named as ``vector[1]``, see `FMUDescription.variable`)."""
     if exchange_type(var) is None:
         raise SetupError(f"{var.name} has the type {var.type} in {desc.path.name}; connectors of that type are "
-                         "not supported (FMI 2.0 Real, Integer, Boolean, String and FMI 3.0 Float64, Int32, "
-                         "Boolean, String are).", file=file, element=where, variable=var.name)
+                         "not supported (FMI 2.0 Real, Integer, Boolean, String, Enumeration and FMI 3.0 Float64, "
+                         "Float32, Int8..UInt64, Enumeration, Boolean, String, Binary are).", file=file, element=where, variable=var.name)
     if var.dimensions:
         raise SetupError(f"{var.name} is an array in {desc.path.name}; a connector carries one element, "
                          f"named {var.name}[1] for the first one.", file=file, element=where, variable=var.name)
 
 
 def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
-    file = str(structure.ssd_file)
+    file = structure.display
     routes: list[Route] = []
     driven: dict[tuple[str, str], Connection] = {}
     for c in structure.connections:
@@ -158,7 +169,7 @@ def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescriptio
 
 def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], element: str, connector: str,
               where: str) -> ModelVariable:
-    file = str(structure.ssd_file)
+    file = structure.display
     if element not in structure.components:
         raise SetupError(f"unknown component '{element}'.", file=file, element=where,
                          hint=did_you_mean(element, structure.components))
@@ -182,7 +193,7 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVar
     A Real one is recorded as the root connector's value: the output, read in its FMU's unit,
     taken hop by hop to the root connector's unit (`cosim.routing.hops_map`; the connector's own
     unit if it declares one, else the unit carried along the path)."""
-    file = str(structure.ssd_file)
+    file = structure.display
     recorded: dict[str, RecordedOutput] = {}
     for out in structure.system_outputs.values():
         where = f"ssd:Connector '{out.name}' of the root system (line {out.line})"
@@ -212,10 +223,10 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVar
 def _columns(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
              inputs: dict[str, list[ModelVariable]]) -> list[str]:
     """The recorded connectors component by component in SSD order, connectors as each component
-    lists them: every output and input but String ones (exchanged, not recorded)."""
+    lists them: every output and input but String and Binary ones (exchanged, not recorded)."""
     columns = []
     for name, comp in structure.components.items():
-        recorded = {v.name for v in outputs[name] + inputs[name] if exchange_type(v) != "String"}
+        recorded = {v.name for v in outputs[name] + inputs[name] if exchange_type(v) not in ("String", "Binary")}
         columns += [f"{name}.{conn}" for conn in comp.connectors if conn in recorded]
     return columns
 

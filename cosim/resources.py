@@ -43,7 +43,7 @@ def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path
     where = f"ssd:Component '{comp.name}' (line {comp.line})"
     if not comp.source:
         raise SetupError("the component has no source attribute naming its FMU.",
-                         file=str(structure.ssd_file), element=where)
+                         file=structure.display, element=where)
     looked: list[str] = []
     archive_root = structure.base_dir.resolve() if structure.archive is not None else None
     try:

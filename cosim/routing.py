@@ -63,7 +63,7 @@ def source_view(structure: SystemStructure, units: SystemUnits, source: tuple[st
     the map from the FMU's value to the connector's, and its name."""
     src, sv = source
     name, scope, to_view, _ = connector_unit(units, src, sv, structure.components[src].connectors[sv.name].unit,
-                                              where, str(structure.ssd_file))
+                                              where, structure.display)
     return name, scope, to_view, f"{src}.{sv.name}"
 
 
@@ -91,7 +91,7 @@ def hops_map(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, ..
     port must not change a value; converting end to end would also skip the hops'
     transformations in between.  A hop between units of different dimensions is refused.
     """
-    file = str(structure.ssd_file)
+    file = structure.display
     name, scope, result, source = start
     ssd_scope = UnitScope(units.ssd)
     from_view = IDENTITY

@@ -22,7 +22,8 @@ from .execution import ALGORITHMS, Execution, Grid
 from .observers import MemorySink, Recorder, file_sink
 from .plan import build_plan
 from .resources import locate_fmus
-from .structure import Plan, RecordedOutput
+from .loops import LoopSettings
+from .structure import LoopMode, Plan, RecordedOutput
 
 
 @dataclass
@@ -39,14 +40,15 @@ class Prepared:
 
 
 def validate(path: str | Path, *, parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
-             use_providers: bool = True) -> Plan:
-    """Read, locate and check a system against its FMUs (`cosim.plan.build_plan`); nothing is
-    instantiated.  The plan owns an extracted archive until it is closed."""
+             use_providers: bool = True, loops: LoopMode = "iterate") -> Plan:
+    """Read, locate and check a system against its FMUs (`cosim.plan.build_plan`; ``loops``:
+    how algebraic loops are run, `cosim.loops`); nothing is instantiated.  The plan owns an
+    extracted archive until it is closed."""
     structure = ssp.load(path)
     try:
         extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
         fmu_paths = locate_fmus(structure, [Path(d) for d in fmu_dirs], use_providers=use_providers)
-        return build_plan(structure, fmu_paths, extra)
+        return build_plan(structure, fmu_paths, extra, loops)
     except BaseException:
         structure.close()
         raise
@@ -57,7 +59,7 @@ def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: floa
     """The time grid and algorithm of a run: the arguments given, else the SSD's default
     experiment and annotations (`cosim.structure.Experiment`); a missing stop time or step
     size, or an unknown algorithm, is refused."""
-    experiment, file = plan.experiment, str(plan.files.ssd_file)
+    experiment, file = plan.experiment, plan.files.display
     start = start_time if start_time is not None else (experiment.start_time or 0.0)
     stop = stop_time if stop_time is not None else experiment.stop_time
     if stop is None:
@@ -82,9 +84,10 @@ def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: floa
 def prepare(path: str | Path, *, start_time: float | None = None, stop_time: float | None = None,
             step_size: float | None = None, algorithm: str | None = None,
             parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
-            use_providers: bool = True) -> Prepared:
+            use_providers: bool = True, loops: LoopMode = "iterate") -> Prepared:
     """`validate`, then `resolve_grid`; nothing is instantiated."""
-    plan = validate(path, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs, use_providers=use_providers)
+    plan = validate(path, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs, use_providers=use_providers,
+                    loops=loops)
     try:
         prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step_size,
                                 algorithm=algorithm)
@@ -98,7 +101,8 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
              step_size: float | None = None, algorithm: str | None = None,
              parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
              output: str | Path | None = None, progress: bool = False,
-             use_providers: bool = True, fmu_log: str = "errors") -> np.ndarray:
+             use_providers: bool = True, fmu_log: str = "errors", loops: LoopMode = "iterate",
+             loop_settings: LoopSettings | None = None) -> np.ndarray:
     """Run an SSP system and return every connector at every communication point.
 
     The result is a structured array with a ``time`` field and one field per
@@ -110,12 +114,15 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     A failed run raises `RunError` with the samples so far in ``error.result``
     (and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
     collected to explain a failure ("errors", "all" or "off"; see `cosim.instances.fmi2.FMI2Instance.instantiate`).
+    ``loops``: algebraic loops solved by iteration ("iterate", with ``loop_settings``) or broken
+    by one step of delay ("delay", with a warning), see `cosim.loops`.
     """
     prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
-                       use_providers=use_providers)
+                       use_providers=use_providers, loops=loops)
     try:
-        result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log)
+        result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
+                               loop_settings=loop_settings)
     finally:
         prepared.close()
     if metadata["status"] == "discarded":
@@ -124,7 +131,8 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
 
 
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
-        fmu_log: str = "errors", keep: Sequence[str] | None = None) -> tuple[np.ndarray, dict]:
+        fmu_log: str = "errors", keep: Sequence[str] | None = None,
+        loop_settings: LoopSettings | None = None) -> tuple[np.ndarray, dict]:
     """Execute a prepared system; returns the samples and the run's metadata.
 
     ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
@@ -136,7 +144,7 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     sinks: list = [memory] + ([file_sink(output)] if output is not None else [])
     if plan.system_outputs:
         sinks = [SystemOutputColumns(list(plan.system_outputs.values()), sinks)]
-    execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log)
+    execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings)
     recorder = None
     bar = None
     try:

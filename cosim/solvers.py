@@ -2,7 +2,7 @@
 the solver settings of each, and what is checked before instantiation."""
 from __future__ import annotations
 
-from .description import FMUDescription
+from .description import MODEL_EXCHANGE, FMUDescription
 from .errors import SetupError
 from .structure import SolverOptions, SolverSettings, SystemStructure
 
@@ -24,9 +24,9 @@ def solver_settings(desc: FMUDescription, options: SolverOptions | None = None) 
 
 
 def solvers_of(structure: SystemStructure, fmus: dict[str, FMUDescription]) -> dict[str, SolverSettings]:
-    """The solver settings of every component the master integrates (kind ``fmi2-me``)."""
+    """The solver settings of every component the master integrates (kinds ``fmi2-me``, ``fmi3-me``)."""
     return {name: solver_settings(desc, structure.components[name].solver)
-            for name, desc in fmus.items() if desc.kind == "fmi2-me"}
+            for name, desc in fmus.items() if desc.kind in MODEL_EXCHANGE}
 
 
 def check_model_exchange(structure: SystemStructure, fmus: dict[str, FMUDescription]) -> None:
@@ -35,15 +35,15 @@ def check_model_exchange(structure: SystemStructure, fmus: dict[str, FMUDescript
     ignored), and no discrete-time inputs on one, which FMI 2.0 lets an importer set only in
     Event Mode (§3.2.3) while this master sets inputs at communication points in
     Continuous-Time Mode."""
-    file = str(structure.ssd_file)
+    file = structure.display
     for name, comp in structure.components.items():
         desc = fmus[name]
-        if comp.solver is not None and desc.kind != "fmi2-me":
+        if comp.solver is not None and desc.kind not in MODEL_EXCHANGE:
             raise SetupError(f"component '{name}' runs through its {desc.kind} interface, which integrates "
                              "itself; the solver annotation applies to Model Exchange components only.",
                              file=comp.solver.file, element=f"{comp.solver.element} of ssd:Component '{name}'",
                              hint='Add implementation="ModelExchange" to the component or remove the annotation.')
-        if desc.kind != "fmi2-me":
+        if desc.kind not in MODEL_EXCHANGE:
             continue
         discrete = [v.name for v in desc.md.modelVariables if v.causality == "input" and v.variability != "continuous"]
         if discrete:

@@ -273,7 +273,9 @@ def _read_connection(c: etree._Element, display: str) -> Connection:
         factor = _float_attr(lt, "factor", display, default=1.0)
         offset = _float_attr(lt, "offset", display, default=0.0)
     suppress = c.get("suppressUnitConversion", "false") in ("true", "1")
-    return Connection(c.get("startElement"), c.get("startConnector"), c.get("endElement"),
+    # an empty element name is the enclosing system, as an omitted one (OMSimulator writes
+    # startElement="" for a system's own connector; the schema's xs:string accepts it)
+    return Connection(c.get("startElement") or None, c.get("startConnector"), c.get("endElement") or None,
                       c.get("endConnector"), factor, offset, has, suppress, line)
 
 
@@ -346,7 +348,7 @@ def _read_parameter_set(pset: etree._Element, display: str) -> list[ParameterVal
             value = int(text)
         elif kind == "Boolean":
             value = text in ("true", "1")
-        elif kind == "String":
+        elif kind in ("String", "Enumeration"):  # an Enumeration value is an item name (SSP 1.0 ssv)
             value = text
         else:
             raise SetupError(f"{kind} parameter values are not supported.", file=display,

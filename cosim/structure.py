@@ -14,6 +14,7 @@ from __future__ import annotations
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 from fmpy.model_description import ModelVariable
 
@@ -171,8 +172,9 @@ class SystemOutput:
 
 @dataclass
 class OpenConnector:
-    """A system connector without a driver that feeds component inputs or parameters;
-    a ParameterBinding naming ``path`` gives it its (constant) value."""
+    """A system connector without a driver, and the component inputs or parameters it feeds
+    (none: a value for it has no effect); a ParameterBinding naming ``path`` gives it its
+    (constant) value."""
     path: str
     kind: str
     line: int
@@ -194,6 +196,17 @@ class ScenarioFiles:
     def source(self) -> Path:
         """What the user gave: the archive, else the SSD."""
         return self.archive or self.ssd_file
+
+    @property
+    def display(self) -> str:
+        """The SSD as messages name it: ``archive.ssp!SystemStructure.ssd`` inside an archive
+        (its extraction folder is temporary), else its path."""
+        return display_name(self.ssd_file, self.archive)
+
+
+def display_name(ssd_file: Path, archive: Path | None) -> str:
+    """`ScenarioFiles.display`."""
+    return f"{archive}!{ssd_file.name}" if archive is not None else str(ssd_file)
 
 
 @dataclass(frozen=True)
@@ -253,6 +266,11 @@ class SystemStructure:
     #: paths of the system connectors a connection drives (they cannot also be given a value)
     driven_connectors: set[str] = field(default_factory=set)
 
+    @property
+    def display(self) -> str:
+        """The SSD as messages name it (`ScenarioFiles.display`)."""
+        return display_name(self.ssd_file, self.archive)
+
     def close(self) -> None:
         if self._tmp is not None:
             self._tmp.cleanup()
@@ -272,6 +290,34 @@ class Route:
     dst_var: ModelVariable
     factor: float
     offset: float
+
+
+#: How the master treats an algebraic loop (`cosim.loops`): solve it by iteration at every
+#: communication point, or break it by one step of delay (libcosim's behaviour).
+LoopMode = Literal["iterate", "delay"]
+LOOP_MODES: tuple[LoopMode, ...] = ("iterate", "delay")
+
+
+@dataclass(frozen=True)
+class AlgebraicLoop:
+    """A strongly connected set of connected variables through direct feedthrough
+    (`cosim.graph.algebraic_loops`): outputs that depend on each other at the same instant."""
+    #: one cycle through the loop, as ('out' | 'in', component, variable) nodes, back to its start
+    path: tuple[tuple[str, str, str], ...]
+    #: every variable of the loop
+    variables: frozenset[tuple[str, str, str]]
+
+    @property
+    def components(self) -> list[str]:
+        return list(dict.fromkeys(c for _, c, _ in sorted(self.variables, key=lambda n: (n[1], n[2]))))
+
+    @property
+    def outputs(self) -> list[tuple[str, str]]:
+        """(component, output) of the loop: the values iterated on."""
+        return sorted((c, v) for kind, c, v in self.variables if kind == "out")
+
+    def describe(self) -> str:
+        return " -> ".join(f"{c}.{v} ({k}put)" for k, c, v in self.path)
 
 
 @dataclass
@@ -319,7 +365,10 @@ class Plan:
     outputs: dict[str, list[ModelVariable]]
     inputs: dict[str, list[ModelVariable]]
     #: components whose outputs must be re-read after their inputs are set at a
-    #: communication point (direct feedthrough), in dependency order; may repeat
+    #: communication point (direct feedthrough), in dependency order; may repeat.  With
+    #: ``loop_mode`` "iterate" it includes the components of algebraic loops (the sweep the
+    #: loop solver repeats); with "delay" they are left out (read once per communication
+    #: point: every connection out of them one step late, as libcosim runs them).
     feedthrough_sequence: list[str]
     #: Gauss-Seidel order: upstream first, SSD order inside a loop
     gauss_seidel_order: list[str]
@@ -335,16 +384,20 @@ class Plan:
     #: components of the feedthrough sequence whose outputs nobody reads before the settling
     #: re-reads them: the exchange skips their first read (`cosim.graph.settling_shortcuts`)
     read_in_settling_only: set[str] = field(default_factory=set)
+    #: the algebraic loops of direct feedthrough (`cosim.graph.algebraic_loops`)
+    algebraic_loops: list[AlgebraicLoop] = field(default_factory=list)
+    loop_mode: LoopMode = "iterate"
     #: components of the feedthrough sequence whose inputs are final when the settling sets
     #: them: the exchange does not set them again
     set_in_settling_only: set[str] = field(default_factory=set)
 
     def recorded(self) -> tuple[list[str], list[str]]:
         """The result names of the recorded outputs (the root system's output connectors last)
-        and inputs: every connector but String ones, which are exchanged, not recorded
+        and inputs: every connector but String and Binary ones, which are exchanged, not recorded
         (`cosim.execution.Execution.recorder_sources`)."""
         def names(group: dict[str, list[ModelVariable]]) -> list[str]:
-            return [f"{c}.{v.name}" for c, vs in group.items() for v in vs if exchange_type(v) != "String"]
+            return [f"{c}.{v.name}" for c, vs in group.items() for v in vs
+                    if exchange_type(v) not in ("String", "Binary")]
         return names(self.outputs) + list(self.system_outputs), names(self.inputs)
 
     def close(self) -> None:

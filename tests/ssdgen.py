@@ -14,7 +14,7 @@ HEADER = ('<?xml version="1.0" encoding="UTF-8"?>\n'
           '  xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"\n'
           '  xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"'
           ' version="1.0" name="{name}">\n')
-TYPE_OF = {float: "Real", int: "Integer", bool: "Boolean"}
+TYPE_OF = {float: "Real", int: "Integer", bool: "Boolean", str: "String"}
 
 
 def ssd_text(name: str, components: dict, connections: list, *, stop: float = 1.0, step: float | None = 0.01,
@@ -35,7 +35,8 @@ def ssd_text(name: str, components: dict, connections: list, *, stop: float = 1.
                        '          <ssv:ParameterSet version="1.0" name="p"><ssv:Parameters>\n')
             for var, value in parameters[comp].items():
                 kind = TYPE_OF[type(value)]
-                text = str(value).lower() if isinstance(value, bool) else repr(value)
+                text = str(value).lower() if isinstance(value, bool) else value if isinstance(value, str) \
+                    else repr(value)
                 out.append(f'            <ssv:Parameter name="{var}"><ssv:{kind} value="{text}"/></ssv:Parameter>\n')
             out.append('          </ssv:Parameters></ssv:ParameterSet>\n'
                        '        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>\n')

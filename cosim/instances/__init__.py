@@ -9,10 +9,10 @@ from ..structure import SolverSettings
 from .base import STATUS, Instance
 from .fmi2 import FMI2Instance
 from .fmi3 import FMI3Instance
-from .me import MEInstance
+from .me import ME3Instance, MEInstance
 from .unzip import Unzipped
 
-__all__ = ["STATUS", "FMI2Instance", "FMI3Instance", "Instance", "MEInstance", "Unzipped", "open_instance"]
+__all__ = ["STATUS", "FMI2Instance", "FMI3Instance", "Instance", "ME3Instance", "MEInstance", "Unzipped", "open_instance"]
 
 
 def open_instance(name: str, desc: FMUDescription, unzip_dir: str,
@@ -23,4 +23,6 @@ def open_instance(name: str, desc: FMUDescription, unzip_dir: str,
         return FMI3Instance(name, desc, unzip_dir)
     if desc.kind == "fmi2-me":
         return MEInstance(name, desc, unzip_dir, solver)
+    if desc.kind == "fmi3-me":
+        return ME3Instance(name, desc, unzip_dir, solver)
     return FMI2Instance(name, desc, unzip_dir)

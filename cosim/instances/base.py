@@ -42,7 +42,8 @@ class Instance(Protocol):
     * ``component`` (the handle passed back to those calls), ``failed`` (the FMI status name
       after an Error/Fatal, else None), ``messages``;
     * ``instantiate``, ``setup_experiment``, ``set_start``, ``enter_initialization_mode``,
-      ``exit_initialization_mode``, ``free`` (these raise on a status above Warning).
+      ``exit_initialization_mode``, ``free`` (these raise on a status above Warning);
+    * ``step_end``: after ``do_step`` returned Discard, how far the FMU's outputs are valid.
     """
     name: str
     desc: FMUDescription
@@ -59,6 +60,11 @@ class Instance(Protocol):
     def setup_experiment(self, start: float, stop: float) -> None: ...
 
     def set_start(self, variable: ModelVariable, value: float | int | bool | str) -> None: ...
+
+    def step_end(self, t: float, h: float) -> tuple[float | None, str]:
+        """After ``do_step(t, h)`` ended the run (returned Discard): the time up to which the
+        FMU's outputs are valid (None when it does not say) and what the FMU reported."""
+        ...
 
     def enter_initialization_mode(self) -> None: ...
 

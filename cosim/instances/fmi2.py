@@ -90,11 +90,27 @@ class FMI2Instance(InstanceBase):
     def set_start(self, variable: ModelVariable, value: float | int | bool | str) -> None:
         """Set a parameter or start value before initialisation (FMI 2.0 §2.2.7)."""
         vr = [variable.valueReference]
-        if variable.type == "String":
-            self.slave.setString(vr, [str(value).encode()])
-        else:
-            {"Real": self.slave.setReal, "Integer": self.slave.setInteger,
+        if variable.type == "String":  # fmpy's setString encodes to UTF-8 itself
+            self.slave.setString(vr, [str(value)])
+        else:  # an Enumeration is set as an Integer (FMI 2.0 §2.2.3)
+            {"Real": self.slave.setReal, "Integer": self.slave.setInteger, "Enumeration": self.slave.setInteger,
              "Boolean": self.slave.setBoolean}[variable.type](vr, [value])
+
+    def step_end(self, t: float, h: float) -> tuple[float | None, str]:
+        """After fmi2DoStep returned Discard: fmi2LastSuccessfulTime (None when the FMU does not
+        give it) and fmi2Terminated, the two statuses FMI 2.0 §4.2.3 defines for that case."""
+        raw = self.slave._functions
+        last, terminated = ctypes.c_double(), ctypes.c_int()
+        get_real, get_boolean = raw.get("fmi2GetRealStatus"), raw.get("fmi2GetBooleanStatus")
+        last_time = last.value if get_real is not None and get_real(self.component, 2, ctypes.byref(last)) <= 1 \
+            else None   # fmi2LastSuccessfulTime = 2, fmi2Terminated = 3 (fmi2StatusKind)
+        said = get_boolean is not None and get_boolean(self.component, 3, ctypes.byref(terminated)) <= 1
+        reason = "fmi2DoStep returned Discard"
+        if said:
+            reason += f" with fmi2Terminated = {'true' if terminated.value else 'false'}"
+        if last_time is not None:
+            reason += f" and fmi2LastSuccessfulTime = {last_time:g}"
+        return last_time, reason
 
     def enter_initialization_mode(self) -> None:
         self.slave.enterInitializationMode()

@@ -3,7 +3,9 @@
 An FMI 2.0 Model Exchange FMU has no ``fmi2DoStep``; it gives derivatives and
 event indicators, and the importer integrates (FMI 2.0 §3).  `MEInstance`
 wraps fmpy's `FMU2Model` behind the same small interface as a Co-Simulation
-`cosim.instances.fmi2.FMI2Instance`, so the execution steps it like any other component:
+`cosim.instances.fmi2.FMI2Instance`, so the execution steps it like any other component
+(`ME3Instance` does the same for FMI 3.0 on fmpy's `FMU3Model`, FMI 3.0 §3; the integration
+both share is `Integrated`):
 ``do_step(component, t, h, flag)`` integrates from t to t + h with the inputs
 held (zero-order hold) using fmpy's `CVodeSolver` (SUNDIALS CVODE, BDF with a
 dense Newton solver, so stiff plants are stable at any communication step).
@@ -32,11 +34,13 @@ import math
 
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model, fmi2EventInfo, fmi2False
+from fmpy.fmi3 import FMU3Model
 
 from ..description import FMUDescription
 from ..structure import SolverSettings
 from .base import STATUS
 from .fmi2 import FMI2Instance
+from .fmi3 import FMI3Instance
 
 FMI_OK, FMI_DISCARD, FMI_ERROR = 0, 2, 3
 #: Events handled within one communication step before the FMU is declared to chatter.
@@ -51,26 +55,24 @@ class _NoInput:
         pass
 
 
-class MEInstance(FMI2Instance):
-    """One FMI 2.0 Model Exchange instance stepped like a Co-Simulation slave.
+class Integrated:
+    """The master's integration of a Model Exchange FMU (see the module docstring), for either
+    FMI version: the instance classes give the FMI calls that differ (`MEInstance` for FMI 2.0,
+    `ME3Instance` for FMI 3.0): ``_solver_functions`` (the raw functions CVODE calls back, by
+    role), ``_discrete_iteration`` and ``_read_inputs``."""
 
-    ``get``/``set`` are the FMU's raw fmi2Get/fmi2Set functions.  ``events`` counts the
-    events handled by kind ("input", "time", "state", "step").  The set-up calls, the log
-    messages and ``free`` are `FMI2Instance`'s.
-    """
-
-    interface = FMU2Model
+    #: role -> raw FMI function name, for `_new_solver`
+    _solver_functions: dict[str, str]
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, settings: SolverSettings):
-        super().__init__(name, desc, unzip_dir)
+        super().__init__(name, desc, unzip_dir)  # the FMI 2.0 or FMI 3.0 instance (next in the MRO)
         md = desc.md
-        raw = self.slave._functions
         self.settings = settings
-        self._raw = raw
+        self._raw = self.slave._functions
         self._nx = md.numberOfContinuousStates
         self._nz = md.numberOfEventIndicators
         self._needs_completed_step = bool(md.modelExchange.needsCompletedIntegratorStep)
-        inputs = [v.valueReference for v in md.modelVariables if v.causality == "input"]
+        inputs = [v.valueReference for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")]
         self._input_vrs = (ctypes.c_uint * max(1, len(inputs)))(*inputs)
         self._n_inputs = len(inputs)
         self._inputs = (ctypes.c_double * max(1, len(inputs)))()
@@ -87,18 +89,11 @@ class MEInstance(FMI2Instance):
         """Events handled so far, by kind."""
         return dict(self._events)
 
-    # ----------------------------------------------------------------- set-up
-
-    def setup_experiment(self, start: float, stop: float) -> None:
-        """fmi2SetupExperiment with the solver's tolerance (the FMU may use it internally)."""
-        self._start = start
-        self.slave.setupExperiment(tolerance=self.settings.rtol, startTime=start, stopTime=stop)
-
     def exit_initialization_mode(self) -> None:
         """Leave Initialization Mode, then run the initial event iteration and enter
-        Continuous-Time Mode (FMI 2.0 §3.2.3: the model is in Event Mode after
-        fmi2ExitInitializationMode; §3.2.4's loop), so outputs reflect the initial state; start
-        the solver."""
+        Continuous-Time Mode (the model is in Event Mode after exitInitializationMode, FMI 2.0
+        §3.2.3 and §3.2.4's loop, FMI 3.0 §3.2), so outputs reflect the initial state; start the
+        solver."""
         self.slave.exitInitializationMode()
         if self._discrete_iteration():
             raise RuntimeError("the FMU requested termination during its initial event iteration")
@@ -108,13 +103,15 @@ class MEInstance(FMI2Instance):
 
     def _new_solver(self):
         from fmpy.sundials import CVodeSolver
-        return CVodeSolver(nx=self._nx, nz=self._nz, get_x=self._checked("fmi2GetContinuousStates"),
-                           set_x=self._checked("fmi2SetContinuousStates"),
-                           get_dx=self._checked("fmi2GetDerivatives"),
-                           get_z=self._checked("fmi2GetEventIndicators"),
-                           get_nominals=self._checked("fmi2GetNominalsOfContinuousStates"),
-                           set_time=self._checked("fmi2SetTime"), input=_NoInput(), startTime=self._start,
-                           relativeTolerance=self.settings.rtol)
+        f = {role: self._checked(name) for role, name in self._solver_functions.items()}
+        return CVodeSolver(nx=self._nx, nz=self._nz, get_x=f["get_x"], set_x=f["set_x"], get_dx=f["get_dx"],
+                           get_z=f["get_z"], get_nominals=f["get_nominals"], set_time=f["set_time"],
+                           input=_NoInput(), startTime=self._start, relativeTolerance=self.settings.rtol)
+
+    def free(self) -> None:
+        """Free the solver (its callbacks call into the FMU), then the instance."""
+        self._solver = None
+        super().free()
 
     def _checked(self, function: str):
         """The raw FMI function bound to this instance, for the solver's callbacks: a status
@@ -127,11 +124,6 @@ class MEInstance(FMI2Instance):
                 self._callback_failure = (status, function)
             return status
         return call
-
-    def free(self) -> None:
-        """Free the solver (its callbacks call into the FMU), then the instance as `FMI2Instance`."""
-        self._solver = None
-        super().free()
 
     # ----------------------------------------------------------------- stepping
 
@@ -207,6 +199,28 @@ class MEInstance(FMI2Instance):
                              f"t = {time:g}")
         return status
 
+    def _terminated(self, time: float) -> int:
+        self.messages.append(f"[Discard] the FMU requested terminateSimulation at t = {time:g}")
+        return FMI_DISCARD
+
+class MEInstance(Integrated, FMI2Instance):
+    """One FMI 2.0 Model Exchange instance stepped like a Co-Simulation slave.
+
+    ``get``/``set`` are the FMU's raw fmi2Get/fmi2Set functions.  ``events`` counts the
+    events handled by kind ("input", "time", "state", "step").  The set-up calls, the log
+    messages and ``free`` are `FMI2Instance`'s.
+    """
+
+    interface = FMU2Model
+    _solver_functions = {"get_x": "fmi2GetContinuousStates", "set_x": "fmi2SetContinuousStates",
+                         "get_dx": "fmi2GetDerivatives", "get_z": "fmi2GetEventIndicators",
+                         "get_nominals": "fmi2GetNominalsOfContinuousStates", "set_time": "fmi2SetTime"}
+
+    def setup_experiment(self, start: float, stop: float) -> None:
+        """fmi2SetupExperiment with the solver's tolerance (the FMU may use it internally)."""
+        self._start = start
+        self.slave.setupExperiment(tolerance=self.settings.rtol, startTime=start, stopTime=stop)
+
     def _discrete_iteration(self) -> bool:
         """fmi2NewDiscreteStates until no new discrete states are needed; keeps the next time
         event.  True if the FMU asks to terminate."""
@@ -219,9 +233,6 @@ class MEInstance(FMI2Instance):
         self._next_event = info.nextEventTime if info.nextEventTimeDefined != fmi2False else None
         return False
 
-    def _terminated(self, time: float) -> int:
-        self.messages.append(f"[Discard] the FMU requested terminateSimulation at t = {time:g}")
-        return FMI_DISCARD
 
     def _read_inputs(self) -> bytes:
         """The inputs as set by the execution (fmi2GetReal on every input), to detect a jump."""
@@ -230,6 +241,46 @@ class MEInstance(FMI2Instance):
         status = self._raw["fmi2GetReal"](self.component, self._input_vrs, self._n_inputs, self._inputs)
         if status > 1:
             raise FMICallException(function="fmi2GetReal", status=status)
+        return bytes(self._inputs)
+
+
+
+class ME3Instance(Integrated, FMI3Instance):
+    """One FMI 3.0 Model Exchange instance, integrated as `MEInstance` integrates FMI 2.0 ones
+    (FMI 3.0 §3: the same states, derivatives, event indicators and modes; the discrete-state
+    iteration is fmi3UpdateDiscreteStates).  Exchange and set-up are `FMI3Instance`'s."""
+
+    interface = FMU3Model
+    instantiate_function = "fmi3InstantiateModelExchange"
+    _solver_functions = {"get_x": "fmi3GetContinuousStates", "set_x": "fmi3SetContinuousStates",
+                         "get_dx": "fmi3GetContinuousStateDerivatives", "get_z": "fmi3GetEventIndicators",
+                         "get_nominals": "fmi3GetNominalsOfContinuousStates", "set_time": "fmi3SetTime"}
+
+    def setup_experiment(self, start: float, stop: float) -> None:
+        self._start = start
+        FMI3Instance.setup_experiment(self, start, stop)
+
+    def enter_initialization_mode(self) -> None:
+        self.slave.enterInitializationMode(tolerance=self.settings.rtol, startTime=self._start, stopTime=self._stop)
+
+    def _discrete_iteration(self) -> bool:
+        """fmi3UpdateDiscreteStates until no update is needed; keeps the next time event.
+        True if the FMU asks to terminate."""
+        needed = True
+        while needed:
+            needed, terminate, _, _, next_defined, next_time = self.slave.updateDiscreteStates()
+            if terminate:
+                return True
+        self._next_event = next_time if next_defined else None
+        return False
+
+    def _read_inputs(self) -> bytes:
+        if not self._n_inputs:
+            return b""
+        status = self._raw["fmi3GetFloat64"](self.component, self._input_vrs, self._n_inputs, self._inputs,
+                                             self._n_inputs)
+        if status > 1:
+            raise FMICallException(function="fmi3GetFloat64", status=status)
         return bytes(self._inputs)
 
 

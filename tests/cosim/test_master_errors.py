@@ -126,11 +126,18 @@ def test_fmu_with_an_empty_guid(tmp_path, fmus, capsys):
 
 
 def test_fmi3_connector_of_an_unsupported_type_is_refused(tmp_path, fmus, capsys):
-    """FMI 3.0 FMUs run beside FMI 2.0 ones (tests/cosim/instances/test_fmi3.py); an Int64 port has no exchange type."""
-    comps = {"m": ("FMU3Model.fmu", {"output": "output", "int64": "input"}), **PLANT}
-    folder = _system(tmp_path, fmus, comps, [("m", "output", "plant", "f")])
+    """FMI 3.0 FMUs run beside FMI 2.0 ones (tests/cosim/instances/test_fmi3.py); a Clock port
+    (FMU3Model's Int64 input declared a Clock here) has no exchange type."""
+    from testfmus import edited_copy
+
+    clocked = edited_copy(fmus["FMU3Model"], tmp_path / "Clock3.fmu", lambda xml: xml.replace(
+        '<Int64 name="int64" valueReference="6" causality="input" start="7"/>',
+        '<Clock name="int64" valueReference="6" causality="input" variability="discrete" '
+        'intervalVariability="triggered"/>'))
+    comps = {"m": ("Clock3.fmu", {"output": "output", "int64": "input"}), **PLANT}
+    folder = _system(tmp_path, {**fmus, "Clock3": clocked}, comps, [("m", "output", "plant", "f")])
     err = _cli_error(capsys, "validate", str(folder))
-    assert "int64 has the type Int64 in FMU3Model.fmu" in err and "ssd:Connector 'int64' of component 'm'" in err
+    assert "int64 has the type Clock in Clock3.fmu" in err and "ssd:Connector 'int64' of component 'm'" in err
 
 
 @pytest.mark.parametrize("member", ["../evil.txt", "/etc/evil.txt"])

@@ -7,6 +7,7 @@ Expected values are computed here from each FMU's documented behaviour.
 """
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -161,15 +162,24 @@ def test_pid3_is_a_valid_fmi3_fmu_with_true_dependencies():
     assert {o.variable.name: o.dependencies for o in md.outputs} == {"u": [], "e": []}
 
 
-def test_terminate_simulation_ends_the_run_like_a_discard(tmp_path, fmus):
-    """Echo3 sets terminateSimulation in fmi3DoStep once n < 0 (here n = -1 from the start)."""
+def test_terminate_simulation_records_the_step_that_asked(tmp_path, fmus):
+    """Echo3 sets terminateSimulation in fmi3DoStep once n < 0 (here n = -1 from the start), with
+    status OK: that step completed, so its communication point is recorded, as fmpy records it
+    (issue 21, item 2), and the metadata says why the run ended."""
+    import fmpy
+
     comps = {"e": ("Echo3.fmu", {"n": "input", "twice": "output"})}
     folder = _system(tmp_path, fmus, comps, [], stop=1.0, step=H, parameters={"e": {"n": -1}})
-    with pytest.warns(RuntimeWarning, match="terminateSimulation = true") as caught:
-        r = cosim.simulate(folder)
-    assert "Discard" in str(caught[0].message) and "last good time 0" in str(caught[0].message)
-    np.testing.assert_array_equal(r["time"], [0.0])
-    np.testing.assert_array_equal(r["e.twice"], [-2])
+    out = tmp_path / "o.csv"
+    r = cosim.simulate(folder, output=out)
+    reference = fmpy.simulate_fmu(str(fmus["Echo3"]), stop_time=1.0, output_interval=H, start_values={"n": -1},
+                                  output=["twice"])
+    np.testing.assert_allclose(r["time"], reference["time"], atol=1e-12)
+    np.testing.assert_array_equal(r["time"], [0.0, H])
+    np.testing.assert_array_equal(r["e.twice"], reference["twice"])
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["status"] == "terminated"
+    assert "fmi3DoStep returned OK with terminateSimulation = true at t = 0.1" in meta["message"]
 
 
 def test_fmi3_fmu_log_explains_a_failure(tmp_path):
@@ -195,11 +205,11 @@ def _refused(tmp_path, fmus, components, connections=(), **kw) -> str:
     return str(error.value)
 
 
-@pytest.mark.parametrize("connector, type_name", [("int64", "Int64"), ("enumeration", "Enumeration")])
-def test_unsupported_fmi3_type_is_refused(tmp_path, fmus, connector, type_name):
-    err = _refused(tmp_path, fmus, {"m": ("FMU3Model.fmu", {connector: "input"})})
-    assert f"{connector} has the type {type_name} in FMU3Model.fmu" in err and "not supported" in err
-    assert "SystemStructure.ssd" in err and "ssd:Connector" in err
+@pytest.mark.parametrize("connector", ["int64", "enumeration"])
+def test_fmi3_int64_and_enumeration_connectors_are_accepted(tmp_path, fmus, connector):
+    """Refused before issue 21 (item 6); exchanged as Integer now (tests/cosim/test_fmi_types.py)."""
+    folder = _system(tmp_path, fmus, {"m": ("FMU3Model.fmu", {connector: "input"})}, [])
+    cosim.prepare(folder).close()
 
 
 def test_whole_array_connector_is_refused(tmp_path, fmus):
@@ -229,16 +239,7 @@ def test_declared_connector_type_must_match_the_fmi3_type(tmp_path, fmus):
 
 @pytest.mark.parametrize("fmu, variable, message", [
     ("Echo3.fmu", "v", "arrays and their elements cannot be given values by this master (v is an array)"),
-    ("FMU3Model.fmu", "int64", "Int64 variables cannot be given values by this master (int64 is Int64)"),
 ])
-def test_array_and_unsupported_parameters_are_refused(tmp_path, fmus, fmu, variable, message):
+def test_array_parameters_are_refused(tmp_path, fmus, fmu, variable, message):
     err = _refused(tmp_path, fmus, {"c": (fmu, {})}, parameters={"c": {variable: 1}})
     assert message in err and f"ssv:Parameter '{variable}'" in err
-
-
-def test_fmi3_model_exchange_only_fmu_is_refused(tmp_path, fmus):
-    """Echo3 with its interface element renamed to ModelExchange: an FMI 3.0 ME-only FMU."""
-    me_only = edited_copy(fmus["Echo3"], tmp_path / "Echo3.fmu",
-                          lambda xml: xml.replace("<CoSimulation ", "<ModelExchange "))
-    err = _refused(tmp_path, {**fmus, "Echo3": me_only}, {"e": ("Echo3.fmu", {})})
-    assert "Echo3.fmu would run through its FMI 3.0 Model Exchange interface" in err
