@@ -165,7 +165,7 @@ def _seed_parameters(prepared: Prepared, named: Sequence[str]) -> list[str]:
     if not found:
         raise SetupError("--seeds given, but no component of the scenario has a parameter named 'seed'; "
                          "name the parameter to set with --seed-parameter COMPONENT.VARIABLE.",
-                         file=str(prepared.plan.files.ssd_file), element="--seeds")
+                         file=prepared.plan.files.display, element="--seeds")
     return found
 
 
