@@ -1,11 +1,13 @@
 """``cosim``: run, validate, inspect and pack SSP systems of FMI 2.0 Co-Simulation FMUs.
 
-Exit status: 0 done, 1 the run failed (results up to the last good step are
-kept), 2 the input is wrong (nothing was run).  No traceback unless --debug.
+Exit status: 0 done, 1 the run failed, crashed or timed out (results up to the last
+good step are kept), 2 the input is wrong (nothing was run), 130/143 the run was
+stopped by SIGINT/SIGTERM (results kept).  No traceback unless --debug.
 """
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -44,6 +46,9 @@ def _parser() -> argparse.ArgumentParser:
                      help="FMU log messages kept to explain a failure: the FMUs' status categories "
                           "(default), every category, or none (fastest)")
     run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    run.add_argument("--timeout", type=float, metavar="SECONDS",
+                     help="end the run after SECONDS (status 'timeout', exit 1); an FMU call still not "
+                          "returned 2 s later is killed, the rows so far kept")
 
     validate = sub.add_parser("validate", help="check a system without running it")
     common(validate)
@@ -111,51 +116,73 @@ def main(argv: list[str] | None = None) -> int:
         with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None):
             return {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
                     "compare": _compare, "sweep": _sweep}[args.command](args)
-    except SetupError as e:
-        if args.debug:
-            raise
-        print(f"cosim: error: {e}", file=sys.stderr)
-        return 2
-    except RunError as e:
-        if args.debug:
-            raise
+    except CosimError as e:
+        return _report(e, args.debug)
+
+
+def _report(e: CosimError, debug: bool) -> int:
+    """One paragraph on stderr and the exit status: 1 for a failed run, 2 for bad input."""
+    if debug:
+        raise e
+    if isinstance(e, RunError):
         print(f"cosim: the run failed: {e}", file=sys.stderr)
         return 1
-    except CosimError as e:
-        if args.debug:
-            raise
-        print(f"cosim: error: {e}", file=sys.stderr)
-        return 2
+    print(f"cosim: error: {e}", file=sys.stderr)
+    return 2
 
 
 def _run(args) -> int:
-    from .results import plot
-    from .simulation import prepare, run, select
+    from .journal import journal_path
+    from .simulation import prepare
+    from .supervisor import supervise
 
+    if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
+        raise SetupError(f"--timeout {args.timeout}: give a positive number of seconds.", element="--timeout")
     prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
                        algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir)
     try:
-        plan = prepared.plan
-        name = plan.name or Path(args.path).stem
+        name = prepared.plan.name or Path(args.path).stem
         output = Path(args.output or Path("results") / f"{name}.csv")
-        outputs, inputs = plan.recorded()
-        panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
-                  else [[n] for n in outputs])
-        grid = prepared.grid
-        print(f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
-              f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
-              f"{prepared.algorithm}")
-        try:
-            result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
-                                   keep=[n for panel in panels for n in panel] if args.plot else [])
-        except RunError:
-            print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
-            raise
+
+        def child() -> int:
+            try:
+                return _execute(args, prepared, name, output)
+            except CosimError as e:
+                return _report(e, args.debug)
+
+        return supervise(child, journal_path(output), timeout=args.timeout)
     finally:
         prepared.close()
+
+
+def _execute(args, prepared, name: str, output: Path) -> int:
+    """The run itself (in `cosim.supervisor`'s child): exit 0, 1 failed or timed out, 130/143
+    stopped by SIGINT/SIGTERM."""
+    from .interrupts import stop_on_signals
+    from .results import plot
+    from .simulation import run, select
+
+    plan = prepared.plan
+    outputs, inputs = plan.recorded()
+    panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
+              else [[n] for n in outputs])
+    grid = prepared.grid
+    print(f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
+          f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
+          f"{prepared.algorithm}")
+    try:
+        with stop_on_signals() as stop:
+            result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
+                                   keep=[n for panel in panels for n in panel] if args.plot else [], stop=stop)
+    except RunError:
+        print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
+        raise
     if metadata["status"] == "discarded":
         print(f"cosim: warning: {metadata['message']}", file=sys.stderr)
     print(f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
+    if stop.signum is not None:
+        print(f"cosim: {metadata['message']} Results up to there kept in {output}", file=sys.stderr)
+        return 1 if stop.status() == "timeout" else 128 + stop.signum
     if args.plot:
         png = plot(result, panels, args.plot, title=name)
         print(f"cosim: plot: {png}")

@@ -32,6 +32,7 @@ import numpy as np
 from .errors import RunError, SetupError
 from .description import FMUDescription, exchange_type
 from .instances import STATUS, Instance, Unzipped, open_instance
+from .interrupts import StopRequest
 from .structure import Plan
 from .observers import Recorder
 
@@ -279,8 +280,10 @@ class Execution:
             arrays += [ty.Y, ty.U]
         return names, arrays
 
-    def run(self, recorder: Recorder, progress=None) -> None:
-        """Step from start to stop; ``status`` ends as completed, discarded or failed."""
+    def run(self, recorder: Recorder, progress=None, stop: StopRequest | None = None) -> None:
+        """Step from start to stop; ``status`` ends as completed, discarded, failed, or (when
+        ``stop`` is set by a signal, checked at every communication point) interrupted or timeout."""
+        self.stop = stop or StopRequest()
         grid = self.grid
         steppers = [(name, self.instances[name].do_step, self.instances[name].component) for name in self.order]
         gs = [(name, self.instances[name].do_step, self.instances[name].component)
@@ -299,6 +302,7 @@ class Execution:
     def _loop(self, recorder, progress, steppers, gs, gauss_seidel, n_steps, stride) -> None:
         time = self.grid.time  # computed per step: a list of 10^6 times would cost 32 MB
         exchange, record = self._exchange, recorder.record
+        stop = self.stop.flag
         for block in range(0, n_steps, stride):
             for k in range(block, min(block + stride, n_steps)):
                 t = time(k)
@@ -315,6 +319,10 @@ class Execution:
                 exchange(t_next)
                 record(t_next)
                 self.last_time = t_next
+                if stop:
+                    self.status = self.stop.status()
+                    self.message = f"stopped by {self.stop.describe()} at t = {t_next:g}."
+                    return
             if progress is not None:
                 progress.update(min(block + stride, n_steps) - block)
         self.status = "completed"

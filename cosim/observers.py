@@ -161,15 +161,20 @@ class MemorySink:
 
 
 class Recorder:
-    """Preallocated sample buffer fed from the execution's value arrays.
+    """Sample buffer fed from the execution's value arrays.
 
     ``sources`` are the arrays (outputs and inputs of each type) copied into a
     row in the order of ``source_names``; rows are written out in ``names``
     order (time first, then component by component as the SSD lists them).
+    The rows go to the sinks when ``chunk_rows`` are filled or ``flush_seconds``
+    have passed (the clock is read at every row, so a slow run is flushed on time).
+    With ``journal``, a function ``(names, permutation, columns, chunk_rows)`` returning a
+    `cosim.journal.Journal`, the buffer is the journal's mapped window and the row
+    counter is stored after every row, so a crash loses no row.
     """
 
     def __init__(self, source_names: list[str], sources: list[np.ndarray], names: list[str],
-                 sinks: list, chunk_rows: int = 4096, flush_seconds: float = 1.0):
+                 sinks: list, chunk_rows: int = 4096, flush_seconds: float = 1.0, journal=None):
         self.sources = []
         col = 1
         for arr in sources:
@@ -178,11 +183,14 @@ class Recorder:
         position = {n: i + 1 for i, n in enumerate(source_names)}
         self.names = ["time"] + names
         self.permutation = np.array([0] + [position[n] for n in names], dtype=np.intp)
-        self.buffer = np.empty((chunk_rows, col))
-        self.rows = 0
+        self.journal = journal(self.names, self.permutation.tolist(), col, chunk_rows) if journal else None
+        self.buffer = self.journal.window() if self.journal is not None else np.empty((chunk_rows, col))
+        self._count = self.journal.count if self.journal is not None else np.zeros(1, dtype=np.int64)
+        self.rows = 0      # rows filled in the buffer
+        self._written = 0  # rows of the buffer already handed to the sinks
         self.sinks = sinks
         self.flush_seconds = flush_seconds
-        self._last_flush = time.monotonic()
+        self._flush_at = time.monotonic() + flush_seconds
         self.samples = 0
         for sink in sinks:
             sink.open(self.names)
@@ -194,19 +202,26 @@ class Recorder:
             row[a:b] = arr
         self.rows += 1
         self.samples += 1
-        if self.rows == len(self.buffer) or (self.rows & 255 == 0
-                                             and time.monotonic() - self._last_flush > self.flush_seconds):
+        self._count[0] = self.samples
+        if self.rows == len(self.buffer) or time.monotonic() > self._flush_at:
             self.flush()
 
     def flush(self) -> None:
-        if self.rows:
-            chunk = self.buffer[:self.rows][:, self.permutation]
+        if self.rows > self._written:
+            chunk = self.buffer[self._written:self.rows][:, self.permutation]
             for sink in self.sinks:
                 sink.write(chunk)
-            self.rows = 0
-        self._last_flush = time.monotonic()
+            self._written = self.rows
+        if self.rows == len(self.buffer):
+            if self.journal is not None:
+                self.buffer = self.journal.window()
+            self.rows = self._written = 0
+        self._flush_at = time.monotonic() + self.flush_seconds
 
     def close(self, metadata: dict) -> None:
         self.flush()
         for sink in self.sinks:
             sink.close(metadata)
+        if self.journal is not None:
+            self.buffer = None
+            self.journal.close()

@@ -19,6 +19,9 @@ import numpy as np
 from . import ssp
 from .errors import RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
+from .instances import Unzipped
+from .interrupts import StopRequest
+from .journal import Journal, journal_path
 from .observers import MemorySink, Recorder, file_sink
 from .plan import build_plan
 from .resources import locate_fmus
@@ -122,12 +125,16 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
 
 
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
-        fmu_log: str = "errors", keep: Sequence[str] | None = None) -> tuple[np.ndarray, dict]:
+        fmu_log: str = "errors", keep: Sequence[str] | None = None,
+        stop: StopRequest | None = None) -> tuple[np.ndarray, dict]:
     """Execute a prepared system; returns the samples and the run's metadata.
 
     ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
-    CSV (`cosim.observers.file_sink`).  ``keep``: the signals the returned array holds besides
-    ``time`` (None: all); a long run streamed to ``output`` keeps only what it needs in memory.
+    CSV (`cosim.observers.file_sink`), with every row also in its journal
+    (`cosim.journal`) until the run ends, so a crash of the process loses none.  ``keep``: the
+    signals the returned array holds besides ``time`` (None: all); a long run streamed to
+    ``output`` keeps only what it needs in memory.  ``stop``: set by a signal
+    (`cosim.interrupts.stop_on_signals`), ends the run at the next communication point.
     """
     plan = prepared.plan
     memory = MemorySink(keep)
@@ -140,13 +147,14 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     try:
         execution.instantiate()
         names, arrays = execution.recorder_sources()
-        recorder = Recorder(names, arrays, plan.columns, sinks)
+        journal = _journal_factory(output, plan, _metadata(prepared, execution)) if output is not None else None
+        recorder = Recorder(names, arrays, plan.columns, sinks, journal=journal)
         execution.initialize()
         if progress:
             from tqdm import tqdm
             bar = tqdm(total=prepared.grid.steps, delay=1.0, unit="step", leave=False,
                        desc=plan.name or "cosim")
-        execution.run(recorder, bar)
+        execution.run(recorder, bar, stop)
     except RunError as e:
         execution.status = "failed"
         execution.message = str(e)
@@ -167,6 +175,19 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     metadata = _metadata(prepared, execution)
     recorder.close(metadata)
     return memory.array(), metadata
+
+
+def _journal_factory(output: str | Path, plan: Plan, metadata: dict):
+    """The `cosim.observers.Recorder`'s journal for ``output``: the header holds what
+    `cosim.journal.recover` needs to write the result files without the plan."""
+    def create(names: list[str], permutation: list[int], columns: int, chunk_rows: int) -> Journal:
+        derived = [{"name": o.name, "column": names.index(f"{o.component}.{o.connector}"),
+                    "factor": o.factor, "offset": o.offset} for o in plan.system_outputs.values()]
+        header = {"output": str(Path(output).resolve()), "names": names, "permutation": permutation,
+                  "derived": derived, "metadata": metadata,
+                  "temporary": [Unzipped.folder()] if Unzipped.folder() else []}
+        return Journal(journal_path(output), header, columns, chunk_rows)
+    return create
 
 
 def _metadata(prepared: Prepared, execution: Execution) -> dict:

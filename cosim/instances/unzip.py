@@ -1,6 +1,7 @@
 """The unzip cache: each FMU file extracted once per process, checked as it is extracted."""
 from __future__ import annotations
 
+import os
 import tempfile
 from pathlib import Path
 
@@ -15,6 +16,23 @@ class Unzipped:
 
     _tmp: tempfile.TemporaryDirectory | None = None
     _dirs: dict[tuple, str] = {}
+    _owner: int = os.getpid()
+
+    @staticmethod
+    def folder() -> str | None:
+        """This process's extraction folder (None before the first FMU is extracted)."""
+        return Unzipped._tmp.name if Unzipped._tmp is not None else None
+
+    @staticmethod
+    def reset() -> None:
+        """Remove this process's extraction folder; the next FMU is extracted afresh (a forked
+        child must not share, nor remove, its parent's folder: `cosim.supervisor`)."""
+        if Unzipped._tmp is not None:
+            if os.getpid() == Unzipped._owner:
+                Unzipped._tmp.cleanup()
+            else:  # inherited from the parent: never remove it from here, not even when collected
+                Unzipped._tmp._finalizer.detach()
+        Unzipped._tmp, Unzipped._dirs, Unzipped._owner = None, {}, os.getpid()
 
     def __call__(self, path: Path) -> str:
         path = path.resolve()
@@ -23,6 +41,7 @@ class Unzipped:
         if key not in Unzipped._dirs:
             if Unzipped._tmp is None:
                 Unzipped._tmp = tempfile.TemporaryDirectory(prefix="cosim-fmu-")
+                Unzipped._owner = os.getpid()
             target = Path(Unzipped._tmp.name) / str(len(Unzipped._dirs))
             target.mkdir()
             extract_archive(path, target, required="modelDescription.xml")  # size, names, ratio checked
