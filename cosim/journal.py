@@ -61,7 +61,9 @@ class Journal:
         start = self.offset + self._windows * nbytes
         os.posix_fallocate(self._file.fileno(), start, nbytes)
         self._windows += 1
-        return np.memmap(self._file, dtype="<f8", mode="r+", offset=start, shape=(self.chunk_rows, self.columns))
+        # a plain ndarray on the mapping (np.memmap's Python-level indexing would cost ~20 % of a step)
+        window = mmap.mmap(self._file.fileno(), nbytes, offset=start)
+        return np.frombuffer(window, dtype="<f8").reshape(self.chunk_rows, self.columns)
 
     def close(self) -> None:
         """Delete the journal (the result files are complete); the mappings go with their

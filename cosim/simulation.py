@@ -126,12 +126,13 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
 
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
         fmu_log: str = "errors", keep: Sequence[str] | None = None,
-        stop: StopRequest | None = None) -> tuple[np.ndarray, dict]:
+        stop: StopRequest | None = None, journal: bool = True) -> tuple[np.ndarray, dict]:
     """Execute a prepared system; returns the samples and the run's metadata.
 
     ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
     CSV (`cosim.observers.file_sink`), with every row also in its journal
-    (`cosim.journal`) until the run ends, so a crash of the process loses none.  ``keep``: the
+    (`cosim.journal`) until the run ends, so a crash of the process loses none (unless
+    ``journal`` is False).  ``keep``: the
     signals the returned array holds besides ``time`` (None: all); a long run streamed to
     ``output`` keeps only what it needs in memory.  ``stop``: set by a signal
     (`cosim.interrupts.stop_on_signals`), ends the run at the next communication point.
@@ -147,8 +148,9 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     try:
         execution.instantiate()
         names, arrays = execution.recorder_sources()
-        journal = _journal_factory(output, plan, _metadata(prepared, execution)) if output is not None else None
-        recorder = Recorder(names, arrays, plan.columns, sinks, journal=journal)
+        journaled = output is not None and journal
+        recorder = Recorder(names, arrays, plan.columns, sinks,
+                            journal=_journal_factory(output, plan, _metadata(prepared, execution)) if journaled else None)
         execution.initialize()
         if progress:
             from tqdm import tqdm
