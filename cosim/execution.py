@@ -39,6 +39,10 @@ from .observers import Recorder
 #: exchange types (`cosim.description.exchange_type`) and their buffers' C types, as fmi2 declares them
 TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p}
 ALGORITHMS = ("jacobi", "gauss-seidel")
+#: most communication steps of a run (10^9 steps at the fastest ~5 µs/step is over an hour)
+MAX_STEPS = 10**9
+#: the smallest step, in multiples of the spacing of doubles at the run's largest time
+RESOLUTION_STEPS = 1024
 FMI_WARNING, FMI_DISCARD = 1, 2
 
 
@@ -56,6 +60,16 @@ class Grid:
         if self.stop <= self.start:
             raise SetupError(f"the stop time {self.stop} is not after the start time {self.start}.",
                              element="stop time")
+        resolution = math.ulp(max(abs(self.start), abs(self.stop)))
+        if self.step < RESOLUTION_STEPS * resolution:
+            raise SetupError(f"the step size {self.step:g} s is below the time resolution at t = "
+                             f"{max(abs(self.start), abs(self.stop)):g} s ({RESOLUTION_STEPS} x {resolution:g} s, "
+                             "the spacing of doubles there): communication times would repeat or drift.",
+                             element="step size")
+        steps = (self.stop - self.start) / self.step
+        if not steps <= MAX_STEPS:
+            raise SetupError(f"{self.stop:g} - {self.start:g} s in steps of {self.step:g} s is {steps:.3g} "
+                             f"communication steps; at most {MAX_STEPS:.0e} are run.", element="step size")
 
     @cached_property
     def steps(self) -> int:

@@ -17,6 +17,7 @@ the component level, and a parameter set given on the command line beats both.
 """
 from __future__ import annotations
 
+import math
 import tempfile
 from contextvars import ContextVar
 from dataclasses import replace
@@ -282,10 +283,13 @@ def _float_attr(el: etree._Element, name: str, display: str, default: float | No
     if text is None:
         return default
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
-        raise SetupError(f"attribute {name}='{text}' is not a number.", file=display,
-                         element=f"{etree.QName(el).localname} (line {el.sourceline})") from None
+        value = None
+    if value is None or not math.isfinite(value):  # NaN, INF and 1e400 are xs:double, not usable numbers
+        raise SetupError(f"attribute {name}='{text}' is not a finite number.", file=display,
+                         element=f"{etree.QName(el).localname} (line {el.sourceline})")
+    return value
 
 
 def _read_bindings(owner: etree._Element, base_dir: Path, display: str) -> list[ParameterValue]:
