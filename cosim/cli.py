@@ -11,7 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from .errors import CosimError, RunError, SetupError
+from .errors import CosimError, OutputError, RunError, SetupError
 from .safeio import parse_size, unpack_limit
 
 
@@ -124,7 +124,7 @@ def _report(e: CosimError, debug: bool) -> int:
     """One paragraph on stderr and the exit status: 1 for a failed run, 2 for bad input."""
     if debug:
         raise e
-    if isinstance(e, RunError):
+    if isinstance(e, (RunError, OutputError)):
         print(f"cosim: the run failed: {e}", file=sys.stderr)
         return 1
     print(f"cosim: error: {e}", file=sys.stderr)
@@ -133,6 +133,7 @@ def _report(e: CosimError, debug: bool) -> int:
 
 def _run(args) -> int:
     from .journal import journal_path
+    from .outputs import RESULT_SUFFIXES, check_output, plot_suffixes, scenario_files
     from .simulation import prepare
     from .supervisor import supervise
 
@@ -143,6 +144,11 @@ def _run(args) -> int:
     try:
         name = prepared.plan.name or Path(args.path).stem
         output = Path(args.output or Path("results") / f"{name}.csv")
+        own = scenario_files(prepared.plan)
+        check_output(output, own, what="result file", option="--output", suffixes=RESULT_SUFFIXES,
+                     companions=[output.with_suffix(".json"), journal_path(output)])
+        if args.plot:
+            check_output(Path(args.plot), own, what="plot", option="--plot", suffixes=plot_suffixes())
 
         def child() -> int:
             try:
@@ -260,11 +266,15 @@ def _print_system(node, depth: int) -> None:
 
 
 def _pack(args) -> int:
+    from .outputs import check_output, scenario_files
     from .pack import pack
 
     prepared = _prepare_with_placeholder_grid(args)
     try:
-        out = pack(prepared.plan, Path(args.output))
+        output = Path(args.output)
+        check_output(output, scenario_files(prepared.plan), what="packed archive", option="--output",
+                     suffixes=[".ssp"], companions=[output.with_suffix(output.suffix + ".part")])
+        out = pack(prepared.plan, output)
     finally:
         prepared.close()
     print(f"cosim: packed {out}")

@@ -10,11 +10,14 @@ suffix), and `MemorySink` (for the Python API).
 from __future__ import annotations
 
 import json
+import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+
+from .errors import OutputError
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
@@ -63,8 +66,13 @@ class CsvSink(_FileSink):
         import pyarrow.csv as pcsv
 
         table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=self._names)
-        pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
-        self._file.flush()
+        end = self._file.tell()
+        try:
+            pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
+            self._file.flush()
+        except OSError:  # a full disk: drop the partly written chunk, so every line left is whole
+            os.truncate(self.path, end)
+            raise
 
     def finish(self) -> None:
         """Close the file (no metadata)."""
@@ -183,17 +191,24 @@ class Recorder:
         position = {n: i + 1 for i, n in enumerate(source_names)}
         self.names = ["time"] + names
         self.permutation = np.array([0] + [position[n] for n in names], dtype=np.intp)
-        self.journal = journal(self.names, self.permutation.tolist(), col, chunk_rows) if journal else None
-        self.buffer = self.journal.window() if self.journal is not None else np.empty((chunk_rows, col))
+        self.sinks = sinks
+        self.journal = None
+        try:
+            self.journal = journal(self.names, self.permutation.tolist(), col, chunk_rows) if journal else None
+            self.buffer = self.journal.window() if self.journal is not None else np.empty((chunk_rows, col))
+            for sink in sinks:
+                sink.open(self.names)
+        except OSError as e:
+            if self.journal is not None:
+                self.journal.close()
+            raise OutputError(f"the results cannot be written: {e.strerror or e}.", file=e.filename) from None
         self._count = self.journal.count if self.journal is not None else np.zeros(1, dtype=np.int64)
         self.rows = 0      # rows filled in the buffer
         self._written = 0  # rows of the buffer already handed to the sinks
-        self.sinks = sinks
         self.flush_seconds = flush_seconds
         self._flush_at = time.monotonic() + flush_seconds
         self.samples = 0
-        for sink in sinks:
-            sink.open(self.names)
+        self.broken: OSError | None = None
 
     def record(self, t: float) -> None:
         row = self.buffer[self.rows]
@@ -207,21 +222,37 @@ class Recorder:
             self.flush()
 
     def flush(self) -> None:
-        if self.rows > self._written:
-            chunk = self.buffer[self._written:self.rows][:, self.permutation]
-            for sink in self.sinks:
-                sink.write(chunk)
-            self._written = self.rows
-        if self.rows == len(self.buffer):
-            if self.journal is not None:
-                self.buffer = self.journal.window()
-            self.rows = self._written = 0
+        """Hand the new rows to the sinks; a sink (or the journal) that cannot write (a full
+        disk) is an `OutputError`, and no later flush is tried."""
+        if self.broken is not None:
+            return
+        try:
+            if self.rows > self._written:
+                chunk = self.buffer[self._written:self.rows][:, self.permutation]
+                for sink in self.sinks:
+                    sink.write(chunk)
+                self._written = self.rows
+            if self.rows == len(self.buffer):
+                if self.journal is not None:
+                    self.buffer = self.journal.window()
+                self.rows = self._written = 0
+        except OSError as e:
+            self.broken = e
+            raise OutputError(f"writing the results failed after {self.samples} rows: {e.strerror or e}; "
+                              "the rows written before are kept.",
+                              file=e.filename) from None
         self._flush_at = time.monotonic() + self.flush_seconds
 
     def close(self, metadata: dict) -> None:
-        self.flush()
-        for sink in self.sinks:
-            sink.close(metadata)
-        if self.journal is not None:
-            self.buffer = None
-            self.journal.close()
+        """Flush, close the sinks (writing ``metadata``) and delete the journal, which is no
+        longer needed even when a sink fails here."""
+        try:
+            self.flush()
+            for sink in self.sinks:
+                sink.close(metadata)
+        except OSError as e:
+            raise OutputError(f"closing the results failed: {e.strerror or e}.", file=e.filename) from None
+        finally:
+            if self.journal is not None:
+                self.buffer = None
+                self.journal.close()

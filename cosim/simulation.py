@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from . import ssp
-from .errors import RunError, SetupError, did_you_mean
+from .errors import OutputError, RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
 from .instances import Unzipped
 from .interrupts import StopRequest
@@ -157,18 +157,18 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
             bar = tqdm(total=prepared.grid.steps, delay=1.0, unit="step", leave=False,
                        desc=plan.name or "cosim")
         execution.run(recorder, bar, stop)
-    except RunError as e:
-        execution.status = "failed"
-        execution.message = str(e)
-        if recorder is not None:
-            recorder.close(_metadata(prepared, execution))
-        e.result = memory.array() if recorder is not None else None
-        raise
     except BaseException as e:
         execution.status = "failed"
-        execution.message = f"{type(e).__name__}: {e}"
+        execution.message = str(e) if isinstance(e, (RunError, OutputError)) else f"{type(e).__name__}: {e}"
         if recorder is not None:
-            recorder.close(_metadata(prepared, execution))
+            try:
+                recorder.close(_metadata(prepared, execution))
+            except OutputError as closing:  # the disk is full: say so after the error that ended the run
+                if not isinstance(e, OutputError):
+                    raise
+                e.detail += f" The metadata JSON could not be written either ({closing.detail})"
+                e.args = (e._compose(),)
+        e.result = memory.array() if recorder is not None else None
         raise
     finally:
         if bar is not None:

@@ -113,7 +113,12 @@ def _parent(pid: int, pipes: dict, journal: Path, timeout: float | None) -> int:
         how, state = f"the process was killed by {signal.Signals(os.WTERMSIG(status)).name}", "crashed"
     else:
         how, state = f"the process exited with status {os.WEXITSTATUS(status)} during the run", "crashed"
-    output, rows = recover(journal, state, how + ".")
+    try:
+        output, rows = recover(journal, state, how + ".")
+    except OSError as e:
+        print(f"cosim: the run {'timed out' if state == 'timeout' else 'crashed'}: {how}; its journal {journal} "
+              f"could not be turned into results ({e.strerror or e}).", file=sys.stderr)
+        return 1
     print(f"cosim: the run {'timed out' if state == 'timeout' else 'crashed'}: {how}; "
           f"{rows} rows recovered from the journal into {output} (status '{state}' in "
           f"{output.with_suffix('.json')}).", file=sys.stderr)
