@@ -17,6 +17,7 @@ import fmpy
 from attrs import define, field as attrs_field
 from fmpy.model_description import ModelDescription, ModelVariable
 
+from .binaries import check_library
 from .errors import SetupError, did_you_mean
 
 #: The interface the master drives an FMU through (`describe`).
@@ -140,6 +141,7 @@ def describe(path: Path, where: str, file: str, implementation: str = "any") -> 
         raise SetupError(f"cannot read the model description of {path.name}: {e}", file=file,
                          element=where) from None
     kind = _kind(md, path, implementation, where, file)
+    check_library(path, md, kind, file=file, where=where)  # the library run loads, read without loading it
     if not md.guid or not md.guid.strip():
         raise SetupError(f"{path.name} has an empty GUID in its modelDescription.xml; an FMU without a GUID "
                          "cannot be instantiated.", file=file, element=where)
