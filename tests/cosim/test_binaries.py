@@ -81,3 +81,18 @@ def test_a_wrong_model_identifier_is_refused(tmp_path, failing, capsys):
                       lambda text: text.replace('modelIdentifier="Failing"', 'modelIdentifier="Failng"'))
     code, err = _validate(tmp_path, fmu, capsys)
     assert code == 2 and "binaries/linux64/Failng.so is missing" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("doctype, message", [
+    ('<!DOCTYPE fmiModelDescription [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;">]>',
+     "entity declarations are not allowed"),
+    ('<!DOCTYPE fmiModelDescription SYSTEM "file:///etc/passwd">', "names an external DTD")])
+def test_entities_in_a_model_description_are_refused(tmp_path, failing, capsys, doctype, message):
+    """issue 17: fmpy expanded an entity declared in a modelDescription.xml (the SSD reader refused them)."""
+    def edit(text: str) -> str:
+        head, _, body = text.partition("?>")
+        return head + "?>" + doctype + body.replace('description="', 'description="&b;' if "ENTITY" in doctype
+                                                    else 'description="', 1)
+    fmu = edited_copy(failing, tmp_path / "Failing.fmu", edit)
+    code, err = _validate(tmp_path, fmu, capsys)
+    assert code == 2 and message in err and "Failing.fmu!modelDescription.xml" in err and "Traceback" not in err
