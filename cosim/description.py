@@ -20,7 +20,7 @@ from fmpy.model_description import ModelDescription, ModelVariable
 
 from .binaries import check_library
 from .errors import SetupError, did_you_mean
-from .safeio import DOCTYPE_MARKS, parse_xml_bytes
+from .safeio import DOCTYPE_MARKS, check_archive, parse_xml_bytes
 
 #: The interface the master drives an FMU through (`describe`).
 Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me"]
@@ -137,6 +137,8 @@ def describe(path: Path, where: str, file: str, implementation: str = "any") -> 
     key = (path, implementation)
     if key in _cache and _cache[key].path.stat().st_mtime == path.stat().st_mtime:
         return _cache[key]
+    if not path.is_dir():
+        check_archive(path, display=str(path))  # names, links, sizes, ratio: what run's extraction refuses
     _refuse_entities(path, file, where)
     try:
         md = fmpy.read_model_description(str(path), validate=True)

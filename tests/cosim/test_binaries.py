@@ -96,3 +96,26 @@ def test_entities_in_a_model_description_are_refused(tmp_path, failing, capsys, 
     fmu = edited_copy(failing, tmp_path / "Failing.fmu", edit)
     code, err = _validate(tmp_path, fmu, capsys)
     assert code == 2 and message in err and "Failing.fmu!modelDescription.xml" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("member, message", [("../../evil.txt", "evil.txt"), ("/abs.txt", "abs.txt")])
+def test_a_scenario_folder_fmu_gets_every_archive_check_at_validate(tmp_path, failing, capsys, member, message):
+    """issue 17: an FMU in a scenario folder (not in an .ssp) was checked only when run extracted it."""
+    fmu = tmp_path / "Failing.fmu"
+    _with_member(failing, fmu, "none", None)
+    with zipfile.ZipFile(fmu, "a") as archive:
+        archive.writestr(member, "x")
+    code, err = _validate(tmp_path, fmu, capsys)
+    assert code == 2 and message in err and "Traceback" not in err, err
+
+
+def test_a_symbolic_link_member_is_refused_at_validate(tmp_path, failing, capsys):
+    import stat
+    fmu = tmp_path / "Failing.fmu"
+    _with_member(failing, fmu, "none", None)
+    with zipfile.ZipFile(fmu, "a") as archive:
+        info = zipfile.ZipInfo("resources/link")
+        info.external_attr = (stat.S_IFLNK | 0o777) << 16
+        archive.writestr(info, "/etc/passwd")
+    code, err = _validate(tmp_path, fmu, capsys)
+    assert code == 2 and "is a symbolic link" in err, err
