@@ -78,7 +78,11 @@ def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: floa
     algo = algorithm or experiment.algorithm or "jacobi"
     if algo not in ALGORITHMS:
         raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
-    return Prepared(plan, Grid(start, stop, step), algo, source)
+    try:
+        grid = Grid(start, stop, step)
+    except SetupError as e:  # name the SSD the times came from
+        raise SetupError(e.detail, file=file, element=e.element, hint=e.hint) from None
+    return Prepared(plan, grid, algo, source)
 
 
 def prepare(path: str | Path, *, start_time: float | None = None, stop_time: float | None = None,
