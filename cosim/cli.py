@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -114,10 +115,15 @@ def main(argv: list[str] | None = None) -> int:
     try:
         limit = getattr(args, "max_unpacked", None)
         with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None):
-            return {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
+            code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
                     "compare": _compare, "sweep": _sweep}[args.command](args)
+        sys.stdout.flush()  # a closed pipe is reported here, not at interpreter exit
+        return code
     except CosimError as e:
         return _report(e, args.debug)
+    except BrokenPipeError:  # `cosim info | head -1`: the reader has gone; end quietly, as cat does
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
 
 
 def _report(e: CosimError, debug: bool) -> int:
@@ -133,6 +139,7 @@ def _report(e: CosimError, debug: bool) -> int:
 
 def _run(args) -> int:
     from .journal import journal_path
+    from .observers import check_csv_names
     from .outputs import RESULT_SUFFIXES, check_output, plot_suffixes, scenario_files
     from .simulation import prepare
     from .supervisor import supervise
@@ -147,6 +154,8 @@ def _run(args) -> int:
         own = scenario_files(prepared.plan)
         check_output(output, own, what="result file", option="--output", suffixes=RESULT_SUFFIXES,
                      companions=[output.with_suffix(".json"), journal_path(output)])
+        if output.suffix.lower() == ".csv":
+            check_csv_names(prepared.plan.columns + [o.name for o in prepared.plan.system_outputs.values()], output)
         if args.plot:
             check_output(Path(args.plot), own, what="plot", option="--plot", suffixes=plot_suffixes())
 
@@ -291,6 +300,15 @@ def _metrics(args) -> int:
     result = read(args.result)
     names = [n for n in result.dtype.names if n != "time"]
     y, r = (select(names, [name])[0] for name in (args.signal, args.setpoint))
+    t = result["time"]
+    if len(t) < 2:
+        raise SetupError(f"{len(t)} sample(s): the metrics need two or more.", file=args.result)
+    for option, value in (("--t0", args.t0), ("--t1", args.t1)):
+        if value is not None and not t[0] <= value <= t[-1]:
+            raise SetupError(f"{option} {value:g} is outside the result's time range [{t[0]:g}, {t[-1]:g}].",
+                             file=args.result, element=option)
+    if args.t0 is not None and args.t1 is not None and args.t1 <= args.t0:
+        raise SetupError(f"--t1 {args.t1:g} is not after --t0 {args.t0:g}.", file=args.result, element="--t1")
     m = step_metrics(result["time"], result[y], result[r], t0=args.t0, t1=args.t1, band=args.band)
     if args.json:
         print(json.dumps(m))

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import OutputError
+from .errors import OutputError, SetupError
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
@@ -38,6 +38,18 @@ class _FileSink:
         return json.dumps(metadata, indent=2, default=str) + "\n"
 
 
+def check_csv_names(names: Sequence[str], file: str | Path) -> None:
+    """Refuse column names a result CSV cannot carry so that ``fmpy.util.read_csv`` reads
+    them back: a comma, a double quote, a line break or another control character (a
+    Parquet result holds any name)."""
+    for name in names:
+        bad = sorted({c for c in name if c in ',"' or ord(c) < 32 or ord(c) == 127})
+        if bad:
+            raise SetupError(f"the signal name {name!r} holds {', '.join(repr(c) for c in bad)}, which a result "
+                             "CSV cannot carry (fmpy.util.read_csv splits at commas and lines); rename the "
+                             "component or connector, or write Parquet (-o NAME.parquet).", file=str(file))
+
+
 class CsvSink(_FileSink):
     """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it.
 
@@ -56,6 +68,7 @@ class CsvSink(_FileSink):
     def open(self, names: list[str]) -> None:
         import pyarrow as pa
 
+        check_csv_names(names, self.path)
         self._file = pa.OSFile(str(self.path), "wb")
         self._file.write((",".join(f'"{n}"' for n in names) + "\n").encode())
         self._file.flush()

@@ -397,6 +397,8 @@ def resolve_uri(uri: str, base_dir: Path, archive_root: Path | None = None) -> P
     (``archive_root``, by default the archive being read) the result must be a member of the
     archive: an archive from elsewhere must not make the master read ``/etc/passwd`` or
     ``../../secret`` (SSP 1.0 §2.2: an archive's URIs are relative to its root)."""
+    if "\0" in unquote(uri):  # %00: no file name holds a NUL (os calls raise ValueError on it)
+        raise SetupError(f"'{uri}' holds a NUL byte (%00), which no file name can hold.")
     parsed = urlparse(uri)
     if parsed.scheme == "file":
         if parsed.netloc not in ("", "localhost"):
