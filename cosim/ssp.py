@@ -18,7 +18,6 @@ the component level, and a parameter set given on the command line beats both.
 from __future__ import annotations
 
 import math
-import tempfile
 from contextvars import ContextVar
 from dataclasses import replace
 from pathlib import Path
@@ -28,7 +27,7 @@ from lxml import etree
 
 from .errors import SetupError
 from .flatten import flatten
-from .safeio import extract_archive, is_file, parse_xml
+from .safeio import extract_archive, is_file, parse_xml, temporary_folder
 from .structure import (
     Component,
     Connection,
@@ -106,7 +105,7 @@ def read(path: str | Path, max_unpacked_bytes: int | None = None) -> RawStructur
 
 def _read_archive(path: Path, max_unpacked_bytes: int | None = None) -> RawStructure:
     """Extract the archive (checked and size-limited, see `cosim.safeio`) and read its SSD."""
-    tmp = tempfile.TemporaryDirectory(prefix="cosim-ssp-")
+    tmp = temporary_folder("cosim-ssp-")
     try:
         extract_archive(path, Path(tmp.name), max_unpacked_bytes, required=SSD_NAME)
         token = _ARCHIVE_ROOT.set(Path(tmp.name).resolve())

@@ -127,3 +127,23 @@ def test_timeout_must_be_a_positive_number(tmp_path, faulty, value):
     proc = _cosim(tmp_path, "run", str(folder), "-q", "-o", str(tmp_path / "o.csv"), "--timeout", value)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 2 and "--timeout" in err and "Traceback" not in err
+
+
+def test_folders_left_by_a_dead_process_are_removed_by_the_next_run(tmp_path, faulty):
+    """An API run killed outright (no supervising parent) leaves its cosim-fmu-* and
+    cosim-ssp-* folders; the next extraction removes those of processes that are gone."""
+    folder = _scenario(tmp_path, faulty, 0, fault_time=0.0, stop=1.0)
+    (tmp_path / "tmp").mkdir()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = [tmp_path / "tmp" / f"cosim-fmu-{dead.pid}-abc", tmp_path / "tmp" / f"cosim-ssp-{dead.pid}-abc"]
+    for f in stale:
+        (f / "0").mkdir(parents=True)
+    alive = tmp_path / "tmp" / f"cosim-fmu-{os.getpid()}-mine"  # a live process's folder stays
+    alive.mkdir()
+    archive = tmp_path / "f.ssp"
+    assert _cosim(tmp_path, "pack", str(folder), "-o", str(archive)).wait(timeout=120) == 0
+    proc = _cosim(tmp_path, "run", str(archive), "-q", "-o", str(tmp_path / "r.csv"))
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert _leftovers(tmp_path) == [alive.name]
