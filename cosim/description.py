@@ -9,7 +9,6 @@ live instances of each kind.
 from __future__ import annotations
 
 import re
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -18,9 +17,7 @@ import fmpy
 from attrs import define, field as attrs_field
 from fmpy.model_description import ModelDescription, ModelVariable
 
-from .binaries import check_library
 from .errors import SetupError, did_you_mean
-from .safeio import DOCTYPE_MARKS, check_archive, parse_xml_bytes
 
 #: The interface the master drives an FMU through (`describe`).
 Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me"]
@@ -137,16 +134,12 @@ def describe(path: Path, where: str, file: str, implementation: str = "any") -> 
     key = (path, implementation)
     if key in _cache and _cache[key].path.stat().st_mtime == path.stat().st_mtime:
         return _cache[key]
-    if not path.is_dir():
-        check_archive(path, display=str(path))  # names, links, sizes, ratio: what run's extraction refuses
-    _refuse_entities(path, file, where)
     try:
         md = fmpy.read_model_description(str(path), validate=True)
     except Exception as e:  # fmpy raises several types for unreadable or invalid FMUs
         raise SetupError(f"cannot read the model description of {path.name}: {e}", file=file,
                          element=where) from None
     kind = _kind(md, path, implementation, where, file)
-    check_library(path, md, kind, file=file, where=where)  # the library run loads, read without loading it
     if not md.guid or not md.guid.strip():
         raise SetupError(f"{path.name} has an empty GUID in its modelDescription.xml; an FMU without a GUID "
                          "cannot be instantiated.", file=file, element=where)
@@ -164,26 +157,6 @@ def describe(path: Path, where: str, file: str, implementation: str = "any") -> 
     desc = FMUDescription(path=path, md=md, variables=variables, output_dependencies=deps, kind=kind)
     _cache[key] = desc
     return desc
-
-
-def _refuse_entities(path: Path, file: str, where: str) -> None:
-    """fmpy's parser expands entities declared in a modelDescription.xml (the billion-laughs
-    document): a DOCTYPE is parsed by `cosim.safeio.parse_xml_bytes` first, which refuses
-    entity declarations and external DTDs as for SSP documents."""
-    display = f"{path.name}!modelDescription.xml"
-    try:
-        if path.is_dir():
-            data = (path / "modelDescription.xml").read_bytes()
-        else:
-            with zipfile.ZipFile(path) as archive:
-                data = archive.read("modelDescription.xml")
-    except (OSError, KeyError, zipfile.BadZipFile):
-        return  # fmpy reports the missing or unreadable description, with its own words
-    if any(mark in data for mark in DOCTYPE_MARKS):
-        try:
-            parse_xml_bytes(data, display)
-        except SetupError as e:
-            raise SetupError(e.detail, file=file, element=f"{where}, {display}", hint=e.hint) from None
 
 
 def _kind(md: ModelDescription, path: Path, implementation: str, where: str, file: str) -> Kind:

@@ -33,6 +33,7 @@ def supervise(child: Callable[[], int], journal: Path, *, timeout: float | None 
     or 1 after recovering ``journal`` when it did not finish."""
     for stream in (sys.stdout, sys.stderr):
         stream.flush()
+    journal.unlink(missing_ok=True)  # an earlier run's, for the results this run writes over
     out_r, out_w = os.pipe()
     err_r, err_w = os.pipe()
     pid = os.fork()
@@ -54,6 +55,8 @@ def _child(child: Callable[[], int], out_w: int, err_w: int) -> None:
         sys.stderr = os.fdopen(err_w, "w", buffering=1)
         Unzipped.reset()  # the child extracts into its own folder, which the parent removes after a crash
         code = child()
+    except KeyboardInterrupt:  # SIGINT before the run's own handler was installed
+        code = 130
     except BaseException:
         import traceback
         traceback.print_exc()
@@ -64,6 +67,16 @@ def _child(child: Callable[[], int], out_w: int, err_w: int) -> None:
             Unzipped.reset()
         finally:
             os._exit(code)
+
+
+def _relay(stream, data: bytes) -> None:
+    """Pass the child's output on; a reader that has gone (``cosim run | head -1``) gets no more,
+    and the child runs on."""
+    try:
+        stream.write(data.decode(errors="replace"))
+        stream.flush()
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
 
 
 def _parent(pid: int, pipes: dict, journal: Path, timeout: float | None) -> int:
@@ -85,9 +98,7 @@ def _parent(pid: int, pipes: dict, journal: Path, timeout: float | None) -> int:
             for key, _ in selector.select(wait):
                 data = os.read(key.fd, 65536)
                 if data:
-                    stream = pipes[key.fd]
-                    stream.write(data.decode(errors="replace"))
-                    stream.flush()
+                    _relay(pipes[key.fd], data)
                 else:
                     selector.unregister(key.fd)
                     os.close(key.fd)
@@ -104,8 +115,9 @@ def _parent(pid: int, pipes: dict, journal: Path, timeout: float | None) -> int:
         for s, h in previous.items():
             signal.signal(s, h)
         selector.close()
-    if not journal.exists():
-        return os.waitstatus_to_exitcode(status) if os.WIFEXITED(status) else 1
+    if not journal.exists():  # finished, or killed before recording began
+        code = os.waitstatus_to_exitcode(status)
+        return code if code >= 0 else 128 - code
     if killed:
         how, state = (f"the run did not stop within {GRACE:g} s of the {timeout:g} s timeout (an FMU call "
                       "that does not return); the process was killed"), "timeout"

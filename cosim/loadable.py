@@ -1,6 +1,12 @@
-"""An FMU's shared library checked without loading it: what `cosim validate` needs to say
-that `run` can load the FMU (issue 17: an FMU without a binary for this platform, a binary
-that is not a shared library, or a wrong modelIdentifier validated and failed at run time).
+"""An FMU file checked as `run` will load it, without loading it: what `cosim validate` needs
+to say that `run` can (issue 17: an FMU without a binary for this platform, a binary that is
+not a shared library, a wrong modelIdentifier, bad archive members of an FMU outside an .ssp
+and entities in a modelDescription.xml validated, then failed or were expanded).
+
+`check_fmu_file`, before fmpy reads the description: the archive checks of
+`cosim.safeio` (names, links, sizes, ratio: what run's extraction refuses) and a DOCTYPE
+parsed by the SSD reader's safe parser (fmpy's would expand entities).  `check_library`,
+after: the shared library.
 
 FMI 2.0 §2.3 / FMI 3.0 §2.5: the library is ``binaries/<platform>/<modelIdentifier><ext>``
 (``linux64``, ``x86_64-linux``: `fmpy.platform`, `fmpy.platform_tuple`).  On Linux it must be
@@ -19,7 +25,7 @@ from pathlib import Path
 import fmpy
 
 from .errors import SetupError
-from .safeio import max_unpacked_bytes
+from .safeio import DOCTYPE_MARKS, check_archive, max_unpacked_bytes, parse_xml_bytes
 
 #: the functions the master calls, per interface (cosim.instances)
 REQUIRED = {
@@ -34,6 +40,33 @@ REQUIRED = {
 #: ELF e_machine of the architectures this master runs on
 _MACHINES = {"x86_64": 62, "AMD64": 62, "aarch64": 183, "arm64": 183}
 _ET_DYN, _SHT_DYNSYM = 3, 11
+
+
+def check_fmu_file(path: Path, *, file: str, where: str) -> None:
+    """What must hold before the FMU's modelDescription.xml is parsed by fmpy."""
+    if not path.is_dir():
+        check_archive(path, display=str(path))
+    _refuse_entities(path, file, where)
+
+
+def _refuse_entities(path: Path, file: str, where: str) -> None:
+    """fmpy's parser expands entities declared in a modelDescription.xml (the billion-laughs
+    document): a DOCTYPE is parsed by `cosim.safeio.parse_xml_bytes` first, which refuses
+    entity declarations and external DTDs as for SSP documents."""
+    display = f"{path.name}!modelDescription.xml"
+    try:
+        if path.is_dir():
+            data = (path / "modelDescription.xml").read_bytes()
+        else:
+            with zipfile.ZipFile(path) as archive:
+                data = archive.read("modelDescription.xml")
+    except (OSError, KeyError, zipfile.BadZipFile):
+        return  # fmpy reports the missing or unreadable description, with its own words
+    if any(mark in data for mark in DOCTYPE_MARKS):
+        try:
+            parse_xml_bytes(data, display)
+        except SetupError as e:
+            raise SetupError(e.detail, file=file, element=f"{where}, {display}", hint=e.hint) from None
 
 
 def library_member(md, kind: str) -> str:
