@@ -138,6 +138,7 @@ def _report(e: CosimError, debug: bool) -> int:
 
 
 def _run(args) -> int:
+    from .instances import Unzipped
     from .journal import journal_path
     from .observers import check_csv_names
     from .outputs import RESULT_SUFFIXES, check_output, plot_suffixes, scenario_files
@@ -158,6 +159,9 @@ def _run(args) -> int:
             check_csv_names(prepared.plan.columns + [o.name for o in prepared.plan.system_outputs.values()], output)
         if args.plot:
             check_output(Path(args.plot), own, what="plot", option="--plot", suffixes=plot_suffixes())
+
+        for desc in prepared.plan.fmus.values():  # extracted here, so this process's later runs reuse them
+            Unzipped()(desc.path)
 
         def child() -> int:
             try:

@@ -53,7 +53,7 @@ def _child(child: Callable[[], int], out_w: int, err_w: int) -> None:
     try:
         sys.stdout = os.fdopen(out_w, "w", buffering=1)
         sys.stderr = os.fdopen(err_w, "w", buffering=1)
-        Unzipped.reset()  # the child extracts into its own folder, which the parent removes after a crash
+        Unzipped.adopt()
         code = child()
     except KeyboardInterrupt:  # SIGINT before the run's own handler was installed
         code = 130
@@ -64,7 +64,7 @@ def _child(child: Callable[[], int], out_w: int, err_w: int) -> None:
         try:
             sys.stdout.flush()
             sys.stderr.flush()
-            Unzipped.reset()
+            Unzipped.release()
         finally:
             os._exit(code)
 

@@ -24,15 +24,22 @@ class Unzipped:
         return Unzipped._tmp.name if Unzipped._tmp is not None else None
 
     @staticmethod
-    def reset() -> None:
-        """Remove this process's extraction folder; the next FMU is extracted afresh (a forked
-        child must not share, nor remove, its parent's folder: `cosim.supervisor`)."""
-        if Unzipped._tmp is not None:
-            if os.getpid() == Unzipped._owner:
-                Unzipped._tmp.cleanup()
-            else:  # inherited from the parent: never remove it from here, not even when collected
-                Unzipped._tmp._finalizer.detach()
-        Unzipped._tmp, Unzipped._dirs, Unzipped._owner = None, {}, os.getpid()
+    def adopt() -> None:
+        """In a forked child (`cosim.supervisor`): keep using the FMUs the parent extracted, but
+        extract new ones into a folder of the child's own, which the parent removes after a
+        crash; the parent's folder is never removed from here, not even when collected."""
+        if Unzipped._tmp is not None and os.getpid() != Unzipped._owner:
+            Unzipped._tmp._finalizer.detach()
+            Unzipped._tmp = None
+        Unzipped._owner = os.getpid()
+
+    @staticmethod
+    def release() -> None:
+        """Remove this process's own extraction folder (a forked child skips the finalizers)."""
+        if Unzipped._tmp is not None and os.getpid() == Unzipped._owner:
+            Unzipped._tmp.cleanup()
+            Unzipped._tmp = None
+            Unzipped._dirs = {}
 
     def __call__(self, path: Path) -> str:
         path = path.resolve()
