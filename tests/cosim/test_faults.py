@@ -147,3 +147,24 @@ def test_folders_left_by_a_dead_process_are_removed_by_the_next_run(tmp_path, fa
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err
     assert _leftovers(tmp_path) == [alive.name]
+
+
+def test_a_journal_left_by_a_crashed_api_run_is_recovered(tmp_path, faulty):
+    """`cosim.simulate` has no supervising parent: the journal stays, and `recover` writes the
+    result files from it with status 'crashed' (none of the 11 completed rows lost)."""
+    from cosim.journal import journal_path, recover
+
+    folder = _scenario(tmp_path, faulty, 1, fault_time=5.0)
+    out = tmp_path / "api.parquet"
+    code = f"import cosim; cosim.simulate({str(folder)!r}, output={str(out)!r})"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=dict(os.environ, TMPDIR=str(tmp_path)))
+    assert proc.returncode == -signal.SIGABRT
+    journal = journal_path(out)
+    assert journal.exists()
+    path, rows = recover(journal, message="found after the run")
+    assert path == out.resolve() and rows == 11 and not journal.exists()
+    assert list(read(out)["f.y"]) == pytest.approx([0.5 * k for k in range(11)])
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["status"] == "crashed" and meta["message"] == "found after the run"
+    assert not list(tmp_path.glob("cosim-fmu-*"))  # the crashed process's extraction folder too
