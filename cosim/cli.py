@@ -1,16 +1,19 @@
 """``cosim``: run, validate, inspect and pack SSP systems of FMI 2.0 Co-Simulation FMUs.
 
-Exit status: 0 done, 1 the run failed (results up to the last good step are
-kept), 2 the input is wrong (nothing was run).  No traceback unless --debug.
+Exit status: 0 done, 1 the run failed, crashed or timed out (results up to the last
+good step are kept), 2 the input is wrong (nothing was run), 130/143 the run was
+stopped by SIGINT/SIGTERM (results kept).  No traceback unless --debug.
 """
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
 import warnings
 from pathlib import Path
 
-from .errors import CosimError, RunError, SetupError
+from .errors import CosimError, OutputError, RunError, SetupError
 from .safeio import parse_size, unpack_limit
 
 
@@ -60,6 +63,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--relaxation", type=float, default=1.0, help="relaxation factor in (0, 1] (1: plain "
                                                                     "fixed point)")
     run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    run.add_argument("--timeout", type=float, metavar="SECONDS",
+                     help="end the run after SECONDS (status 'timeout', exit 1); an FMU call still not "
+                          "returned 2 s later is killed, the rows so far kept")
 
     validate = sub.add_parser("validate", help="check a system without running it")
     common(validate)
@@ -135,23 +141,26 @@ def main(argv: list[str] | None = None) -> int:
     try:
         limit = getattr(args, "max_unpacked", None)
         with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None):
-            return {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
+            code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
                     "report": _report, "compare": _compare, "sweep": _sweep}[args.command](args)
-    except SetupError as e:
-        if args.debug:
-            raise
-        print(f"cosim: error: {e}", file=sys.stderr)
-        return 2
-    except RunError as e:
-        if args.debug:
-            raise
+        sys.stdout.flush()  # a closed pipe is reported here, not at interpreter exit
+        return code
+    except CosimError as e:
+        return _fail(e, args.debug)
+    except BrokenPipeError:  # `cosim info | head -1`: the reader has gone; end quietly, as cat does
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+
+
+def _fail(e: CosimError, debug: bool) -> int:
+    """One paragraph on stderr and the exit status: 1 for a failed run, 2 for bad input."""
+    if debug:
+        raise e
+    if isinstance(e, (RunError, OutputError)):
         print(f"cosim: the run failed: {e}", file=sys.stderr)
         return 1
-    except CosimError as e:
-        if args.debug:
-            raise
-        print(f"cosim: error: {e}", file=sys.stderr)
-        return 2
+    print(f"cosim: error: {e}", file=sys.stderr)
+    return 2
 
 
 def result_stem(scenario: str, parameter_sets: list[str]) -> str:
@@ -161,45 +170,84 @@ def result_stem(scenario: str, parameter_sets: list[str]) -> str:
 
 
 def _run(args) -> int:
-    from .plots import default_panels, plot
-    from .simulation import prepare, run, select, signal_info
+    from .instances import Unzipped
+    from .journal import journal_path
+    from .observers import check_csv_names
+    from .outputs import RESULT_SUFFIXES, check_output, plot_suffixes, scenario_files
+    from .simulation import prepare
+    from .supervisor import supervise
 
-    from .loops import LoopSettings
-
-    settings = LoopSettings(rtol=args.loop_tolerance[0], atol=args.loop_tolerance[1],
-                            max_iterations=args.loop_iterations, relaxation=args.relaxation)
+    if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
+        raise SetupError(f"--timeout {args.timeout}: give a positive number of seconds.", element="--timeout")
     prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
                        algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
                        loops=args.loops)
     try:
-        plan = prepared.plan
-        name = plan.name or Path(args.path).stem
+        name = prepared.plan.name or Path(args.path).stem
         output = Path(args.output or Path("results") / f"{result_stem(name, args.param_set)}.csv")
-        outputs, inputs = plan.recorded()
-        panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
-                  else default_panels(signal_info(prepared.plan), outputs + inputs))
-        grid = prepared.grid
-        print(f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
-              f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
-              f"{prepared.algorithm}")
-        try:
-            with warnings.catch_warnings(record=True) as caught:  # printed as cosim's own warnings
-                warnings.simplefilter("always", RuntimeWarning)
-                result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
-                                       keep=[n for panel in panels for n in panel] if args.plot is not None else [],
-                                       loop_settings=settings)
-            for warning in caught:
-                print(f"cosim: warning: {warning.message}", file=sys.stderr)
-        except RunError:
-            print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
-            raise
+        own = scenario_files(prepared.plan)
+        check_output(output, own, what="result file", option="--output", suffixes=RESULT_SUFFIXES,
+                     companions=[output.with_suffix(".json"), journal_path(output)])
+        if output.suffix.lower() == ".csv":
+            check_csv_names(prepared.plan.columns + [o.name for o in prepared.plan.system_outputs.values()], output)
+        if args.plot is not None:
+            check_output(Path(args.plot or output.with_suffix(".png")), own, what="plot", option="--plot",
+                         suffixes=plot_suffixes())
+        if args.report is not None:
+            check_output(Path(args.report or output.with_suffix(".html")), own, what="report", option="--report",
+                         suffixes=(".html", ".htm"))
+
+        for desc in prepared.plan.fmus.values():  # extracted here, so this process's later runs reuse them
+            Unzipped()(desc.path)
+
+        def child() -> int:
+            try:
+                return _execute(args, prepared, name, output)
+            except CosimError as e:
+                return _fail(e, args.debug)
+
+        return supervise(child, journal_path(output), timeout=args.timeout)
     finally:
         prepared.close()
+
+
+def _execute(args, prepared, name: str, output: Path) -> int:
+    """The run itself (in `cosim.supervisor`'s child): exit 0, 1 failed or timed out, 130/143
+    stopped by SIGINT/SIGTERM."""
+    from .interrupts import stop_on_signals
+    from .loops import LoopSettings
+    from .plots import default_panels, plot
+    from .simulation import run, select, signal_info
+
+    plan = prepared.plan
+    outputs, inputs = plan.recorded()
+    panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
+              else default_panels(signal_info(plan), outputs + inputs))
+    settings = LoopSettings(rtol=args.loop_tolerance[0], atol=args.loop_tolerance[1],
+                            max_iterations=args.loop_iterations, relaxation=args.relaxation)
+    grid = prepared.grid
+    print(f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
+          f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
+          f"{prepared.algorithm}")
+    try:
+        with stop_on_signals() as stop, warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", RuntimeWarning)  # printed as cosim's own warnings
+            result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
+                                   keep=[n for panel in panels for n in panel] if args.plot is not None else [],
+                                   loop_settings=settings, stop=stop)
+        for warning in caught:
+            print(f"cosim: warning: {warning.message}", file=sys.stderr)
+    except RunError:
+        print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
+        raise
     if metadata["status"] == "discarded":
         print(f"cosim: warning: {metadata['message']}", file=sys.stderr)
     elif metadata["status"] == "terminated":
         print(f"cosim: {metadata['message']}", file=sys.stderr)
     print(f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
+    if stop.signum is not None:
+        print(f"cosim: {metadata['message']} Results up to there kept in {output}", file=sys.stderr)
+        return 1 if stop.status() == "timeout" else 128 + stop.signum
     if args.plot is not None:
         png = plot(result, panels, args.plot or output.with_suffix(".png"), scenario=name, metadata=metadata)
         print(f"cosim: plot: {png}")
@@ -287,11 +335,15 @@ def _print_system(node, depth: int) -> None:
 
 
 def _pack(args) -> int:
+    from .outputs import check_output, scenario_files
     from .pack import pack
 
     prepared = _prepare_with_placeholder_grid(args)
     try:
-        out = pack(prepared.plan, Path(args.output))
+        output = Path(args.output)
+        check_output(output, scenario_files(prepared.plan), what="packed archive", option="--output",
+                     suffixes=[".ssp"], companions=[output.with_suffix(output.suffix + ".part")])
+        out = pack(prepared.plan, output)
     finally:
         prepared.close()
     print(f"cosim: packed {out}")
@@ -309,6 +361,14 @@ def _metrics(args) -> int:
     names = [n for n in result.dtype.names if n != "time"]
     y, r = (select(names, [name])[0] for name in (args.signal, args.setpoint))
     time = result["time"]
+    if len(time) < 2:
+        raise SetupError(f"{len(time)} sample(s): the metrics need two or more.", file=args.result)
+    for option, value in (("--t0", args.t0), ("--t1", args.t1)):
+        if value is not None and not time[0] <= value <= time[-1]:
+            raise SetupError(f"{option} {value:g} is outside the result's time range [{time[0]:g}, {time[-1]:g}].",
+                             file=args.result, element=option)
+    if args.t0 is not None and args.t1 is not None and args.t1 <= args.t0:
+        raise SetupError(f"--t1 {args.t1:g} is not after --t0 {args.t0:g}.", file=args.result, element="--t1")
     if args.t0 is not None or args.t1 is not None:
         window = step_response(time, result[y], result[r], t0=args.t0, t1=args.t1, band=args.band)
         t0 = args.t0 if args.t0 is not None else float("nan")

@@ -3,6 +3,7 @@
 `SetupError` is raised before anything is instantiated (bad SSP, bad FMU, bad
 options); the CLI turns it into one paragraph and exit status 2.  `RunError` is
 raised while stepping; the results written up to the last good step are kept.
+`OutputError` is a result file that could not be written during the run (exit 1).
 """
 from __future__ import annotations
 
@@ -56,6 +57,11 @@ class RunError(CosimError):
         self.component = component
         self.status = status
         super().__init__(message, **kwargs)
+
+
+class OutputError(CosimError):
+    """A result file could not be written during the run (a full disk): the run ends, the rows
+    written before stay readable."""
 
 
 def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:

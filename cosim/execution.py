@@ -36,6 +36,7 @@ from .errors import RunError, SetupError
 from .description import FMUDescription, exchange_type
 from .instances import STATUS, Instance, Unzipped, open_instance
 from .instances.fmi3 import BinaryValue
+from .interrupts import StopRequest
 from .loops import LoopSettings, LoopSolver, Watched
 from .structure import Plan
 from .observers import Recorder
@@ -45,6 +46,10 @@ from .observers import Recorder
 TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p,
          "Binary": BinaryValue}
 ALGORITHMS = ("jacobi", "gauss-seidel")
+#: most communication steps of a run (10^9 steps at the fastest ~5 µs/step is over an hour)
+MAX_STEPS = 10**9
+#: the smallest step, in multiples of the spacing of doubles at the run's largest time
+RESOLUTION_STEPS = 1024
 FMI_WARNING, FMI_DISCARD = 1, 2
 
 
@@ -62,6 +67,16 @@ class Grid:
         if self.stop <= self.start:
             raise SetupError(f"the stop time {self.stop} is not after the start time {self.start}.",
                              element="stop time")
+        resolution = math.ulp(max(abs(self.start), abs(self.stop)))
+        if self.step < RESOLUTION_STEPS * resolution:
+            raise SetupError(f"the step size {self.step:g} s is below the time resolution at t = "
+                             f"{max(abs(self.start), abs(self.stop)):g} s ({RESOLUTION_STEPS} x {resolution:g} s, "
+                             "the spacing of doubles there): communication times would repeat or drift.",
+                             element="step size")
+        steps = (self.stop - self.start) / self.step
+        if not steps <= MAX_STEPS:
+            raise SetupError(f"{self.stop:g} - {self.start:g} s in steps of {self.step:g} s is {steps:.3g} "
+                             f"communication steps; at most {MAX_STEPS:.0e} are run.", element="step size")
 
     @cached_property
     def steps(self) -> int:
@@ -328,9 +343,12 @@ class Execution:
             arrays += [ty.Y, ty.U]
         return names, arrays
 
-    def run(self, recorder: Recorder, progress=None) -> None:
+    def run(self, recorder: Recorder, progress=None, stop: StopRequest | None = None) -> None:
         """Step from start to stop; ``status`` ends as completed, terminated (an FMU ended the run
-        after a valid step, recorded), discarded (an FMU could not complete a step) or failed."""
+        after a valid step, recorded), discarded (an FMU could not complete a step), failed, or
+        (when ``stop`` is set by a signal, checked at every communication point) interrupted or
+        timeout."""
+        self.stop = stop or StopRequest()
         grid = self.grid
         steppers = [(name, self.instances[name].do_step, self.instances[name].component) for name in self.order]
         gs = [(name, self.instances[name].do_step, self.instances[name].component)
@@ -350,6 +368,7 @@ class Execution:
     def _loop(self, recorder, progress, steppers, gs, gauss_seidel, n_steps, stride) -> None:
         time = self.grid.time  # computed per step: a list of 10^6 times would cost 32 MB
         exchange, record = self._exchange, recorder.record
+        stop = self.stop.flag
         for block in range(0, n_steps, stride):
             for k in range(block, min(block + stride, n_steps)):
                 t = time(k)
@@ -370,6 +389,10 @@ class Execution:
                 exchange(t_next)
                 record(t_next)
                 self.last_time = t_next
+                if stop:
+                    self.status = self.stop.status()
+                    self.message = f"stopped by {self.stop.describe()} at t = {t_next:g}."
+                    return
             if progress is not None:
                 progress.update(min(block + stride, n_steps) - block)
         self.status = "completed"

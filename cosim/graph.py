@@ -12,7 +12,7 @@ The inputs are names: components, variables, and each component's output depende
 """
 from __future__ import annotations
 
-from collections import defaultdict
+from collections import defaultdict, deque
 from collections.abc import Collection, Hashable, Mapping, Sequence
 
 from .errors import SetupError
@@ -89,32 +89,39 @@ def tarjan(nodes: Sequence[Hashable], edges: Mapping) -> list[list]:
     stack: list = []
     on_stack: set = set()
     result: list[list] = []
-    counter = [0]
 
-    def visit(v):  # recursion depth is bounded by the number of connected variables
-        index[v] = low[v] = counter[0]
-        counter[0] += 1
-        stack.append(v)
-        on_stack.add(v)
-        for w in edges.get(v, []):
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on_stack:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            scc = []
-            while True:
-                w = stack.pop()
-                on_stack.discard(w)
-                scc.append(w)
-                if w == v:
+    for root in nodes:  # iterative (a 10 000-FMU chain is deeper than Python's recursion limit)
+        if root in index:
+            continue
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        work = [(root, iter(edges.get(root, [])))]
+        while work:
+            v, successors = work[-1]
+            for w in successors:
+                if w not in index:
+                    index[w] = low[w] = len(index)
+                    stack.append(w)
+                    on_stack.add(w)
+                    work.append((w, iter(edges.get(w, []))))
                     break
-            result.append(scc[::-1])
-
-    for v in nodes:
-        if v not in index:
-            visit(v)
+                if w in on_stack:
+                    low[v] = min(low[v], index[w])
+            else:  # every successor of v done
+                work.pop()
+                if work:
+                    parent = work[-1][0]
+                    low[parent] = min(low[parent], low[v])
+                if low[v] == index[v]:
+                    scc = []
+                    while True:
+                        w = stack.pop()
+                        on_stack.discard(w)
+                        scc.append(w)
+                        if w == v:
+                            break
+                    result.append(scc[::-1])
     return result
 
 
@@ -139,10 +146,10 @@ def topological(nodes: Sequence, edges: Mapping) -> list:
     for v in nodes:
         for w in edges.get(v, []):
             indegree[w] += 1
-    ready = [n for n in nodes if indegree[n] == 0]
+    ready = deque(n for n in nodes if indegree[n] == 0)
     order = []
     while ready:
-        v = ready.pop(0)
+        v = ready.popleft()
         order.append(v)
         for w in edges.get(v, []):
             indegree[w] -= 1

@@ -369,13 +369,18 @@ def compare(a: np.ndarray, b: np.ndarray, *, signals: Sequence[str] | None = Non
                                  hint=did_you_mean(name, result.dtype.names))
         tol = tolerance_for(name, tolerances, default)
         ref, cand = a[name], b[name]
-        diff = np.abs(ref - cand)
+        with np.errstate(invalid="ignore"):
+            diff = np.abs(ref - cand)
         scale = np.abs(ref)
         bound = tol.bound(ref)
         both_nan = np.isnan(ref) & np.isnan(cand)
-        out_of_band = ~((diff <= bound) | both_nan)
+        same = both_nan | (ref == cand)  # equal infinities too: inf - inf is NaN
+        diff = np.where(same, 0.0, diff)
+        # an infinite difference is out of any band (the bound of an infinite reference is infinite too)
+        out_of_band = ~(((diff <= bound) & np.isfinite(diff)) | same)
         finite = np.where(both_nan, 0.0, diff)
-        rel = np.divide(finite, scale, out=np.zeros_like(finite), where=scale > 0)
+        with np.errstate(invalid="ignore"):
+            rel = np.divide(finite, scale, out=np.zeros_like(finite), where=scale > 0)
         d = Difference(name, float(finite.max(initial=0)), float(rel.max(initial=0)), not out_of_band.any(), tol, int(out_of_band.sum()))
         if not d.ok:
             i = int(np.argmax(out_of_band))

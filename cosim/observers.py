@@ -10,11 +10,14 @@ suffix), and `MemorySink` (for the Python API).
 from __future__ import annotations
 
 import json
+import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+
+from .errors import OutputError, SetupError
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
@@ -35,6 +38,18 @@ class _FileSink:
         return json.dumps(metadata, indent=2, default=str) + "\n"
 
 
+def check_csv_names(names: Sequence[str], file: str | Path) -> None:
+    """Refuse column names a result CSV cannot carry so that ``fmpy.util.read_csv`` reads
+    them back: a comma, a double quote, a line break or another control character (a
+    Parquet result holds any name)."""
+    for name in names:
+        bad = sorted({c for c in name if c in ',"' or ord(c) < 32 or ord(c) == 127})
+        if bad:
+            raise SetupError(f"the signal name {name!r} holds {', '.join(repr(c) for c in bad)}, which a result "
+                             "CSV cannot carry (fmpy.util.read_csv splits at commas and lines); rename the "
+                             "component or connector, or write Parquet (-o NAME.parquet).", file=str(file))
+
+
 class CsvSink(_FileSink):
     """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it.
 
@@ -53,6 +68,7 @@ class CsvSink(_FileSink):
     def open(self, names: list[str]) -> None:
         import pyarrow as pa
 
+        check_csv_names(names, self.path)
         self._file = pa.OSFile(str(self.path), "wb")
         self._file.write((",".join(f'"{n}"' for n in names) + "\n").encode())
         self._file.flush()
@@ -63,8 +79,13 @@ class CsvSink(_FileSink):
         import pyarrow.csv as pcsv
 
         table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=self._names)
-        pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
-        self._file.flush()
+        end = self._file.tell()
+        try:
+            pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
+            self._file.flush()
+        except OSError:  # a full disk: drop the partly written chunk, so every line left is whole
+            os.truncate(self.path, end)
+            raise
 
     def finish(self) -> None:
         """Close the file (no metadata)."""
@@ -161,15 +182,20 @@ class MemorySink:
 
 
 class Recorder:
-    """Preallocated sample buffer fed from the execution's value arrays.
+    """Sample buffer fed from the execution's value arrays.
 
     ``sources`` are the arrays (outputs and inputs of each type) copied into a
     row in the order of ``source_names``; rows are written out in ``names``
     order (time first, then component by component as the SSD lists them).
+    The rows go to the sinks when ``chunk_rows`` are filled or ``flush_seconds``
+    have passed (the clock is read at every row, so a slow run is flushed on time).
+    With ``journal``, a function ``(names, permutation, columns, chunk_rows)`` returning a
+    `cosim.journal.Journal`, the buffer is the journal's mapped window and the row
+    counter is stored after every row, so a crash loses no row.
     """
 
     def __init__(self, source_names: list[str], sources: list[np.ndarray], names: list[str],
-                 sinks: list, chunk_rows: int = 4096, flush_seconds: float = 1.0):
+                 sinks: list, chunk_rows: int = 4096, flush_seconds: float = 1.0, journal=None):
         self.sources = []
         col = 1
         for arr in sources:
@@ -178,14 +204,24 @@ class Recorder:
         position = {n: i + 1 for i, n in enumerate(source_names)}
         self.names = ["time"] + names
         self.permutation = np.array([0] + [position[n] for n in names], dtype=np.intp)
-        self.buffer = np.empty((chunk_rows, col))
-        self.rows = 0
         self.sinks = sinks
+        self.journal = None
+        try:
+            self.journal = journal(self.names, self.permutation.tolist(), col, chunk_rows) if journal else None
+            self.buffer = self.journal.window() if self.journal is not None else np.empty((chunk_rows, col))
+            for sink in sinks:
+                sink.open(self.names)
+        except OSError as e:
+            if self.journal is not None:
+                self.journal.close()
+            raise OutputError(f"the results cannot be written: {e.strerror or e}.", file=e.filename) from None
+        self._count = self.journal.count if self.journal is not None else np.zeros(1, dtype=np.int64)
+        self.rows = 0      # rows filled in the buffer
+        self._written = 0  # rows of the buffer already handed to the sinks
         self.flush_seconds = flush_seconds
-        self._last_flush = time.monotonic()
+        self._flush_at = time.monotonic() + flush_seconds
         self.samples = 0
-        for sink in sinks:
-            sink.open(self.names)
+        self.broken: OSError | None = None
 
     def record(self, t: float) -> None:
         row = self.buffer[self.rows]
@@ -194,19 +230,42 @@ class Recorder:
             row[a:b] = arr
         self.rows += 1
         self.samples += 1
-        if self.rows == len(self.buffer) or (self.rows & 255 == 0
-                                             and time.monotonic() - self._last_flush > self.flush_seconds):
+        self._count[0] = self.samples
+        if self.rows == len(self.buffer) or time.monotonic() > self._flush_at:
             self.flush()
 
     def flush(self) -> None:
-        if self.rows:
-            chunk = self.buffer[:self.rows][:, self.permutation]
-            for sink in self.sinks:
-                sink.write(chunk)
-            self.rows = 0
-        self._last_flush = time.monotonic()
+        """Hand the new rows to the sinks; a sink (or the journal) that cannot write (a full
+        disk) is an `OutputError`, and no later flush is tried."""
+        if self.broken is not None:
+            return
+        try:
+            if self.rows > self._written:
+                chunk = self.buffer[self._written:self.rows][:, self.permutation]
+                for sink in self.sinks:
+                    sink.write(chunk)
+                self._written = self.rows
+            if self.rows == len(self.buffer):
+                if self.journal is not None:
+                    self.buffer = self.journal.window()
+                self.rows = self._written = 0
+        except OSError as e:
+            self.broken = e
+            raise OutputError(f"writing the results failed after {self.samples} rows: {e.strerror or e}; "
+                              "the rows written before are kept.",
+                              file=e.filename) from None
+        self._flush_at = time.monotonic() + self.flush_seconds
 
     def close(self, metadata: dict) -> None:
-        self.flush()
-        for sink in self.sinks:
-            sink.close(metadata)
+        """Flush, close the sinks (writing ``metadata``) and delete the journal, which is no
+        longer needed even when a sink fails here."""
+        try:
+            self.flush()
+            for sink in self.sinks:
+                sink.close(metadata)
+        except OSError as e:
+            raise OutputError(f"closing the results failed: {e.strerror or e}.", file=e.filename) from None
+        finally:
+            if self.journal is not None:
+                self.buffer = None
+                self.journal.close()

@@ -10,6 +10,7 @@ variable's range.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Collection, Sequence
 from dataclasses import replace
 
@@ -22,6 +23,8 @@ from .structure import Hop, OpenConnector, ParameterValue, Plan, StartValue, Sys
 from .units import IDENTITY, SystemUnits, UnitScope, conversion
 
 SETTABLE_CAUSALITIES = ("parameter", "input")
+#: the range of fmi2Integer and fmi3Int32 (a C int)
+INT32 = (-2**31, 2**31 - 1)
 
 
 def resolve_parameters(structure: SystemStructure, fmus: dict[str, FMUDescription],
@@ -143,12 +146,25 @@ def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue
         value = _convert_value(p, var, comp, value, where, units)
         origin += f", given as {p.value:g} {p.unit}"
     if exchange_type(var) in ("Real", "Integer"):
+        _check_number(value, var, desc, p, where)
         lo = float(var.min) if var.min is not None else None
         hi = float(var.max) if var.max is not None else None
         if (lo is not None and value < lo) or (hi is not None and value > hi):
             raise SetupError(f"value {value} is outside the variable's range [{var.min}, {var.max}] "
                              f"declared by {desc.path.name}.", file=p.file, element=where, variable=var_name)
     resolved[(comp, var_name)] = StartValue(comp, var, value, origin)
+
+
+def _check_number(value: float | int, var: ModelVariable, desc: FMUDescription, p: ParameterValue,
+                  where: str) -> None:
+    """A Real must be finite (NaN would pass any min/max test, FMI 2.0 §2.2.7 has no NaN start
+    value) and an Integer must fit the C int of fmi2Integer / fmi3Int32."""
+    if exchange_type(var) == "Real" and not math.isfinite(value):
+        raise SetupError(f"value {value} is not a finite number{'' if value == p.value else f' (given {p.value})'}; "
+                         f"{desc.path.name} takes a finite Real.", file=p.file, element=where, variable=var.name)
+    if exchange_type(var) == "Integer" and not INT32[0] <= value <= INT32[1]:
+        raise SetupError(f"value {value} is outside the range of {var.type} ([{INT32[0]}, {INT32[1]}], a 32-bit "
+                         f"C int) in {desc.path.name}.", file=p.file, element=where, variable=var.name)
 
 
 def _convert_value(p: ParameterValue, var: ModelVariable, comp: str, value: float, where: str,

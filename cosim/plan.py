@@ -17,6 +17,7 @@ from fmpy.model_description import ModelVariable
 from .description import FMUDescription, describe, exchange_type, unit_of
 from .errors import SetupError, did_you_mean
 from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
+from .loadable import check_fmu_file, check_library
 from .parameters import resolve_parameters
 from .routing import connector_unit, hops_map, source_view, transformations
 from .solvers import check_model_exchange, solvers_of
@@ -36,6 +37,14 @@ from .structure import (
 from .units import IDENTITY, SystemUnits, fmu_units
 
 
+def _describe(path: Path, where: str, file: str, implementation: str) -> FMUDescription:
+    """`cosim.description.describe`, with the checks of what run loads (`cosim.loadable`)."""
+    check_fmu_file(path, file=file, where=where)
+    desc = describe(path, where, file, implementation)
+    check_library(desc.path, desc.md, desc.kind, file=file, where=where)
+    return desc
+
+
 def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
                extra_parameters: Sequence[ParameterValue] = (), loops: LoopMode = "iterate") -> Plan:
     """Check the structure against its FMUs (``fmu_paths``: `cosim.resources.locate_fmus`) and
@@ -45,8 +54,8 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
     if loops not in LOOP_MODES:
         raise SetupError(f"unknown loop handling '{loops}'; choose one of {', '.join(LOOP_MODES)}.",
                          element="--loops")
-    fmus = {name: describe(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})", file,
-                           comp.implementation)
+    fmus = {name: _describe(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})", file,
+                            comp.implementation)
             for name, comp in structure.components.items()}
     check_model_exchange(structure, fmus)
     units = SystemUnits(structure.units, {name: fmu_units(desc.md.unitDefinitions, desc.path.name)

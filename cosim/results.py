@@ -16,10 +16,18 @@ def read(path: str | Path) -> np.ndarray:
     if not Path(path).is_file():
         raise SetupError("no such result file.", file=str(path))
     try:
-        return _read_parquet(path) if Path(path).suffix.lower() == ".parquet" else _read_csv(path)
-    except (ValueError, IndexError) as e:  # pyarrow's ArrowInvalid is a ValueError
+        result = _read_parquet(path) if Path(path).suffix.lower() == ".parquet" else _read_csv(path)
+    except (ValueError, IndexError, TypeError, UnicodeDecodeError) as e:  # pyarrow's ArrowInvalid is a ValueError
         raise SetupError(f"not a result file (a CSV readable by fmpy.util.read_csv, or Parquet) ({e}).",
                          file=str(path)) from None
+    names = result.dtype.names or ()
+    if "time" not in names:
+        raise SetupError(f"the result has no 'time' column (columns: {', '.join(names[:8]) or 'none'}).",
+                         file=str(path))
+    time = result["time"]
+    if not (np.isfinite(time).all() and (np.diff(time) >= 0).all()):
+        raise SetupError("the 'time' column is not finite and non-decreasing.", file=str(path))
+    return result
 
 
 def _read_parquet(path: str | Path) -> np.ndarray:

@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import stat
+import tempfile
 import zipfile
 import zlib
 from collections.abc import Iterator
@@ -64,6 +66,8 @@ def _parser() -> etree.XMLParser:
 
 
 _ENTITY_MARKS = tuple("<!ENTITY".encode(codec) for codec in ("utf-8", "utf-16-le", "utf-16-be"))
+#: a document holding one of these has a DOCTYPE (where entities are declared)
+DOCTYPE_MARKS = _ENTITY_MARKS + tuple("<!DOCTYPE".encode(codec) for codec in ("utf-8", "utf-16-le", "utf-16-be"))
 
 
 def parse_xml(path: Path, display: str | None = None) -> etree._ElementTree:
@@ -80,6 +84,11 @@ def parse_xml(path: Path, display: str | None = None) -> etree._ElementTree:
     if len(data) > MAX_XML_BYTES:
         raise SetupError(f"the document is larger than {_size_text(MAX_XML_BYTES)}, far beyond any SSP "
                          "system structure or parameter set; refusing to parse it.", file=display)
+    return parse_xml_bytes(data, display)
+
+
+def parse_xml_bytes(data: bytes, display: str) -> etree._ElementTree:
+    """`parse_xml` of a document already read (an FMU's modelDescription.xml, say)."""
     try:
         tree = etree.fromstring(data, _parser()).getroottree()
     except etree.XMLSyntaxError as e:
@@ -100,7 +109,7 @@ def parse_xml(path: Path, display: str | None = None) -> etree._ElementTree:
 
 
 def _entities_refused(display: str, detail: str) -> SetupError:
-    return SetupError(f"entity declarations are not allowed in SSP documents{detail}; they are the way "
+    return SetupError(f"entity declarations are not allowed in SSP documents nor FMU model descriptions{detail}; they are the way "
                       "to the billion-laughs expansion and to reading local files (external entities).",
                       file=display, element="DOCTYPE", hint="Write the values out instead of using entities.")
 
@@ -112,6 +121,29 @@ def is_file(path: Path) -> bool:
         return path.is_file()
     except OSError:
         return False
+
+
+# --------------------------------------------------------------------------- temporary folders
+
+def temporary_folder(prefix: str) -> tempfile.TemporaryDirectory:
+    """A ``TemporaryDirectory`` named ``<prefix><pid>-...``, after removing the folders of that
+    prefix left by processes that no longer exist (a crash skips the cleanup; the FMU
+    extraction folders are 3-4 MB each)."""
+    for folder in Path(tempfile.gettempdir()).glob(f"{prefix}*-*"):
+        pid = folder.name[len(prefix):].split("-", 1)[0]
+        if pid.isdigit() and folder.is_dir() and not _alive(int(pid)):
+            shutil.rmtree(folder, ignore_errors=True)
+    return tempfile.TemporaryDirectory(prefix=f"{prefix}{os.getpid()}-")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 # --------------------------------------------------------------------------- ZIP

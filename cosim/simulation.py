@@ -17,8 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from . import ssp
-from .errors import RunError, SetupError, did_you_mean
+from .errors import OutputError, RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
+from .instances import Unzipped
+from .interrupts import StopRequest
+from .journal import Journal, journal_path
 from .observers import MemorySink, Recorder, file_sink
 from .plan import build_plan
 from .resources import locate_fmus
@@ -78,7 +81,11 @@ def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: floa
     algo = algorithm or experiment.algorithm or "jacobi"
     if algo not in ALGORITHMS:
         raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
-    return Prepared(plan, Grid(start, stop, step), algo, source)
+    try:
+        grid = Grid(start, stop, step)
+    except SetupError as e:  # name the SSD the times came from
+        raise SetupError(e.detail, file=file, element=e.element, hint=e.hint) from None
+    return Prepared(plan, grid, algo, source)
 
 
 def prepare(path: str | Path, *, start_time: float | None = None, stop_time: float | None = None,
@@ -132,12 +139,17 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
 
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
         fmu_log: str = "errors", keep: Sequence[str] | None = None,
-        loop_settings: LoopSettings | None = None) -> tuple[np.ndarray, dict]:
+        loop_settings: LoopSettings | None = None, stop: StopRequest | None = None,
+        journal: bool = True) -> tuple[np.ndarray, dict]:
     """Execute a prepared system; returns the samples and the run's metadata.
 
     ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
-    CSV (`cosim.observers.file_sink`).  ``keep``: the signals the returned array holds besides
-    ``time`` (None: all); a long run streamed to ``output`` keeps only what it needs in memory.
+    CSV (`cosim.observers.file_sink`), with every row also in its journal
+    (`cosim.journal`) until the run ends, so a crash of the process loses none (unless
+    ``journal`` is False).  ``keep``: the
+    signals the returned array holds besides ``time`` (None: all); a long run streamed to
+    ``output`` keeps only what it needs in memory.  ``stop``: set by a signal
+    (`cosim.interrupts.stop_on_signals`), ends the run at the next communication point.
     """
     plan = prepared.plan
     memory = MemorySink(keep)
@@ -150,25 +162,27 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     try:
         execution.instantiate()
         names, arrays = execution.recorder_sources()
-        recorder = Recorder(names, arrays, plan.columns, sinks)
+        journaled = output is not None and journal
+        recorder = Recorder(names, arrays, plan.columns, sinks,
+                            journal=_journal_factory(output, plan, _metadata(prepared, execution)) if journaled else None)
         execution.initialize()
         if progress:
             from tqdm import tqdm
             bar = tqdm(total=prepared.grid.steps, delay=1.0, unit="step", leave=False,
                        desc=plan.name or "cosim")
-        execution.run(recorder, bar)
-    except RunError as e:
-        execution.status = "failed"
-        execution.message = str(e)
-        if recorder is not None:
-            recorder.close(_metadata(prepared, execution))
-        e.result = memory.array() if recorder is not None else None
-        raise
+        execution.run(recorder, bar, stop)
     except BaseException as e:
         execution.status = "failed"
-        execution.message = f"{type(e).__name__}: {e}"
+        execution.message = str(e) if isinstance(e, (RunError, OutputError)) else f"{type(e).__name__}: {e}"
         if recorder is not None:
-            recorder.close(_metadata(prepared, execution))
+            try:
+                recorder.close(_metadata(prepared, execution))
+            except OutputError as closing:  # the disk is full: say so after the error that ended the run
+                if not isinstance(e, OutputError):
+                    raise
+                e.detail += f" The metadata JSON could not be written either ({closing.detail})"
+                e.args = (e._compose(),)
+        e.result = memory.array() if recorder is not None else None
         raise
     finally:
         if bar is not None:
@@ -177,6 +191,19 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     metadata = _metadata(prepared, execution)
     recorder.close(metadata)
     return memory.array(), metadata
+
+
+def _journal_factory(output: str | Path, plan: Plan, metadata: dict):
+    """The `cosim.observers.Recorder`'s journal for ``output``: the header holds what
+    `cosim.journal.recover` needs to write the result files without the plan."""
+    def create(names: list[str], permutation: list[int], columns: int, chunk_rows: int) -> Journal:
+        derived = [{"name": o.name, "column": names.index(f"{o.component}.{o.connector}"),
+                    "factor": o.factor, "offset": o.offset} for o in plan.system_outputs.values()]
+        header = {"output": str(Path(output).resolve()), "names": names, "permutation": permutation,
+                  "derived": derived, "metadata": metadata,
+                  "temporary": [Unzipped.folder()] if Unzipped.folder() else []}
+        return Journal(journal_path(output), header, columns, chunk_rows)
+    return create
 
 
 def _metadata(prepared: Prepared, execution: Execution) -> dict:

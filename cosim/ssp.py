@@ -17,7 +17,7 @@ the component level, and a parameter set given on the command line beats both.
 """
 from __future__ import annotations
 
-import tempfile
+import math
 from contextvars import ContextVar
 from dataclasses import replace
 from pathlib import Path
@@ -27,7 +27,7 @@ from lxml import etree
 
 from .errors import SetupError
 from .flatten import flatten
-from .safeio import extract_archive, is_file, parse_xml
+from .safeio import extract_archive, is_file, parse_xml, temporary_folder
 from .structure import (
     Component,
     Connection,
@@ -105,7 +105,7 @@ def read(path: str | Path, max_unpacked_bytes: int | None = None) -> RawStructur
 
 def _read_archive(path: Path, max_unpacked_bytes: int | None = None) -> RawStructure:
     """Extract the archive (checked and size-limited, see `cosim.safeio`) and read its SSD."""
-    tmp = tempfile.TemporaryDirectory(prefix="cosim-ssp-")
+    tmp = temporary_folder("cosim-ssp-")
     try:
         extract_archive(path, Path(tmp.name), max_unpacked_bytes, required=SSD_NAME)
         token = _ARCHIVE_ROOT.set(Path(tmp.name).resolve())
@@ -284,10 +284,13 @@ def _float_attr(el: etree._Element, name: str, display: str, default: float | No
     if text is None:
         return default
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
-        raise SetupError(f"attribute {name}='{text}' is not a number.", file=display,
-                         element=f"{etree.QName(el).localname} (line {el.sourceline})") from None
+        value = None
+    if value is None or not math.isfinite(value):  # NaN, INF and 1e400 are xs:double, not usable numbers
+        raise SetupError(f"attribute {name}='{text}' is not a finite number.", file=display,
+                         element=f"{etree.QName(el).localname} (line {el.sourceline})")
+    return value
 
 
 def _read_bindings(owner: etree._Element, base_dir: Path, display: str) -> list[ParameterValue]:
@@ -395,6 +398,8 @@ def resolve_uri(uri: str, base_dir: Path, archive_root: Path | None = None) -> P
     (``archive_root``, by default the archive being read) the result must be a member of the
     archive: an archive from elsewhere must not make the master read ``/etc/passwd`` or
     ``../../secret`` (SSP 1.0 §2.2: an archive's URIs are relative to its root)."""
+    if "\0" in unquote(uri):  # %00: no file name holds a NUL (os calls raise ValueError on it)
+        raise SetupError(f"'{uri}' holds a NUL byte (%00), which no file name can hold.")
     parsed = urlparse(uri)
     if parsed.scheme == "file":
         if parsed.netloc not in ("", "localhost"):

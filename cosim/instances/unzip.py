@@ -1,10 +1,11 @@
 """The unzip cache: each FMU file extracted once per process, checked as it is extracted."""
 from __future__ import annotations
 
+import os
 import tempfile
 from pathlib import Path
 
-from ..safeio import extract_archive
+from ..safeio import extract_archive, temporary_folder
 
 
 class Unzipped:
@@ -15,6 +16,30 @@ class Unzipped:
 
     _tmp: tempfile.TemporaryDirectory | None = None
     _dirs: dict[tuple, str] = {}
+    _owner: int = os.getpid()
+
+    @staticmethod
+    def folder() -> str | None:
+        """This process's extraction folder (None before the first FMU is extracted)."""
+        return Unzipped._tmp.name if Unzipped._tmp is not None else None
+
+    @staticmethod
+    def adopt() -> None:
+        """In a forked child (`cosim.supervisor`): keep using the FMUs the parent extracted, but
+        extract new ones into a folder of the child's own, which the parent removes after a
+        crash; the parent's folder is never removed from here, not even when collected."""
+        if Unzipped._tmp is not None and os.getpid() != Unzipped._owner:
+            Unzipped._tmp._finalizer.detach()
+            Unzipped._tmp = None
+        Unzipped._owner = os.getpid()
+
+    @staticmethod
+    def release() -> None:
+        """Remove this process's own extraction folder (a forked child skips the finalizers)."""
+        if Unzipped._tmp is not None and os.getpid() == Unzipped._owner:
+            Unzipped._tmp.cleanup()
+            Unzipped._tmp = None
+            Unzipped._dirs = {}
 
     def __call__(self, path: Path) -> str:
         path = path.resolve()
@@ -22,7 +47,8 @@ class Unzipped:
         key = (path, stat.st_size, stat.st_mtime_ns)
         if key not in Unzipped._dirs:
             if Unzipped._tmp is None:
-                Unzipped._tmp = tempfile.TemporaryDirectory(prefix="cosim-fmu-")
+                Unzipped._tmp = temporary_folder("cosim-fmu-")
+                Unzipped._owner = os.getpid()
             target = Path(Unzipped._tmp.name) / str(len(Unzipped._dirs))
             target.mkdir()
             extract_archive(path, target, required="modelDescription.xml")  # size, names, ratio checked

@@ -170,7 +170,13 @@ def test_parameter_that_does_not_exist(tmp_path, fmus, capsys):
 
 @pytest.mark.parametrize("argv, text", [(["--step", "0"], "step size must be a positive number"),
                                         (["--step", "-0.1"], "step size must be a positive number"),
-                                        (["--stop", "-1"], "is not after the start time")])
+                                        (["--stop", "-1"], "is not after the start time"),
+                                        # issue 17: OverflowError, a run that never ends, repeated times
+                                        (["--step", "5e-324"], "below the time resolution"),
+                                        (["--step", "1e-300"], "below the time resolution"),
+                                        (["--step", "1e-8", "--stop", "1e4"], "1e+12 communication steps; at most"),
+                                        (["--start", "1e9", "--stop", "1000000001", "--step", "1e-7"],
+                                         "below the time resolution at t = 1e+09 s")])
 def test_bad_grid(tmp_path, fmus, capsys, argv, text):
     folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
     err = _cli_error(capsys, "run", str(folder), "-q", *argv)
@@ -253,3 +259,36 @@ def test_console_script_has_no_traceback(tmp_path, fmus):
     assert proc.returncode != 0 and "Traceback" in proc.stderr
 
 
+
+
+@pytest.mark.parametrize("text", ["NaN", "INF", "-INF", "1e400"])
+@pytest.mark.parametrize("attribute", ["factor", "offset"])
+def test_non_finite_linear_transformation_is_refused(tmp_path, fmus, capsys, attribute, text):
+    """issue 17: factor="NaN" validated and ran with 1 of 3001 samples."""
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f", 2.0, 1.0)])
+    ssd = folder / "SystemStructure.ssd"
+    value = "2.0" if attribute == "factor" else "1.0"
+    ssd.write_text(ssd.read_text().replace(f'{attribute}="{value}"', f'{attribute}="{text}"'))
+    for command in ("validate", "run"):
+        err = _cli_error(capsys, command, str(folder), *(["-q"] if command == "run" else []))
+        assert f"attribute {attribute}='{text}' is not a finite number" in err and "LinearTransformation" in err
+
+
+@pytest.mark.parametrize("variable, text, message", [
+    ("fail_time", '<ssv:Real value="NaN"/>', "value nan is not a finite number"),
+    ("fail_time", '<ssv:Real value="INF"/>', "value inf is not a finite number"),
+    ("fail_time", '<ssv:Real value="1e400"/>', "value inf is not a finite number"),
+    # an ssv:Integer out of range is refused by the SSV schema (xs:int); a Real given for an Integer is not
+    ("raise_error", '<ssv:Integer value="4294967297"/>', "is not a valid value of the atomic type 'xs:int'"),
+    ("raise_error", '<ssv:Real value="4294967297"/>', "outside the range of Integer ([-2147483648, 2147483647]"),
+    ("raise_error", '<ssv:Real value="-2147483649"/>', "outside the range of Integer")])
+def test_non_finite_or_out_of_range_parameter_is_refused(tmp_path, fmus, capsys, variable, text, message):
+    """issue 17: a NaN parameter bypassed min/max; an Integer of 2^32 + 1 ran as 1."""
+    comps = {"f": ("Failing.fmu", {"u": "input", "y": "output"})}
+    folder = _system(tmp_path, fmus, comps, [], parameters={"f": {"fail_time": 0.5, "raise_error": 1}})
+    ssd = folder / "SystemStructure.ssd"
+    given = '<ssv:Real value="0.5"/>' if variable == "fail_time" else '<ssv:Integer value="1"/>'
+    assert given in ssd.read_text()
+    ssd.write_text(ssd.read_text().replace(given, text))
+    err = _cli_error(capsys, "validate", str(folder))
+    assert message in err and (f"variable '{variable}'" in err or "xs:int" in message)

@@ -183,3 +183,18 @@ def test_recorder_memory_does_not_grow_with_the_number_of_steps(tmp_path, make_s
 
     short, long = peak(2), peak(8)
     assert long < 1.1 * short + 256 * 1024, (short, long)
+
+
+def test_recorder_reads_the_clock_at_every_row():
+    """A slow run is flushed every flush_seconds, not only every 256 rows (issue 17)."""
+    import time as _t
+
+    from cosim.observers import MemorySink, Recorder
+
+    values = np.zeros(1)
+    sink = MemorySink()
+    recorder = Recorder(["a.y"], [values], ["a.y"], [sink], chunk_rows=4096, flush_seconds=0.05)
+    recorder.record(0.0)
+    _t.sleep(0.06)
+    recorder.record(1.0)
+    assert sum(len(c) for c in sink.chunks) == 2  # flushed after the second row, not the 256th

@@ -225,11 +225,11 @@ def test_sweep_of_an_ssp_archive(scenario, tmp_path):
     assert (again.ran, again.skipped) == (0, 2)
 
 
-def test_workers_unpack_the_fmus_within_the_parents_limit(scenario, tmp_path):
-    """--max-unpacked reaches the spawned workers, which unpack the FMUs when they run."""
+def test_the_fmus_are_checked_against_the_parents_limit_before_any_run(scenario, tmp_path):
+    """--max-unpacked applies to the FMUs when the sweep's plan is validated (issue 17: validate
+    applies every archive check run's extraction does), so no worker starts."""
     from cosim.safeio import unpack_limit
 
-    with unpack_limit(1000):
-        result = sweep(scenario, {"plant.T": ["10"]}, output=tmp_path, executor="process", workers=1, stop_time=2.0)
-    (row,) = result.rows
-    assert row["status"] == "failed" and "1000" in row["message"] and "--max-unpacked" in row["message"]
+    with unpack_limit(1000), pytest.raises(SetupError, match="--max-unpacked") as refused:
+        sweep(scenario, {"plant.T": ["10"]}, output=tmp_path, executor="process", workers=1, stop_time=2.0)
+    assert "1000 bytes" in str(refused.value) and not (tmp_path / "sweep.csv").exists()

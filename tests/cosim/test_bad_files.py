@@ -1,0 +1,98 @@
+"""Names and files that broke the tools (issue 17): component names a CSV cannot carry,
+result files compare/metrics must refuse with exit 2, a file with an ``inf`` that differed
+from itself, a closed pipe, and a NUL byte in an FMU source inside an .ssp."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.cli import main
+from cosim.results import read, write
+
+SCENARIO = Path("ssp/pid_fopdt")
+
+
+def _exit(capsys, code: int, *argv) -> str:
+    got = main(list(argv))
+    err = capsys.readouterr().err
+    assert got == code, err
+    assert "Traceback" not in err
+    return err
+
+
+def _result(tmp_path: Path, name: str, columns: dict) -> Path:
+    path = tmp_path / name
+    header = ",".join(f'"{c}"' for c in columns)
+    rows = zip(*columns.values())
+    path.write_text(header + "\n" + "".join(",".join(str(v) for v in row) + "\n" for row in rows))
+    return path
+
+
+def test_a_file_without_a_time_column_is_refused(tmp_path, capsys):
+    bad = _result(tmp_path, "bad.csv", {"t": [0, 1], "y": [0, 1]})
+    assert "no 'time' column" in _exit(capsys, 2, "compare", str(bad), str(bad))
+    assert "no 'time' column" in _exit(capsys, 2, "metrics", str(bad), "--signal", "y", "--setpoint", "y")
+
+
+@pytest.mark.parametrize("content", ['"time","y"\n', "", '"time","y"\n1,0\n0,1\n', '"time","y"\nnan,0\n'])
+def test_empty_or_broken_result_files_are_refused(tmp_path, capsys, content):
+    bad = tmp_path / "bad.csv"
+    bad.write_text(content)
+    _exit(capsys, 2, "compare", str(bad), str(bad))
+
+
+def test_a_result_with_infinities_agrees_with_itself(tmp_path, capsys):
+    path = _result(tmp_path, "r.csv", {"time": [0, 1, 2], "y": [1.0, "inf", "-inf"]})
+    assert np.isinf(read(path)["y"][1:]).all()
+    _exit(capsys, 0, "compare", str(path), str(path))
+    other = _result(tmp_path, "o.csv", {"time": [0, 1, 2], "y": [1.0, "inf", "inf"]})
+    assert "1 of" not in _exit(capsys, 1, "compare", str(path), str(other))
+
+
+@pytest.mark.parametrize("argv, text", [(["--t0", "50"], "--t0 50 is outside the result's time range [0, 2]"),
+                                        (["--t1", "-1"], "--t1 -1 is outside"),
+                                        (["--t0", "1.5", "--t1", "1"], "--t1 1 is not after --t0 1.5")])
+def test_metrics_windows_outside_the_result_are_refused(tmp_path, capsys, argv, text):
+    path = _result(tmp_path, "r.csv", {"time": [0, 1, 2], "y": [0, 1, 1], "r": [0, 1, 1]})
+    assert text in _exit(capsys, 2, "metrics", str(path), "--signal", "y", "--setpoint", "r", *argv)
+
+
+@pytest.mark.parametrize("name", ["pl,ant", 'pl"ant', "pl\nant"])
+def test_a_name_a_csv_cannot_carry_is_refused_and_parquet_carries_it(tmp_path, capsys, name):
+    folder = Path(shutil.copytree(SCENARIO, tmp_path / "s"))
+    ssd = folder / "SystemStructure.ssd"
+    escaped = name.replace('"', "&quot;").replace("\n", "&#10;")
+    ssd.write_text(ssd.read_text().replace('"plant"', f'"{escaped}"'))
+    err = _exit(capsys, 2, "run", str(folder), "-q", "--stop", "1", "-o", str(tmp_path / "r.csv"))
+    assert "which a result CSV cannot carry" in err and not (tmp_path / "r.csv").exists()
+    _exit(capsys, 0, "run", str(folder), "-q", "--stop", "1", "-o", str(tmp_path / "r.parquet"))
+    assert f"{name}.y" in read(tmp_path / "r.parquet").dtype.names
+    with pytest.raises(Exception, match="cannot carry"):
+        write(read(tmp_path / "r.parquet"), tmp_path / "again.csv")
+
+
+def test_a_closed_pipe_ends_quietly():
+    proc = subprocess.run(f"'{sys.executable}' -m cosim.cli info {SCENARIO} | head -1", shell=True,
+                          capture_output=True, text=True)
+    assert proc.stdout.startswith("system 'pid_fopdt'") and proc.stdout.count("\n") == 1
+    assert "Traceback" not in proc.stderr and "BrokenPipe" not in proc.stderr, proc.stderr
+
+
+def test_a_nul_byte_in_a_source_inside_an_ssp_is_refused(tmp_path, capsys):
+    archive = tmp_path / "a.ssp"
+    assert main(["pack", str(SCENARIO), "-o", str(archive)]) == 0
+    with zipfile.ZipFile(archive) as z:
+        members = [(i, z.read(i)) for i in z.infolist()]
+    with zipfile.ZipFile(archive, "w") as z:
+        for info, data in members:
+            if info.filename == "SystemStructure.ssd":
+                data = data.replace(b'source="resources/PID.fmu"', b'source="resources/PID%00.fmu"')
+            z.writestr(info, data)
+    err = _exit(capsys, 2, "validate", str(archive))
+    assert "NUL byte" in err and "controller" in err
