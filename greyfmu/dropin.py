@@ -1,0 +1,105 @@
+"""Turn the archive pythonfmu built into a drop-in FMU (build side; not embedded in the FMUs).
+
+Given the archive's entries (name -> bytes), its model description and the slave's requirements, `drop_in` returns new entries:
+
+- ``binaries/linux64/<id>.so`` is the greyfmu loader (`greyfmu.loader`); pythonfmu's library
+  moves next to it as ``pythonfmu-export.so``.  Where no C compiler exists the pythonfmu
+  library stays the binary, and the build says so on stderr: that FMU then loads only in a
+  host that already runs Python (fmpy, cosim);
+- ``resources/`` gets the loader's target check, the FMU's requirements and the path of the
+  interpreter that built it (the loader's second choice); it loses pythonfmu's builder, CLI
+  and deployment modules, which the FMU does not run;
+- ``documentation/`` gets ``index.html`` (`greyfmu.documentation`) and ``licenses/`` with the
+  greyfmu and pythonfmu MIT notices;
+- the model description gets ``version`` (the greyfmu version), ``license``, ``copyright``,
+  no ``generationDateAndTime``, and a GUID derived from a hash of the model description and
+  every embedded source (`stable_guid`), so the same sources give the same GUID and two
+  builds the same modelDescription.xml.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+import uuid
+from importlib.metadata import version
+from pathlib import Path
+from xml.etree import ElementTree
+
+from greyfmu.documentation import index_html
+from greyfmu.loader import PYTHONFMU_LIBRARY, TARGET_CHECK, loader_binary
+
+LICENSES = Path(__file__).resolve().parent / "licenses"
+LICENSE = "MIT"
+COPYRIGHT = "Copyright (c) 2026 the greyfmu authors; embeds pythonfmu 0.7.0, Copyright (c) 2019-2020 NTNU and Safran SA"
+BUILD_PYTHON = "resources/greyfmu_build_python.txt"
+"""Machine-specific, so left out of the GUID's hash."""
+PYTHONFMU_BUILD_ONLY = ("builder.py", "csvbuilder.py", "deploy.py", "__main__.py", "osutil.py")
+"""pythonfmu modules that only build FMUs (resources/pythonfmu/...)."""
+PYTHONFMU_BUILDER_IMPORT = "from .builder import FmuBuilder\n"
+
+
+class BuildError(RuntimeError):
+    """An FMU could not be built or its model description is not what the FMI standard needs."""
+
+
+def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: tuple[str, ...]) -> dict[str, bytes]:
+    """The drop-in FMU's entries from pythonfmu's ``entries`` and the repaired model description ``root``;
+    ``requirements``: the modules the FMU imports from the target Python (the slave's ``requirements``)."""
+    model = root.get("modelName")
+    identifier = root.find("CoSimulation").get("modelIdentifier")
+    result = {name: data for name, data in entries.items()
+              if name.removeprefix("resources/pythonfmu/") not in PYTHONFMU_BUILD_ONLY}
+    result["resources/pythonfmu/__init__.py"] = _without_builder(entries["resources/pythonfmu/__init__.py"], model)
+    loader = loader_binary()
+    if loader is None:
+        print(f"greyfmu build: no C compiler (cc, gcc or clang) on PATH: {model}.fmu keeps pythonfmu's linux64 "
+              "library, which loads only in a host that already runs Python", file=sys.stderr)
+    else:
+        result[f"binaries/linux64/{PYTHONFMU_LIBRARY}"] = result.pop(f"binaries/linux64/{identifier}.so")
+        result[f"binaries/linux64/{identifier}.so"] = loader
+    result["resources/greyfmu_target.py"] = TARGET_CHECK.read_bytes()
+    result["resources/greyfmu_requirements.txt"] = "".join(f"{name}\n" for name in requirements).encode()
+    result[BUILD_PYTHON] = f"{sys.executable}\n".encode()
+    for notice in sorted(LICENSES.glob("*.txt")):
+        result[f"documentation/licenses/{notice.name}"] = notice.read_bytes()
+    _check_requirements_are_stated(root, model, requirements)
+    root.set("version", version("greyfmu"))
+    root.set("license", LICENSE)
+    root.set("copyright", COPYRIGHT)
+    root.attrib.pop("generationDateAndTime", None)
+    root.set("guid", stable_guid(root, result))
+    ElementTree.indent(root)
+    result["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
+    result["documentation/index.html"] = index_html(root, requirements).encode()
+    return result
+
+
+def stable_guid(root: ElementTree.Element, entries: dict[str, bytes]) -> str:
+    """A GUID from the SHA-256 of the model description (its guid attribute left out) and of
+    every resource but the machine-specific `BUILD_PYTHON`, in name order."""
+    digest = hashlib.sha256()
+    described = {key: value for key, value in root.attrib.items() if key != "guid"}
+    digest.update(repr(sorted(described.items())).encode())
+    for child in root:
+        digest.update(ElementTree.tostring(child, encoding="UTF-8"))
+    for name in sorted(entries):
+        if name.startswith("resources/") and name != BUILD_PYTHON:
+            digest.update(name.encode() + b"\0" + hashlib.sha256(entries[name]).digest())
+    return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
+
+
+def _without_builder(init: bytes, model: str) -> bytes:
+    """pythonfmu's ``__init__.py`` without the import of its builder (not shipped)."""
+    text = init.decode()
+    if PYTHONFMU_BUILDER_IMPORT not in text:
+        raise BuildError(f"{model}: resources/pythonfmu/__init__.py no longer imports FmuBuilder as pythonfmu 0.7.0 "
+                         "does; check greyfmu.dropin.PYTHONFMU_BUILD_ONLY against the new pythonfmu")
+    return text.replace(PYTHONFMU_BUILDER_IMPORT, "").encode()
+
+
+def _check_requirements_are_stated(root: ElementTree.Element, model: str, requirements: tuple[str, ...]) -> None:
+    description = root.get("description", "")
+    unstated = [name for name in requirements if name not in description]
+    if unstated:
+        raise BuildError(f"{model}: the slave requires {', '.join(unstated)}, which its description does not name")

@@ -1,0 +1,622 @@
+/* greyfmu drop-in loader: the linux64 binary of every greyfmu FMI 2.0 Co-Simulation FMU.
+ *
+ * pythonfmu 0.7.0's library (shipped next to this one as pythonfmu-export.so) does not link
+ * libpython, so it only loads in a process that already has Python.  This loader is the
+ * binary the host opens (binaries/linux64/<modelIdentifier>.so).  On the first fmi2Instantiate:
+ *
+ *   1. If the host process already runs an initialised Python (fmpy, cosim), that one is used.
+ *   2. Otherwise a Python is chosen in this order (README, "The FMUs"):
+ *        a. the interpreter named by the environment variable GREYFMU_PYTHON (no fallback if set),
+ *        b. the interpreter that built the FMU (resources/greyfmu_build_python.txt),
+ *        c. python3 on PATH.
+ *      The candidate runs resources/greyfmu_target.py in a child process (posix_spawn, 60 s
+ *      limit) which prints its version, shared libpython, home and sys.path, and checks the
+ *      FMU's requirements (resources/greyfmu_requirements.txt).  The first usable candidate's
+ *      libpython is loaded with RTLD_GLOBAL, initialised without signal handlers
+ *      (Py_InitializeEx(0), PYTHONHOME set for the call only), given the candidate's sys.path
+ *      (venv site-packages included) and sys.executable; the GIL is then released.
+ *   3. The same greyfmu_target.py runs inside the process (Python version >= 3.10 and the
+ *      requirements), then pythonfmu-export.so is loaded and every fmi2 function forwards to it.
+ *
+ * Where no usable Python is found, fmi2Instantiate logs one message naming what is missing and
+ * how to fix it, and returns NULL.  Python is never finalised (numpy and scipy cannot be
+ * re-initialised in one process).
+ *
+ * Exit and unload: pythonfmu 0.7.0 releases its static std::shared_ptr<PyState> twice when its
+ * library is unloaded (the static destructor, then __attribute__((destructor)) onLibraryUnload
+ * assigns nullptr to the destroyed pointer), a double free that aborts hosts at exit.  Its
+ * exported finalizePythonInterpreter() empties the pointer, after which both releases are
+ * no-ops; the loader calls it when the last instance is freed and, for hosts that never free
+ * their instances, from an atexit handler registered after the library was loaded (so it runs
+ * before that library's static destructors).
+ */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <errno.h>
+#include <limits.h>
+#include <poll.h>
+#include <pthread.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+extern char **environ;
+
+#define EXPORT __attribute__((visibility("default")))
+#define QUERY_SECONDS 60
+#define OUTPUT_LIMIT (1 << 20)
+
+/* ---- FMI 2.0 types (fmi2TypesPlatform.h, fmi2FunctionTypes.h) ---- */
+typedef void *fmi2Component;
+typedef void *fmi2ComponentEnvironment;
+typedef void *fmi2FMUstate;
+typedef unsigned int fmi2ValueReference;
+typedef double fmi2Real;
+typedef int fmi2Integer;
+typedef int fmi2Boolean;
+typedef char fmi2Char;
+typedef const fmi2Char *fmi2String;
+typedef char fmi2Byte;
+typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
+typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
+typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
+typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
+typedef struct {
+    fmi2CallbackLogger logger;
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void (*stepFinished)(fmi2ComponentEnvironment, fmi2Status);
+    fmi2ComponentEnvironment componentEnvironment;
+} fmi2CallbackFunctions;
+
+/* ---- the few Python C-API functions the loader calls, resolved with dlsym ---- */
+typedef struct {
+    int (*IsInitialized)(void);
+    void (*InitializeEx)(int);
+    void *(*EvalSaveThread)(void);
+    int (*GILStateEnsure)(void);
+    void (*GILStateRelease)(int);
+    void *(*DictNew)(void);
+    int (*DictSetItemString)(void *, const char *, void *);
+    void *(*DictGetItemString)(void *, const char *);
+    void *(*EvalGetBuiltins)(void);
+    void *(*RunStringFlags)(const char *, int, void *, void *, void *);
+    void *(*UnicodeFromString)(const char *);
+    const char *(*UnicodeAsUTF8)(void *);
+    void (*DecRef)(void *);
+    void (*ErrPrint)(void);
+} PythonApi;
+
+enum { PY_FILE_INPUT = 257 };
+
+static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
+static void *pythonfmu_library;
+static int live_instances;
+static int exit_handler_registered;
+
+/* ---- forwarding: one pointer per fmi2 function of pythonfmu-export.so ---- */
+#define FMI2_FUNCTIONS(X)                                                                                          \
+    X(fmi2Instantiate)                                                                                             \
+    X(fmi2FreeInstance)                                                                                            \
+    X(fmi2SetDebugLogging)                                                                                         \
+    X(fmi2SetupExperiment)                                                                                         \
+    X(fmi2EnterInitializationMode)                                                                                 \
+    X(fmi2ExitInitializationMode)                                                                                  \
+    X(fmi2Terminate)                                                                                               \
+    X(fmi2Reset)                                                                                                   \
+    X(fmi2GetReal)                                                                                                 \
+    X(fmi2GetInteger)                                                                                              \
+    X(fmi2GetBoolean)                                                                                              \
+    X(fmi2GetString)                                                                                               \
+    X(fmi2SetReal)                                                                                                 \
+    X(fmi2SetInteger)                                                                                              \
+    X(fmi2SetBoolean)                                                                                              \
+    X(fmi2SetString)                                                                                               \
+    X(fmi2GetFMUstate)                                                                                             \
+    X(fmi2SetFMUstate)                                                                                             \
+    X(fmi2FreeFMUstate)                                                                                            \
+    X(fmi2SerializedFMUstateSize)                                                                                  \
+    X(fmi2SerializeFMUstate)                                                                                       \
+    X(fmi2DeSerializeFMUstate)                                                                                     \
+    X(fmi2GetDirectionalDerivative)                                                                                \
+    X(fmi2SetRealInputDerivatives)                                                                                 \
+    X(fmi2GetRealOutputDerivatives)                                                                                \
+    X(fmi2DoStep)                                                                                                  \
+    X(fmi2CancelStep)                                                                                              \
+    X(fmi2GetStatus)                                                                                               \
+    X(fmi2GetRealStatus)                                                                                           \
+    X(fmi2GetIntegerStatus)                                                                                        \
+    X(fmi2GetBooleanStatus)                                                                                        \
+    X(fmi2GetStringStatus)
+
+#define DECLARE_POINTER(name) static void *real_##name;
+FMI2_FUNCTIONS(DECLARE_POINTER)
+static void (*real_finalizePythonInterpreter)(void);
+
+/* ---- small helpers ---- */
+
+static void append(char *buffer, size_t size, const char *format, ...) {
+    size_t used = strlen(buffer);
+    if (used + 1 >= size) return;
+    va_list args;
+    va_start(args, format);
+    vsnprintf(buffer + used, size - used, format, args);
+    va_end(args);
+}
+
+/* The FMU's root folder: this library is <root>/binaries/linux64/<id>.so. */
+static int fmu_root(char *root, size_t size) {
+    Dl_info info;
+    if (!dladdr((void *)&fmu_root, &info) || info.dli_fname == NULL) return 0;
+    char resolved[PATH_MAX];
+    if (realpath(info.dli_fname, resolved) == NULL) return 0;
+    for (int level = 0; level < 3; level++) {
+        char *slash = strrchr(resolved, '/');
+        if (slash == NULL) return 0;
+        *slash = '\0';
+    }
+    snprintf(root, size, "%s", resolved);
+    return 1;
+}
+
+static char *read_file(const char *path) {
+    FILE *file = fopen(path, "rb");
+    if (file == NULL) return NULL;
+    size_t capacity = 4096, length = 0;
+    char *text = malloc(capacity);
+    size_t got;
+    while (text != NULL && (got = fread(text + length, 1, capacity - length - 1, file)) > 0) {
+        length += got;
+        if (length + 1 == capacity) {
+            char *grown = realloc(text, capacity *= 2);
+            if (grown == NULL) free(text);
+            text = grown;
+        }
+    }
+    fclose(file);
+    if (text != NULL) text[length] = '\0';
+    return text;
+}
+
+static int is_executable(const char *path) {
+    struct stat status;
+    return stat(path, &status) == 0 && S_ISREG(status.st_mode) && access(path, X_OK) == 0;
+}
+
+/* python3 on PATH, as a shell would find it. */
+static int python_on_path(char *found, size_t size) {
+    const char *path = getenv("PATH");
+    if (path == NULL) return 0;
+    char *copy = strdup(path), *saveptr = NULL;
+    int ok = 0;
+    for (char *dir = strtok_r(copy, ":", &saveptr); dir != NULL && !ok; dir = strtok_r(NULL, ":", &saveptr)) {
+        snprintf(found, size, "%s/python3", *dir ? dir : ".");
+        ok = is_executable(found);
+    }
+    free(copy);
+    return ok;
+}
+
+/* The value of "greyfmu-<key>=" in the query output, copied into value; 0 if absent. */
+static int query_value(const char *output, const char *key, char *value, size_t size) {
+    char marker[64];
+    snprintf(marker, sizeof marker, "greyfmu-%s=", key);
+    const char *line = output;
+    while ((line = strstr(line, marker)) != NULL) {
+        if (line == output || line[-1] == '\n') {
+            line += strlen(marker);
+            size_t length = strcspn(line, "\n");
+            if (length >= size) length = size - 1;
+            memcpy(value, line, length);
+            value[length] = '\0';
+            return 1;
+        }
+        line += strlen(marker);
+    }
+    return 0;
+}
+
+/* Run `python target_script` with a time limit; its stdout and stderr in *output (malloc'ed). */
+static int run_query(const char *python, const char *target_script, char **output, char *problem, size_t size) {
+    int pipe_ends[2];
+    if (pipe(pipe_ends) != 0) {
+        append(problem, size, "cannot create a pipe to run %s (%s)", python, strerror(errno));
+        return 0;
+    }
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addclose(&actions, pipe_ends[0]);
+    posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDOUT_FILENO);
+    posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDERR_FILENO);
+    posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", 0, 0);
+    char *argv[] = {(char *)python, (char *)target_script, "--query", NULL};
+    pid_t child;
+    int spawned = posix_spawn(&child, python, &actions, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&actions);
+    close(pipe_ends[1]);
+    if (spawned != 0) {
+        close(pipe_ends[0]);
+        append(problem, size, "cannot run %s (%s)", python, strerror(spawned));
+        return 0;
+    }
+    size_t capacity = 8192, length = 0;
+    char *text = malloc(capacity);
+    time_t deadline = time(NULL) + QUERY_SECONDS;
+    int timed_out = 0;
+    for (;;) {
+        struct pollfd ready = {pipe_ends[0], POLLIN, 0};
+        int left = (int)(deadline - time(NULL));
+        if (left <= 0 || poll(&ready, 1, left * 1000) == 0) {
+            timed_out = 1;
+            break;
+        }
+        if (length + 4096 > capacity && capacity < OUTPUT_LIMIT) text = realloc(text, capacity *= 2);
+        ssize_t got = read(pipe_ends[0], text + length, capacity - length - 1);
+        if (got < 0 && errno == EINTR) continue;
+        if (got <= 0) break;
+        length += (size_t)got;
+        if (length + 1 >= capacity) break;
+    }
+    close(pipe_ends[0]);
+    text[length] = '\0';
+    if (timed_out) kill(child, SIGKILL);
+    int status = 0;
+    while (waitpid(child, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (timed_out) {
+        append(problem, size, "%s did not answer within %d s", python, QUERY_SECONDS);
+        free(text);
+        return 0;
+    }
+    *output = text;
+    return 1;
+}
+
+/* Query a candidate interpreter; fills libpython, home, path; 0 with problem set if unusable. */
+static int query_candidate(const char *python, const char *root, char *libpython, char *home, char **path,
+                           char *problem, size_t size) {
+    char script[PATH_MAX + 64];
+    snprintf(script, sizeof script, "%s/resources/greyfmu_target.py", root);
+    char *output = NULL;
+    if (!run_query(python, script, &output, problem, size)) return 0;
+    char answer[4096];
+    int ok = 0;
+    if (!query_value(output, "problem", answer, sizeof answer)) {
+        append(problem, size, "%s did not run the check %s: %.600s", python, script, output);
+    } else if (answer[0] != '\0') {
+        append(problem, size, "%s", answer);
+    } else if (query_value(output, "libpython", libpython, PATH_MAX) && query_value(output, "home", home, 2 * PATH_MAX)) {
+        char *line = strstr(output, "greyfmu-path=");
+        size_t length = strcspn(line + 13, "\n");
+        *path = strndup(line + 13, length);
+        ok = *path != NULL;
+    }
+    free(output);
+    return ok;
+}
+
+static int resolve(void *library, PythonApi *api, char *problem, size_t size) {
+#define RESOLVE(field, symbol)                                                                                     \
+    if ((*(void **)&api->field = dlsym(library, symbol)) == NULL) {                                               \
+        append(problem, size, "the loaded libpython has no %s", symbol);                                          \
+        return 0;                                                                                                  \
+    }
+    RESOLVE(IsInitialized, "Py_IsInitialized")
+    RESOLVE(InitializeEx, "Py_InitializeEx")
+    RESOLVE(EvalSaveThread, "PyEval_SaveThread")
+    RESOLVE(GILStateEnsure, "PyGILState_Ensure")
+    RESOLVE(GILStateRelease, "PyGILState_Release")
+    RESOLVE(DictNew, "PyDict_New")
+    RESOLVE(DictSetItemString, "PyDict_SetItemString")
+    RESOLVE(DictGetItemString, "PyDict_GetItemString")
+    RESOLVE(EvalGetBuiltins, "PyEval_GetBuiltins")
+    RESOLVE(RunStringFlags, "PyRun_StringFlags")
+    RESOLVE(UnicodeFromString, "PyUnicode_FromString")
+    RESOLVE(UnicodeAsUTF8, "PyUnicode_AsUTF8")
+    RESOLVE(DecRef, "Py_DecRef")
+    RESOLVE(ErrPrint, "PyErr_Print")
+#undef RESOLVE
+    return 1;
+}
+
+/* Run code in a fresh namespace under the GIL; the string variable `result_name` it leaves, copied. */
+static int run_in_process(PythonApi *api, const char *code, const char *file, const char *result_name, char *result,
+                          size_t size) {
+    int gil = api->GILStateEnsure();
+    void *globals = api->DictNew();
+    api->DictSetItemString(globals, "__builtins__", api->EvalGetBuiltins());
+    void *name = api->UnicodeFromString("greyfmu_target");
+    api->DictSetItemString(globals, "__name__", name);
+    api->DecRef(name);
+    void *file_name = api->UnicodeFromString(file);
+    api->DictSetItemString(globals, "__file__", file_name);
+    api->DecRef(file_name);
+    void *done = api->RunStringFlags(code, PY_FILE_INPUT, globals, globals, NULL);
+    int ok = done != NULL;
+    if (ok) {
+        api->DecRef(done);
+        void *value = result_name ? api->DictGetItemString(globals, result_name) : NULL;
+        const char *text = value ? api->UnicodeAsUTF8(value) : "";
+        snprintf(result, size, "%s", text ? text : "");
+    } else {
+        api->ErrPrint();
+        snprintf(result, size, "running %s inside the host process raised a Python exception (printed on stderr)", file);
+    }
+    api->DecRef(globals);
+    api->GILStateRelease(gil);
+    return ok;
+}
+
+/* A Python literal of a path (the check script's sys.executable assignment). */
+static void python_literal(const char *text, char *literal, size_t size) {
+    snprintf(literal, size, "'");
+    for (const char *c = text; *c; c++) {
+        if (*c == '\\' || *c == '\'') append(literal, size, "\\");
+        append(literal, size, "%c", *c);
+    }
+    append(literal, size, "'");
+}
+
+/* Start the candidate's Python in this process. */
+static int start_python(const char *python, const char *libpython, const char *home, const char *path,
+                        PythonApi *api, char *problem, size_t size) {
+    void *library = dlopen(libpython, RTLD_NOW | RTLD_GLOBAL);
+    if (library == NULL) {
+        append(problem, size, "cannot load %s (the shared libpython of %s): %s", libpython, python, dlerror());
+        return 0;
+    }
+    if (!resolve(library, api, problem, size)) return 0;
+    if (!api->IsInitialized()) {
+        const char *previous = getenv("PYTHONHOME");
+        char *saved = previous ? strdup(previous) : NULL;
+        setenv("PYTHONHOME", home, 1);
+        api->InitializeEx(0);
+        if (saved) {
+            setenv("PYTHONHOME", saved, 1);
+            free(saved);
+        } else {
+            unsetenv("PYTHONHOME");
+        }
+        char executable[2 * PATH_MAX];
+        python_literal(python, executable, sizeof executable);
+        size_t length = strlen(path) + strlen(executable) + 128;
+        char *code = malloc(length);
+        snprintf(code, length, "import sys\nsys.path[:] = %s\nsys.executable = %s\n", path, executable);
+        char ignored[16];
+        int ok = run_in_process(api, code, "<greyfmu loader>", NULL, ignored, sizeof ignored);
+        free(code);
+        api->EvalSaveThread(); /* Python stays initialised; pythonfmu takes the GIL per call */
+        if (!ok) {
+            append(problem, size, "cannot set sys.path of %s inside the host process", python);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+
+/* Find, load and initialise a Python in this process (unless it already has one). */
+static int ensure_python(const char *root, PythonApi *api, char *problem, size_t size) {
+    int (*initialized)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "Py_IsInitialized");
+    if (initialized != NULL && initialized()) return resolve(RTLD_DEFAULT, api, problem, size);
+
+    char candidates[3][PATH_MAX];
+    const char *origin[3];
+    int count = 0;
+    const char *chosen = getenv("GREYFMU_PYTHON");
+    if (chosen != NULL && *chosen) {
+        snprintf(candidates[count], PATH_MAX, "%s", chosen);
+        origin[count++] = "GREYFMU_PYTHON";
+    } else {
+        char file[PATH_MAX + 64];
+        snprintf(file, sizeof file, "%s/resources/greyfmu_build_python.txt", root);
+        char *built_by = read_file(file);
+        if (built_by != NULL) {
+            built_by[strcspn(built_by, "\r\n")] = '\0';
+            if (is_executable(built_by)) {
+                snprintf(candidates[count], PATH_MAX, "%s", built_by);
+                origin[count++] = "the interpreter that built the FMU";
+            }
+            free(built_by);
+        }
+        if (python_on_path(candidates[count], PATH_MAX)) origin[count++] = "python3 on PATH";
+    }
+    if (count == 0) {
+        append(problem, size, "no Python found: GREYFMU_PYTHON is not set, the interpreter that built the FMU is not on "
+                              "this machine and there is no python3 on PATH");
+        return 0;
+    }
+    char tried[8192] = "";
+    for (int i = 0; i < count; i++) {
+        if (!is_executable(candidates[i])) {
+            append(tried, sizeof tried, "%s%s (%s) is not an executable file", *tried ? "; " : "", candidates[i],
+                   origin[i]);
+            continue;
+        }
+        char libpython[PATH_MAX], home[2 * PATH_MAX], why[4096] = "";
+        char *path = NULL;
+        if (query_candidate(candidates[i], root, libpython, home, &path, why, sizeof why)) {
+            int ok = start_python(candidates[i], libpython, home, path, api, problem, size);
+            free(path);
+            return ok;
+        }
+        append(tried, sizeof tried, "%s%s (%s): %s", *tried ? "; " : "", candidates[i], origin[i], why);
+    }
+    append(problem, size, "no usable Python: %s", tried);
+    return 0;
+}
+
+static void release_pythonfmu_state(void) {
+    if (real_finalizePythonInterpreter != NULL) real_finalizePythonInterpreter();
+}
+
+static int load_pythonfmu(const char *root, char *problem, size_t size) {
+    char library[PATH_MAX + 64];
+    snprintf(library, sizeof library, "%s/binaries/linux64/pythonfmu-export.so", root);
+    void *handle = dlopen(library, RTLD_NOW | RTLD_LOCAL);
+    if (handle == NULL) {
+        append(problem, size, "cannot load pythonfmu's library: %s", dlerror());
+        return 0;
+    }
+#define LOOK_UP(name)                                                                                              \
+    if ((real_##name = dlsym(handle, #name)) == NULL) {                                                            \
+        append(problem, size, "%s has no %s", library, #name);                                                     \
+        return 0;                                                                                                  \
+    }
+    FMI2_FUNCTIONS(LOOK_UP)
+    LOOK_UP(finalizePythonInterpreter)
+#undef LOOK_UP
+    pythonfmu_library = handle;
+    if (!exit_handler_registered) {
+        atexit(release_pythonfmu_state); /* after pythonfmu's static constructors: runs before its destructors */
+        exit_handler_registered = 1;
+    }
+    return 1;
+}
+
+static int ensure_loaded(char *problem, size_t size) {
+    if (pythonfmu_library != NULL) return 1;
+    char root[PATH_MAX];
+    if (!fmu_root(root, sizeof root)) {
+        append(problem, size, "cannot locate the FMU's folder from its binary");
+        return 0;
+    }
+    PythonApi api;
+    if (!ensure_python(root, &api, problem, size)) return 0;
+    char script[PATH_MAX + 64];
+    snprintf(script, sizeof script, "%s/resources/greyfmu_target.py", root);
+    char *code = read_file(script);
+    if (code == NULL) {
+        append(problem, size, "cannot read %s", script);
+        return 0;
+    }
+    char answer[4096];
+    run_in_process(&api, code, script, "problem", answer, sizeof answer);
+    free(code);
+    if (answer[0] != '\0') {
+        append(problem, size, "%s", answer);
+        return 0;
+    }
+    return load_pythonfmu(root, problem, size);
+}
+
+/* ---- the exported FMI 2.0 functions ---- */
+
+EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
+
+EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
+
+EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                                     fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                                     fmi2Boolean visible, fmi2Boolean loggingOn) {
+    char problem[16384] = "";
+    pthread_mutex_lock(&load_lock);
+    int loaded = ensure_loaded(problem, sizeof problem);
+    pthread_mutex_unlock(&load_lock);
+    if (!loaded) {
+        if (functions != NULL && functions->logger != NULL)
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+                              "greyfmu: %s", problem);
+        else
+            fprintf(stderr, "greyfmu: %s\n", problem);
+        return NULL;
+    }
+    typedef fmi2Component (*Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
+                                         fmi2Boolean, fmi2Boolean);
+    fmi2Component component =
+        ((Instantiate)real_fmi2Instantiate)(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, visible,
+                                            loggingOn);
+    if (component != NULL) {
+        pthread_mutex_lock(&load_lock);
+        live_instances++;
+        pthread_mutex_unlock(&load_lock);
+    }
+    return component;
+}
+
+EXPORT void fmi2FreeInstance(fmi2Component c) {
+    if (real_fmi2FreeInstance == NULL || c == NULL) return;
+    ((void (*)(fmi2Component))real_fmi2FreeInstance)(c);
+    pthread_mutex_lock(&load_lock);
+    if (--live_instances == 0) release_pythonfmu_state();
+    pthread_mutex_unlock(&load_lock);
+}
+
+#define FORWARD(ret, name, params, args)                                                                           \
+    EXPORT ret name params {                                                                                       \
+        if (real_##name == NULL) return fmi2Error;                                                                 \
+        return ((ret(*) params)real_##name) args;                                                                  \
+    }
+
+FORWARD(fmi2Status, fmi2SetDebugLogging, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]),
+        (c, on, n, categories))
+FORWARD(fmi2Status, fmi2SetupExperiment,
+        (fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance, fmi2Real startTime,
+         fmi2Boolean stopTimeDefined, fmi2Real stopTime),
+        (c, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime))
+FORWARD(fmi2Status, fmi2EnterInitializationMode, (fmi2Component c), (c))
+FORWARD(fmi2Status, fmi2ExitInitializationMode, (fmi2Component c), (c))
+FORWARD(fmi2Status, fmi2Terminate, (fmi2Component c), (c))
+FORWARD(fmi2Status, fmi2Reset, (fmi2Component c), (c))
+FORWARD(fmi2Status, fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]),
+        (c, vr, n, value))
+FORWARD(fmi2Status, fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer value[]),
+        (c, vr, n, value))
+FORWARD(fmi2Status, fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean value[]),
+        (c, vr, n, value))
+FORWARD(fmi2Status, fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String value[]),
+        (c, vr, n, value))
+FORWARD(fmi2Status, fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]),
+        (c, vr, n, value))
+FORWARD(fmi2Status, fmi2SetInteger,
+        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[]), (c, vr, n, value))
+FORWARD(fmi2Status, fmi2SetBoolean,
+        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean value[]), (c, vr, n, value))
+FORWARD(fmi2Status, fmi2SetString,
+        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String value[]), (c, vr, n, value))
+FORWARD(fmi2Status, fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate *state), (c, state))
+FORWARD(fmi2Status, fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (c, state))
+FORWARD(fmi2Status, fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate *state), (c, state))
+FORWARD(fmi2Status, fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t *size), (c, state, size))
+FORWARD(fmi2Status, fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size),
+        (c, state, bytes, size))
+FORWARD(fmi2Status, fmi2DeSerializeFMUstate,
+        (fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state), (c, bytes, size, state))
+FORWARD(fmi2Status, fmi2GetDirectionalDerivative,
+        (fmi2Component c, const fmi2ValueReference unknown[], size_t nUnknown, const fmi2ValueReference known[],
+         size_t nKnown, const fmi2Real dvKnown[], fmi2Real dvUnknown[]),
+        (c, unknown, nUnknown, known, nKnown, dvKnown, dvUnknown))
+FORWARD(fmi2Status, fmi2SetRealInputDerivatives,
+        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], const fmi2Real value[]),
+        (c, vr, n, order, value))
+FORWARD(fmi2Status, fmi2GetRealOutputDerivatives,
+        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], fmi2Real value[]),
+        (c, vr, n, order, value))
+FORWARD(fmi2Status, fmi2DoStep,
+        (fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
+         fmi2Boolean noSetFMUStatePriorToCurrentPoint),
+        (c, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint))
+FORWARD(fmi2Status, fmi2CancelStep, (fmi2Component c), (c))
+FORWARD(fmi2Status, fmi2GetStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Status *value), (c, s, value))
+FORWARD(fmi2Status, fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Real *value), (c, s, value))
+FORWARD(fmi2Status, fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Integer *value),
+        (c, s, value))
+FORWARD(fmi2Status, fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value),
+        (c, s, value))
+FORWARD(fmi2Status, fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2String *value),
+        (c, s, value))
+
+/* Unload: pythonfmu's state released (see the top comment), then its library. */
+__attribute__((destructor)) static void unload_loader(void) {
+    if (pythonfmu_library == NULL || live_instances > 0) return;
+    release_pythonfmu_state();
+    dlclose(pythonfmu_library);
+    pythonfmu_library = NULL;
+}
