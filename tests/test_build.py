@@ -132,20 +132,9 @@ def test_fmu_runs_in_a_fresh_python_with_only_its_embedded_greyfmu(built_fmus, t
 
     One process per FMU, as a foreign tool loads it: pythonfmu FMUs share one interpreter, so
     a second FMU in the same process would import the greyfmu modules the first one loaded
-    (from the first FMU's resources, which fmpy.simulate_fmu deletes when it returns).  The
-    script empties pythonfmu 0.7.0's static state before fmpy unloads the library, as cosim
-    does (cosim.fmu.release_pythonfmu_state); without it the process can abort on unload."""
-    script = (
-        "import sys, fmpy\n"
-        "from fmpy.fmi1 import _FMU\n"
-        "unload = _FMU.freeLibrary\n"
-        "def free_library(self):\n"   # pythonfmu 0.7.0's unload bug: see cosim.fmu.release_pythonfmu_state
-        "    self.dll.finalizePythonInterpreter()\n"
-        "    unload(self)\n"
-        "_FMU.freeLibrary = free_library\n"
-        "fmpy.simulate_fmu(sys.argv[1])\n"
-        "print(sys.modules['greyfmu'].__file__)\n"
-    )
+    (from the first FMU's resources, which fmpy.simulate_fmu deletes when it returns).  No
+    workaround for pythonfmu 0.7.0's double release at unload: the FMU's loader neutralises it."""
+    script = "import sys, fmpy\nfmpy.simulate_fmu(sys.argv[1])\nprint(sys.modules['greyfmu'].__file__)\n"
     env = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
     completed = subprocess.run(
         [sys.executable, "-c", script, str(built_fmus[name])],
@@ -267,10 +256,10 @@ def test_cli_reports_each_fmu_and_the_output_folder(built_fmus, capsys):
 
 def test_rewrite_refuses_an_output_without_a_declared_dependency_list(built_fmus, tmp_path):
     with pytest.raises(BuildError, match="output_dependencies"):
-        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {})
+        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {}, ("numpy", "scipy"))
 
 
 def test_rewrite_refuses_an_output_without_initial_exact(built_fmus, tmp_path):
     broken = edited_copy(built_fmus["Gain"], tmp_path / "broken.fmu", lambda xml: xml.replace('initial="exact"', ""))
     with pytest.raises(BuildError, match="initial"):
-        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]})
+        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]}, ("numpy", "scipy"))
