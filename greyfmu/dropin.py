@@ -68,8 +68,8 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
     root.set("license", LICENSE)
     root.set("copyright", COPYRIGHT)
     root.attrib.pop("generationDateAndTime", None)
+    ElementTree.indent(root)  # before the hash: it covers the text as written
     root.set("guid", stable_guid(root, result))
-    ElementTree.indent(root)
     result["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
     result["documentation/index.html"] = index_html(root, requirements).encode()
     return result

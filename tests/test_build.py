@@ -1,10 +1,14 @@
 """greyfmu build: the FMUs validate, declare the agreed interface and simulate correctly."""
 
+import html
 import math
 import os
 import shutil
 import subprocess
 import sys
+import zipfile
+from importlib.metadata import version
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
@@ -23,6 +27,7 @@ from greyfmu.build import (
     provide_fmu,
 )
 from greyfmu.cli import main
+from greyfmu.dropin import BUILD_PYTHON, stable_guid
 from testfmus import edited_copy
 
 INTERFACE = {
@@ -263,3 +268,57 @@ def test_rewrite_refuses_an_output_without_initial_exact(built_fmus, tmp_path):
     broken = edited_copy(built_fmus["Gain"], tmp_path / "broken.fmu", lambda xml: xml.replace('initial="exact"', ""))
     with pytest.raises(BuildError, match="initial"):
         _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]}, ("numpy", "scipy"))
+
+
+def test_rebuilding_gives_a_byte_identical_model_description_and_the_same_guid(built_fmus, tmp_path):
+    """Issue 13, stable identity: two builds of unchanged sources; the GUID is not pythonfmu's random one."""
+    first, second = (build_fmus(["PID", "OSMMGPC"], tmp_path / folder, force=True) for folder in ("a", "b"))
+    for a, b, name in zip(first, second, ["PID", "OSMMGPC"]):
+        with zipfile.ZipFile(a) as one, zipfile.ZipFile(b) as other, zipfile.ZipFile(built_fmus[name]) as kept:
+            assert one.read("modelDescription.xml") == other.read("modelDescription.xml") \
+                == kept.read("modelDescription.xml")
+    assert read_model_description(str(first[0])).guid != read_model_description(str(first[1])).guid
+
+
+def test_the_guid_follows_the_model_description_and_every_embedded_source(built_fmus):
+    with zipfile.ZipFile(built_fmus["Gain"]) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    root = ElementTree.fromstring(entries["modelDescription.xml"])
+    assert stable_guid(root, entries) == root.get("guid")
+    edited = dict(entries, **{"resources/greyfmu/signals/arithmetic.py": entries["resources/greyfmu/signals/arithmetic.py"] + b"\n"})
+    assert stable_guid(root, edited) != root.get("guid")
+    assert stable_guid(root, dict(entries, **{BUILD_PYTHON: b"/elsewhere/python3\n"})) == root.get("guid")
+    root.find("DefaultExperiment").set("stopTime", "99")
+    assert stable_guid(root, entries) != root.get("guid")
+
+
+@pytest.mark.parametrize("name", ["PID", "OSMMGPC", "SteamHeader"])
+def test_fmu_states_version_licence_and_carries_the_notices_and_documentation(built_fmus, name):
+    md = read_model_description(str(built_fmus[name]))
+    assert md.version == version("greyfmu") and md.license == "MIT" and md.author == "greyfmu"
+    assert "greyfmu authors" in md.copyright and "pythonfmu" in md.copyright
+    with zipfile.ZipFile(built_fmus[name]) as archive:
+        names = archive.namelist()
+        notice = archive.read("documentation/licenses/pythonfmu-LICENSE.txt").decode()
+        page = archive.read("documentation/index.html").decode()
+    assert "MIT License" in notice and "NTNU" in notice and "documentation/licenses/greyfmu-LICENSE.txt" in names
+    for variable in md.modelVariables:  # every variable, with its unit, on the page
+        assert f"<td>{html.escape(variable.name)}</td>" in page
+        if variable.unit:
+            assert f"<td>{html.escape(variable.unit)}</td>" in page
+    assert md.defaultExperiment.stopTime in page and "GREYFMU_PYTHON" in page
+    if name == "OSMMGPC":
+        assert "<code>daqp</code>" in page
+
+
+@pytest.mark.parametrize("name", ["PID", "OSMMGPC"])
+def test_fmu_carries_only_what_it_runs(built_fmus, name):
+    """No greyfmu build tooling, no pythonfmu builder; pythonfmu's package still imports without it."""
+    with zipfile.ZipFile(built_fmus[name]) as archive:
+        names = set(archive.namelist())
+    build_side = {"resources/greyfmu/build.py", "resources/greyfmu/cli.py", "resources/greyfmu/dropin.py",
+                  "resources/greyfmu/documentation.py", "resources/pythonfmu/builder.py",
+                  "resources/pythonfmu/csvbuilder.py", "resources/pythonfmu/deploy.py"}
+    assert not names & build_side
+    assert not any(entry.startswith(("resources/greyfmu/loader/", "resources/greyfmu/licenses/")) for entry in names)
+    assert {"binaries/linux64/pythonfmu-export.so", f"binaries/linux64/{name}.so", "resources/greyfmu_target.py"} <= names
