@@ -279,9 +279,16 @@ static int run_query(const char *python, const char *target_script, char **outpu
     return 1;
 }
 
-/* Query a candidate interpreter; fills libpython, home, path; 0 with problem set if unusable. */
-static int query_candidate(const char *python, const char *root, char *libpython, char *home, char **path,
-                           char *problem, size_t size) {
+/* What the check script reports of a usable candidate interpreter. */
+typedef struct {
+    char executable[PATH_MAX]; /* its sys.executable (a wrapper script or shim resolved) */
+    char libpython[PATH_MAX];
+    char home[2 * PATH_MAX];   /* PYTHONHOME: base prefix (and base exec prefix) */
+    char *path;                /* repr(sys.path), malloc'ed */
+} Interpreter;
+
+/* Query a candidate interpreter; 0 with problem set if it is unusable. */
+static int query_candidate(const char *python, const char *root, Interpreter *found, char *problem, size_t size) {
     char script[PATH_MAX + 64];
     snprintf(script, sizeof script, "%s/resources/greyfmu_target.py", root);
     char *output = NULL;
@@ -292,12 +299,14 @@ static int query_candidate(const char *python, const char *root, char *libpython
         append(problem, size, "%s did not run the check %s: %.600s", python, script, output);
     } else if (answer[0] != '\0') {
         append(problem, size, "%s", answer);
-    } else if (query_value(output, "libpython", libpython, PATH_MAX) && query_value(output, "home", home, 2 * PATH_MAX)) {
+    } else if (query_value(output, "executable", found->executable, sizeof found->executable) &&
+               query_value(output, "libpython", found->libpython, sizeof found->libpython) &&
+               query_value(output, "home", found->home, sizeof found->home)) {
         char *line = strstr(output, "greyfmu-path=");
-        size_t length = strcspn(line + 13, "\n");
-        *path = strndup(line + 13, length);
-        ok = *path != NULL;
+        if (line != NULL) found->path = strndup(line + 13, strcspn(line + 13, "\n"));
+        ok = found->path != NULL;
     }
+    if (!ok && !*problem) append(problem, size, "%s gave an incomplete answer to %s: %.600s", python, script, output);
     free(output);
     return ok;
 }
@@ -365,18 +374,18 @@ static void python_literal(const char *text, char *literal, size_t size) {
 }
 
 /* Start the candidate's Python in this process. */
-static int start_python(const char *python, const char *libpython, const char *home, const char *path,
-                        PythonApi *api, char *problem, size_t size) {
-    void *library = dlopen(libpython, RTLD_NOW | RTLD_GLOBAL);
+static int start_python(const Interpreter *python, PythonApi *api, char *problem, size_t size) {
+    void *library = dlopen(python->libpython, RTLD_NOW | RTLD_GLOBAL);
     if (library == NULL) {
-        append(problem, size, "cannot load %s (the shared libpython of %s): %s", libpython, python, dlerror());
+        append(problem, size, "cannot load %s (the shared libpython of %s): %s", python->libpython, python->executable,
+               dlerror());
         return 0;
     }
     if (!resolve(library, api, problem, size)) return 0;
     if (!api->IsInitialized()) {
         const char *previous = getenv("PYTHONHOME");
         char *saved = previous ? strdup(previous) : NULL;
-        setenv("PYTHONHOME", home, 1);
+        setenv("PYTHONHOME", python->home, 1);
         api->InitializeEx(0);
         if (saved) {
             setenv("PYTHONHOME", saved, 1);
@@ -385,16 +394,16 @@ static int start_python(const char *python, const char *libpython, const char *h
             unsetenv("PYTHONHOME");
         }
         char executable[2 * PATH_MAX];
-        python_literal(python, executable, sizeof executable);
-        size_t length = strlen(path) + strlen(executable) + 128;
+        python_literal(python->executable, executable, sizeof executable);
+        size_t length = strlen(python->path) + strlen(executable) + 128;
         char *code = malloc(length);
-        snprintf(code, length, "import sys\nsys.path[:] = %s\nsys.executable = %s\n", path, executable);
+        snprintf(code, length, "import sys\nsys.path[:] = %s\nsys.executable = %s\n", python->path, executable);
         char ignored[16];
         int ok = run_in_process(api, code, "<greyfmu loader>", NULL, ignored, sizeof ignored);
         free(code);
         api->EvalSaveThread(); /* Python stays initialised; pythonfmu takes the GIL per call */
         if (!ok) {
-            append(problem, size, "cannot set sys.path of %s inside the host process", python);
+            append(problem, size, "cannot set sys.path of %s inside the host process", python->executable);
             return 0;
         }
     }
@@ -440,11 +449,11 @@ static int ensure_python(const char *root, PythonApi *api, char *problem, size_t
                    origin[i]);
             continue;
         }
-        char libpython[PATH_MAX], home[2 * PATH_MAX], why[4096] = "";
-        char *path = NULL;
-        if (query_candidate(candidates[i], root, libpython, home, &path, why, sizeof why)) {
-            int ok = start_python(candidates[i], libpython, home, path, api, problem, size);
-            free(path);
+        Interpreter found = {.path = NULL};
+        char why[4096] = "";
+        if (query_candidate(candidates[i], root, &found, why, sizeof why)) {
+            int ok = start_python(&found, api, problem, size);
+            free(found.path);
             return ok;
         }
         append(tried, sizeof tried, "%s%s (%s): %s", *tried ? "; " : "", candidates[i], origin[i], why);

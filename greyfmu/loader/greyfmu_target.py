@@ -70,7 +70,7 @@ def check(query):
 problem = check(query=__name__ == "__main__")
 
 if __name__ == "__main__":
-    for key, value in [("problem", problem), ("version", sys.version.split()[0]),
+    for key, value in [("problem", problem), ("version", sys.version.split()[0]), ("executable", sys.executable),
                        ("libpython", shared_libpython() or ""),
                        ("home", sys.base_prefix if sys.base_prefix == sys.base_exec_prefix
                         else sys.base_prefix + os.pathsep + sys.base_exec_prefix),
