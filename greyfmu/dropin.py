@@ -2,10 +2,11 @@
 
 Given the archive's entries (name -> bytes), its model description and the slave's requirements, `drop_in` returns new entries:
 
-- ``binaries/linux64/<id>.so`` is the greyfmu loader (`greyfmu.loader`); pythonfmu's library
-  moves next to it as ``pythonfmu-export.so``.  Where no C compiler exists the pythonfmu
-  library stays the binary, and the build says so on stderr: that FMU then loads only in a
-  host that already runs Python (fmpy, cosim);
+- ``binaries/linux64/<id>.so`` and ``binaries/win64/<id>.dll`` are the greyfmu loader
+  (`greyfmu.loader`); pythonfmu's library moves next to it as ``pythonfmu-export.so``/``.dll``.
+  Where there is no C compiler for a platform (cc; x86_64-w64-mingw32-gcc for win64) the
+  pythonfmu library stays the binary, and the build says so once on stderr: that FMU then
+  loads only in a host that already runs Python (fmpy, cosim; on Windows, python3.dll on PATH);
 - ``resources/`` gets the loader's target check, the FMU's requirements and the path of the
   interpreter that built it (the loader's second choice); it loses pythonfmu's builder, CLI
   and deployment modules, which the FMU does not run;
@@ -27,7 +28,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from greyfmu.documentation import index_html
-from greyfmu.loader import PYTHONFMU_LIBRARY, TARGET_CHECK, loader_binary
+from greyfmu.loader import PLATFORMS, TARGET_CHECK, loader_binary
 
 LICENSES = Path(__file__).resolve().parent / "licenses"
 LICENSE = "MIT"
@@ -51,13 +52,12 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
     result = {name: data for name, data in entries.items()
               if name.removeprefix("resources/pythonfmu/") not in PYTHONFMU_BUILD_ONLY}
     result["resources/pythonfmu/__init__.py"] = _without_builder(entries["resources/pythonfmu/__init__.py"], model)
-    loader = loader_binary()
-    if loader is None:
-        print(f"greyfmu build: no C compiler (cc, gcc or clang) on PATH: {model}.fmu keeps pythonfmu's linux64 "
-              "library, which loads only in a host that already runs Python", file=sys.stderr)
-    else:
-        result[f"binaries/linux64/{PYTHONFMU_LIBRARY}"] = result.pop(f"binaries/linux64/{identifier}.so")
-        result[f"binaries/linux64/{identifier}.so"] = loader
+    for platform in PLATFORMS:
+        loader = loader_binary(platform)
+        binary = f"binaries/{platform.folder}/{identifier}{platform.suffix}"
+        if loader is not None and binary in result:
+            result[f"binaries/{platform.folder}/{platform.pythonfmu_library}"] = result.pop(binary)
+            result[binary] = loader
     result["resources/greyfmu_target.py"] = TARGET_CHECK.read_bytes()
     result["resources/greyfmu_requirements.txt"] = "".join(f"{name}\n" for name in requirements).encode()
     result[BUILD_PYTHON] = f"{sys.executable}\n".encode()

@@ -2,7 +2,8 @@
  * tests/test_dropin_host.py (compiled there with the system compiler).
  *
  *   dropin_host OUT.csv START STOP STEP COMMAND...
- *     fmu DIR IDENTIFIER GUID        load DIR/binaries/linux64/IDENTIFIER.so (dlopen), instance i = 0, 1, ...
+ *     fmu DIR IDENTIFIER GUID        load DIR/binaries/linux64/IDENTIFIER.so (dlopen; on Windows
+ *                                    DIR\binaries\win64\IDENTIFIER.dll, LoadLibrary), instance i = 0, 1, ...
  *     set I VR VALUE                 fmi2SetReal before initialisation
  *     connect I VR J VR              output VR of instance I drives input VR of instance J
  *     record I VR NAME               a CSV column
@@ -10,15 +11,54 @@
  * Fixed-step Jacobi: inputs are set from the outputs at t, then every instance steps [t, t+h];
  * t_k = START + k*STEP.  In initialisation mode the connections are propagated as many times as
  * there are instances (settles any acyclic feedthrough chain).  Before the first fmi2Instantiate
- * it prints "python-before-instantiate: yes|no" (a libpython mapped in /proc/self/maps), after
+ * it prints "python-before-instantiate: yes|no" (a libpython mapped in /proc/self/maps; on
+ * Windows a loaded python*.dll), after
  * the last one "python-after-instantiate: yes|no".  Exit 0 on success, 1 if an FMI call fails,
  * 2 for usage errors.
  */
-#include <dlfcn.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#ifdef _WIN32
+#include <windows.h>
+#include <psapi.h>
+#define dlopen(path, mode) ((void *)LoadLibraryExA(path, NULL, LOAD_WITH_ALTERED_SEARCH_PATH))
+#define dlsym(library, name) ((void *)GetProcAddress((HMODULE)(library), name))
+#define dlclose(library) FreeLibrary((HMODULE)(library))
+#define BINARY "%s\\binaries\\win64\\%s.dll"
+#define RESOURCES "file:///%s/resources"
+static const char *dlerror(void) {
+    static char message[64];
+    snprintf(message, sizeof message, "Windows error %lu", GetLastError());
+    return message;
+}
+static int python_mapped(void) {
+    HMODULE modules[1024];
+    DWORD needed = 0;
+    EnumProcessModules(GetCurrentProcess(), modules, sizeof modules, &needed);
+    for (DWORD i = 0; i < needed / sizeof(HMODULE) && i < 1024; i++) {
+        char name[MAX_PATH];
+        if (GetModuleBaseNameA(GetCurrentProcess(), modules[i], name, sizeof name) && _strnicmp(name, "python", 6) == 0)
+            return 1;
+    }
+    return 0;
+}
+#else
+#include <dlfcn.h>
+#define BINARY "%s/binaries/linux64/%s.so"
+#define RESOURCES "file://%s/resources"
+static int python_mapped(void) {
+    FILE *maps = fopen("/proc/self/maps", "r");
+    char line[4096];
+    int found = 0;
+    while (maps && fgets(line, sizeof line, maps))
+        if (strstr(line, "libpython")) found = 1;
+    if (maps) fclose(maps);
+    return found;
+}
+#endif
 
 typedef void *Component;
 typedef int Status; /* fmi2OK = 0, fmi2Warning = 1 */
@@ -62,16 +102,6 @@ static void logger(void *env, const char *instance, int status, const char *cate
     va_end(args);
 }
 
-static int python_mapped(void) {
-    FILE *maps = fopen("/proc/self/maps", "r");
-    char line[4096];
-    int found = 0;
-    while (maps && fgets(line, sizeof line, maps))
-        if (strstr(line, "libpython")) found = 1;
-    if (maps) fclose(maps);
-    return found;
-}
-
 static int check(Status status, const char *call, int i, double t) {
     if (status > 1) {
         fprintf(stderr, "%s of instance %d failed with status %d at t = %g\n", call, i, status, t);
@@ -91,7 +121,7 @@ static void *symbol(void *library, const char *name) {
 
 static void load(const char *dir, const char *identifier) {
     char path[4096];
-    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, identifier);
+    snprintf(path, sizeof path, BINARY, dir, identifier);
     Fmu *f = &fmus[fmu_count++];
     f->library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!f->library) {
@@ -175,7 +205,7 @@ int main(int argc, char **argv) {
     Callbacks callbacks = {logger, calloc, free, NULL, NULL};
     for (int i = 0; i < fmu_count; i++) {
         char location[4200], name[32];
-        snprintf(location, sizeof location, "file://%s/resources", dirs[i]);
+        snprintf(location, sizeof location, RESOURCES, dirs[i]);
         snprintf(name, sizeof name, "instance%d", i);
         fmus[i].c = fmus[i].instantiate(name, 1 /* fmi2CoSimulation */, guids[i], location, &callbacks, 0, 0);
         if (!fmus[i].c) {

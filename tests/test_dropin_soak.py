@@ -19,7 +19,9 @@ from pathlib import Path
 import pytest
 
 from dropinhost import compile_host, environment, run_host, unzip
-from greyfmu.loader import PYTHONFMU_LIBRARY
+from greyfmu.loader import PLATFORMS
+
+PYTHONFMU_LIBRARY = PLATFORMS[0].pythonfmu_library  # linux64
 
 SOAK = os.environ.get("GREYFMU_SOAK") == "1"
 RUNS = 200 if SOAK else 2

@@ -1,8 +1,10 @@
 /* greyfmu drop-in loader: the linux64 binary of every greyfmu FMI 2.0 Co-Simulation FMU.
  *
- * pythonfmu 0.7.0's library (shipped next to this one as pythonfmu-export.so) does not link
- * libpython, so it only loads in a process that already has Python.  This loader is the
- * binary the host opens (binaries/linux64/<modelIdentifier>.so).  On the first fmi2Instantiate:
+ * pythonfmu 0.7.0's library (shipped next to this one as pythonfmu-export.so, .dll on Windows)
+ * does not link libpython on Linux, so it only loads in a process that already has Python; on
+ * Windows it needs python3.dll on PATH.  This loader is the binary the host opens
+ * (binaries/linux64/<modelIdentifier>.so, binaries/win64/<modelIdentifier>.dll; the platform
+ * layer is platform.h).  On the first fmi2Instantiate:
  *
  *   1. If the host process already runs an initialised Python (fmpy, cosim), that one is used.
  *   2. Otherwise a Python is chosen in this order (README, "The FMUs"):
@@ -12,8 +14,9 @@
  *      The candidate runs resources/greyfmu_target.py in a child process (posix_spawn, 60 s
  *      limit) which prints its version, shared libpython, home and sys.path, and checks the
  *      FMU's requirements (resources/greyfmu_requirements.txt).  The first usable candidate's
- *      libpython is loaded with RTLD_GLOBAL, initialised without signal handlers
- *      (Py_InitializeEx(0), PYTHONHOME set for the call only), given the candidate's sys.path
+ *      libpython is loaded with RTLD_GLOBAL (Windows: pythonXY.dll, then python3.dll next to it),
+ *      initialised without signal handlers (Py_InitializeEx(0); on Linux with PYTHONHOME set for
+ *      the call only, Windows finds the home from the DLL), given the candidate's sys.path
  *      (venv site-packages included) and sys.executable; the GIL is then released.
  *   3. The same greyfmu_target.py runs inside the process (Python version >= 3.10 and the
  *      requirements), then pythonfmu-export.so is loaded and every fmi2 function forwards to it.
@@ -31,27 +34,7 @@
  * before that library's static destructors).
  */
 #define _GNU_SOURCE
-#include <dlfcn.h>
-#include <errno.h>
-#include <limits.h>
-#include <poll.h>
-#include <pthread.h>
-#include <signal.h>
-#include <spawn.h>
-#include <stdarg.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <sys/stat.h>
-#include <sys/wait.h>
-#include <time.h>
-#include <unistd.h>
-
-extern char **environ;
-
-#define EXPORT __attribute__((visibility("default")))
-#define QUERY_SECONDS 60
-#define OUTPUT_LIMIT (1 << 20)
+#include "platform.h"
 
 /* ---- FMI 2.0 types (fmi2TypesPlatform.h, fmi2FunctionTypes.h) ---- */
 typedef void *fmi2Component;
@@ -96,7 +79,7 @@ typedef struct {
 
 enum { PY_FILE_INPUT = 257 };
 
-static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
+static Lock load_lock = LOCK_INITIALIZER;
 static void *pythonfmu_library;
 static int live_instances;
 static int exit_handler_registered;
@@ -142,27 +125,16 @@ static void (*real_finalizePythonInterpreter)(void);
 
 /* ---- small helpers ---- */
 
-static void append(char *buffer, size_t size, const char *format, ...) {
-    size_t used = strlen(buffer);
-    if (used + 1 >= size) return;
-    va_list args;
-    va_start(args, format);
-    vsnprintf(buffer + used, size - used, format, args);
-    va_end(args);
-}
-
-/* The FMU's root folder: this library is <root>/binaries/linux64/<id>.so. */
+/* The FMU's root folder: this library is <root>/binaries/<platform>/<id>.<suffix>. */
 static int fmu_root(char *root, size_t size) {
-    Dl_info info;
-    if (!dladdr((void *)&fmu_root, &info) || info.dli_fname == NULL) return 0;
-    char resolved[PATH_MAX];
-    if (realpath(info.dli_fname, resolved) == NULL) return 0;
+    char path[PATH_MAX];
+    if (!library_path(path, sizeof path)) return 0;
     for (int level = 0; level < 3; level++) {
-        char *slash = strrchr(resolved, '/');
-        if (slash == NULL) return 0;
-        *slash = '\0';
+        char *separator = strrchr(path, SEPARATOR);
+        if (separator == NULL) return 0;
+        *separator = '\0';
     }
-    snprintf(root, size, "%s", resolved);
+    snprintf(root, size, "%s", path);
     return 1;
 }
 
@@ -185,23 +157,16 @@ static char *read_file(const char *path) {
     return text;
 }
 
-static int is_executable(const char *path) {
-    struct stat status;
-    return stat(path, &status) == 0 && S_ISREG(status.st_mode) && access(path, X_OK) == 0;
-}
-
-/* python3 on PATH, as a shell would find it. */
+/* python3 (Windows: python.exe) on PATH, as a shell would find it. */
 static int python_on_path(char *found, size_t size) {
     const char *path = getenv("PATH");
-    if (path == NULL) return 0;
-    char *copy = strdup(path), *saveptr = NULL;
-    int ok = 0;
-    for (char *dir = strtok_r(copy, ":", &saveptr); dir != NULL && !ok; dir = strtok_r(NULL, ":", &saveptr)) {
-        snprintf(found, size, "%s/python3", *dir ? dir : ".");
-        ok = is_executable(found);
+    while (path != NULL && *path) {
+        size_t length = strcspn(path, PATH_LIST_SEPARATOR);
+        snprintf(found, size, "%.*s%c%s", (int)(length ? length : 1), length ? path : ".", SEPARATOR, PYTHON_ON_PATH);
+        if (is_executable(found)) return 1;
+        path += length + (path[length] ? 1 : 0);
     }
-    free(copy);
-    return ok;
+    return 0;
 }
 
 /* The value of "greyfmu-<key>=" in the query output, copied into value; 0 if absent. */
@@ -212,7 +177,7 @@ static int query_value(const char *output, const char *key, char *value, size_t 
     while ((line = strstr(line, marker)) != NULL) {
         if (line == output || line[-1] == '\n') {
             line += strlen(marker);
-            size_t length = strcspn(line, "\n");
+            size_t length = strcspn(line, "\r\n");
             if (length >= size) length = size - 1;
             memcpy(value, line, length);
             value[length] = '\0';
@@ -223,66 +188,11 @@ static int query_value(const char *output, const char *key, char *value, size_t 
     return 0;
 }
 
-/* Run `python target_script` with a time limit; its stdout and stderr in *output (malloc'ed). */
-static int run_query(const char *python, const char *target_script, char **output, char *problem, size_t size) {
-    int pipe_ends[2];
-    if (pipe(pipe_ends) != 0) {
-        append(problem, size, "cannot create a pipe to run %s (%s)", python, strerror(errno));
-        return 0;
-    }
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addclose(&actions, pipe_ends[0]);
-    posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDOUT_FILENO);
-    posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDERR_FILENO);
-    posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", 0, 0);
-    char *argv[] = {(char *)python, (char *)target_script, "--query", NULL};
-    pid_t child;
-    int spawned = posix_spawn(&child, python, &actions, NULL, argv, environ);
-    posix_spawn_file_actions_destroy(&actions);
-    close(pipe_ends[1]);
-    if (spawned != 0) {
-        close(pipe_ends[0]);
-        append(problem, size, "cannot run %s (%s)", python, strerror(spawned));
-        return 0;
-    }
-    size_t capacity = 8192, length = 0;
-    char *text = malloc(capacity);
-    time_t deadline = time(NULL) + QUERY_SECONDS;
-    int timed_out = 0;
-    for (;;) {
-        struct pollfd ready = {pipe_ends[0], POLLIN, 0};
-        int left = (int)(deadline - time(NULL));
-        if (left <= 0 || poll(&ready, 1, left * 1000) == 0) {
-            timed_out = 1;
-            break;
-        }
-        if (length + 4096 > capacity && capacity < OUTPUT_LIMIT) text = realloc(text, capacity *= 2);
-        ssize_t got = read(pipe_ends[0], text + length, capacity - length - 1);
-        if (got < 0 && errno == EINTR) continue;
-        if (got <= 0) break;
-        length += (size_t)got;
-        if (length + 1 >= capacity) break;
-    }
-    close(pipe_ends[0]);
-    text[length] = '\0';
-    if (timed_out) kill(child, SIGKILL);
-    int status = 0;
-    while (waitpid(child, &status, 0) < 0 && errno == EINTR) {
-    }
-    if (timed_out) {
-        append(problem, size, "%s did not answer within %d s", python, QUERY_SECONDS);
-        free(text);
-        return 0;
-    }
-    *output = text;
-    return 1;
-}
-
 /* What the check script reports of a usable candidate interpreter. */
 typedef struct {
     char executable[PATH_MAX]; /* its sys.executable (a wrapper script or shim resolved) */
     char libpython[PATH_MAX];
+    char stable_abi[PATH_MAX]; /* Windows: python3.dll next to pythonXY.dll, which pythonfmu's DLL imports */
     char home[2 * PATH_MAX];   /* PYTHONHOME: base prefix (and base exec prefix) */
     char *path;                /* repr(sys.path), malloc'ed */
 } Interpreter;
@@ -290,7 +200,7 @@ typedef struct {
 /* Query a candidate interpreter; 0 with problem set if it is unusable. */
 static int query_candidate(const char *python, const char *root, Interpreter *found, char *problem, size_t size) {
     char script[PATH_MAX + 64];
-    snprintf(script, sizeof script, "%s/resources/greyfmu_target.py", root);
+    snprintf(script, sizeof script, "%s%cresources%cgreyfmu_target.py", root, SEPARATOR, SEPARATOR);
     char *output = NULL;
     if (!run_query(python, script, &output, problem, size)) return 0;
     char answer[4096];
@@ -301,9 +211,16 @@ static int query_candidate(const char *python, const char *root, Interpreter *fo
         append(problem, size, "%s", answer);
     } else if (query_value(output, "executable", found->executable, sizeof found->executable) &&
                query_value(output, "libpython", found->libpython, sizeof found->libpython) &&
+               query_value(output, "stable_abi", found->stable_abi, sizeof found->stable_abi) &&
                query_value(output, "home", found->home, sizeof found->home)) {
         char *line = strstr(output, "greyfmu-path=");
-        if (line != NULL) found->path = strndup(line + 13, strcspn(line + 13, "\n"));
+        if (line != NULL) {
+            size_t length = strcspn(line + 13, "\r\n");
+            if ((found->path = malloc(length + 1)) != NULL) {
+                memcpy(found->path, line + 13, length);
+                found->path[length] = '\0';
+            }
+        }
         ok = found->path != NULL;
     }
     if (!ok && !*problem) append(problem, size, "%s gave an incomplete answer to %s: %.600s", python, script, output);
@@ -313,7 +230,7 @@ static int query_candidate(const char *python, const char *root, Interpreter *fo
 
 static int resolve(void *library, PythonApi *api, char *problem, size_t size) {
 #define RESOLVE(field, symbol)                                                                                     \
-    if ((*(void **)&api->field = dlsym(library, symbol)) == NULL) {                                               \
+    if ((*(void **)&api->field = library_symbol(library, symbol)) == NULL) {                                      \
         append(problem, size, "the loaded libpython has no %s", symbol);                                          \
         return 0;                                                                                                  \
     }
@@ -375,24 +292,17 @@ static void python_literal(const char *text, char *literal, size_t size) {
 
 /* Start the candidate's Python in this process. */
 static int start_python(const Interpreter *python, PythonApi *api, char *problem, size_t size) {
-    void *library = dlopen(python->libpython, RTLD_NOW | RTLD_GLOBAL);
+    void *library = library_open(python->libpython, 1, problem, size);
     if (library == NULL) {
-        append(problem, size, "cannot load %s (the shared libpython of %s): %s", python->libpython, python->executable,
-               dlerror());
+        append(problem, size, " (the shared libpython of %s)", python->executable);
         return 0;
     }
+    if (*python->stable_abi && library_open(python->stable_abi, 1, problem, size) == NULL) return 0;
     if (!resolve(library, api, problem, size)) return 0;
     if (!api->IsInitialized()) {
-        const char *previous = getenv("PYTHONHOME");
-        char *saved = previous ? strdup(previous) : NULL;
-        setenv("PYTHONHOME", python->home, 1);
+        char *saved = set_python_home(python->home);
         api->InitializeEx(0);
-        if (saved) {
-            setenv("PYTHONHOME", saved, 1);
-            free(saved);
-        } else {
-            unsetenv("PYTHONHOME");
-        }
+        restore_python_home(saved);
         char executable[2 * PATH_MAX];
         python_literal(python->executable, executable, sizeof executable);
         size_t length = strlen(python->path) + strlen(executable) + 128;
@@ -413,8 +323,8 @@ static int start_python(const Interpreter *python, PythonApi *api, char *problem
 
 /* Find, load and initialise a Python in this process (unless it already has one). */
 static int ensure_python(const char *root, PythonApi *api, char *problem, size_t size) {
-    int (*initialized)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "Py_IsInitialized");
-    if (initialized != NULL && initialized()) return resolve(RTLD_DEFAULT, api, problem, size);
+    void *host_python = loaded_python();
+    if (host_python != NULL) return resolve(host_python, api, problem, size);
 
     char candidates[3][PATH_MAX];
     const char *origin[3];
@@ -425,7 +335,7 @@ static int ensure_python(const char *root, PythonApi *api, char *problem, size_t
         origin[count++] = "GREYFMU_PYTHON";
     } else {
         char file[PATH_MAX + 64];
-        snprintf(file, sizeof file, "%s/resources/greyfmu_build_python.txt", root);
+        snprintf(file, sizeof file, "%s%cresources%cgreyfmu_build_python.txt", root, SEPARATOR, SEPARATOR);
         char *built_by = read_file(file);
         if (built_by != NULL) {
             built_by[strcspn(built_by, "\r\n")] = '\0';
@@ -435,11 +345,11 @@ static int ensure_python(const char *root, PythonApi *api, char *problem, size_t
             }
             free(built_by);
         }
-        if (python_on_path(candidates[count], PATH_MAX)) origin[count++] = "python3 on PATH";
+        if (python_on_path(candidates[count], PATH_MAX)) origin[count++] = PYTHON_ON_PATH " on PATH";
     }
     if (count == 0) {
         append(problem, size, "no Python found: GREYFMU_PYTHON is not set, the interpreter that built the FMU is not on "
-                              "this machine and there is no python3 on PATH");
+                              "this machine and there is no " PYTHON_ON_PATH " on PATH");
         return 0;
     }
     char tried[8192] = "";
@@ -468,14 +378,12 @@ static void release_pythonfmu_state(void) {
 
 static int load_pythonfmu(const char *root, char *problem, size_t size) {
     char library[PATH_MAX + 64];
-    snprintf(library, sizeof library, "%s/binaries/linux64/pythonfmu-export.so", root);
-    void *handle = dlopen(library, RTLD_NOW | RTLD_LOCAL);
-    if (handle == NULL) {
-        append(problem, size, "cannot load pythonfmu's library: %s", dlerror());
-        return 0;
-    }
+    snprintf(library, sizeof library, "%s%cbinaries%c" PLATFORM_FOLDER "%cpythonfmu-export" LIBRARY_SUFFIX, root,
+             SEPARATOR, SEPARATOR, SEPARATOR);
+    void *handle = library_open(library, 0, problem, size);
+    if (handle == NULL) return 0;
 #define LOOK_UP(name)                                                                                              \
-    if ((real_##name = dlsym(handle, #name)) == NULL) {                                                            \
+    if ((*(void **)&real_##name = library_symbol(handle, #name)) == NULL) {                                       \
         append(problem, size, "%s has no %s", library, #name);                                                     \
         return 0;                                                                                                  \
     }
@@ -500,7 +408,7 @@ static int ensure_loaded(char *problem, size_t size) {
     PythonApi api;
     if (!ensure_python(root, &api, problem, size)) return 0;
     char script[PATH_MAX + 64];
-    snprintf(script, sizeof script, "%s/resources/greyfmu_target.py", root);
+    snprintf(script, sizeof script, "%s%cresources%cgreyfmu_target.py", root, SEPARATOR, SEPARATOR);
     char *code = read_file(script);
     if (code == NULL) {
         append(problem, size, "cannot read %s", script);
@@ -526,9 +434,9 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
                                      fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                                      fmi2Boolean visible, fmi2Boolean loggingOn) {
     char problem[16384] = "";
-    pthread_mutex_lock(&load_lock);
+    lock(&load_lock);
     int loaded = ensure_loaded(problem, sizeof problem);
-    pthread_mutex_unlock(&load_lock);
+    unlock(&load_lock);
     if (!loaded) {
         if (functions != NULL && functions->logger != NULL)
             functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
@@ -543,9 +451,9 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         ((Instantiate)real_fmi2Instantiate)(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, visible,
                                             loggingOn);
     if (component != NULL) {
-        pthread_mutex_lock(&load_lock);
+        lock(&load_lock);
         live_instances++;
-        pthread_mutex_unlock(&load_lock);
+        unlock(&load_lock);
     }
     return component;
 }
@@ -553,9 +461,9 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
 EXPORT void fmi2FreeInstance(fmi2Component c) {
     if (real_fmi2FreeInstance == NULL || c == NULL) return;
     ((void (*)(fmi2Component))real_fmi2FreeInstance)(c);
-    pthread_mutex_lock(&load_lock);
+    lock(&load_lock);
     if (--live_instances == 0) release_pythonfmu_state();
-    pthread_mutex_unlock(&load_lock);
+    unlock(&load_lock);
 }
 
 #define FORWARD(ret, name, params, args)                                                                           \
@@ -622,10 +530,13 @@ FORWARD(fmi2Status, fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind
 FORWARD(fmi2Status, fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2String *value),
         (c, s, value))
 
-/* Unload: pythonfmu's state released (see the top comment), then its library. */
+/* Unload: pythonfmu's state released (see the top comment), then its library (Linux only:
+ * Windows forbids unloading a DLL while one is being detached). */
+#ifndef _WIN32
 __attribute__((destructor)) static void unload_loader(void) {
     if (pythonfmu_library == NULL || live_instances > 0) return;
     release_pythonfmu_state();
     dlclose(pythonfmu_library);
     pythonfmu_library = NULL;
 }
+#endif

@@ -37,7 +37,11 @@ def missing_modules(names):
 
 
 def shared_libpython():
-    """The path of this interpreter's shared libpython, or None if it has none."""
+    """The path of this interpreter's shared libpython (Windows: pythonXY.dll), or None if it has none."""
+    if os.name == "nt":
+        import _winapi
+
+        return _winapi.GetModuleFileName(sys.dllhandle)
     names = [sysconfig.get_config_var("INSTSONAME"), sysconfig.get_config_var("LDLIBRARY"),
              "libpython{}.{}.so.1.0".format(*sys.version_info[:2])]
     folders = [sysconfig.get_config_var("LIBDIR"), os.path.join(sys.base_prefix, "lib")]
@@ -51,12 +55,19 @@ def shared_libpython():
     return None
 
 
+def stable_abi_library():
+    """Windows: python3.dll next to pythonXY.dll (pythonfmu's DLL imports it); '' elsewhere."""
+    if os.name != "nt":
+        return ""
+    return os.path.join(os.path.dirname(shared_libpython()), "python3.dll")
+
+
 def check(query):
     """The problem sentence ('' when the FMU can run here)."""
     executable = sys.executable or "the host's Python"
     if sys.version_info[:2] < MINIMUM:
         return "{} is Python {}.{}, older than 3.10: {}".format(executable, sys.version_info[0], sys.version_info[1], FIX)
-    if query and shared_libpython() is None:
+    if query and shared_libpython() is None:  # (always found on Windows)
         return ("{} has no shared libpython (it was built without --enable-shared; Debian: apt-get install "
                 "libpython3-dev; pyenv: PYTHON_CONFIGURE_OPTS=--enable-shared pyenv install): {}").format(executable, FIX)
     missing = missing_modules(requirements())
@@ -71,8 +82,8 @@ problem = check(query=__name__ == "__main__")
 
 if __name__ == "__main__":
     for key, value in [("problem", problem), ("version", sys.version.split()[0]), ("executable", sys.executable),
-                       ("libpython", shared_libpython() or ""),
+                       ("libpython", shared_libpython() or ""), ("stable_abi", stable_abi_library()),
                        ("home", sys.base_prefix if sys.base_prefix == sys.base_exec_prefix
                         else sys.base_prefix + os.pathsep + sys.base_exec_prefix),
-                       ("path", repr([entry for entry in sys.path[1:]]))]:
+                       ("path", repr([entry for entry in sys.path if os.path.abspath(entry) != HERE]))]:
         print("greyfmu-{}={}".format(key, value.replace("\n", " ")))
