@@ -19,8 +19,9 @@ PYTHON_ORDER = (
 )
 
 
-def index_html(root: ElementTree.Element, requirements: tuple[str, ...]) -> str:
-    """The page of the FMU whose model description is ``root``."""
+def index_html(root: ElementTree.Element, requirements: tuple[str, ...], loaders: tuple[str, ...]) -> str:
+    """The page of the FMU whose model description is ``root``; ``loaders``: the platform
+    folders whose binary is greyfmu's loader (the others hold pythonfmu's library)."""
     model = escape(root.get("modelName"))
     experiment = root.find("DefaultExperiment")
     experiment_text = ", ".join(f"{key} = {escape(value)} s" if key != "tolerance" else f"{key} = {escape(value)}"
@@ -32,6 +33,8 @@ def index_html(root: ElementTree.Element, requirements: tuple[str, ...]) -> str:
     )
     modules = ", ".join(f"<code>{escape(name)}</code>" for name in requirements)
     order = "".join(f"<li>{step}</li>" for step in PYTHON_ORDER)
+    windows = WINDOWS_LOADER if "win64" in loaders else WINDOWS_PYTHONFMU
+    linux = LINUX_LOADER if "linux64" in loaders else LINUX_PYTHONFMU
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head><meta charset="utf-8"><title>{model} — greyfmu FMU</title>
@@ -57,21 +60,32 @@ td,th{{border:1px solid #999;padding:0.2em 0.5em;text-align:left;vertical-align:
 <h2>What the target needs</h2>
 <p>A 64-bit Linux or Windows host and a CPython 3.10 or newer with {modules} installed; the FMU embeds
 its own Python code (greyfmu, the slave, pythonfmu's run-time modules).</p>
-<p>On Linux the FMU's binary is greyfmu's loader. In a host that already runs Python (fmpy, cosim) it uses
-that Python. Otherwise it takes the first usable one of</p>
-<ol>{order}</ol>
-<p>A usable Python is 3.10 or newer, has a shared libpython (<code>libpython3.X.so</code>) and imports
-{modules}; the loader starts it inside the host with that interpreter's <code>sys.path</code>
-(virtual environments included). If none is usable, <code>fmi2Instantiate</code> logs one message
-naming what is missing and how to fix it and returns NULL.</p>
-<p>On Windows the binary is pythonfmu's: it needs <code>python3.dll</code> of a 64-bit CPython 3.10+
-(python.org installer) on <code>PATH</code>, with {modules} installed into that Python.</p>
+{linux.format(order=order, modules=modules)}
+{windows.format(modules=modules)}
 <h2>Licences</h2>
 <p>{escape(root.get("license", ""))}. {escape(root.get("copyright", ""))}. The notices are in
 <code>documentation/licenses/</code>.</p>
 </body>
 </html>
 """
+
+
+LINUX_LOADER = """<p>On Linux (<code>binaries/linux64</code>) the binary is greyfmu's loader. In a host that already
+runs Python (fmpy, cosim) it uses that Python. Otherwise it takes the first usable one of</p>
+<ol>{order}</ol>
+<p>A usable Python is 3.10 or newer, has a shared libpython (<code>libpython3.X.so</code>) and imports
+{modules}; the loader starts it inside the host with that interpreter's <code>sys.path</code>
+(virtual environments included). If none is usable, <code>fmi2Instantiate</code> logs one message
+naming what is missing and how to fix it and returns NULL.</p>"""
+LINUX_PYTHONFMU = """<p>On Linux the binary is pythonfmu's library (this FMU was built without a C compiler): it runs
+only in a host that already runs a Python 3.10+ with {modules} (fmpy, cosim).</p>"""
+WINDOWS_LOADER = """<p>On Windows (<code>binaries/win64</code>) the binary is the same loader: it takes
+<code>GREYFMU_PYTHON</code> (the full path of <code>python.exe</code>), else <code>python.exe</code> on
+<code>PATH</code>, of a 64-bit CPython 3.10+ with {modules} installed, and says what is missing if
+that fails.</p>"""
+WINDOWS_PYTHONFMU = """<p>On Windows the binary is pythonfmu's library (this FMU was built without mingw-w64): it needs
+<code>python3.dll</code> of a 64-bit CPython 3.10+ (python.org installer) on <code>PATH</code>, with
+{modules} installed into that Python.</p>"""
 
 
 def _variable_row(variable: ElementTree.Element) -> str:

@@ -52,12 +52,14 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
     result = {name: data for name, data in entries.items()
               if name.removeprefix("resources/pythonfmu/") not in PYTHONFMU_BUILD_ONLY}
     result["resources/pythonfmu/__init__.py"] = _without_builder(entries["resources/pythonfmu/__init__.py"], model)
+    loaders = []
     for platform in PLATFORMS:
         loader = loader_binary(platform)
         binary = f"binaries/{platform.folder}/{identifier}{platform.suffix}"
         if loader is not None and binary in result:
             result[f"binaries/{platform.folder}/{platform.pythonfmu_library}"] = result.pop(binary)
             result[binary] = loader
+            loaders.append(platform.folder)
     result["resources/greyfmu_target.py"] = TARGET_CHECK.read_bytes()
     result["resources/greyfmu_requirements.txt"] = "".join(f"{name}\n" for name in requirements).encode()
     result[BUILD_PYTHON] = f"{sys.executable}\n".encode()
@@ -71,7 +73,7 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
     ElementTree.indent(root)  # before the hash: it covers the text as written
     root.set("guid", stable_guid(root, result))
     result["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
-    result["documentation/index.html"] = index_html(root, requirements).encode()
+    result["documentation/index.html"] = index_html(root, requirements, tuple(loaders)).encode()
     return result
 
 
