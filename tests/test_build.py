@@ -1,5 +1,6 @@
 """greyfmu build: the FMUs validate, declare the agreed interface and simulate correctly."""
 
+import dataclasses
 import html
 import math
 import os
@@ -28,6 +29,7 @@ from greyfmu.build import (
 )
 from greyfmu.cli import main
 from greyfmu.dropin import BUILD_PYTHON, stable_guid
+from greyfmu.loader import PLATFORMS, loader_binary
 from testfmus import edited_copy
 
 INTERFACE = {
@@ -322,3 +324,10 @@ def test_fmu_carries_only_what_it_runs(built_fmus, name):
     assert not names & build_side
     assert not any(entry.startswith(("resources/greyfmu/loader/", "resources/greyfmu/licenses/")) for entry in names)
     assert {"binaries/linux64/pythonfmu-export.so", f"binaries/linux64/{name}.so", "resources/greyfmu_target.py"} <= names
+
+
+def test_without_a_compiler_for_a_platform_the_build_says_so_and_keeps_pythonfmus_library(capsys):
+    missing = dataclasses.replace(PLATFORMS[1], compilers=("no-such-mingw-gcc",))
+    assert loader_binary(missing) is None
+    assert "no C compiler for win64 (no-such-mingw-gcc) on PATH: the FMUs keep pythonfmu's win64 library" \
+        in capsys.readouterr().err
