@@ -24,6 +24,17 @@ static void append(char *buffer, size_t size, const char *format, ...) {
     va_end(args);
 }
 
+/* The end of run_query: the child's output in *output, or the time-out as the problem. */
+static int query_answer(char *text, int timed_out, const char *python, char **output, char *problem, size_t size) {
+    if (timed_out) {
+        append(problem, size, "%s did not answer within %d s", python, QUERY_SECONDS);
+        free(text);
+        return 0;
+    }
+    *output = text;
+    return 1;
+}
+
 #ifdef _WIN32
 /* ------------------------------------------------------------------ Windows */
 #include <windows.h>
@@ -149,13 +160,7 @@ static int run_query(const char *python, const char *script, char **output, char
     CloseHandle(child.hThread);
     CloseHandle(read_end);
     text[length] = '\0';
-    if (timed_out) {
-        append(problem, size, "%s did not answer within %d s", python, QUERY_SECONDS);
-        free(text);
-        return 0;
-    }
-    *output = text;
-    return 1;
+    return query_answer(text, timed_out, python, output, problem, size);
 }
 
 #else
@@ -276,13 +281,7 @@ static int run_query(const char *python, const char *script, char **output, char
     int status = 0;
     while (waitpid(child, &status, 0) < 0 && errno == EINTR) {
     }
-    if (timed_out) {
-        append(problem, size, "%s did not answer within %d s", python, QUERY_SECONDS);
-        free(text);
-        return 0;
-    }
-    *output = text;
-    return 1;
+    return query_answer(text, timed_out, python, output, problem, size);
 }
 #endif
 
