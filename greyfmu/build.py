@@ -100,7 +100,8 @@ def build_fmus(
         raise UnknownFmuError(f"unknown FMU {', '.join(unknown)}; valid names: {', '.join(available)}")
     out_dir = DEFAULT_OUT_DIR if out_dir is None else Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    newest_common_source = max(path.stat().st_mtime for path in PACKAGE_DIR.rglob("*") if path.is_file())
+    newest_common_source = max(path.stat().st_mtime for path in PACKAGE_DIR.rglob("*")
+                               if path.is_file() and "__pycache__" not in path.relative_to(PACKAGE_DIR).parts)
     paths = []
     for name in requested:
         script = FMU_SOURCES / f"{name}.py"
