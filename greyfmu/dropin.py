@@ -8,8 +8,11 @@ Given the archive's entries (name -> bytes), its model description and the slave
   pythonfmu library stays the binary, and the build says so once on stderr: that FMU then
   loads only in a host that already runs Python (fmpy, cosim; on Windows, python3.dll on PATH);
 - ``resources/`` gets the loader's target check, the FMU's requirements and the path of the
-  interpreter that built it (the loader's second choice); it loses pythonfmu's builder, CLI
-  and deployment modules, which the FMU does not run;
+  interpreter that built it (the loader's second choice).  pythonfmu's package stays whole,
+  builder included: a Python host keeps an FMU's ``resources/`` on ``sys.path`` after
+  running it (fmpy does, and so do processes spawned from it), and a later
+  ``import pythonfmu.builder`` there (greyfmu's FMU provider, on every cosim run) then finds
+  this copy; without its builder, that import fails;
 - ``documentation/`` gets ``index.html`` (`greyfmu.documentation`) and ``licenses/`` with the
   greyfmu and pythonfmu MIT notices;
 - the model description gets ``version`` (the greyfmu version), ``license``, ``copyright``,
@@ -35,9 +38,6 @@ LICENSE = "MIT"
 COPYRIGHT = "Copyright (c) 2026 the greyfmu authors; embeds pythonfmu 0.7.0, Copyright (c) 2019-2020 NTNU and Safran SA"
 BUILD_PYTHON = "resources/greyfmu_build_python.txt"
 """Machine-specific, so left out of the GUID's hash."""
-PYTHONFMU_BUILD_ONLY = ("builder.py", "csvbuilder.py", "deploy.py", "__main__.py", "osutil.py")
-"""pythonfmu modules that only build FMUs (resources/pythonfmu/...)."""
-PYTHONFMU_BUILDER_IMPORT = "from .builder import FmuBuilder\n"
 
 
 class BuildError(RuntimeError):
@@ -49,9 +49,7 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
     ``requirements``: the modules the FMU imports from the target Python (the slave's ``requirements``)."""
     model = root.get("modelName")
     identifier = root.find("CoSimulation").get("modelIdentifier")
-    result = {name: data for name, data in entries.items()
-              if name.removeprefix("resources/pythonfmu/") not in PYTHONFMU_BUILD_ONLY}
-    result["resources/pythonfmu/__init__.py"] = _without_builder(entries["resources/pythonfmu/__init__.py"], model)
+    result = dict(entries)
     loaders = []
     for platform in PLATFORMS:
         loader = loader_binary(platform)
@@ -89,15 +87,6 @@ def stable_guid(root: ElementTree.Element, entries: dict[str, bytes]) -> str:
         if name.startswith("resources/") and name != BUILD_PYTHON:
             digest.update(name.encode() + b"\0" + hashlib.sha256(entries[name]).digest())
     return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
-
-
-def _without_builder(init: bytes, model: str) -> bytes:
-    """pythonfmu's ``__init__.py`` without the import of its builder (not shipped)."""
-    text = init.decode()
-    if PYTHONFMU_BUILDER_IMPORT not in text:
-        raise BuildError(f"{model}: resources/pythonfmu/__init__.py no longer imports FmuBuilder as pythonfmu 0.7.0 "
-                         "does; check greyfmu.dropin.PYTHONFMU_BUILD_ONLY against the new pythonfmu")
-    return text.replace(PYTHONFMU_BUILDER_IMPORT, "").encode()
 
 
 def _check_requirements_are_stated(root: ElementTree.Element, model: str, requirements: tuple[str, ...]) -> None:

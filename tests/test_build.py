@@ -315,12 +315,11 @@ def test_fmu_states_version_licence_and_carries_the_notices_and_documentation(bu
 
 @pytest.mark.parametrize("name", ["PID", "OSMMGPC"])
 def test_fmu_carries_only_what_it_runs(built_fmus, name):
-    """No greyfmu build tooling, no pythonfmu builder; pythonfmu's package still imports without it."""
+    """No greyfmu build tooling (pythonfmu's package stays whole: see greyfmu.dropin)."""
     with zipfile.ZipFile(built_fmus[name]) as archive:
         names = set(archive.namelist())
     build_side = {"resources/greyfmu/build.py", "resources/greyfmu/cli.py", "resources/greyfmu/dropin.py",
-                  "resources/greyfmu/documentation.py", "resources/pythonfmu/builder.py",
-                  "resources/pythonfmu/csvbuilder.py", "resources/pythonfmu/deploy.py"}
+                  "resources/greyfmu/documentation.py"}
     assert not names & build_side
     assert not any(entry.startswith(("resources/greyfmu/loader/", "resources/greyfmu/licenses/")) for entry in names)
     assert {"binaries/linux64/pythonfmu-export.so", f"binaries/linux64/{name}.so", "resources/greyfmu_target.py"} <= names
@@ -331,3 +330,14 @@ def test_without_a_compiler_for_a_platform_the_build_says_so_and_keeps_pythonfmu
     assert loader_binary(missing) is None
     assert "no C compiler for win64 (no-such-mingw-gcc) on PATH: the FMUs keep pythonfmu's win64 library" \
         in capsys.readouterr().err
+
+
+def test_a_host_with_an_fmus_resources_on_sys_path_still_imports_pythonfmus_builder(built_fmus, tmp_path):
+    """fmpy leaves an FMU's resources/ on sys.path (and spawned workers inherit it): greyfmu's
+    FMU provider then imports pythonfmu.builder from the FMU's copy of pythonfmu."""
+    shutil.unpack_archive(built_fmus["PID"], tmp_path, "zip")
+    script = f"import sys; sys.path.insert(0, {str(tmp_path / 'resources')!r}); import pythonfmu.builder; " \
+             "print(pythonfmu.__file__)"
+    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert completed.returncode == 0, completed.stderr
+    assert completed.stdout.startswith(str(tmp_path / "resources"))
