@@ -1,6 +1,7 @@
 """Turn the archive pythonfmu built into a drop-in FMU (build side; not embedded in the FMUs).
 
-Given the archive's entries (name -> bytes), its model description and the slave's requirements, `drop_in` returns new entries:
+Given the archive's entries (name -> bytes), its model description and the slave's
+requirements, `drop_in` returns new entries:
 
 - ``binaries/linux64/<id>.so`` and ``binaries/win64/<id>.dll`` are the greyfmu loader
   (`greyfmu.loader`); pythonfmu's library moves next to it as ``pythonfmu-export.so``/``.dll``.
