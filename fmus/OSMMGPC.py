@@ -42,6 +42,7 @@ class OSMMGPC(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=4500.0, step_size=1.0)
     output_dependencies = {"u1": [], "u2": [], "u3": [], "active_group": []}
+    requirements = ("numpy", "scipy", "daqp")
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

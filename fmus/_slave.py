@@ -88,6 +88,9 @@ class GreyfmuSlave(Fmi2Slave):
     author = "greyfmu"
     output_dependencies: ClassVar[dict[str, list[str]]]
     """For every output, the inputs it depends on at the same instant (read by ``greyfmu build``)."""
+    requirements: ClassVar[tuple[str, ...]] = ("numpy", "scipy")
+    """The modules the FMU imports from the target's Python: the loader checks them at
+    instantiation, ``greyfmu build`` checks that the description names them."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

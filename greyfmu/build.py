@@ -8,7 +8,11 @@ modelDescription.xml is then post-processed:
 - every output must have ``initial="exact"`` and a start value (the build fails otherwise);
 - ``ModelStructure/Outputs/Unknown`` gets ``dependencies`` from the slave class's
   ``output_dependencies`` (pythonfmu omits it, which means "depends on every input");
-- ``UnitDefinitions`` declares every unit the variables use.
+- ``UnitDefinitions`` declares every unit the variables use;
+- then `greyfmu.dropin` makes it a drop-in FMU: greyfmu's loader as the linux64 binary, a
+  stable GUID, version/licence/copyright, ``documentation/`` with index.html and the licences.
+
+The embedded greyfmu package leaves out what only builds FMUs (`BUILD_ONLY`).
 
 ``dependenciesKind`` is not written: absent, it means "dependent", which is all the
 slaves can promise in general.
@@ -27,6 +31,8 @@ from xml.etree import ElementTree
 
 from pythonfmu.builder import FmuBuilder, get_model_class
 
+from greyfmu.dropin import BuildError, drop_in
+
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPOSITORY_ROOT = PACKAGE_DIR.parent
 FMU_SOURCES = REPOSITORY_ROOT / "fmus"
@@ -34,6 +40,10 @@ SLAVE_BASE = FMU_SOURCES / "_slave.py"
 FMI3_SOURCES = FMU_SOURCES / "fmi3"
 SLAVE_BASE3 = FMI3_SOURCES / "_slave3.py"
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
+BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "loader", "licenses", "__pycache__", "*.pyc")
+"""Files and folders of the greyfmu package that build FMUs and are not embedded in them."""
+ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
+"""The time stamp of every archive entry, so that rebuilding changes no byte but what changed."""
 
 BASE_UNITS: dict[str, dict[str, str]] = {
     "s": {"s": "1"},
@@ -48,10 +58,6 @@ BASE_UNITS: dict[str, dict[str, str]] = {
     "kg/s": {"kg": "1", "s": "-1"},
 }
 """SI base-unit exponents of the units the slaves use, for ``UnitDefinitions``."""
-
-
-class BuildError(RuntimeError):
-    """An FMU could not be built or its model description is not what the FMI standard needs."""
 
 
 class UnknownFmuError(ValueError):
@@ -83,8 +89,8 @@ def build_fmus(
 ) -> list[Path]:
     """Build the named FMUs (all FMI 2.0 ones when ``names`` is None) into ``out_dir`` (default build/fmus).
 
-    An FMU newer than all its sources (its script, ``fmus/_slave.py``, every greyfmu
-    module) is kept unless ``force``.  ``echo`` receives one line per FMU.  Returns the
+    An FMU newer than all its sources (its script, ``fmus/_slave.py``, every file of the
+    greyfmu package, the loader's C source included) is kept unless ``force``.  ``echo`` receives one line per FMU.  Returns the
     FMU paths in the order of ``names``.
     """
     available = fmu_names() + fmi3_fmu_names()
@@ -94,7 +100,8 @@ def build_fmus(
         raise UnknownFmuError(f"unknown FMU {', '.join(unknown)}; valid names: {', '.join(available)}")
     out_dir = DEFAULT_OUT_DIR if out_dir is None else Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    newest_common_source = max(path.stat().st_mtime for path in [*PACKAGE_DIR.rglob("*.py")])
+    newest_common_source = max(path.stat().st_mtime for path in PACKAGE_DIR.rglob("*")
+                               if path.is_file() and "__pycache__" not in path.relative_to(PACKAGE_DIR).parts)
     paths = []
     for name in requested:
         script = FMU_SOURCES / f"{name}.py"
@@ -138,7 +145,7 @@ def _build_one(script: Path, fmu: Path) -> None:
         return
     with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
         staged_package = Path(temp) / "package" / PACKAGE_DIR.name
-        shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns(*BUILD_ONLY))
         built = FmuBuilder.build_FMU(
             script,
             dest=Path(temp) / "fmu",
@@ -147,22 +154,29 @@ def _build_one(script: Path, fmu: Path) -> None:
         )
         slave_class = get_model_class(script)  # build_FMU put fmus/ on sys.path and imported it
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
-        _rewrite_model_description(Path(built), partial, slave_class.output_dependencies)
+        _rewrite_model_description(Path(built), partial, slave_class.output_dependencies, slave_class.requirements)
         os.replace(partial, fmu)
 
 
-def _rewrite_model_description(source: Path, target: Path, output_dependencies: dict[str, list[str]]) -> None:
+def _rewrite_model_description(source: Path, target: Path, output_dependencies: dict[str, list[str]],
+                               requirements: tuple[str, ...]) -> None:
     with zipfile.ZipFile(source) as archive:
         entries = {info.filename: archive.read(info) for info in archive.infolist()}
     root = ElementTree.fromstring(entries["modelDescription.xml"])
     model = root.get("modelName")
     _declare_output_dependencies(root, model, output_dependencies)
     _declare_units(root, model)
-    ElementTree.indent(root)
-    entries["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
+    _write_archive(target, drop_in(entries, root, requirements))
+
+
+def _write_archive(target: Path, entries: dict[str, bytes]) -> None:
+    """The FMU archive: entries in name order, each with `ARCHIVE_TIME` (executables keep their mode)."""
     with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-        for name, data in entries.items():
-            archive.writestr(name, data)
+        for name in sorted(entries):
+            info = zipfile.ZipInfo(name, ARCHIVE_TIME)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = (0o755 if name.startswith("binaries/") else 0o644) << 16
+            archive.writestr(info, entries[name])
 
 
 def _declare_output_dependencies(root: ElementTree.Element, model: str, output_dependencies: dict[str, list[str]]) -> None:
@@ -205,7 +219,7 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
 
     with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
         staged_package = Path(temp) / "package" / PACKAGE_DIR.name
-        shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns(*BUILD_ONLY))
         built = Fmu3Builder.build_FMU(script, dest=Path(temp) / "fmu", project_files=[staged_package, SLAVE_BASE3],
                                       needsExecutionTool="false", canHandleVariableCommunicationStepSize="true")
         with zipfile.ZipFile(built) as archive:

@@ -1,10 +1,15 @@
 """greyfmu build: the FMUs validate, declare the agreed interface and simulate correctly."""
 
+import dataclasses
+import html
 import math
 import os
 import shutil
 import subprocess
 import sys
+import zipfile
+from importlib.metadata import version
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
@@ -23,6 +28,8 @@ from greyfmu.build import (
     provide_fmu,
 )
 from greyfmu.cli import main
+from greyfmu.dropin import BUILD_PYTHON, stable_guid
+from greyfmu.loader import PLATFORMS, loader_binary
 from testfmus import edited_copy
 
 INTERFACE = {
@@ -132,21 +139,9 @@ def test_fmu_runs_in_a_fresh_python_with_only_its_embedded_greyfmu(built_fmus, t
 
     One process per FMU, as a foreign tool loads it: pythonfmu FMUs share one interpreter, so
     a second FMU in the same process would import the greyfmu modules the first one loaded
-    (from the first FMU's resources, which fmpy.simulate_fmu deletes when it returns).  The
-    script empties pythonfmu 0.7.0's static state before fmpy unloads the library, as cosim
-    does (cosim.instances.pythonfmu_state.release_pythonfmu_state); without it the process can
-    abort on unload."""
-    script = (
-        "import sys, fmpy\n"
-        "from fmpy.fmi1 import _FMU\n"
-        "unload = _FMU.freeLibrary\n"
-        "def free_library(self):\n"   # pythonfmu 0.7.0's unload bug: see cosim.instances.pythonfmu_state
-        "    self.dll.finalizePythonInterpreter()\n"
-        "    unload(self)\n"
-        "_FMU.freeLibrary = free_library\n"
-        "fmpy.simulate_fmu(sys.argv[1])\n"
-        "print(sys.modules['greyfmu'].__file__)\n"
-    )
+    (from the first FMU's resources, which fmpy.simulate_fmu deletes when it returns).  No
+    workaround for pythonfmu 0.7.0's double release at unload: the FMU's loader neutralises it."""
+    script = "import sys, fmpy\nfmpy.simulate_fmu(sys.argv[1])\nprint(sys.modules['greyfmu'].__file__)\n"
     env = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
     completed = subprocess.run(
         [sys.executable, "-c", script, str(built_fmus[name])],
@@ -268,10 +263,81 @@ def test_cli_reports_each_fmu_and_the_output_folder(built_fmus, capsys):
 
 def test_rewrite_refuses_an_output_without_a_declared_dependency_list(built_fmus, tmp_path):
     with pytest.raises(BuildError, match="output_dependencies"):
-        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {})
+        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {}, ("numpy", "scipy"))
 
 
 def test_rewrite_refuses_an_output_without_initial_exact(built_fmus, tmp_path):
     broken = edited_copy(built_fmus["Gain"], tmp_path / "broken.fmu", lambda xml: xml.replace('initial="exact"', ""))
     with pytest.raises(BuildError, match="initial"):
-        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]})
+        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]}, ("numpy", "scipy"))
+
+
+def test_rebuilding_gives_a_byte_identical_model_description_and_the_same_guid(built_fmus, tmp_path):
+    """Issue 13, stable identity: two builds of unchanged sources; the GUID is not pythonfmu's random one."""
+    first, second = (build_fmus(["PID", "OSMMGPC"], tmp_path / folder, force=True) for folder in ("a", "b"))
+    for a, b, name in zip(first, second, ["PID", "OSMMGPC"]):
+        with zipfile.ZipFile(a) as one, zipfile.ZipFile(b) as other, zipfile.ZipFile(built_fmus[name]) as kept:
+            assert one.read("modelDescription.xml") == other.read("modelDescription.xml") \
+                == kept.read("modelDescription.xml")
+    assert read_model_description(str(first[0])).guid != read_model_description(str(first[1])).guid
+
+
+def test_the_guid_follows_the_model_description_and_every_embedded_source(built_fmus):
+    with zipfile.ZipFile(built_fmus["Gain"]) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    root = ElementTree.fromstring(entries["modelDescription.xml"])
+    assert stable_guid(root, entries) == root.get("guid")
+    edited = dict(entries, **{"resources/greyfmu/signals/arithmetic.py": entries["resources/greyfmu/signals/arithmetic.py"] + b"\n"})
+    assert stable_guid(root, edited) != root.get("guid")
+    assert stable_guid(root, dict(entries, **{BUILD_PYTHON: b"/elsewhere/python3\n"})) == root.get("guid")
+    root.find("DefaultExperiment").set("stopTime", "99")
+    assert stable_guid(root, entries) != root.get("guid")
+
+
+@pytest.mark.parametrize("name", ["PID", "OSMMGPC", "SteamHeader"])
+def test_fmu_states_version_licence_and_carries_the_notices_and_documentation(built_fmus, name):
+    md = read_model_description(str(built_fmus[name]))
+    assert md.version == version("greyfmu") and md.license == "MIT" and md.author == "greyfmu"
+    assert "greyfmu authors" in md.copyright and "pythonfmu" in md.copyright
+    with zipfile.ZipFile(built_fmus[name]) as archive:
+        names = archive.namelist()
+        notice = archive.read("documentation/licenses/pythonfmu-LICENSE.txt").decode()
+        page = archive.read("documentation/index.html").decode()
+    assert "MIT License" in notice and "NTNU" in notice and "documentation/licenses/greyfmu-LICENSE.txt" in names
+    for variable in md.modelVariables:  # every variable, with its unit, on the page
+        assert f"<td>{html.escape(variable.name)}</td>" in page
+        if variable.unit:
+            assert f"<td>{html.escape(variable.unit)}</td>" in page
+    assert md.defaultExperiment.stopTime in page and "GREYFMU_PYTHON" in page
+    if name == "OSMMGPC":
+        assert "<code>daqp</code>" in page
+
+
+@pytest.mark.parametrize("name", ["PID", "OSMMGPC"])
+def test_fmu_carries_only_what_it_runs(built_fmus, name):
+    """No greyfmu build tooling (pythonfmu's package stays whole: see greyfmu.dropin)."""
+    with zipfile.ZipFile(built_fmus[name]) as archive:
+        names = set(archive.namelist())
+    build_side = {"resources/greyfmu/build.py", "resources/greyfmu/cli.py", "resources/greyfmu/dropin.py",
+                  "resources/greyfmu/documentation.py"}
+    assert not names & build_side
+    assert not any(entry.startswith(("resources/greyfmu/loader/", "resources/greyfmu/licenses/")) for entry in names)
+    assert {"binaries/linux64/pythonfmu-export.so", f"binaries/linux64/{name}.so", "resources/greyfmu_target.py"} <= names
+
+
+def test_without_a_compiler_for_a_platform_the_build_says_so_and_keeps_pythonfmus_library(capsys):
+    missing = dataclasses.replace(PLATFORMS[1], compilers=("no-such-mingw-gcc",))
+    assert loader_binary(missing) is None
+    assert "no C compiler for win64 (no-such-mingw-gcc) on PATH: the FMUs keep pythonfmu's win64 library" \
+        in capsys.readouterr().err
+
+
+def test_a_host_with_an_fmus_resources_on_sys_path_still_imports_pythonfmus_builder(built_fmus, tmp_path):
+    """fmpy leaves an FMU's resources/ on sys.path (and spawned workers inherit it): greyfmu's
+    FMU provider then imports pythonfmu.builder from the FMU's copy of pythonfmu."""
+    shutil.unpack_archive(built_fmus["PID"], tmp_path, "zip")
+    script = f"import sys; sys.path.insert(0, {str(tmp_path / 'resources')!r}); import pythonfmu.builder; " \
+             "print(pythonfmu.__file__)"
+    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert completed.returncode == 0, completed.stderr
+    assert completed.stdout.startswith(str(tmp_path / "resources"))

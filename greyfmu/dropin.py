@@ -1,0 +1,97 @@
+"""Turn the archive pythonfmu built into a drop-in FMU (build side; not embedded in the FMUs).
+
+Given the archive's entries (name -> bytes), its model description and the slave's
+requirements, `drop_in` returns new entries:
+
+- ``binaries/linux64/<id>.so`` and ``binaries/win64/<id>.dll`` are the greyfmu loader
+  (`greyfmu.loader`); pythonfmu's library moves next to it as ``pythonfmu-export.so``/``.dll``.
+  Where there is no C compiler for a platform (cc; x86_64-w64-mingw32-gcc for win64) the
+  pythonfmu library stays the binary, and the build says so once on stderr: that FMU then
+  loads only in a host that already runs Python (fmpy, cosim; on Windows, python3.dll on PATH);
+- ``resources/`` gets the loader's target check, the FMU's requirements and the path of the
+  interpreter that built it (the loader's second choice).  pythonfmu's package stays whole,
+  builder included: a Python host keeps an FMU's ``resources/`` on ``sys.path`` after
+  running it (fmpy does, and so do processes spawned from it), and a later
+  ``import pythonfmu.builder`` there (greyfmu's FMU provider, on every cosim run) then finds
+  this copy; without its builder, that import fails;
+- ``documentation/`` gets ``index.html`` (`greyfmu.documentation`) and ``licenses/`` with the
+  greyfmu and pythonfmu MIT notices;
+- the model description gets ``version`` (the greyfmu version), ``license``, ``copyright``,
+  no ``generationDateAndTime``, and a GUID derived from a hash of the model description and
+  every embedded source (`stable_guid`), so the same sources give the same GUID and two
+  builds the same modelDescription.xml.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+import uuid
+from importlib.metadata import version
+from pathlib import Path
+from xml.etree import ElementTree
+
+from greyfmu.documentation import index_html
+from greyfmu.loader import PLATFORMS, TARGET_CHECK, loader_binary
+
+LICENSES = Path(__file__).resolve().parent / "licenses"
+LICENSE = "MIT"
+COPYRIGHT = "Copyright (c) 2026 the greyfmu authors; embeds pythonfmu 0.7.0, Copyright (c) 2019-2020 NTNU and Safran SA"
+BUILD_PYTHON = "resources/greyfmu_build_python.txt"
+"""Machine-specific, so left out of the GUID's hash."""
+
+
+class BuildError(RuntimeError):
+    """An FMU could not be built or its model description is not what the FMI standard needs."""
+
+
+def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: tuple[str, ...]) -> dict[str, bytes]:
+    """The drop-in FMU's entries from pythonfmu's ``entries`` and the repaired model description ``root``;
+    ``requirements``: the modules the FMU imports from the target Python (the slave's ``requirements``)."""
+    model = root.get("modelName")
+    identifier = root.find("CoSimulation").get("modelIdentifier")
+    result = dict(entries)
+    loaders = []
+    for platform in PLATFORMS:
+        loader = loader_binary(platform)
+        binary = f"binaries/{platform.folder}/{identifier}{platform.suffix}"
+        if loader is not None and binary in result:
+            result[f"binaries/{platform.folder}/{platform.pythonfmu_library}"] = result.pop(binary)
+            result[binary] = loader
+            loaders.append(platform.folder)
+    result["resources/greyfmu_target.py"] = TARGET_CHECK.read_bytes()
+    result["resources/greyfmu_requirements.txt"] = "".join(f"{name}\n" for name in requirements).encode()
+    result[BUILD_PYTHON] = f"{sys.executable}\n".encode()
+    for notice in sorted(LICENSES.glob("*.txt")):
+        result[f"documentation/licenses/{notice.name}"] = notice.read_bytes()
+    _check_requirements_are_stated(root, model, requirements)
+    root.set("version", version("greyfmu"))
+    root.set("license", LICENSE)
+    root.set("copyright", COPYRIGHT)
+    root.attrib.pop("generationDateAndTime", None)
+    ElementTree.indent(root)  # before the hash: it covers the text as written
+    root.set("guid", stable_guid(root, result))
+    result["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
+    result["documentation/index.html"] = index_html(root, requirements, tuple(loaders)).encode()
+    return result
+
+
+def stable_guid(root: ElementTree.Element, entries: dict[str, bytes]) -> str:
+    """A GUID from the SHA-256 of the model description (its guid attribute left out) and of
+    every resource but the machine-specific `BUILD_PYTHON`, in name order."""
+    digest = hashlib.sha256()
+    described = {key: value for key, value in root.attrib.items() if key != "guid"}
+    digest.update(repr(sorted(described.items())).encode())
+    for child in root:
+        digest.update(ElementTree.tostring(child, encoding="UTF-8"))
+    for name in sorted(entries):
+        if name.startswith("resources/") and name != BUILD_PYTHON:
+            digest.update(name.encode() + b"\0" + hashlib.sha256(entries[name]).digest())
+    return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
+
+
+def _check_requirements_are_stated(root: ElementTree.Element, model: str, requirements: tuple[str, ...]) -> None:
+    description = root.get("description", "")
+    unstated = [name for name in requirements if name not in description]
+    if unstated:
+        raise BuildError(f"{model}: the slave requires {', '.join(unstated)}, which its description does not name")

@@ -1,0 +1,75 @@
+"""The drop-in loader of the greyfmu FMUs (build side; not embedded in the FMUs).
+
+``fmi2_loader.c`` (with its platform layer ``platform.h``) becomes each FMU's
+``binaries/linux64/<modelIdentifier>.so`` and ``binaries/win64/<modelIdentifier>.dll``: it finds
+a Python, loads its shared libpython and forwards every fmi2 function to pythonfmu's library,
+shipped next to it as ``pythonfmu-export.so`` / ``.dll`` (see the C file's header).
+``greyfmu_target.py`` is shipped as ``resources/greyfmu_target.py``: the check the loader runs
+with a candidate Python.
+"""
+
+from __future__ import annotations
+
+import functools
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+LOADER_SOURCE = Path(__file__).resolve().parent / "fmi2_loader.c"
+TARGET_CHECK = Path(__file__).resolve().parent / "greyfmu_target.py"
+
+
+@dataclass(frozen=True)
+class Platform:
+    """How the loader is compiled for one FMI platform folder."""
+
+    folder: str
+    suffix: str
+    compilers: tuple[str, ...]
+    flags: tuple[str, ...]
+    libraries: tuple[str, ...]
+
+    @property
+    def pythonfmu_library(self) -> str:
+        """The name pythonfmu's library gets inside the FMU, next to the loader."""
+        return f"pythonfmu-export{self.suffix}"
+
+
+PLATFORMS = (
+    Platform("linux64", ".so", ("cc", "gcc", "clang"), ("-shared", "-fPIC", "-O2", "-fvisibility=hidden"),
+             ("-ldl", "-lpthread")),
+    Platform("win64", ".dll", ("x86_64-w64-mingw32-gcc",), ("-shared", "-O2", "-static-libgcc"), ("-lpsapi",)),
+)
+WARNINGS = ("-Wall", "-Wextra", "-Werror")
+
+
+class LoaderError(RuntimeError):
+    """The loader could not be compiled."""
+
+
+def compiler(platform: Platform) -> str | None:
+    """The first of the platform's C compilers on PATH; None if there is none."""
+    return next((found for name in platform.compilers if (found := shutil.which(name))), None)
+
+
+@functools.cache
+def loader_binary(platform: Platform) -> bytes | None:
+    """The compiled loader for ``platform``, once per process; None (said once on stderr) when
+    there is no compiler for it: the FMU then keeps pythonfmu's library there."""
+    found = compiler(platform)
+    if found is None:
+        print(f"greyfmu build: no C compiler for {platform.folder} ({', '.join(platform.compilers)}) on PATH: the "
+              f"FMUs keep pythonfmu's {platform.folder} library, which loads only in a host that already runs "
+              "Python" + (" (Windows: with python3.dll on PATH)" if platform.folder == "win64" else ""),
+              file=sys.stderr)
+        return None
+    with tempfile.TemporaryDirectory(prefix="greyfmu-loader-") as temp:
+        library = Path(temp) / f"loader{platform.suffix}"
+        completed = subprocess.run([found, *platform.flags, *WARNINGS, "-o", str(library), str(LOADER_SOURCE),
+                                    *platform.libraries], capture_output=True, text=True)
+        if completed.returncode != 0:
+            raise LoaderError(f"{found} could not compile {LOADER_SOURCE} for {platform.folder}:\n{completed.stderr}")
+        return library.read_bytes()

@@ -1,0 +1,288 @@
+/* Platform layer of the greyfmu loader (fmi2_loader.c): Linux (POSIX) and Windows.
+ *
+ * Libraries (open, look up, a Python already in the process), the loader's own path, files,
+ * a lock, and running the check script in a child process with a time limit.
+ */
+#ifndef GREYFMU_LOADER_PLATFORM_H
+#define GREYFMU_LOADER_PLATFORM_H
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define QUERY_SECONDS 60
+#define OUTPUT_LIMIT (1 << 20)
+
+static void append(char *buffer, size_t size, const char *format, ...) {
+    size_t used = strlen(buffer);
+    if (used + 1 >= size) return;
+    va_list args;
+    va_start(args, format);
+    vsnprintf(buffer + used, size - used, format, args);
+    va_end(args);
+}
+
+/* The end of run_query: the child's output in *output, or the time-out as the problem. */
+static int query_answer(char *text, int timed_out, const char *python, char **output, char *problem, size_t size) {
+    if (timed_out) {
+        append(problem, size, "%s did not answer within %d s", python, QUERY_SECONDS);
+        free(text);
+        return 0;
+    }
+    *output = text;
+    return 1;
+}
+
+#ifdef _WIN32
+/* ------------------------------------------------------------------ Windows */
+#include <windows.h>
+#include <psapi.h>
+
+#define EXPORT __declspec(dllexport)
+#undef PATH_MAX
+#define PATH_MAX 1024
+#define SEPARATOR '\\'
+#define PATH_LIST_SEPARATOR ";"
+#define PLATFORM_FOLDER "win64"
+#define LIBRARY_SUFFIX ".dll"
+#define PYTHON_ON_PATH "python.exe"
+
+typedef SRWLOCK Lock;
+#define LOCK_INITIALIZER SRWLOCK_INIT
+static void lock(Lock *l) { AcquireSRWLockExclusive(l); }
+static void unlock(Lock *l) { ReleaseSRWLockExclusive(l); }
+
+static void *library_open(const char *path, int global, char *problem, size_t size) {
+    (void)global; /* Windows resolves imports by module name: a loaded python3XX.dll serves every later DLL */
+    HMODULE library = LoadLibraryExA(path, NULL, LOAD_WITH_ALTERED_SEARCH_PATH);
+    if (library == NULL) append(problem, size, "cannot load %s (Windows error %lu)", path, GetLastError());
+    return (void *)library;
+}
+
+static void *library_symbol(void *library, const char *name) {
+    return (void *)GetProcAddress((HMODULE)library, name);
+}
+
+/* pythonXY.dll (not the stable-ABI python3.dll) if one is loaded in this process. */
+static void *loaded_python(void) {
+    HMODULE modules[1024];
+    DWORD needed = 0;
+    if (!EnumProcessModules(GetCurrentProcess(), modules, sizeof modules, &needed)) return NULL;
+    for (DWORD i = 0; i < needed / sizeof(HMODULE) && i < 1024; i++) {
+        char name[MAX_PATH];
+        if (!GetModuleBaseNameA(GetCurrentProcess(), modules[i], name, sizeof name)) continue;
+        if (_strnicmp(name, "python3", 7) == 0 && _stricmp(name, "python3.dll") != 0 && strlen(name) > 11 &&
+            _stricmp(name + strlen(name) - 4, ".dll") == 0)
+            return (void *)modules[i];
+    }
+    return NULL;
+}
+
+static int library_path(char *path, size_t size) {
+    HMODULE self;
+    if (!GetModuleHandleExA(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS | GET_MODULE_HANDLE_EX_FLAG_UNCHANGED_REFCOUNT,
+                            (LPCSTR)&library_path, &self))
+        return 0;
+    DWORD length = GetModuleFileNameA(self, path, (DWORD)size);
+    for (DWORD i = 0; i < length; i++)
+        if (path[i] == '/') path[i] = '\\';
+    return length > 0 && length < size;
+}
+
+static int is_executable(const char *path) {
+    DWORD attributes = GetFileAttributesA(path);
+    return attributes != INVALID_FILE_ATTRIBUTES && !(attributes & FILE_ATTRIBUTE_DIRECTORY);
+}
+
+/* PYTHONHOME is not set on Windows: Python finds its home from pythonXY.dll's folder. */
+static char *set_python_home(const char *home) {
+    (void)home;
+    return NULL;
+}
+static void restore_python_home(char *saved) { (void)saved; }
+
+static int run_query(const char *python, const char *script, char **output, char *problem, size_t size) {
+    SECURITY_ATTRIBUTES inherit = {sizeof inherit, NULL, TRUE};
+    HANDLE read_end, write_end;
+    if (!CreatePipe(&read_end, &write_end, &inherit, 0)) {
+        append(problem, size, "cannot create a pipe to run %s (Windows error %lu)", python, GetLastError());
+        return 0;
+    }
+    SetHandleInformation(read_end, HANDLE_FLAG_INHERIT, 0);
+    HANDLE nul = CreateFileA("NUL", GENERIC_READ, FILE_SHARE_READ | FILE_SHARE_WRITE, &inherit, OPEN_EXISTING, 0, NULL);
+    STARTUPINFOA startup = {0};
+    startup.cb = sizeof startup;
+    startup.dwFlags = STARTF_USESTDHANDLES;
+    startup.hStdInput = nul;
+    startup.hStdOutput = write_end;
+    startup.hStdError = write_end;
+    PROCESS_INFORMATION child;
+    char command[3 * PATH_MAX];
+    snprintf(command, sizeof command, "\"%s\" \"%s\" --query", python, script);
+    BOOL started = CreateProcessA(python, command, NULL, NULL, TRUE, CREATE_NO_WINDOW, NULL, NULL, &startup, &child);
+    CloseHandle(write_end);
+    CloseHandle(nul);
+    if (!started) {
+        append(problem, size, "cannot run %s (Windows error %lu)", python, GetLastError());
+        CloseHandle(read_end);
+        return 0;
+    }
+    size_t capacity = 8192, length = 0;
+    char *text = malloc(capacity);
+    DWORD deadline = GetTickCount() + QUERY_SECONDS * 1000;
+    int timed_out = 0, exited = 0;
+    for (;;) {
+        DWORD available = 0;
+        if (!PeekNamedPipe(read_end, NULL, 0, NULL, &available, NULL)) break; /* the child closed its end */
+        if (available > 0) {
+            if (length + available + 1 > capacity && capacity < OUTPUT_LIMIT) {
+                while (length + available + 1 > capacity && capacity < OUTPUT_LIMIT) capacity *= 2;
+                text = realloc(text, capacity);
+            }
+            DWORD got = 0;
+            DWORD want = (DWORD)(capacity - length - 1) < available ? (DWORD)(capacity - length - 1) : available;
+            if (want == 0 || !ReadFile(read_end, text + length, want, &got, NULL)) break;
+            length += got;
+            continue;
+        }
+        if (exited) break;
+        if ((int)(deadline - GetTickCount()) <= 0) {
+            timed_out = 1;
+            break;
+        }
+        exited = WaitForSingleObject(child.hProcess, 20) == WAIT_OBJECT_0;
+    }
+    if (timed_out) TerminateProcess(child.hProcess, 1);
+    WaitForSingleObject(child.hProcess, INFINITE);
+    CloseHandle(child.hProcess);
+    CloseHandle(child.hThread);
+    CloseHandle(read_end);
+    text[length] = '\0';
+    return query_answer(text, timed_out, python, output, problem, size);
+}
+
+#else
+/* ------------------------------------------------------------------ Linux */
+#include <dlfcn.h>
+#include <errno.h>
+#include <limits.h>
+#include <poll.h>
+#include <pthread.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+extern char **environ;
+
+#define EXPORT __attribute__((visibility("default")))
+#define SEPARATOR '/'
+#define PATH_LIST_SEPARATOR ":"
+#define PLATFORM_FOLDER "linux64"
+#define LIBRARY_SUFFIX ".so"
+#define PYTHON_ON_PATH "python3"
+
+typedef pthread_mutex_t Lock;
+#define LOCK_INITIALIZER PTHREAD_MUTEX_INITIALIZER
+static void lock(Lock *l) { pthread_mutex_lock(l); }
+static void unlock(Lock *l) { pthread_mutex_unlock(l); }
+
+static void *library_open(const char *path, int global, char *problem, size_t size) {
+    void *library = dlopen(path, RTLD_NOW | (global ? RTLD_GLOBAL : RTLD_LOCAL));
+    if (library == NULL) append(problem, size, "cannot load %s: %s", path, dlerror());
+    return library;
+}
+
+static void *library_symbol(void *library, const char *name) { return dlsym(library, name); }
+
+/* The process's global symbols if they include an initialised Python's. */
+static void *loaded_python(void) {
+    int (*initialized)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "Py_IsInitialized");
+    return initialized != NULL && initialized() ? RTLD_DEFAULT : NULL;
+}
+
+static int library_path(char *path, size_t size) {
+    Dl_info info;
+    char resolved[PATH_MAX];
+    if (!dladdr((void *)&library_path, &info) || info.dli_fname == NULL || realpath(info.dli_fname, resolved) == NULL)
+        return 0;
+    snprintf(path, size, "%s", resolved);
+    return 1;
+}
+
+static int is_executable(const char *path) {
+    struct stat status;
+    return stat(path, &status) == 0 && S_ISREG(status.st_mode) && access(path, X_OK) == 0;
+}
+
+/* PYTHONHOME for Py_InitializeEx only: returns the previous value (malloc'ed) to restore. */
+static char *set_python_home(const char *home) {
+    const char *previous = getenv("PYTHONHOME");
+    char *saved = previous ? strdup(previous) : NULL;
+    setenv("PYTHONHOME", home, 1);
+    return saved;
+}
+
+static void restore_python_home(char *saved) {
+    if (saved) {
+        setenv("PYTHONHOME", saved, 1);
+        free(saved);
+    } else {
+        unsetenv("PYTHONHOME");
+    }
+}
+
+static int run_query(const char *python, const char *script, char **output, char *problem, size_t size) {
+    int pipe_ends[2];
+    if (pipe(pipe_ends) != 0) {
+        append(problem, size, "cannot create a pipe to run %s (%s)", python, strerror(errno));
+        return 0;
+    }
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addclose(&actions, pipe_ends[0]);
+    posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDOUT_FILENO);
+    posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDERR_FILENO);
+    posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", 0, 0);
+    char *argv[] = {(char *)python, (char *)script, "--query", NULL};
+    pid_t child;
+    int spawned = posix_spawn(&child, python, &actions, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&actions);
+    close(pipe_ends[1]);
+    if (spawned != 0) {
+        close(pipe_ends[0]);
+        append(problem, size, "cannot run %s (%s)", python, strerror(spawned));
+        return 0;
+    }
+    size_t capacity = 8192, length = 0;
+    char *text = malloc(capacity);
+    time_t deadline = time(NULL) + QUERY_SECONDS;
+    int timed_out = 0;
+    for (;;) {
+        struct pollfd ready = {pipe_ends[0], POLLIN, 0};
+        int left = (int)(deadline - time(NULL));
+        if (left <= 0 || poll(&ready, 1, left * 1000) == 0) {
+            timed_out = 1;
+            break;
+        }
+        if (length + 4096 > capacity && capacity < OUTPUT_LIMIT) text = realloc(text, capacity *= 2);
+        ssize_t got = read(pipe_ends[0], text + length, capacity - length - 1);
+        if (got < 0 && errno == EINTR) continue;
+        if (got <= 0) break;
+        length += (size_t)got;
+        if (length + 1 >= capacity) break;
+    }
+    close(pipe_ends[0]);
+    text[length] = '\0';
+    if (timed_out) kill(child, SIGKILL);
+    int status = 0;
+    while (waitpid(child, &status, 0) < 0 && errno == EINTR) {
+    }
+    return query_answer(text, timed_out, python, output, problem, size);
+}
+#endif
+
+#endif
