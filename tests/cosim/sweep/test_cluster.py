@@ -1,7 +1,7 @@
 """`cosim sweep --scheduler ADDRESS` on a real Dask cluster: a ``dask scheduler`` and ``dask
 worker`` processes started here, one worker in its own mount namespace where the project's
-``ssp/`` and ``build/``, the sweep's output folder and ``/tmp`` are empty tmpfs mounts (what a
-machine with only greyfmu installed sees), and a worker killed in the middle of a sweep.
+``ssp/`` and ``build/``, the sweep's output folder and its own temporary folder are empty tmpfs
+mounts (what a machine with only greyfmu installed sees), and a worker killed in the middle of a sweep.
 """
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -51,10 +52,10 @@ class Cluster:
         self.address = _wait_for(lambda: file.is_file() and json.loads(file.read_text() or "{}").get("address"),
                                  "the Dask scheduler")
 
-    def worker(self, name: str, prefix: list[str] = ()) -> None:
+    def worker(self, name: str, prefix: list[str] = (), env: dict[str, str] | None = None) -> None:
         command = [*prefix, DASK, "worker", self.address, "--name", name, "--nthreads", "1",
                    "--no-nanny", "--no-dashboard"]
-        self.processes[name] = subprocess.Popen(command, stdout=subprocess.DEVNULL,
+        self.processes[name] = subprocess.Popen(command, stdout=subprocess.DEVNULL, env=env,
                                                 stderr=(self.folder / f"{name}.log").open("w"))
 
     def client(self, workers: int):
@@ -110,7 +111,12 @@ def test_a_worker_that_sees_no_scenario_and_no_output_folder_runs_the_sweep(clus
     out = tmp_path / "cluster_out"
     out.mkdir()
     local = sweep(SCENARIO, sets, metrics=[METRIC], output=tmp_path / "local", executor="serial")
-    cluster.worker("isolated", _isolated([ROOT / "ssp", ROOT / "build", out, Path("/tmp")]))
+    # the worker's temporary folder is a tmpfs of its own too (not all of /tmp: the checkout and
+    # its virtual environment may live there, as in a CI clone)
+    worker_tmp = tmp_path / "worker_tmp"
+    worker_tmp.mkdir()
+    cluster.worker("isolated", _isolated([ROOT / "ssp", ROOT / "build", out, worker_tmp]),
+                   env={**os.environ, "TMPDIR": str(worker_tmp)})
     with cluster.client(1) as client:
         # what the worker sees: neither the scenario, nor the built FMUs, nor the output folder
         seen = client.run(lambda: [os.path.exists(ROOT / SCENARIO / "SystemStructure.ssd"),
@@ -120,7 +126,7 @@ def test_a_worker_that_sees_no_scenario_and_no_output_folder_runs_the_sweep(clus
         set_args = [a for name, values in sets.items() for a in ("--set", f"{name}={','.join(values)}")]
         assert main(["sweep", SCENARIO, *set_args, "--metrics", METRIC, "--scheduler", cluster.address,
                      "--output", str(out), "--quiet"]) == 0
-        cached = client.run(lambda: [sorted(p.name for p in Path("/tmp/cosim-sweep").iterdir()),
+        cached = client.run(lambda: [sorted(p.name for p in (Path(tempfile.gettempdir()) / "cosim-sweep").iterdir()),
                                      any((ROOT / "build").iterdir())])
     remote = read_table(out / "sweep.parquet")
     _same_rows(remote, local)
