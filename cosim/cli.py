@@ -66,6 +66,12 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--timeout", type=float, metavar="SECONDS",
                      help="end the run after SECONDS (status 'timeout', exit 1); an FMU call still not "
                           "returned 2 s later is killed, the rows so far kept")
+    run.add_argument("--isolate", action="store_true",
+                     help="run each FMU in a process of its own: an FMU that crashes (abort, segfault, exit) "
+                          "ends the run as that component's failure (status 'crashed', exit 1), every row kept")
+    run.add_argument("--call-timeout", type=float, metavar="SECONDS",
+                     help="with --isolate: an FMU call that does not return within SECONDS kills that "
+                          "component's process (status 'timeout', exit 1)")
 
     validate = sub.add_parser("validate", help="check a system without running it")
     common(validate)
@@ -174,11 +180,12 @@ def _run(args) -> int:
     from .journal import journal_path
     from .observers import check_csv_names
     from .outputs import RESULT_SUFFIXES, check_output, plot_suffixes, scenario_files
-    from .simulation import prepare
+    from .simulation import isolation_of, prepare
     from .supervisor import supervise
 
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         raise SetupError(f"--timeout {args.timeout}: give a positive number of seconds.", element="--timeout")
+    isolation_of(args.isolate, args.call_timeout)  # refused before anything is read
     prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
                        algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
                        loops=args.loops)
@@ -234,7 +241,8 @@ def _execute(args, prepared, name: str, output: Path) -> int:
             warnings.simplefilter("always", RuntimeWarning)  # printed as cosim's own warnings
             result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
                                    keep=[n for panel in panels for n in panel] if args.plot is not None else [],
-                                   loop_settings=settings, stop=stop)
+                                   loop_settings=settings, stop=stop, isolate=args.isolate,
+                                   call_timeout=args.call_timeout)
         for warning in caught:
             print(f"cosim: warning: {warning.message}", file=sys.stderr)
     except RunError:

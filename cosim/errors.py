@@ -59,6 +59,16 @@ class RunError(CosimError):
         super().__init__(message, **kwargs)
 
 
+class ComponentLost(RunError):
+    """A component's own process (``--isolate``, `cosim.instances.isolated`) died during an FMU
+    call (``outcome`` "crashed") or did not answer within the call timeout ("timeout"): the
+    run's status is the outcome."""
+
+    def __init__(self, message: str, *, outcome: str, **kwargs):
+        self.outcome = outcome
+        super().__init__(message, **kwargs)
+
+
 class OutputError(CosimError):
     """A result file could not be written during the run (a full disk): the run ends, the rows
     written before stay readable."""

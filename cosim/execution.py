@@ -32,10 +32,11 @@ from functools import cached_property
 
 import numpy as np
 
-from .errors import RunError, SetupError
+from .errors import ComponentLost, RunError, SetupError
 from .description import FMUDescription, exchange_type
 from .instances import STATUS, Instance, Unzipped, open_instance
 from .instances.fmi3 import BinaryValue
+from .instances.isolated import Isolation
 from .interrupts import StopRequest
 from .loops import LoopSettings, LoopSolver, Watched
 from .structure import Plan
@@ -193,7 +194,7 @@ class Execution:
     """One run of a plan on a grid with an algorithm, feeding a recorder."""
 
     def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi", fmu_log: str = "errors",
-                 loop_settings: LoopSettings | None = None):
+                 loop_settings: LoopSettings | None = None, isolation: Isolation | None = None):
         if algorithm not in ALGORITHMS:
             raise SetupError(f"unknown algorithm '{algorithm}'; choose one of {', '.join(ALGORITHMS)}.",
                              element="algorithm")
@@ -201,6 +202,8 @@ class Execution:
         self.grid = grid
         self.algorithm = algorithm
         self.fmu_log = fmu_log
+        #: each component in a process of its own (``--isolate``), or all in this one (None)
+        self.isolation = isolation
         self.order = list(plan.components)
         self.typed = [_Typed(plan, t, self.order) for t in TYPES
                       if any(exchange_type(v) == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
@@ -229,7 +232,8 @@ class Execution:
     def instantiate(self) -> None:
         for name in self.order:
             desc = self.plan.fmus[name]
-            inst = open_instance(name, desc, self._unzipped(desc.path), self.plan.solvers.get(name))
+            opened = open_instance if self.isolation is None else self.isolation.open
+            inst = opened(name, desc, self._unzipped(desc.path), self.plan.solvers.get(name))
             self.instances[name] = inst
             inst.instantiate(self.fmu_log)
         self._compile_calls()
@@ -277,6 +281,8 @@ class Execution:
     def _guard(self, comp: str, t: float, what: str, call) -> None:
         try:
             call()
+        except ComponentLost:  # names the component, the call and t already
+            raise
         except Exception as e:
             inst = self.instances[comp]
             status = getattr(e, "status", None)

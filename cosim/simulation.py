@@ -17,9 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from . import ssp
-from .errors import OutputError, RunError, SetupError, did_you_mean
+from .errors import ComponentLost, OutputError, RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
 from .instances import Unzipped
+from .instances.isolated import Isolation
 from .interrupts import StopRequest
 from .journal import Journal, journal_path
 from .observers import MemorySink, Recorder, file_sink
@@ -109,7 +110,8 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
              parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
              output: str | Path | None = None, progress: bool = False,
              use_providers: bool = True, fmu_log: str = "errors", loops: LoopMode = "iterate",
-             loop_settings: LoopSettings | None = None) -> np.ndarray:
+             loop_settings: LoopSettings | None = None, isolate: bool = False,
+             call_timeout: float | None = None) -> np.ndarray:
     """Run an SSP system and return every connector at every communication point.
 
     The result is a structured array with a ``time`` field and one field per
@@ -123,13 +125,18 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     collected to explain a failure ("errors", "all" or "off"; see `cosim.instances.fmi2.FMI2Instance.instantiate`).
     ``loops``: algebraic loops solved by iteration ("iterate", with ``loop_settings``) or broken
     by one step of delay ("delay", with a warning), see `cosim.loops`.
+    ``isolate``: each FMU in a process of its own (`cosim.instances.isolated`), so a crashing
+    FMU raises `cosim.errors.ComponentLost` naming it; ``call_timeout`` (needs ``isolate``):
+    seconds an FMU call may take before its process is killed.
     """
+    isolation_of(isolate, call_timeout)  # refused before anything is read
     prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
                        use_providers=use_providers, loops=loops)
     try:
         result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
-                               loop_settings=loop_settings)
+                               loop_settings=loop_settings, isolate=isolate,
+                               call_timeout=call_timeout)
     finally:
         prepared.close()
     if metadata["status"] == "discarded":
@@ -140,7 +147,8 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
         fmu_log: str = "errors", keep: Sequence[str] | None = None,
         loop_settings: LoopSettings | None = None, stop: StopRequest | None = None,
-        journal: bool = True) -> tuple[np.ndarray, dict]:
+        journal: bool = True, isolate: bool = False, call_timeout: float | None = None
+        ) -> tuple[np.ndarray, dict]:
     """Execute a prepared system; returns the samples and the run's metadata.
 
     ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
@@ -150,13 +158,18 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     signals the returned array holds besides ``time`` (None: all); a long run streamed to
     ``output`` keeps only what it needs in memory.  ``stop``: set by a signal
     (`cosim.interrupts.stop_on_signals`), ends the run at the next communication point.
+    ``isolate``: components in processes of their own (`cosim.instances.isolated`); a
+    component whose process crashed or whose call took more than ``call_timeout`` seconds ends
+    the run with status "crashed" or "timeout" (`cosim.errors.ComponentLost`), the rows so far
+    written.
     """
+    isolation = isolation_of(isolate, call_timeout)
     plan = prepared.plan
     memory = MemorySink(keep)
     sinks: list = [memory] + ([file_sink(output)] if output is not None else [])
     if plan.system_outputs:
         sinks = [SystemOutputColumns(list(plan.system_outputs.values()), sinks)]
-    execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings)
+    execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, isolation)
     recorder = None
     bar = None
     try:
@@ -172,7 +185,7 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
                        desc=plan.name or "cosim")
         execution.run(recorder, bar, stop)
     except BaseException as e:
-        execution.status = "failed"
+        execution.status = e.outcome if isinstance(e, ComponentLost) else "failed"
         execution.message = str(e) if isinstance(e, (RunError, OutputError)) else f"{type(e).__name__}: {e}"
         if recorder is not None:
             try:
@@ -191,6 +204,14 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     metadata = _metadata(prepared, execution)
     recorder.close(metadata)
     return memory.array(), metadata
+
+
+def isolation_of(isolate: bool, call_timeout: float | None) -> Isolation | None:
+    """The `Isolation` of ``--isolate`` and ``--call-timeout`` (which needs it), or None."""
+    if call_timeout is not None and not isolate:
+        raise SetupError("it needs --isolate (isolate=True): only an FMU call in a process of "
+                         "its own can be stopped.", element="--call-timeout")
+    return Isolation(call_timeout) if isolate else None
 
 
 def _journal_factory(output: str | Path, plan: Plan, metadata: dict):
@@ -216,6 +237,7 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
     if plan.system_outputs:
         meta["system_outputs"] = {o.name: f"{o.factor:.17g} * {o.component}.{o.connector} + {o.offset:.17g}"
                                   for o in plan.system_outputs.values()}
+    meta["isolation"] = execution.isolation.metadata() if execution.isolation is not None else None
     meta["step_size_source"] = prepared.step_source
     meta["units"] = plan.units
     meta["parameter_sets"] = list(prepared.parameter_sets)
