@@ -5,13 +5,15 @@
 real instance with `cosim.instances.open_instance` (FMI 2.0/3.0 Co-Simulation, Model Exchange),
 answers each request, and passes on the log messages the FMU sent during the call.  The child
 ignores SIGINT (a Ctrl-C reaches the whole process group; the master stops the run at its next
-communication point and frees the components), asks the kernel to kill it when the master
+communication point and frees the components), leaves reporting a crash to the master (no
+faulthandler dump), asks the kernel to kill it when the master
 dies (``PR_SET_PDEATHSIG``), and never returns: it ends with ``os._exit``, running none of the
 master's exit handlers (its FMU extraction folder belongs to the master).
 """
 from __future__ import annotations
 
 import ctypes
+import faulthandler
 import mmap
 import os
 import signal
@@ -39,6 +41,7 @@ def serve(sock: socket.socket, shared: mmap.mmap, name: str, desc: FMUDescriptio
     code = 0
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        faulthandler.disable()  # a crash is reported by the master (pytest turns the dump on)
         for s in (signal.SIGTERM, signal.SIGALRM):  # the master's stop handlers (cosim.interrupts) are not ours
             signal.signal(s, signal.SIG_DFL)
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
