@@ -9,6 +9,7 @@ pid_fopdt, C FMUs of FMI 2.0 and 3.0 with every exchange type, String connection
 """
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import signal
@@ -27,6 +28,16 @@ from cosim.results import read
 from ssdgen import ssd_text, write_system
 from test_fmi_types import BYTES3, BYTES3_BODY, MODES2, MODES2_BODY, OUTPUTS3, TYPES3, TYPES3_BODY
 from testfmus import build_test_fmus
+
+
+
+def _sibling(path: str):
+    """A test module of another folder (its FMU sources), loaded under its own name."""
+    spec = importlib.util.spec_from_file_location(f"isolate_{Path(path).stem}", Path(__file__).parent / path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
 
 CRASHES = [(1, "crashed with SIGABRT"), (2, "crashed with SIGSEGV"), (3, "exited with status 3")]
 
@@ -198,19 +209,23 @@ def test_pid_fopdt_isolated_equals_in_process(built_fmus):
 def test_c_fmus_of_fmi2_and_fmi3_isolated_equal_in_process(tmp_path, fmus):
     """Every exchange path through the channel: Real, Integer (FMI 3.0 Int8/Int64/Enumeration
     gathered through scratch buffers), Boolean, Float32, Binary (pointers), FMI 2.0 Enumeration,
-    String (pythonfmu Labels), with feedthrough settling."""
+    String (pythonfmu Labels), with feedthrough settling; and an FMI 3.0 Model Exchange ball
+    integrated in its process."""
+    ball = _sibling("instances/test_model_exchange_fmi3.py")
     c = tmp_path / "c"
     files = {"Types3.fmu": build_c_fmu(c, "Types3", TYPES3, TYPES3_BODY, "3.0"),
              "Modes2.fmu": build_c_fmu(c, "Modes2", MODES2, MODES2_BODY, "2.0"),
              "Bytes3.fmu": build_c_fmu(c, "Bytes3", BYTES3, BYTES3_BODY, "3.0"),
-             "Labels.fmu": fmus["Labels"]}
+             "Labels.fmu": fmus["Labels"],
+             "Ball3.fmu": build_c_fmu(c, "Ball3", ball.BALL3, ball.BALL3_BODY, "3.0", model_exchange=True)}
     comps = {"a": ("Types3.fmu", {o: "output" for o in OUTPUTS3}),
              "b": ("Types3.fmu", {"fin": "input", "i8in": "input", "i64in": "input", "ein": "input",
                                   "fecho": "output", "sum": "output"}),
              "m": ("Modes2.fmu", {"mode": "output"}), "n": ("Modes2.fmu", {"set": "input", "echo": "output"}),
              "x": ("Bytes3.fmu", {"blob": "output"}),
              "y": ("Bytes3.fmu", {"bin": "input", "length": "output", "checksum": "output"}),
-             "p": ("Labels.fmu", {"label": "output"}), "q": ("Labels.fmu", {"text": "input", "length": "output"})}
+             "p": ("Labels.fmu", {"label": "output"}), "q": ("Labels.fmu", {"text": "input", "length": "output"}),
+             "ball": ("Ball3.fmu", {"h": "output", "v": "output"})}
     wires = [("a", "f", "b", "fin"), ("a", "i8", "b", "i8in"), ("a", "i64", "b", "i64in"), ("a", "e", "b", "ein"),
              ("m", "mode", "n", "set"), ("x", "blob", "y", "bin"), ("p", "label", "q", "text")]
     folder = write_system(tmp_path / "all", files, ssd_text("all", comps, wires, stop=1.0, step=0.1))
@@ -218,3 +233,4 @@ def test_c_fmus_of_fmi2_and_fmi3_isolated_equal_in_process(tmp_path, fmus):
     _same(cosim.simulate(folder, isolate=True), ours)
     assert list(ours["q.length"][:2]) == [3, 3] and ours["q.length"][-1] == 4   # 'low', then 'high'
     np.testing.assert_array_equal(ours["y.checksum"], np.arange(11) * (np.arange(11) + 1))
+    assert ours["ball.v"][0] == 0 and ours["ball.v"].max() > 0  # it fell and bounced (a state event)
