@@ -2,15 +2,20 @@
 its memory-mapped journal (`cosim.journal`), and with and without the supervising parent
 process of `cosim run` (`cosim.supervisor`: one fork per run, nothing per step).
 
-    python benchmarks/bench_journal.py [--steps 50000] [--repeat 5]
+    python benchmarks/bench_journal.py [--steps 50000] [--repeat 15]
 
-Each number is the best of ``--repeat`` runs of the stepping loop (``loop_seconds`` of the
-metadata: the recorder's per-row counter store and its window reservations are in it) and of
-the whole `cosim run` command; prints µs per step and the ratios (the budget is 1.05).
+The stepping loop (``loop_seconds`` of the metadata: the recorder's per-row counter store and
+its window reservations are in it) is timed ``--repeat`` times with and without the journal,
+the two interleaved pair by pair so a busy machine slows both alike; prints the median and the
+spread (min–max) of µs per step, the median and spread of the pairwise ratios journal / no
+journal (the budget is 1.05), the load average before and after, and the best whole `cosim
+run` command.
 """
 from __future__ import annotations
 
 import argparse
+import os
+import statistics
 import sys
 import tempfile
 import time
@@ -37,27 +42,34 @@ def loop_seconds(ssp: str, stop: float, output: Path, journal: bool) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=50_000)
-    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--repeat", type=int, default=15)
     args = parser.parse_args()
     stop = args.steps * STEP
+    load_before = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
         ssp = str(Path(tmp) / "pid_fopdt.ssp")
         cosim_main(["pack", str(ROOT / "ssp" / "pid_fopdt"), "-o", ssp])
         out = Path(tmp) / "r.csv"
-        best = {"no journal": float("inf"), "journal": float("inf")}
-        for _ in range(args.repeat):  # interleaved, so a busy machine slows both alike
-            for name, journal in (("no journal", False), ("journal", True)):
-                best[name] = min(best[name], loop_seconds(ssp, stop, out, journal))
+        runs: dict[str, list[float]] = {"no journal": [], "journal": []}
+        for k in range(args.repeat):  # interleaved, so a busy machine slows both alike; the order alternates
+            order = (("no journal", False), ("journal", True))
+            for name, journal in order if k % 2 == 0 else order[::-1]:
+                runs[name].append(loop_seconds(ssp, stop, out, journal) / args.steps * 1e6)
         command = float("inf")
-        for _ in range(args.repeat):
+        for _ in range(min(args.repeat, 3)):
             started = time.perf_counter()
             cosim_main(["run", ssp, "-q", "--stop", str(stop), "-o", str(out)])
             command = min(command, time.perf_counter() - started)
-    print(f"pid_fopdt, {args.steps} steps to a CSV, best of {args.repeat}:")
-    for name, seconds in best.items():
-        print(f"  loop, {name:10}: {seconds / args.steps * 1e6:7.2f} µs/step")
-    print(f"  journal / no journal: {best['journal'] / best['no journal']:.3f}")
-    print(f"  cosim run (supervised, journal), whole command: {command:.2f} s")
+    ratios = [j / n for n, j in zip(runs["no journal"], runs["journal"])]
+    print(f"pid_fopdt, {args.steps} steps to a CSV, {args.repeat} interleaved pairs; load average "
+          f"{' '.join(f'{x:.2f}' for x in load_before)} before, {' '.join(f'{x:.2f}' for x in os.getloadavg())} "
+          f"after, {os.cpu_count()} cores:")
+    for name, us in runs.items():
+        print(f"  loop, {name:10}: median {statistics.median(us):7.2f} µs/step ({min(us):.2f}–{max(us):.2f}), "
+              f"best {min(us):.2f}")
+    print(f"  journal / no journal: median ×{statistics.median(ratios):.3f} ({min(ratios):.3f}–{max(ratios):.3f}); "
+          f"of the bests ×{min(runs['journal']) / min(runs['no journal']):.3f}")
+    print(f"  cosim run (supervised, journal), whole command: best {command:.2f} s")
 
 
 if __name__ == "__main__":

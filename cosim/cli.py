@@ -414,16 +414,20 @@ def _metrics(args) -> int:
 
 
 def _report(args) -> int:
+    from .outputs import check_output
     from .report import write_report
     from .results import read
     from .simulation import select
 
+    result = Path(args.result)
+    page = Path(args.output or result.with_suffix(".html"))
+    check_output(page, {result.resolve(), result.with_suffix(".json").resolve()}, what="report",
+                 option="--output", suffixes=(".html", ".htm"), owner="the result's")
     panels = None
     if args.signals:
         names = [n for n in read(args.result).dtype.names if n != "time"]
         panels = [select(names, g.split(",")) for g in args.signals]
-    page = write_report(args.result, args.output or Path(args.result).with_suffix(".html"), panels=panels)
-    print(f"cosim: report: {page}")
+    print(f"cosim: report: {write_report(result, page, panels=panels)}")
     return 0
 
 

@@ -1,6 +1,6 @@
 """Output paths checked before anything is instantiated (issue 17).
 
-A run that would end by failing to write its result, JSON or plot, or by overwriting the
+A run (or ``cosim report``) that would end by failing to write its result, JSON or plot, or by overwriting the
 scenario it runs (``cosim run S -o S/SystemStructure.ssd``), is refused up front with exit
 status 2: every target must have a known format, must not be a folder nor one of the
 scenario's own files (its SSD, .ssp archive, parameter sets, FMUs), and its folder must exist
@@ -31,9 +31,10 @@ def scenario_files(plan: Plan) -> set[Path]:
 
 
 def check_output(path: Path, own: set[Path], *, what: str, option: str, suffixes: Iterable[str],
-                 companions: Iterable[Path] = ()) -> Path:
+                 companions: Iterable[Path] = (), owner: str = "the scenario's") -> Path:
     """``path`` (and the files written beside it, ``companions``) if they can be written; else
-    a `SetupError` naming ``option`` and the reason."""
+    a `SetupError` naming ``option`` and the reason (``own``: the files of ``owner``, never
+    written over)."""
     suffixes = tuple(suffixes)
     if path.suffix.lower() not in suffixes:
         raise SetupError(f"{path}: a {what} name must end in {' or '.join(suffixes)}.", element=option)
@@ -41,7 +42,7 @@ def check_output(path: Path, own: set[Path], *, what: str, option: str, suffixes
         if target.is_dir():
             raise SetupError(f"{target} is a folder; give a file name for the {what}.", element=option)
         if target.resolve() in own:
-            raise SetupError(f"{target} is one of the scenario's own files; writing the {what} there would "
+            raise SetupError(f"{target} is one of {owner} own files; writing the {what} there would "
                              "destroy it. Choose another name.", element=option)
     folder = path.resolve().parent
     existing = next(p for p in (folder, *folder.parents) if p.exists())

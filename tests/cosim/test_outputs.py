@@ -112,3 +112,25 @@ def test_a_full_disk_ends_the_run_cleanly_and_keeps_what_fitted(scenario, small_
     assert len(res) >= 1 and list(res["time"]) == pytest.approx([0.1 * k for k in range(len(res))], abs=1e-9)
     if target.with_suffix(".json").exists():
         assert json.loads(target.with_suffix(".json").read_text())["status"] == "failed"
+
+
+def test_cosim_report_checks_its_page_as_run_report_does(scenario, tmp_path, capsys):
+    """`cosim report RESULT -o X` refuses X before reading anything, as `cosim run --report` does:
+    the result itself or its JSON (destroyed before), a folder, a wrong suffix, a file as a folder."""
+    result = tmp_path / "r.csv"
+    assert main(["run", str(scenario), "-q", "--stop", "2", "-o", str(result)]) == 0
+    capsys.readouterr()
+    kept = {p: p.read_bytes() for p in (result, result.with_suffix(".json"))}
+    (tmp_path / "file").write_text("")
+    for target, reason in [(result, "must end in .html or .htm"), (result.with_suffix(".json"), "must end in"),
+                           (tmp_path, "must end in"), (tmp_path / "file" / "r.html", "is a file, not a folder")]:
+        assert reason in _refused(capsys, "report", str(result), "-o", str(target))
+    (tmp_path / "page.html").mkdir()
+    assert "is a folder" in _refused(capsys, "report", str(result), "-o", str(tmp_path / "page.html"))
+    odd = tmp_path / "odd.html"   # a CSV named .html: its default page would be the result itself
+    odd.write_bytes(result.read_bytes())
+    assert "one of the result's own files" in _refused(capsys, "report", str(odd))
+    assert odd.read_bytes() == result.read_bytes()
+    assert {p: p.read_bytes() for p in kept} == kept
+    assert main(["report", str(result), "-o", str(tmp_path / "new" / "r.html")]) == 0
+    assert (tmp_path / "new" / "r.html").stat().st_size > 0
