@@ -7,7 +7,7 @@ Two systems, run to memory (no file) through `cosim.simulation.run`, the steppin
 (metadata ``loop_seconds``), in-process and isolated runs interleaved so a busy machine slows
 both alike:
 
-- ``pid_fopdt`` (8 of our pythonfmu FMUs, feedthrough settled within the instant);
+- ``pid_fopdt`` (4 of our pythonfmu FMUs: set-point, load, PID, FOPDT plant);
 - a chain of 10 C FMUs (FMI 2.0, compiled here with tests/cfmus.py): y = x, x' = u − x by
   explicit Euler per step, no feedthrough, so per FMU and step one fmi2DoStep, one
   fmi2GetReal and one fmi2SetReal: each a round trip to the component's process under
@@ -73,7 +73,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=7)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        systems = {"pid_fopdt (8 pythonfmu FMUs)": (str(ROOT / "ssp" / "pid_fopdt"), 0.1, 8),
+        systems = {"pid_fopdt (4 pythonfmu FMUs)": (str(ROOT / "ssp" / "pid_fopdt"), 0.1, 4),
                    f"chain of {N_LAGS} C FMUs": (lag_chain(Path(tmp)), 0.01, N_LAGS)}
         times = {name: {False: [], True: []} for name in systems}
         for _ in range(args.repeat):

@@ -6,7 +6,8 @@ A request is `REQUEST` (operation, exchange slot, count, t, h, flag, payload len
 optional pickled payload; the answer is `RESPONSE` (status, flags, payload length) and an
 optional pickled payload ``(log messages, data)``.  The hot calls (do_step, get and set of
 numbers) carry no payload: their values are in the slot's region of the shared memory, so a
-call is one round trip of two small headers.  Strings and Binary values (pointers, not
+call is one round trip of two small headers, and the reads the master makes right after a
+step (its outputs) are done by the component's process before it answers the step.  Strings and Binary values (pointers, not
 numbers) travel pickled in the payload, as do the set-up calls (`OP_CALL`).
 """
 from __future__ import annotations
@@ -33,6 +34,13 @@ KINDS = ("Real", "Integer", "Boolean", "String", "Binary")
 NUMBERS = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int}
 #: bytes a slot reserves per value in the shared memory (the widest number, a double)
 VALUE_BYTES = 8
+#: The shared memory begins with the status of each number slot read right after a step
+#: (int32 per slot, the first `READ_AHEAD_SLOTS` slots): the component's process does those
+#: reads before it answers the step, so they cost no round trip of their own.
+READ_AHEAD_SLOTS = 64
+STATUS_BYTES = 4 * READ_AHEAD_SLOTS
+#: a read-ahead status: not read (an earlier read of that step failed)
+NOT_READ = -99
 
 
 class RemoteError(Exception):

@@ -23,8 +23,8 @@ from typing import NoReturn
 from ..description import FMUDescription
 from ..structure import SolverSettings
 from . import open_instance
-from .channel import (HAS_PAYLOAD, NUMBERS, OP_CALL, OP_FREE, OP_GET, OP_SET, OP_SLOT, OP_STEP, RAISED, REQUEST,
-                      RESPONSE, dumps, exception_payload, loads, receive_exactly)
+from .channel import (HAS_PAYLOAD, NOT_READ, NUMBERS, OP_CALL, OP_FREE, OP_GET, OP_SET, OP_SLOT, OP_STEP, RAISED,
+                      READ_AHEAD_SLOTS, REQUEST, RESPONSE, dumps, exception_payload, loads, receive_exactly)
 from .fmi3 import BinaryValue
 
 #: prctl option: the signal this process gets when its parent thread ends (linux/prctl.h)
@@ -61,7 +61,8 @@ class _Slot:
     slot's region of the shared memory (numbers) or in arrays of its own (String, Binary)."""
 
     def __init__(self, shared: mmap.mmap, kind: str, offset: int, vrs: list[int]):
-        n = max(1, len(vrs))
+        self.n = len(vrs)
+        n = max(1, self.n)
         self.kind = kind
         self.vrs = (ctypes.c_uint * n)(*vrs)
         if kind in NUMBERS:
@@ -99,6 +100,9 @@ class _Host:
                  solver: SolverSettings | None):
         self.sock, self.shared = sock, shared
         self.slots: list[_Slot] = []
+        #: the number slots the master reads right after a step, read here before the step is answered
+        self.read_ahead: list[int] = []
+        self.statuses = (ctypes.c_int32 * READ_AHEAD_SLOTS).from_buffer(shared)
         self.head = bytearray(REQUEST.size)
         self.view = memoryview(self.head)
         try:
@@ -129,7 +133,12 @@ class _Host:
     def dispatch(self, op: int, slot: int, n: int, t: float, h: float, flag: int, payload) -> tuple[int, object]:
         inst = self.inst
         if op == OP_STEP:
-            return inst.do_step(inst.component, t, h, flag), None
+            if payload is not None:
+                self.read_ahead = payload
+            status = inst.do_step(inst.component, t, h, flag)
+            if status <= 1:
+                self.read_after_step()
+            return status, None
         if op == OP_GET:
             s = self.slots[slot]
             status = inst.get[s.kind](inst.component, s.vrs, n, s.values)
@@ -153,6 +162,18 @@ class _Host:
             inst.free()
             return 0, None
         raise ValueError(f"unknown request {op}")
+
+    def read_after_step(self) -> None:
+        """The master's reads that follow a step (`cosim.instances.isolated`), in its order; their
+        statuses in the shared memory, none after one above Warning."""
+        inst, statuses = self.inst, self.statuses
+        for i in self.read_ahead:
+            statuses[i] = NOT_READ
+        for i in self.read_ahead:
+            s = self.slots[i]
+            statuses[i] = status = inst.get[s.kind](inst.component, s.vrs, s.n, s.values)
+            if status > 1:
+                return
 
     def answer(self, status: int, data) -> None:
         """The status, and the FMU's log messages since the last answer with the call's data."""

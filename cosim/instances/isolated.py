@@ -5,7 +5,10 @@ This is libcosim's proxy-FMU idea on a fork: `IsolatedInstance` is the master's 
 `cosim.instances.Instance` whose ``do_step``/``get``/``set`` are Python callables with the
 raw functions' signatures; each forwards the call to the component's process
 (`cosim.instances.host`) over a Unix socket pair, the numbers in a shared memory region both
-map (`cosim.instances.channel`), so a call is one round trip of two small headers.  When the
+map (`cosim.instances.channel`), so a call is one round trip of two small headers; the reads
+the master makes right after a step (learnt at the first step) are done by the component's
+process before it answers the step and cost no round trip (the FMU sees the same calls in the
+same order).  When the
 component's process dies (``abort()``, a segfault, ``_exit()``, SIGKILL) the call raises
 `cosim.errors.ComponentLost` (outcome ``crashed``) naming the component, its FMU file, the FMI
 call, the signal or exit status and t; with ``call_timeout`` a call that does not return in
@@ -30,8 +33,8 @@ from dataclasses import dataclass
 from ..description import FMUDescription
 from ..errors import ComponentLost, SetupError
 from ..structure import SolverSettings
-from .channel import (KINDS, NUMBERS, OP_CALL, OP_FREE, OP_GET, OP_SET, OP_SLOT, OP_STEP, RAISED, REQUEST,
-                      RESPONSE, VALUE_BYTES, dumps, loads, receive_exactly)
+from .channel import (KINDS, NOT_READ, NUMBERS, OP_CALL, OP_FREE, OP_GET, OP_SET, OP_SLOT, OP_STEP, RAISED,
+                      READ_AHEAD_SLOTS, REQUEST, RESPONSE, STATUS_BYTES, VALUE_BYTES, dumps, loads, receive_exactly)
 from .fmi3 import FMI3_FUNCTIONS
 from .host import serve
 
@@ -76,11 +79,19 @@ class IsolatedInstance:
         self.call_timeout = call_timeout
         self._time = 0.0  # the time of the last call, for messages
         capacity = SLOTS_PER_VALUE * (len(desc.md.modelVariables) + len(desc.elements))
-        self._size = -(-max(1, capacity) * VALUE_BYTES // mmap.PAGESIZE) * mmap.PAGESIZE
+        self._size = -(-(STATUS_BYTES + capacity * VALUE_BYTES) // mmap.PAGESIZE) * mmap.PAGESIZE
         self._shared = mmap.mmap(-1, self._size)  # anonymous and shared: inherited by the fork
         self._anchor = ctypes.c_char.from_buffer(self._shared)
         self._base = ctypes.addressof(self._anchor)
-        self._used = 0
+        self._used = STATUS_BYTES
+        #: read ahead (`cosim.instances.channel.READ_AHEAD_SLOTS`): the number slots read right
+        #: after a step, how many of them the component's process knows, those read since the
+        #: last step and not yet taken, and whether only reads followed the last step
+        self._read_ahead: list[int] = []
+        self._told = 0
+        self._fresh: set[int] = set()
+        self._after_step = False
+        self._statuses = (ctypes.c_int32 * READ_AHEAD_SLOTS).from_address(self._base)
         self._slots: dict[tuple[int, int], tuple] = {}
         self._head = bytearray(RESPONSE.size)
         self._view = memoryview(self._head)
@@ -106,6 +117,9 @@ class IsolatedInstance:
 
     def _request(self, op: int, what: str, slot: int = 0, n: int = 0, t: float = 0.0, h: float = 0.0,
                  flag: int = 0, payload: bytes = b"") -> int:
+        if op != OP_GET:  # a read leaves the FMU as it was; anything else makes the reads ahead stale
+            self._fresh.clear()
+            self._after_step = False
         if self._pid is None:
             raise ComponentLost(f"{what} called after the component's process ended.", outcome="crashed",
                                 time=self._time, component=self.name, element=self._element())
@@ -199,7 +213,13 @@ class IsolatedInstance:
 
     def _step(self, component, t: float, h: float, no_prior_state: int) -> int:
         self._time = t
-        status = self._request(OP_STEP, self._step_call, 0, 0, t, h, no_prior_state)
+        told = b""
+        if len(self._read_ahead) != self._told:
+            told, self._told = dumps(self._read_ahead), len(self._read_ahead)
+        status = self._request(OP_STEP, self._step_call, 0, 0, t, h, no_prior_state, told)
+        if status <= 1:
+            self._fresh.update(self._read_ahead)
+            self._after_step = True
         self._time = t + h
         return status
 
@@ -210,6 +230,14 @@ class IsolatedInstance:
 
             def get(component, vrs, n: int, values) -> int:
                 index, address, _, _ = self._slot(kind, vrs, n, values)
+                if index in self._fresh:  # read by the component's process right after the step
+                    self._fresh.discard(index)
+                    status = self._statuses[index]
+                    if status != NOT_READ:
+                        ctypes.memmove(values, address, n * size)
+                        return status
+                elif self._after_step and index < READ_AHEAD_SLOTS and index not in self._read_ahead:
+                    self._read_ahead.append(index)  # told to the component's process with the next step
                 status = self._request(OP_GET, what, index, n)
                 ctypes.memmove(values, address, n * size)
                 return status

@@ -15,7 +15,7 @@ from typing import Any
 
 from ..errors import SetupError
 from .dispatch import Task, distributed, failed_row
-from .shipping import Package, deliver, execute_shipped, parameter_set_bytes, publish_package
+from .shipping import Package, deliver, execute_shipped, forget_package, parameter_set_bytes, publish_package
 
 #: tries of a run after its first that raised (a lost worker is rescheduled by the scheduler itself)
 RETRIES = 2
@@ -71,13 +71,17 @@ def dispatch_cluster(tasks: list[Task], executor, package: Package,
 
 
 def _collect(tasks: list[Task], client, package: Package, done) -> None:
-    """Every run at once; those that ended in ``KilledWorker`` again one at a time (see `_run`)."""
+    """Every run at once; those that ended in ``KilledWorker`` again one at a time (see `_run`);
+    then the workers' unpacked copies of the scenario are removed (`forget_package`)."""
     shipped = publish_package(client, package)
-    suspects = [task for task, _ in _run(tasks, client, shipped, done)]
-    for task in suspects:
-        for _, outcome in _run([task], client, shipped, done):
-            row = failed_row(task, outcome)
-            done(task, {**row, "message": f"{row['message']} Rerun alone, it killed its workers again."})
+    try:
+        suspects = [task for task, _ in _run(tasks, client, shipped, done)]
+        for task in suspects:
+            for _, outcome in _run([task], client, shipped, done):
+                row = failed_row(task, outcome)
+                done(task, {**row, "message": f"{row['message']} Rerun alone, it killed its workers again."})
+    finally:
+        forget_package(client, package)
 
 
 def _run(tasks: list[Task], client, shipped, done) -> list[tuple[Task, Exception]]:

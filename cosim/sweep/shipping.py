@@ -3,7 +3,8 @@
 The client packs the scenario once into an SSP archive (the SSD, every ``.ssv`` beside it and
 every FMU, as ``cosim pack`` writes it: `package_of`), Dask hands it to every worker under a
 key naming its SHA-256 (`publish_package`), and a worker unpacks it once into its own cache,
-``$TMPDIR/cosim-sweep/<sha256>/`` (`unpacked`).  Each run carries the bytes of its parameter
+``$TMPDIR/cosim-sweep/<sha256>/`` (`unpacked`), removed from every worker still connected and
+from the client's machine when the sweep ends (`forget_package`).  Each run carries the bytes of its parameter
 sets (the sweep's ``--param-set`` files and the run's own ``.ssv``); the worker runs it in a
 temporary folder and returns the table row with the run's result files (``<id>.csv`` and
 ``<id>.json``), which the client writes into ``OUTPUT/runs/`` (`deliver`).  A worker needs only
@@ -15,6 +16,7 @@ import hashlib
 import os
 import shutil
 import tempfile
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -59,6 +61,30 @@ def _package(package: Package) -> Package:
 
 def cache_folder() -> Path:
     return Path(tempfile.gettempdir()) / "cosim-sweep"
+
+
+def forget(digest: str) -> None:
+    """Remove this machine's unpacked copy of a package, the staging folders of a worker killed
+    while unpacking it, and the cache folder itself once it is empty."""
+    folder = cache_folder()
+    for path in [folder / digest, *folder.glob(f"{digest}.*")]:
+        shutil.rmtree(path, ignore_errors=True)
+    try:
+        folder.rmdir()
+    except OSError:  # missing, or holding the copies of other scenarios
+        pass
+
+
+def forget_package(client, package: Package) -> None:
+    """At the end of a sweep: the unpacked copies of ``package`` removed on every worker connected
+    now (`forget` through ``client.run``) and on the client's machine (local workers share its
+    temporary folder).  A worker that died or left during the sweep keeps its copy."""
+    try:
+        client.run(forget, package.digest)
+    except Exception as e:  # noqa: BLE001 -- the sweep's rows are written; say what is left
+        warnings.warn(f"the workers' copies of the scenario ({cache_folder()}/{package.digest} on each) "
+                      f"could not be removed: {e}", RuntimeWarning, stacklevel=2)
+    forget(package.digest)
 
 
 def unpacked(package: Package, max_unpacked: int) -> Path:
