@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -153,9 +154,13 @@ def test_same_table_on_a_dask_local_cluster(pool_sweep, scenario, tmp_path):
             assert (math.isnan(a[key]) and math.isnan(b[key])) or abs(a[key] - b[key]) <= 1e-12, key
 
 
-def test_a_refused_value_is_a_failed_row_and_the_others_complete(scenario, tmp_path, capsys):
+def test_a_refused_value_is_a_failed_row_and_the_others_complete(scenario, tmp_path, capsys, monkeypatch):
     # T = 0 passes the model description (no min) but the FOPDT FMU refuses it at initialisation;
-    # the runs go to a Dask LocalCluster the CLI starts (--scheduler local:N)
+    # the runs go to a Dask LocalCluster the CLI starts (--scheduler local:N), whose workers
+    # unpack the scenario into $TMPDIR/cosim-sweep/ (a folder of this test's own here)
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "tmp"))
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    (tmp_path / "tmp").mkdir()
     status = main(["sweep", str(scenario), "--set", "plant.T=20,0", "--metrics", METRIC,
                    "--scheduler", "local:2", "--output", str(tmp_path), "--quiet"])
     assert status == 1
@@ -166,6 +171,7 @@ def test_a_refused_value_is_a_failed_row_and_the_others_complete(scenario, tmp_p
     assert "time constant T must be a finite number > 0" in by_t[0.0]["message"]
     assert by_t[0.0]["plant.y:IAE"] is None
     assert "failed" in capsys.readouterr().err
+    assert not (tmp_path / "tmp" / "cosim-sweep").exists()  # the workers' copies removed at the end
 
 
 @pytest.mark.parametrize("args, expected", [
