@@ -4,8 +4,9 @@
 `serve` runs in the child forked by `cosim.instances.isolated.IsolatedInstance`: it opens the
 real instance with `cosim.instances.open_instance` (FMI 2.0/3.0 Co-Simulation, Model Exchange),
 answers each request, and passes on the log messages the FMU sent during the call.  The child
-ignores SIGINT (a Ctrl-C reaches the whole process group; the master stops the run at its next
-communication point and frees the components), leaves reporting a crash to the master (no
+ignores SIGINT and SIGTERM (a Ctrl-C, or a SIGTERM to the process group, reaches every process
+of the group; the master stops the run at its next communication point and frees the
+components), leaves reporting a crash to the master (no
 faulthandler dump), asks the kernel to kill it when the master
 dies (``PR_SET_PDEATHSIG``), and never returns: it ends with ``os._exit``, running none of the
 master's exit handlers (its FMU extraction folder belongs to the master).
@@ -40,10 +41,10 @@ def serve(sock: socket.socket, shared: mmap.mmap, name: str, desc: FMUDescriptio
     answer requests; exit 0 when freed or when the master has gone."""
     code = 0
     try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for s in (signal.SIGINT, signal.SIGTERM):  # sent to the group: the master stops the run and frees us
+            signal.signal(s, signal.SIG_IGN)
+        signal.signal(signal.SIGALRM, signal.SIG_DFL)  # the master's stop handler (cosim.interrupts) is not ours
         faulthandler.disable()  # a crash is reported by the master (pytest turns the dump on)
-        for s in (signal.SIGTERM, signal.SIGALRM):  # the master's stop handlers (cosim.interrupts) are not ours
-            signal.signal(s, signal.SIG_DFL)
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
         if os.getppid() != master:  # the master died before the line above
             os._exit(1)

@@ -169,9 +169,11 @@ def test_cli_whole_run_timeout_with_isolate_ends_a_hung_component(tmp_path, fmus
     assert _processes_naming(str(folder)) == []
 
 
-def test_cli_ctrl_c_to_the_process_group_stops_at_a_communication_point(tmp_path, fmus):
-    """A terminal's Ctrl-C reaches every process of the group: the components' processes ignore
-    it and the master stops the run at its next communication point, as without --isolate."""
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_cli_ctrl_c_to_the_process_group_stops_at_a_communication_point(tmp_path, fmus, signum, code):
+    """A terminal's Ctrl-C (or a SIGTERM to the group) reaches every process of the group: the
+    components' processes ignore it and the master stops the run at its next communication
+    point, as without --isolate."""
     folder = _faulty(tmp_path, fmus, 5, fault_time=0.0, stop=1000.0, step=0.1, delay=0.01)
     csv = tmp_path / "out.csv"
     proc = _cosim(tmp_path, "run", str(folder), "-q", "--isolate", "-o", str(csv), start_new_session=True)
@@ -179,9 +181,9 @@ def test_cli_ctrl_c_to_the_process_group_stops_at_a_communication_point(tmp_path
     while not (csv.exists() and csv.stat().st_size > 200):
         assert proc.poll() is None and time.monotonic() < deadline
         time.sleep(0.1)
-    os.killpg(proc.pid, signal.SIGINT)
+    os.killpg(proc.pid, signum)
     out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and "Traceback" not in err and "stopped by SIGINT" in err, err
+    assert proc.returncode == code and "Traceback" not in err and f"stopped by {signum.name}" in err, err
     meta = json.loads(csv.with_suffix(".json").read_text())
     assert meta["status"] == "interrupted" and len(read(csv)) == round(meta["last_time"] / 0.1) + 1
 
