@@ -96,6 +96,7 @@ class IsolatedInstance:
         self._head = bytearray(RESPONSE.size)
         self._view = memoryview(self._head)
         self._data = None
+        self._keep: list[bytes] = []  # the String/Binary values of the last read, until the caller copied them
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         master = os.getpid()
         pid = os.fork()
