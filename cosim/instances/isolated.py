@@ -108,7 +108,13 @@ class IsolatedInstance:
         _OPEN.add(ours)
         self._poll = select.poll()
         self._poll.register(ours, select.POLLIN)
-        self._answer(f"opening {desc.path.name}")
+        try:
+            self._answer(f"opening {desc.path.name}")
+        except ComponentLost:  # reaped already
+            raise
+        except Exception:  # open_instance raised there: the process has ended
+            self._reap(kill=False)
+            raise
         self.do_step = self._step
         self._step_call = f"{self.api}DoStep" if desc.kind.endswith("-cs") else "the Model Exchange integration step"
         self.get = {kind: self._getter(kind) for kind in KINDS}
@@ -145,8 +151,6 @@ class IsolatedInstance:
             self.messages.extend(messages)
         if status == RAISED:
             error, self._data = self._data, None
-            if what.startswith("opening"):
-                self._reap(kill=False)
             raise error
         return status
 
