@@ -44,7 +44,11 @@ def test_ctrl_c_stops_the_sweep_at_once_and_keeps_the_finished_runs(aborting, tm
     # 8 runs of some seconds each on 2 processes: Ctrl-C lands after the first has finished
     command = [COSIM, "sweep", str(aborting), "--set", "crash.abort_time=1e9,2e9,3e9,4e9,5e9,6e9,7e9,8e9",
                "--stop", "1200", "--workers", "2", "--output", str(out), "--quiet"]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    # as a terminal's foreground job: SIGINT at its default disposition, even if this process
+    # inherited it ignored (a shell's background job), which a started Python would keep
+    default_sigint = [sys.executable, "-c", "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+                      "os.execv(sys.argv[1], sys.argv[1:])"]
+    process = subprocess.Popen(default_sigint + command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                start_new_session=True)
     end = time.monotonic() + 300
     while not ((out / "sweep.parquet").is_file() and read_table(out / "sweep.parquet")):
@@ -52,10 +56,10 @@ def test_ctrl_c_stops_the_sweep_at_once_and_keeps_the_finished_runs(aborting, tm
         time.sleep(0.1)
     interrupted = time.monotonic()
     os.killpg(process.pid, signal.SIGINT)     # what Ctrl-C in a terminal sends: the whole process group
-    _, err = process.communicate(timeout=60)
+    out_text, err = process.communicate(timeout=60)
     stopped_after = time.monotonic() - interrupted
     rows = read_table(out / "sweep.parquet")
-    assert process.returncode == 130, err
+    assert process.returncode == 130, (out_text, err, f"{stopped_after:.2f} s after SIGINT", len(rows))
     assert "Traceback" not in err, err
     assert f"sweep interrupted; {len(rows)} finished runs are in" in err
     assert 1 <= len(rows) < 8 and all(r["status"] == "completed" for r in rows)
