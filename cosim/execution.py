@@ -320,10 +320,10 @@ class Execution:
         """The compiled loop when the plan and every instance allow it (`_native_refusal`,
         `cosim.instances.base.NativeInstance`); else, under "auto", the Python loop and why
         (one notice per process when the library is missing), under "native" a SetupError."""
-        types = [ty.type_name for ty in self.typed]
         functions, reason = {}, self._plan_refusal
         for name in self.order if not reason else ():
             inst = self.instances[name]
+            types = [ty.type_name for ty in self.typed if ty.out_slices[name][1] or ty.in_slices[name][1]]
             found = inst.native_functions(types) if isinstance(inst, NativeInstance) else \
                 f"component '{name}' offers no FMI function addresses ({type(inst).__name__})"
             if isinstance(found, str):
