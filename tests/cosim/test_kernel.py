@@ -310,3 +310,32 @@ def test_scenarios_run_the_same_in_both_loops(scenario, parameter_sets):
         assert meta["kernel"] == "native", meta.get("kernel_reason")
     else:
         assert meta["kernel"] == "python" and meta["kernel_reason"]
+
+
+@pytest.mark.parametrize("parameters", [{}, {"b1": {"fail_time": 0.985, "fail_status": 2, "terminate": 1}},
+                                        {"b2": {"fail_time": 0.5, "fail_status": 3}}])
+def test_threads_step_in_parallel_bit_identical(tmp_path, blocks, parameters):
+    """--threads 2: the doSteps of a Jacobi step on two threads; the same samples, statuses and
+    messages as the Python loop (a component after one that ended the step has stepped too)."""
+    folder = _chain(tmp_path, blocks, ["Block", "Block3", "Block", "Block3"], parameters, stop=5.0)
+    python, threaded = _run(folder, "python"), _run(folder, "native", threads=2)
+    assert_same(python[0], threaded[0])
+    for key in ("status", "message", "last_time"):
+        assert python[1][key] == threaded[1][key], key
+    assert python[2] == threaded[2]
+    assert threaded[1]["threads"] == 2 and threaded[1]["parallel_components"] == ["b0", "b1", "b2", "b3"]
+
+
+def test_threads_keep_pythonfmu_components_serial_and_refuse_gauss_seidel():
+    folder = ROOT / "ssp" / "pid_fopdt"
+    python, threaded = _run(folder, "python"), None
+    prepared = prepare(folder, stop_time=1.0)
+    try:
+        threaded = run(prepared, threads=2)
+        with pytest.raises(SetupError, match=r"--threads 2 steps components in parallel within a Jacobi step"):
+            run(prepare(folder, stop_time=1.0, algorithm="gauss-seidel"), threads=2)
+    finally:
+        prepared.close()
+    assert threaded[1]["parallel_components"] == []
+    assert all("pythonfmu FMU" in why for why in threaded[1]["serial_components"].values())
+    assert_same(threaded[0], python[0][:len(threaded[0])])
