@@ -339,3 +339,26 @@ def test_threads_keep_pythonfmu_components_serial_and_refuse_gauss_seidel():
     assert threaded[1]["parallel_components"] == []
     assert all("pythonfmu FMU" in why for why in threaded[1]["serial_components"].values())
     assert_same(threaded[0], python[0][:len(threaded[0])])
+
+
+def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, monkeypatch):
+    """flush_seconds = 0: the kernel's clock says a flush is due after every row, so each row
+    reaches the sinks on its own, as the Python loop's `Recorder.record` does."""
+    import cosim.simulation
+    from cosim.observers import Recorder
+
+    flushes = {}
+
+    class Counting(Recorder):
+        def __init__(self, *args, **kw):
+            super().__init__(*args, **kw, flush_seconds=0.0)
+            self.flushes = flushes.setdefault(len(flushes), [0])
+
+        def flush(self):
+            self.flushes[0] += 1
+            super().flush()
+
+    monkeypatch.setattr(cosim.simulation, "Recorder", Counting)
+    folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.5)
+    python, compiled = _both(folder)
+    assert flushes[0][0] == flushes[1][0] >= 50  # one per row (and the last at closing)
