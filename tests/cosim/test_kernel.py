@@ -129,9 +129,10 @@ def _chain(tmp_path: Path, blocks: dict, kinds: list[str], parameters: dict | No
                                                          parameters=params))
 
 
-def _run(folder: Path, kernel: str, **kw) -> tuple[np.ndarray | None, dict, str]:
-    """One run: the samples, the metadata (of the result file's JSON) and the error, if any."""
-    out = folder.parent / f"{kernel}.csv"
+def _run(folder: Path, kernel: str, results: Path | None = None, **kw) -> tuple[np.ndarray | None, dict, str]:
+    """One run: the samples, the metadata (of the result file's JSON, in ``results``, by default
+    beside the system's folder) and the error, if any."""
+    out = (results or folder.parent) / f"{kernel}.csv"
     prepared = prepare(folder, algorithm=kw.pop("algorithm", None))
     try:
         result, meta = run(prepared, output=out, kernel=kernel, **kw)
@@ -326,9 +327,9 @@ def test_threads_step_in_parallel_bit_identical(tmp_path, blocks, parameters):
     assert threaded[1]["threads"] == 2 and threaded[1]["parallel_components"] == ["b0", "b1", "b2", "b3"]
 
 
-def test_threads_keep_pythonfmu_components_serial_and_refuse_gauss_seidel():
+def test_threads_keep_pythonfmu_components_serial_and_refuse_gauss_seidel(tmp_path):
     folder = ROOT / "ssp" / "pid_fopdt"
-    python, threaded = _run(folder, "python"), None
+    python, threaded = _run(folder, "python", tmp_path), None
     prepared = prepare(folder, stop_time=1.0)
     try:
         threaded = run(prepared, threads=2)
