@@ -263,25 +263,36 @@ static void steps_of(const Program *p, int thread, double t, double h) {
         if (p->ops[i].thread == thread) p->statuses[i] = operate(&p->ops[i], t, h);
 }
 
+/* A pause in a spin-wait; a thread spins up to SPIN rounds before it sleeps on a condition
+ * variable (waking a sleeping thread costs tens of µs on a VM, the length of a fast step). */
+#define SPIN 20000
+static inline void pause_a_little(void) {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+}
+
 static void *work(void *arg) {
     Worker *w = arg;
     Pool *pool = w->pool;
     long seen = 0;
     for (;;) {
+        for (int i = 0; i < SPIN && __atomic_load_n(&pool->generation, __ATOMIC_ACQUIRE) == seen
+                                 && !__atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE); i++)
+            pause_a_little();
         pthread_mutex_lock(&pool->mu);
-        while (pool->generation == seen && !pool->quit) pthread_cond_wait(&pool->go, &pool->mu);
-        if (pool->quit) {
+        while (__atomic_load_n(&pool->generation, __ATOMIC_ACQUIRE) == seen && !pool->quit)
+            pthread_cond_wait(&pool->go, &pool->mu);
+        int quit = pool->quit;
+        pthread_mutex_unlock(&pool->mu);
+        if (quit) return NULL;
+        seen = __atomic_load_n(&pool->generation, __ATOMIC_ACQUIRE);
+        steps_of(pool->program, w->thread, pool->t, pool->h);
+        if (__atomic_sub_fetch(&pool->pending, 1, __ATOMIC_ACQ_REL) == 0) {
+            pthread_mutex_lock(&pool->mu);
+            pthread_cond_signal(&pool->done);
             pthread_mutex_unlock(&pool->mu);
-            return NULL;
         }
-        seen = pool->generation;
-        const Program *p = pool->program;
-        double t = pool->t, h = pool->h;
-        pthread_mutex_unlock(&pool->mu);
-        steps_of(p, w->thread, t, h);
-        pthread_mutex_lock(&pool->mu);
-        if (--pool->pending == 0) pthread_cond_signal(&pool->done);
-        pthread_mutex_unlock(&pool->mu);
     }
 }
 
@@ -291,13 +302,14 @@ static void parallel_steps(const Program *p, double t, double h) {
     pool->program = p;
     pool->t = t;
     pool->h = h;
-    pool->pending = pool->workers;
-    pool->generation++;
+    __atomic_store_n(&pool->pending, pool->workers, __ATOMIC_RELEASE);
+    __atomic_add_fetch(&pool->generation, 1, __ATOMIC_ACQ_REL);
     pthread_cond_broadcast(&pool->go);
     pthread_mutex_unlock(&pool->mu);
     steps_of(p, 0, t, h);
+    for (int i = 0; i < SPIN && __atomic_load_n(&pool->pending, __ATOMIC_ACQUIRE) > 0; i++) pause_a_little();
     pthread_mutex_lock(&pool->mu);
-    while (pool->pending > 0) pthread_cond_wait(&pool->done, &pool->mu);
+    while (__atomic_load_n(&pool->pending, __ATOMIC_ACQUIRE) > 0) pthread_cond_wait(&pool->done, &pool->mu);
     pthread_mutex_unlock(&pool->mu);
 }
 
@@ -331,7 +343,7 @@ Pool *cosim_pool_new(int threads) {
 void cosim_pool_free(Pool *pool) {
     if (pool == NULL) return;
     pthread_mutex_lock(&pool->mu);
-    pool->quit = 1;
+    __atomic_store_n(&pool->quit, 1, __ATOMIC_RELEASE);
     pthread_cond_broadcast(&pool->go);
     pthread_mutex_unlock(&pool->mu);
     for (int i = 0; i < pool->workers; i++) pthread_join(pool->tid[i], NULL);
