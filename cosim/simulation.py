@@ -111,7 +111,7 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
              output: str | Path | None = None, progress: bool = False,
              use_providers: bool = True, fmu_log: str = "errors", loops: LoopMode = "iterate",
              loop_settings: LoopSettings | None = None, isolate: bool = False,
-             call_timeout: float | None = None) -> np.ndarray:
+             call_timeout: float | None = None, kernel: str = "auto", threads: int = 1) -> np.ndarray:
     """Run an SSP system and return every connector at every communication point.
 
     The result is a structured array with a ``time`` field and one field per
@@ -128,6 +128,7 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     ``isolate``: each FMU in a process of its own (`cosim.instances.isolated`), so a crashing
     FMU raises `cosim.errors.ComponentLost` naming it; ``call_timeout`` (needs ``isolate``):
     seconds an FMU call may take before its process is killed.
+    ``kernel`` and ``threads``: which stepping loop runs, see `run`.
     """
     isolation_of(isolate, call_timeout)  # refused before anything is read
     prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
@@ -136,7 +137,7 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     try:
         result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
                                loop_settings=loop_settings, isolate=isolate,
-                               call_timeout=call_timeout)
+                               call_timeout=call_timeout, kernel=kernel, threads=threads)
     finally:
         prepared.close()
     if metadata["status"] == "discarded":
@@ -147,8 +148,8 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
         fmu_log: str = "errors", keep: Sequence[str] | None = None,
         loop_settings: LoopSettings | None = None, stop: StopRequest | None = None,
-        journal: bool = True, isolate: bool = False, call_timeout: float | None = None
-        ) -> tuple[np.ndarray, dict]:
+        journal: bool = True, isolate: bool = False, call_timeout: float | None = None,
+        kernel: str = "auto", threads: int = 1) -> tuple[np.ndarray, dict]:
     """Execute a prepared system; returns the samples and the run's metadata.
 
     ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
@@ -162,6 +163,10 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     component whose process crashed or whose call took more than ``call_timeout`` seconds ends
     the run with status "crashed" or "timeout" (`cosim.errors.ComponentLost`), the rows so far
     written.
+    ``kernel``: the stepping loop, "auto" (the compiled one of `cosim.kernel` where it can
+    run, else the Python one, the metadata's ``kernel_reason`` saying why), "native" (refused
+    with a `SetupError` naming why where it cannot) or "python"; ``threads``: the doSteps of a
+    Jacobi step on that many threads of the compiled kernel (`cosim.kernel`), results bit-identical.
     """
     isolation = isolation_of(isolate, call_timeout)
     plan = prepared.plan
@@ -169,7 +174,8 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     sinks: list = [memory] + ([file_sink(output)] if output is not None else [])
     if plan.system_outputs:
         sinks = [SystemOutputColumns(list(plan.system_outputs.values()), sinks)]
-    execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, isolation)
+    execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, isolation,
+                          kernel, threads)
     recorder = None
     bar = None
     try:
