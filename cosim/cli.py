@@ -62,6 +62,12 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--loop-iterations", type=int, default=100, help="iterations before a loop fails (100)")
     run.add_argument("--relaxation", type=float, default=1.0, help="relaxation factor in (0, 1] (1: plain "
                                                                     "fixed point)")
+    run.add_argument("--kernel", choices=["auto", "native", "python"], default="auto",
+                     help="stepping loop: the compiled one where it can run, else the Python one (auto, "
+                          "default; the metadata says which and why), the compiled one or an error (native), "
+                          "or the Python one (python); the results are the same")
+    run.add_argument("--threads", type=int, default=1, metavar="N",
+                     help="threads stepping components in parallel (1; more is not implemented)")
     run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     run.add_argument("--timeout", type=float, metavar="SECONDS",
                      help="end the run after SECONDS (status 'timeout', exit 1); an FMU call still not "
@@ -234,7 +240,7 @@ def _execute(args, prepared, name: str, output: Path) -> int:
             warnings.simplefilter("always", RuntimeWarning)  # printed as cosim's own warnings
             result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
                                    keep=[n for panel in panels for n in panel] if args.plot is not None else [],
-                                   loop_settings=settings, stop=stop)
+                                   loop_settings=settings, stop=stop, kernel=args.kernel, threads=args.threads)
         for warning in caught:
             print(f"cosim: warning: {warning.message}", file=sys.stderr)
     except RunError:

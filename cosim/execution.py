@@ -20,6 +20,14 @@ algebraic loop of direct feedthrough is solved by repeating that settling sweep
 
 Values move through preallocated ctypes arrays with one batched get and one
 batched set per FMU and type; routing is precomputed NumPy index arrays.
+
+Kernels (``kernel``, recorded in the metadata): "native" runs the steps in the compiled loop
+of `cosim.kernel`, which makes the same FMI calls in the same order with the same
+arithmetic (bit-identical results) and returns here for every status above Warning, which
+this module then handles and finishes the step with; "python" runs the loop below; "auto"
+(default) the compiled one when the library is built and every component is FMI 2.0 or 3.0
+Co-Simulation exchanging numbers with no algebraic loop to iterate, else the Python one,
+saying why (``kernel_reason``).
 """
 from __future__ import annotations
 
@@ -32,9 +40,11 @@ from functools import cached_property
 
 import numpy as np
 
+from . import kernel as native
 from .errors import RunError, SetupError
 from .description import FMUDescription, exchange_type
 from .instances import STATUS, Instance, Unzipped, open_instance
+from .instances.base import NativeFunctions, NativeInstance
 from .instances.fmi3 import BinaryValue
 from .interrupts import StopRequest
 from .loops import LoopSettings, LoopSolver, Watched
@@ -46,11 +56,23 @@ from .observers import Recorder
 TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p,
          "Binary": BinaryValue}
 ALGORITHMS = ("jacobi", "gauss-seidel")
+KERNELS = ("auto", "native", "python")
 #: most communication steps of a run (10^9 steps at the fastest ~5 µs/step is over an hour)
 MAX_STEPS = 10**9
 #: the smallest step, in multiples of the spacing of doubles at the run's largest time
 RESOLUTION_STEPS = 1024
 FMI_WARNING, FMI_DISCARD = 1, 2
+
+
+_NOTICES: set[str] = set()
+
+
+def _notice_once(reason: str) -> None:
+    """Warn once per process that the Python loop runs for ``reason`` (the library is missing)."""
+    if reason not in _NOTICES:
+        _NOTICES.add(reason)
+        warnings.warn(f"{reason}; running the Python stepping loop (same results, slower).", RuntimeWarning,
+                      stacklevel=3)
 
 
 @dataclass
@@ -122,6 +144,7 @@ class _Typed:
         for comp in order:  # feedthrough and Gauss–Seidel route into one component at a time
             self.routes_into[comp] = self._routing([r for r in routes if r.dst == comp], out_index, in_index)
         self.ctype = ctype
+        self.integer = ctype is ctypes.c_int
 
     @staticmethod
     def _slices(pairs, order):
@@ -159,8 +182,11 @@ class _Typed:
         else:
             self.U[dst] = self.Y[src] * factor + offset
 
+    def address(self, buf, start: int) -> int:
+        return ctypes.addressof(buf) + start * ctypes.sizeof(self.ctype)
+
     def pointer(self, buf, start: int):
-        return ctypes.cast(ctypes.addressof(buf) + start * ctypes.sizeof(self.ctype), ctypes.POINTER(self.ctype))
+        return ctypes.cast(self.address(buf, start), ctypes.POINTER(self.ctype))
 
     def get_call(self, get, buf, start: int, n: int):
         """The get function for the hot loop: ``get`` itself for numbers; for strings, ``get``
@@ -193,10 +219,15 @@ class Execution:
     """One run of a plan on a grid with an algorithm, feeding a recorder."""
 
     def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi", fmu_log: str = "errors",
-                 loop_settings: LoopSettings | None = None):
+                 loop_settings: LoopSettings | None = None, kernel: str = "auto", threads: int = 1):
         if algorithm not in ALGORITHMS:
             raise SetupError(f"unknown algorithm '{algorithm}'; choose one of {', '.join(ALGORITHMS)}.",
                              element="algorithm")
+        if kernel not in KERNELS:
+            raise SetupError(f"unknown kernel '{kernel}'; choose one of {', '.join(KERNELS)}.", element="--kernel")
+        if threads != 1:
+            raise SetupError(f"--threads {threads}: stepping components in parallel is not implemented; "
+                             "run with --threads 1.", element="--threads")
         self.plan = plan
         self.grid = grid
         self.algorithm = algorithm
@@ -215,6 +246,31 @@ class Execution:
         self.loop_seconds = 0.0
         self.status = "not started"
         self.message = ""
+        self.kernel_requested = kernel
+        #: the loop that runs ("native" or "python"), decided when the FMUs are instantiated, and
+        #: under "auto" why the Python loop runs
+        self.kernel, self.kernel_reason = "python", ""
+        self._native: native.Kernel | None = None
+        self._plan_refusal = self._native_refusal() if kernel != "python" else ""
+        if kernel == "native" and self._plan_refusal:
+            self._refuse_native(self._plan_refusal)
+
+    def _native_refusal(self) -> str:
+        """Why the compiled loop cannot run this plan (before instantiation), or ""."""
+        for name in self.order:
+            if self.plan.fmus[name].kind not in ("fmi2-cs", "fmi3-cs"):
+                return f"component '{name}' is Model Exchange (integrated by the master)"
+        strings = [ty.type_name for ty in self.typed if ty.strings]
+        if strings:
+            return f"{' and '.join(strings)} connectors (routed by Python)"
+        if self.loop_solver is not None:
+            return "an algebraic loop solved by iteration (--loops iterate; cosim.loops stays in Python)"
+        return native.library()[1]
+
+    @staticmethod
+    def _refuse_native(reason: str) -> None:
+        raise SetupError(f"the compiled kernel cannot run this system: {reason}.", element="--kernel",
+                         hint="Run with --kernel auto (which then runs the Python loop) or --kernel python.")
 
     def _loop_solver(self, settings: LoopSettings) -> LoopSolver:
         """`cosim.loops.LoopSolver` over the exchange's output buffers: the loop outputs of each type."""
@@ -255,6 +311,88 @@ class Execution:
         read_once, set_once = self.plan.read_in_settling_only, self.plan.set_in_settling_only
         self._all_get = [call + (c,) for c in self.order if c not in read_once for call in self._get[c]]
         self._all_set = [call + (c,) for c in self.order if c not in set_once for call in self._set[c]]
+        if self.kernel_requested != "python":
+            self._choose_kernel()
+
+    # ----------------------------------------------------------------- the compiled loop
+
+    def _choose_kernel(self) -> None:
+        """The compiled loop when the plan and every instance allow it (`_native_refusal`,
+        `cosim.instances.base.NativeInstance`); else, under "auto", the Python loop and why
+        (one notice per process when the library is missing), under "native" a SetupError."""
+        types = [ty.type_name for ty in self.typed]
+        functions, reason = {}, self._plan_refusal
+        for name in self.order if not reason else ():
+            inst = self.instances[name]
+            found = inst.native_functions(types) if isinstance(inst, NativeInstance) else \
+                f"component '{name}' offers no FMI function addresses ({type(inst).__name__})"
+            if isinstance(found, str):
+                reason = found
+                break
+            functions[name] = found
+        if reason:
+            if self.kernel_requested == "native":
+                self._refuse_native(reason)
+            if reason == native.library()[1]:
+                _notice_once(reason)
+            self.kernel_reason = reason
+            return
+        operations = self._step_operations(functions) + self._exchange_operations(functions)
+        sources = [(ty.address(buf, 0), n, ty.integer) for ty in self.typed
+                   for buf, n in ((ty.Ybuf, len(ty.Y)), (ty.Ubuf, len(ty.U)))]
+        self._native = native.Kernel(operations, sources, self.grid, 1 + sum(n for _, n, _ in sources))
+        self.kernel = "native"
+
+    def _call_operations(self, kind: int, comp: str, fn: NativeFunctions, at_step_end: bool = True) -> list:
+        """The gets (or sets) of ``comp`` as kernel operations: one per exchange type, as ``calls``."""
+        table = fn.get if kind == native.OP_GET else fn.set
+        slices = {id(ty): (ty.out_slices if kind == native.OP_GET else ty.in_slices)[comp] for ty in self.typed}
+        ops = []
+        for ty in self.typed:
+            start, n, vr = slices[id(ty)]
+            if n:
+                buf = ty.Ybuf if kind == native.OP_GET else ty.Ubuf
+                ops.append(native.Operation(kind, comp, fn.api, table[ty.type_name], fn.component,
+                                            ctypes.addressof(vr), n, ty.address(buf, start), at_step_end=at_step_end))
+        return ops
+
+    def _route_operations(self, comp: str | None) -> list:
+        return [native.Operation(native.OP_ROUTE, route=ty.routes_into[comp], integer=ty.integer,
+                                 Y=ty.address(ty.Ybuf, 0), U=ty.address(ty.Ubuf, 0))
+                for ty in self.typed if len(ty.routes_into[comp][0])]
+
+    def _route_into_operations(self, comp: str, functions: dict, at_step_end: bool) -> list:
+        return self._route_operations(comp) + self._call_operations(native.OP_SET, comp, functions[comp], at_step_end)
+
+    def _step_operations(self, functions: dict) -> list:
+        """The doSteps of one step (`_loop`, `_gauss_seidel_step`) as kernel operations."""
+        def step(name: str, position: int):
+            fn = functions[name]
+            return native.Operation(native.OP_STEP, name, fn.api, fn.do_step, fn.component, step_out=fn.step_out,
+                                    position=position)
+        if self.algorithm != "gauss-seidel":
+            return [step(name, p) for p, name in enumerate(self.order)]
+        ops = []
+        for p, name in enumerate(self.plan.gauss_seidel_order):
+            ops += self._route_into_operations(name, functions, at_step_end=False)
+            ops.append(step(name, p))
+            ops += self._call_operations(native.OP_GET, name, functions[name])
+        return ops
+
+    def _exchange_operations(self, functions: dict) -> list:
+        """`_exchange` at the end of a step (without an algebraic loop solver) as kernel operations."""
+        ops = []
+        for comp in self.order:
+            if comp not in self.plan.read_in_settling_only:
+                ops += self._call_operations(native.OP_GET, comp, functions[comp])
+        for comp in self.plan.feedthrough_sequence:
+            ops += self._route_into_operations(comp, functions, at_step_end=True)
+            ops += self._call_operations(native.OP_GET, comp, functions[comp])
+        ops += self._route_operations(None)
+        for comp in self.order:
+            if comp not in self.plan.set_in_settling_only:
+                ops += self._call_operations(native.OP_SET, comp, functions[comp])
+        return ops
 
     def initialize(self) -> None:
         t0, stop = self.grid.start, self.grid.stop
@@ -319,10 +457,7 @@ class Execution:
         """One sweep of the feedthrough sequence: each component's inputs set, its outputs re-read."""
         for comp in self.plan.feedthrough_sequence:
             self._route_into(comp, t)
-            for fn, c, vr, n, ptr in self._get[comp]:
-                s = fn(c, vr, n, ptr)
-                if s > FMI_WARNING:
-                    self._check(s, comp, t, "Get")
+            self._read_outputs(comp, t)
 
     def _route_into(self, comp: str, t: float) -> None:
         for ty in self.typed:
@@ -361,7 +496,10 @@ class Execution:
         self.status = "running"
         started = _time.perf_counter()
         try:
-            self._loop(recorder, progress, steppers, gs, gauss_seidel, n_steps, stride)
+            if self._native is not None:
+                self._native_loop(recorder, progress, steppers, gs, n_steps, stride)
+            else:
+                self._loop(recorder, progress, steppers, gs, gauss_seidel, n_steps, stride)
         finally:
             self.loop_seconds = _time.perf_counter() - started
 
@@ -397,6 +535,79 @@ class Execution:
                 progress.update(min(block + stride, n_steps) - block)
         self.status = "completed"
 
+    def _native_loop(self, recorder, progress, steppers, gs, n_steps, stride) -> None:
+        """`_loop` in the compiled kernel: it returns here to flush the recorder, for progress,
+        when the stop flag is set (by a signal while it runs: `cosim.kernel.Kernel.watch_signals`)
+        and for every FMI status above Warning, which `_finish_step` handles."""
+        kernel, time, stop = self._native, self.grid.time, self.stop
+        watching = bool(stop.signals)
+        if watching:
+            kernel.watch_signals()
+        try:
+            k = 0
+            for block in range(0, n_steps, stride):
+                end = min(block + stride, n_steps)
+                while k < end:
+                    if stop.flag:
+                        kernel.stop_flag.value = stop.flag[0]
+                    rows, free_rows, count, flush_at = recorder.window()
+                    reason = kernel.run(k, end, rows, free_rows, count, recorder.samples, flush_at)
+                    state = kernel.state
+                    k = state.k
+                    self.last_time = time(k)
+                    recorder.filled(state.rows_done, state.samples, bool(reason & (native.KERNEL_FULL |
+                                                                                  native.KERNEL_FLUSH)))
+                    if reason & native.KERNEL_STATUS:
+                        if self._finish_step(k, kernel.operations[state.op], state.status, steppers, gs):
+                            return
+                        k += 1
+                    elif reason & native.KERNEL_STOP or stop.flag:
+                        if not stop.flag:
+                            stop.flag.append(kernel.stop_flag.value)
+                        self.status = stop.status()
+                        self.message = f"stopped by {stop.describe()} at t = {self.last_time:g}."
+                        return
+                if progress is not None:
+                    progress.update(end - block)
+            self.status = "completed"
+        finally:
+            if watching:
+                kernel.unwatch_signals()
+
+    def _finish_step(self, k: int, op: native.Operation, status: int, steppers, gs) -> bool:
+        """Step k after the kernel stopped at ``op`` with ``status``, in Python from there on, as
+        `_loop` would have gone on; True when the run ends."""
+        t, t_next = self.grid.time(k), self.grid.time(k + 1)
+        h = t_next - t
+        if op.kind != native.OP_STEP:  # a get or set above Warning: raises
+            self._check(status, op.component, t_next if op.at_step_end else t, op.what())
+        inst = self.instances[op.component]
+        if op.api == 3:
+            status = inst.step_outcome(t, h, status)
+        ended: list[tuple[str, str]] = []
+        if status and self._step_status(status, op.component, t, h, ended):
+            return True
+        if self.algorithm == "gauss-seidel":
+            self._read_outputs(op.component, t_next)
+            if self._gauss_seidel_step(gs[op.position + 1:], t, h, t_next, ended):
+                return True
+        else:
+            for name, do_step, c in steppers[op.position + 1:]:
+                s = do_step(c, t, h, 1)
+                if s and self._step_status(s, name, t, h, ended):
+                    return True
+        if ended:
+            self._terminate(ended, t_next)
+            return True
+        self._exchange(t_next)
+        self._recorder.record(t_next)
+        self.last_time = t_next
+        if self.stop.flag:
+            self.status = self.stop.status()
+            self.message = f"stopped by {self.stop.describe()} at t = {t_next:g}."
+            return True
+        return False
+
     def _gauss_seidel_step(self, gs, t: float, h: float, t_next: float, ended: list) -> bool:
         """Each FMU in dependency order: inputs from the freshest outputs, step, read outputs."""
         for name, do_step, c in gs:
@@ -404,11 +615,14 @@ class Execution:
             s = do_step(c, t, h, 1)
             if s and self._step_status(s, name, t, h, ended):
                 return True
-            for fn, cc, vr, n, ptr in self._get[name]:
-                s = fn(cc, vr, n, ptr)
-                if s > FMI_WARNING:
-                    self._check(s, name, t_next, "Get")
+            self._read_outputs(name, t_next)
         return False
+
+    def _read_outputs(self, comp: str, t: float) -> None:
+        for fn, c, vr, n, ptr in self._get[comp]:
+            s = fn(c, vr, n, ptr)
+            if s > FMI_WARNING:
+                self._check(s, comp, t, "Get")
 
     def _step_status(self, status: int, comp: str, t: float, h: float, ended: list[tuple[str, str]]) -> bool:
         """After a status other than OK: False on Warning; raises on Error and Fatal.  On Discard
@@ -461,8 +675,9 @@ class Execution:
         return None
 
     def metadata(self) -> dict:
+        kernel = {"kernel": self.kernel} | ({"kernel_reason": self.kernel_reason} if self.kernel_reason else {})
         return {
-            "algorithm": self.algorithm,
+            "algorithm": self.algorithm, **kernel,
             "gauss_seidel_order": self.plan.gauss_seidel_order if self.algorithm == "gauss-seidel" else None,
             "feedthrough_sequence": self.plan.feedthrough_sequence,
             "algebraic_loops": self._loop_metadata(),

@@ -19,10 +19,13 @@ STATUS = {signal.SIGINT: "interrupted", signal.SIGTERM: "interrupted", signal.SI
 
 class StopRequest:
     """``flag`` is empty until a signal arrives, then holds its number (a list, so the
-    stepping loop's test is one truth test)."""
+    stepping loop's test is one truth test); ``signals``: the signals that set it while
+    `stop_on_signals` holds their handlers (the compiled loop then watches them itself,
+    `cosim.kernel.Kernel.watch_signals`, since Python runs handlers only between its own calls)."""
 
     def __init__(self) -> None:
         self.flag: list[int] = []
+        self.signals: tuple[int, ...] = ()
 
     @property
     def signum(self) -> int | None:
@@ -49,8 +52,10 @@ def stop_on_signals() -> Iterator[StopRequest]:
             request.flag.append(signum)
 
     previous = {s: signal.signal(s, handler) for s in STATUS}
+    request.signals = tuple(STATUS)
     try:
         yield request
     finally:
+        request.signals = ()
         for s, h in previous.items():
             signal.signal(s, h)

@@ -234,6 +234,22 @@ class Recorder:
         if self.rows == len(self.buffer) or time.monotonic() > self._flush_at:
             self.flush()
 
+    def window(self) -> tuple[int, int, int, float]:
+        """Where the compiled loop (`cosim.kernel`) writes the next rows: the address of the
+        first free row of the buffer, how many rows are free, the address of the row counter
+        (int64) it stores after each row, and the monotonic time after which to flush."""
+        free = len(self.buffer) - self.rows
+        return (self.buffer.ctypes.data + self.rows * self.buffer.strides[0], free, self._count.ctypes.data,
+                self._flush_at)
+
+    def filled(self, rows: int, samples: int, due: bool) -> None:
+        """After the compiled loop wrote ``rows`` rows (``samples`` rows in all, also in the row
+        counter): flush when the buffer is full or ``due``, as `record` does."""
+        self.rows += rows
+        self.samples = samples
+        if self.rows == len(self.buffer) or due:
+            self.flush()
+
     def flush(self) -> None:
         """Hand the new rows to the sinks; a sink (or the journal) that cannot write (a full
         disk) is an `OutputError`, and no later flush is tried."""

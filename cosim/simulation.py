@@ -109,7 +109,7 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
              parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
              output: str | Path | None = None, progress: bool = False,
              use_providers: bool = True, fmu_log: str = "errors", loops: LoopMode = "iterate",
-             loop_settings: LoopSettings | None = None) -> np.ndarray:
+             loop_settings: LoopSettings | None = None, kernel: str = "auto", threads: int = 1) -> np.ndarray:
     """Run an SSP system and return every connector at every communication point.
 
     The result is a structured array with a ``time`` field and one field per
@@ -122,14 +122,15 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     (and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
     collected to explain a failure ("errors", "all" or "off"; see `cosim.instances.fmi2.FMI2Instance.instantiate`).
     ``loops``: algebraic loops solved by iteration ("iterate", with ``loop_settings``) or broken
-    by one step of delay ("delay", with a warning), see `cosim.loops`.
+    by one step of delay ("delay", with a warning), see `cosim.loops`.  ``kernel`` and
+    ``threads``: which stepping loop runs, see `run`.
     """
     prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
                        use_providers=use_providers, loops=loops)
     try:
         result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
-                               loop_settings=loop_settings)
+                               loop_settings=loop_settings, kernel=kernel, threads=threads)
     finally:
         prepared.close()
     if metadata["status"] == "discarded":
@@ -140,7 +141,7 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
         fmu_log: str = "errors", keep: Sequence[str] | None = None,
         loop_settings: LoopSettings | None = None, stop: StopRequest | None = None,
-        journal: bool = True) -> tuple[np.ndarray, dict]:
+        journal: bool = True, kernel: str = "auto", threads: int = 1) -> tuple[np.ndarray, dict]:
     """Execute a prepared system; returns the samples and the run's metadata.
 
     ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
@@ -150,13 +151,17 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     signals the returned array holds besides ``time`` (None: all); a long run streamed to
     ``output`` keeps only what it needs in memory.  ``stop``: set by a signal
     (`cosim.interrupts.stop_on_signals`), ends the run at the next communication point.
+    ``kernel``: the stepping loop, "auto" (the compiled one of `cosim.kernel` where it can
+    run, else the Python one, the metadata's ``kernel_reason`` saying why), "native" (refused
+    with a `SetupError` naming why where it cannot) or "python"; ``threads``: 1 (parallel
+    stepping is not implemented).
     """
     plan = prepared.plan
     memory = MemorySink(keep)
     sinks: list = [memory] + ([file_sink(output)] if output is not None else [])
     if plan.system_outputs:
         sinks = [SystemOutputColumns(list(plan.system_outputs.values()), sinks)]
-    execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings)
+    execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, kernel, threads)
     recorder = None
     bar = None
     try:

@@ -10,9 +10,11 @@ failure can be explained).
 from __future__ import annotations
 
 import collections
+import ctypes
 import os
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
 from fmpy.model_description import ModelVariable
@@ -73,6 +75,36 @@ class Instance(Protocol):
     def free(self) -> None: ...
 
     def last_messages(self) -> str: ...
+
+
+@dataclass(frozen=True)
+class NativeFunctions:
+    """The FMI functions of one instance as C function addresses, for the compiled loop
+    (`cosim.kernel`): ``api`` 2 or 3, ``do_step``, and ``get``/``set`` by exchange type, each
+    called with the C signature of its FMI version; ``step_out``: the addresses of
+    fmi3DoStep's four out-arguments (eventHandlingNeeded, terminateSimulation, earlyReturn,
+    lastSuccessfulTime), which the instance reads after the call (`cosim.instances.fmi3`)."""
+    api: int
+    component: int
+    do_step: int
+    get: Mapping[str, int]
+    set: Mapping[str, int]
+    step_out: tuple[int, int, int, int] = (0, 0, 0, 0)
+
+
+@runtime_checkable
+class NativeInstance(Protocol):
+    """An instance whose hot-loop calls the compiled loop can make itself."""
+
+    def native_functions(self, types: Sequence[ExchangeType]) -> NativeFunctions | str:
+        """The C addresses of its FMI functions for exchanging ``types``, or why it has none
+        (a sentence naming the component)."""
+        ...
+
+
+def address(function) -> int:
+    """The C address of a ctypes foreign function."""
+    return ctypes.cast(function, ctypes.c_void_p).value
 
 
 def log_line(status: int, category: bytes | None, message: bytes | None) -> str:

@@ -12,7 +12,7 @@ from fmpy.model_description import ModelVariable
 
 from ..description import FMUDescription
 from ..errors import SetupError
-from .base import InstanceBase, end_instance, log_line
+from .base import InstanceBase, NativeFunctions, address, end_instance, log_line
 
 #: Log messages by instance name.  fmpy's native logger proxy (which formats the printf
 #: arguments) keeps one Python logger for the whole process, so one logger dispatches, and
@@ -68,6 +68,18 @@ class FMI2Instance(InstanceBase):
                     "Boolean": raw["fmi2GetBoolean"], "String": raw["fmi2GetString"]}
         self.set = {"Real": raw["fmi2SetReal"], "Integer": raw["fmi2SetInteger"],
                     "Boolean": raw["fmi2SetBoolean"], "String": raw["fmi2SetString"]}
+
+    def native_functions(self, types) -> NativeFunctions | str:
+        """fmi2DoStep and the get/set functions of ``types`` as C addresses (`cosim.kernel`);
+        a Model Exchange instance (stepped by the master's integrator) has none."""
+        raw = self.slave._functions
+        if getattr(self, "do_step", None) is not raw.get("fmi2DoStep"):
+            return f"component '{self.name}' is Model Exchange (integrated by the master)"
+        unknown = [t for t in types if t not in ("Real", "Integer", "Boolean")]
+        if unknown:
+            return f"component '{self.name}' exchanges {', '.join(unknown)} values"
+        return NativeFunctions(2, self.component, address(raw["fmi2DoStep"]),
+                               {t: address(self.get[t]) for t in types}, {t: address(self.set[t]) for t in types})
 
     def instantiate(self, fmu_log: str = "errors") -> None:
         """Instantiate.  ``fmu_log``: "errors" (default) turns logging on with only the FMI 2.0

@@ -36,7 +36,7 @@ from fmpy.model_description import ModelVariable
 
 from ..description import ArrayElement, FMUDescription, exchange_type
 from ..errors import SetupError
-from .base import STATUS, InstanceBase, end_instance, log_line
+from .base import STATUS, InstanceBase, NativeFunctions, address, end_instance, log_line
 
 FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR = 0, 1, 2, 3
 
@@ -90,6 +90,8 @@ class FMI3Instance(InstanceBase):
         self._start, self._stop = 0.0, None
         self._end: tuple[float | None, str] = (None, "fmi3DoStep returned Discard")
         self._by_reference = {v.valueReference: v for v in desc.md.modelVariables}
+        #: fmi3DoStep's out-arguments: eventHandlingNeeded, terminateSimulation, earlyReturn, lastSuccessfulTime
+        self._step_out = (ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double())
         raw = self.slave._functions
         if isinstance(self.slave, FMU3Slave):  # Co-Simulation; a Model Exchange instance steps by its own method
             self.do_step = self._do_step_adapter(raw["fmi3DoStep"])
@@ -100,21 +102,42 @@ class FMI3Instance(InstanceBase):
     # ----------------------------------------------------------------- hot-loop adapters
 
     def _do_step_adapter(self, raw) -> Adapter:
-        event, terminate, early = ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool()
-        last = ctypes.c_double()
-        out = (ctypes.byref(event), ctypes.byref(terminate), ctypes.byref(early), ctypes.byref(last))
+        out = tuple(ctypes.byref(v) for v in self._step_out)
 
         def do_step(component, t: float, h: float, no_prior_state: int) -> int:
-            status = raw(component, t, h, no_prior_state, *out)
-            if terminate.value and status <= FMI_WARNING:  # the step completed: its outputs are valid
-                self._end = (t + h, f"fmi3DoStep returned {STATUS[status]} with terminateSimulation = true")
-                return FMI_DISCARD
-            if status == FMI_DISCARD:
-                self._end = (last.value if last.value > t else None,
-                             f"fmi3DoStep returned Discard with terminateSimulation = "
-                             f"{'true' if terminate.value else 'false'} and lastSuccessfulTime = {last.value:g}")
-            return status
+            return self.step_outcome(t, h, raw(component, t, h, no_prior_state, *out))
         return do_step
+
+    def step_outcome(self, t: float, h: float, status: int) -> int:
+        """The status of fmi3DoStep(t, h) as ``do_step`` returns it, from the out-arguments the
+        FMU wrote (``_step_out``): Discard after a completed step (OK or Warning) with
+        terminateSimulation, whose end `step_end` then gives, as after a Discard."""
+        terminate, last = self._step_out[1], self._step_out[3]
+        if terminate.value and status <= FMI_WARNING:  # the step completed: its outputs are valid
+            self._end = (t + h, f"fmi3DoStep returned {STATUS[status]} with terminateSimulation = true")
+            return FMI_DISCARD
+        if status == FMI_DISCARD:
+            self._end = (last.value if last.value > t else None,
+                         f"fmi3DoStep returned Discard with terminateSimulation = "
+                         f"{'true' if terminate.value else 'false'} and lastSuccessfulTime = {last.value:g}")
+        return status
+
+    def native_functions(self, types) -> NativeFunctions | str:
+        """fmi3DoStep (with the addresses of its out-arguments, read by `step_outcome`) and the
+        fmi3Get/SetFloat64 and Int32 functions of ``types`` as C addresses (`cosim.kernel`);
+        none for Model Exchange, and none when a type goes through `_Gather` (a C bool, array
+        elements, another FMI 3.0 type exchanged as Real or Integer) or is a String or Binary."""
+        if not isinstance(self.slave, FMU3Slave):
+            return f"component '{self.name}' is Model Exchange (integrated by the master)"
+        for t in types:
+            if t not in ("Real", "Integer") or self._needs_gather(t):
+                return f"component '{self.name}' exchanges {t} values through the master's FMI 3.0 conversion"
+        raw = self.slave._functions
+        suffix = {t: FMI3_FUNCTIONS[t][0] for t in types}
+        return NativeFunctions(3, self.component, address(raw["fmi3DoStep"]),
+                               {t: address(raw[f"fmi3Get{suffix[t]}"]) for t in types},
+                               {t: address(raw[f"fmi3Set{suffix[t]}"]) for t in types},
+                               tuple(ctypes.addressof(v) for v in self._step_out))
 
     def step_end(self, t: float, h: float) -> tuple[float | None, str]:
         """What ``do_step`` kept when it ended the run: t + h after OK or Warning with

@@ -1,0 +1,169 @@
+"""The compiled stepping loop (``kernel.c``) and its ctypes binding.
+
+`cosim.execution.Execution` compiles what its Python loop does at every communication
+step into a list of `Operation` (doSteps, gets, sets and routes, in the Python loop's order);
+`Kernel` runs that list step after step in C, writing each recorded row into the recorder's
+chunk buffer, and returns to Python for everything else (flushing, progress, signals, any
+FMI status above Warning, see ``kernel.c``).
+
+The library is built from ``kernel.c`` when greyfmu is installed (an optional setuptools
+extension, ``setup.py``: no Python C API, loaded here with ctypes); `library` finds it, or
+says why not.  ``COSIM_KERNEL_LIBRARY`` names another file to load (tests use a missing one
+to check the fallback).
+"""
+from __future__ import annotations
+
+import ctypes
+import importlib.machinery
+import os
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+OP_STEP, OP_GET, OP_SET, OP_ROUTE = 0, 1, 2, 3
+#: why `Kernel.run` returned (bits): step k_end reached, buffer full, flush due, stop flag set,
+#: an FMI status for Python to handle
+KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS = 1, 2, 4, 8, 16
+LIBRARY_ENV = "COSIM_KERNEL_LIBRARY"
+
+
+class _Op(ctypes.Structure):
+    _fields_ = [("kind", ctypes.c_int), ("api", ctypes.c_int), ("integer", ctypes.c_int), ("identity", ctypes.c_int),
+                ("fn", ctypes.c_void_p), ("instance", ctypes.c_void_p), ("vr", ctypes.c_void_p),
+                ("n", ctypes.c_size_t), ("values", ctypes.c_void_p),
+                ("event", ctypes.c_void_p), ("terminate", ctypes.c_void_p), ("early", ctypes.c_void_p),
+                ("last", ctypes.c_void_p),
+                ("src", ctypes.c_void_p), ("dst", ctypes.c_void_p), ("factor", ctypes.c_void_p),
+                ("offset", ctypes.c_void_p), ("Y", ctypes.c_void_p), ("U", ctypes.c_void_p)]
+
+
+class _Source(ctypes.Structure):
+    _fields_ = [("values", ctypes.c_void_p), ("n", ctypes.c_size_t), ("integer", ctypes.c_int)]
+
+
+class _Program(ctypes.Structure):
+    _fields_ = [("ops", ctypes.POINTER(_Op)), ("n_ops", ctypes.c_int), ("sources", ctypes.POINTER(_Source)),
+                ("n_sources", ctypes.c_int), ("columns", ctypes.c_int), ("start", ctypes.c_double),
+                ("step", ctypes.c_double), ("stop", ctypes.c_double), ("steps", ctypes.c_longlong)]
+
+
+class _Run(ctypes.Structure):
+    _fields_ = [("k", ctypes.c_longlong), ("k_end", ctypes.c_longlong), ("rows", ctypes.c_void_p),
+                ("free_rows", ctypes.c_longlong), ("rows_done", ctypes.c_longlong), ("count", ctypes.c_void_p),
+                ("samples", ctypes.c_longlong), ("flush_at", ctypes.c_double), ("stop", ctypes.c_void_p),
+                ("op", ctypes.c_int), ("status", ctypes.c_int)]
+
+
+def _library_path() -> Path | None:
+    override = os.environ.get(LIBRARY_ENV)
+    if override:
+        return Path(override)
+    here = Path(__file__).parent
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        if (here / f"_kernel{suffix}").is_file():
+            return here / f"_kernel{suffix}"
+    return None
+
+
+@lru_cache(maxsize=1)
+def library() -> tuple[ctypes.CDLL | None, str]:
+    """The loaded kernel library, or None and why it is not available."""
+    path = _library_path()
+    if path is None:
+        return None, (f"the compiled kernel was not built when greyfmu was installed (no C compiler?): no "
+                      f"_kernel library in {Path(__file__).parent}")
+    try:
+        lib = ctypes.CDLL(str(path))
+    except OSError as e:
+        return None, f"the compiled kernel {path} cannot be loaded: {e}"
+    lib.cosim_run.argtypes = [ctypes.POINTER(_Program), ctypes.POINTER(_Run)]
+    lib.cosim_run.restype = ctypes.c_int
+    lib.cosim_watch_signals.argtypes = [ctypes.POINTER(ctypes.c_int)]
+    lib.cosim_watch_signals.restype = ctypes.c_int
+    lib.cosim_unwatch_signals.argtypes = []
+    lib.cosim_unwatch_signals.restype = None
+    return lib, ""
+
+
+@dataclass(frozen=True)
+class Operation:
+    """One operation of a communication step, and what Python needs to handle its status.
+
+    ``kind``: OP_STEP, OP_GET, OP_SET (an FMI call of ``component``, ``api`` 2 or 3, at
+    function address ``fn``) or OP_ROUTE (``route``: source and destination positions, factor,
+    offset, identity, on the buffers ``Y`` and ``U``).  ``position``: for a doStep, the
+    component's place in the stepping order; ``at_step_end``: a failing get or set is reported
+    at the end of the step (else at its start, as Gauss–Seidel sets the inputs before a doStep).
+    """
+    kind: int
+    component: str = ""
+    api: int = 2
+    fn: int = 0
+    instance: int = 0
+    vr: int = 0
+    n: int = 0
+    values: int = 0
+    step_out: tuple[int, int, int, int] = (0, 0, 0, 0)
+    route: tuple | None = None
+    integer: bool = False
+    Y: int = 0
+    U: int = 0
+    position: int = -1
+    at_step_end: bool = True
+
+    def what(self) -> str:
+        return {OP_STEP: "DoStep", OP_GET: "Get", OP_SET: "Set"}[self.kind]
+
+
+class Kernel:
+    """The compiled loop over one step's `Operation` list, recording ``sources`` (exchange
+    buffer addresses, lengths and whether they hold C ints) after each step on ``grid``."""
+
+    def __init__(self, operations: list[Operation], sources: list[tuple[int, int, bool]], grid, columns: int):
+        self.lib, reason = library()
+        if self.lib is None:
+            raise RuntimeError(reason)
+        self.operations = operations
+        self._keep: list = []
+        ops = (_Op * max(1, len(operations)))()
+        for o, op in zip(ops, operations):
+            o.kind, o.api, o.integer = op.kind, op.api, int(op.integer)
+            o.fn, o.instance, o.vr, o.n, o.values = op.fn, op.instance, op.vr, op.n, op.values
+            o.event, o.terminate, o.early, o.last = op.step_out
+            if op.route is not None:
+                src, dst, factor, offset, identity = op.route
+                arrays = (np.ascontiguousarray(src, dtype=np.intp), np.ascontiguousarray(dst, dtype=np.intp),
+                          np.ascontiguousarray(factor, dtype=np.float64),
+                          np.ascontiguousarray(offset, dtype=np.float64))
+                self._keep.append(arrays)
+                o.src, o.dst, o.factor, o.offset = (a.ctypes.data for a in arrays)
+                o.identity, o.n, o.Y, o.U = int(identity), len(arrays[0]), op.Y, op.U
+        srcs = (_Source * max(1, len(sources)))()
+        for s, (values, n, integer) in zip(srcs, sources):
+            s.values, s.n, s.integer = values, n, int(integer)
+        self._ops, self._sources = ops, srcs
+        self.program = _Program(ops, len(operations), srcs, len(sources), columns, grid.start, grid.step,
+                                grid.stop, grid.steps)
+        self.state = _Run()
+        self.stop_flag = ctypes.c_int(0)
+        self.state.stop = ctypes.addressof(self.stop_flag)
+
+    def run(self, k: int, k_end: int, rows: int, free_rows: int, count: int, samples: int,
+            flush_at: float) -> int:
+        """Steps k .. k_end - 1 into the buffer at address ``rows`` (``free_rows`` rows free);
+        returns the KERNEL_* bits; `state` holds the step reached, the rows and samples done,
+        and, on KERNEL_STATUS, the operation and its status."""
+        r = self.state
+        r.k, r.k_end, r.rows, r.free_rows, r.rows_done = k, k_end, rows, free_rows, 0
+        r.count, r.samples, r.flush_at = count, samples, flush_at
+        return self.lib.cosim_run(ctypes.byref(self.program), ctypes.byref(r))
+
+    def watch_signals(self) -> None:
+        """SIGINT, SIGTERM and SIGALRM set the stop flag (and still reach their Python handler)."""
+        if self.lib.cosim_watch_signals(ctypes.byref(self.stop_flag)) != 0:
+            raise RuntimeError("the kernel could not install its signal handlers")
+
+    def unwatch_signals(self) -> None:
+        self.lib.cosim_unwatch_signals()

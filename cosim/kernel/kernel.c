@@ -1,0 +1,211 @@
+/* The master's stepping loop in C (cosim.kernel): a fixed sequence of FMI calls and routes per
+ * communication step, then one recorded row, repeated from step k to step k_end.
+ *
+ * Python (cosim.kernel.Program) compiles the sequence the Python loop of cosim.execution runs
+ * at every step -- the doSteps (Jacobi, or Gauss-Seidel with each component's inputs routed
+ * and set before and its outputs read after its doStep), the batched gets, the direct-
+ * feedthrough settling in dependency order, the routes (y * factor + offset, two roundings:
+ * built with -ffp-contract=off), the sets -- into an array of operations; this file only runs
+ * it, so the calls, their order and the arithmetic are the Python loop's.
+ *
+ * The loop returns to Python (cosim_run's result, bits of KERNEL_*) when:
+ *   - step k_end is reached (Python's progress stride);
+ *   - the recorder's buffer is full, or its flush deadline (CLOCK_MONOTONIC, as Python's
+ *     time.monotonic) has passed: Python hands the rows to the sinks;
+ *   - the stop flag is set (a signal: cosim_watch_signals), checked after each recorded row;
+ *   - an FMI call returned a status other than OK and Warning, or fmi3DoStep asked to
+ *     terminate: Python handles the status and finishes that step with its own code.
+ * No Python C API: loaded with ctypes, which releases the GIL for the call (pythonfmu FMUs
+ * take it themselves in each FMI call). */
+#define _XOPEN_SOURCE 700
+#include <signal.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+#include <time.h>
+
+enum { OP_STEP = 0, OP_GET = 1, OP_SET = 2, OP_ROUTE = 3 };
+enum { KERNEL_END = 1, KERNEL_FULL = 2, KERNEL_FLUSH = 4, KERNEL_STOP = 8, KERNEL_STATUS = 16 };
+
+typedef int (*fmi2DoStep)(void *, double, double, int);
+typedef int (*fmi3DoStep)(void *, double, double, bool, bool *, bool *, bool *, double *);
+typedef int (*fmi2Exchange)(void *, const unsigned int *, size_t, void *);
+typedef int (*fmi3Exchange)(void *, const unsigned int *, size_t, void *, size_t);
+
+/* One operation of a step.  OP_STEP/OP_GET/OP_SET: an FMI call (api 2 or 3) on ``instance``;
+ * fmi3DoStep's out-arguments are ``out`` (the instance's own, which Python reads after).
+ * OP_ROUTE: U[dst[j]] = Y[src[j]] (identity) or Y[src[j]] * factor[j] + offset[j], on doubles
+ * or (integer) on C ints, as fmi2Integer and fmi2Boolean are. */
+typedef struct {
+    int kind, api, integer, identity;
+    void *fn, *instance;
+    const unsigned int *vr;
+    size_t n;
+    void *values;
+    bool *event, *terminate, *early;
+    double *last;
+    const intptr_t *src, *dst;
+    const double *factor, *offset;
+    void *Y, *U;
+} Op;
+
+/* One exchange buffer copied into every row: n doubles or (integer) C ints. */
+typedef struct {
+    void *values;
+    size_t n;
+    int integer;
+} Source;
+
+typedef struct {
+    const Op *ops;
+    int n_ops;
+    const Source *sources;
+    int n_sources;
+    int columns;
+    double start, step, stop;
+    long long steps;
+} Program;
+
+/* What one call does: steps k .. k_end - 1 (k advances past every completed step), rows into
+ * ``rows`` (row-major, ``columns`` doubles each) up to ``free_rows``; ``samples`` counts every
+ * row of the run and is stored into ``count`` after each row (the journal's row counter).  On
+ * KERNEL_STATUS: ``op`` and ``status`` of the call, in step k (not completed). */
+typedef struct {
+    long long k, k_end;
+    double *rows;
+    long long free_rows, rows_done;
+    int64_t *count;
+    long long samples;
+    double flush_at;
+    volatile int *stop;
+    int op, status;
+} Run;
+
+static double grid_time(const Program *p, long long k) {
+    return k >= p->steps ? p->stop : p->start + (double)k * p->step;
+}
+
+static double monotonic(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+}
+
+static void route(const Op *o) {
+    size_t n = o->n;
+    if (o->integer) {
+        const int *Y = o->Y;
+        int *U = o->U;
+        if (o->identity)
+            for (size_t j = 0; j < n; j++) U[o->dst[j]] = Y[o->src[j]];
+        else
+            for (size_t j = 0; j < n; j++) U[o->dst[j]] = (int)((double)Y[o->src[j]] * o->factor[j] + o->offset[j]);
+    } else {
+        const double *Y = o->Y;
+        double *U = o->U;
+        if (o->identity)
+            for (size_t j = 0; j < n; j++) U[o->dst[j]] = Y[o->src[j]];
+        else
+            for (size_t j = 0; j < n; j++) U[o->dst[j]] = Y[o->src[j]] * o->factor[j] + o->offset[j];
+    }
+}
+
+/* The status of one operation (0 for routes). */
+static int operate(const Op *o, double t, double h) {
+    switch (o->kind) {
+    case OP_STEP:
+        if (o->api == 2)
+            return ((fmi2DoStep)o->fn)(o->instance, t, h, 1);
+        return ((fmi3DoStep)o->fn)(o->instance, t, h, true, o->event, o->terminate, o->early, o->last);
+    case OP_GET:
+    case OP_SET:
+        if (o->api == 2)
+            return ((fmi2Exchange)o->fn)(o->instance, o->vr, o->n, o->values);
+        return ((fmi3Exchange)o->fn)(o->instance, o->vr, o->n, o->values, o->n);
+    default:
+        route(o);
+        return 0;
+    }
+}
+
+int cosim_run(const Program *p, Run *r) {
+    int reason = 0;
+    while (r->k < r->k_end) {
+        double t = grid_time(p, r->k), t_next = grid_time(p, r->k + 1), h = t_next - t;
+        for (int i = 0; i < p->n_ops; i++) {
+            const Op *o = &p->ops[i];
+            int s = operate(o, t, h);
+            /* a doStep goes on after OK and Warning unless fmi3DoStep asks to terminate; a get
+             * or set after any status up to Warning */
+            if (o->kind == OP_STEP ? (s != 0 && s != 1) || (o->api == 3 && *o->terminate) : s > 1) {
+                r->op = i;
+                r->status = s;
+                return KERNEL_STATUS;
+            }
+        }
+        double *row = r->rows + r->rows_done * p->columns;
+        int col = 1;
+        row[0] = t_next;
+        for (int i = 0; i < p->n_sources; i++) {
+            const Source *src = &p->sources[i];
+            if (src->integer)
+                for (size_t j = 0; j < src->n; j++) row[col++] = (double)((const int *)src->values)[j];
+            else
+                for (size_t j = 0; j < src->n; j++) row[col++] = ((const double *)src->values)[j];
+        }
+        r->rows_done++;
+        r->samples++;
+        *r->count = r->samples;
+        r->k++;
+        if (r->rows_done == r->free_rows) reason |= KERNEL_FULL;
+        if (monotonic() > r->flush_at) reason |= KERNEL_FLUSH;
+        if (*r->stop) reason |= KERNEL_STOP;
+        if (reason) return reason;
+    }
+    return KERNEL_END;
+}
+
+/* Signals during a run: SIGINT, SIGTERM and SIGALRM set ``flag`` (to the signal's number) and
+ * then go to the handler they had (Python's, which records them in the cosim.interrupts
+ * StopRequest once the kernel returns), so the loop sees them at the next row. */
+static const int WATCHED[3] = {SIGINT, SIGTERM, SIGALRM};
+static struct sigaction previous[3];
+static volatile int *watch_flag;
+static int watching;
+
+static void on_signal(int signum, siginfo_t *info, void *context) {
+    if (watch_flag != NULL && *watch_flag == 0) *watch_flag = signum;
+    for (int i = 0; i < 3; i++) {
+        if (WATCHED[i] != signum) continue;
+        if (previous[i].sa_flags & SA_SIGINFO)
+            previous[i].sa_sigaction(signum, info, context);
+        else if (previous[i].sa_handler != SIG_DFL && previous[i].sa_handler != SIG_IGN)
+            previous[i].sa_handler(signum);
+    }
+}
+
+int cosim_watch_signals(volatile int *flag) {
+    if (watching) return -1;
+    struct sigaction action;
+    memset(&action, 0, sizeof action);
+    action.sa_sigaction = on_signal;
+    action.sa_flags = SA_SIGINFO | SA_ONSTACK;
+    sigemptyset(&action.sa_mask);
+    watch_flag = flag;
+    for (int i = 0; i < 3; i++)
+        if (sigaction(WATCHED[i], &action, &previous[i]) != 0) {
+            while (i-- > 0) sigaction(WATCHED[i], &previous[i], NULL);
+            watch_flag = NULL;
+            return -1;
+        }
+    watching = 1;
+    return 0;
+}
+
+void cosim_unwatch_signals(void) {
+    if (!watching) return;
+    for (int i = 0; i < 3; i++) sigaction(WATCHED[i], &previous[i], NULL);
+    watch_flag = NULL;
+    watching = 0;
+}
