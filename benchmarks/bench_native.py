@@ -31,10 +31,10 @@ loading, unzipping, instantiation and initialisation are excluded):
 
 Each number is the best of ``--repeat`` runs, the repeats interleaved over cases and peers.
 Printed: µs per step per system and the ratios cosim/container, cosim/libcosim, cosim/floor for
-each cosim kernel; and what writing the result adds, "CSV +x %" and "Parquet +y %": the wall
-time of ``run(prepared, output=...)`` (CSV or Parquet file plus its journal, what ``cosim run
--o`` does) minus that of the same run in memory, over the in-memory loop time, with the fastest
-kernel.  A peer that cannot run a case gets the reason instead of a number.  ``--markdown``
+each cosim kernel; and what writing the result adds, for CSV and Parquet: the wall time of
+``run(prepared, output=...)`` (the file plus its journal, what ``cosim run -o`` does) minus that
+of the same run in memory (both best of ``--repeat``), in percent of the in-memory loop time and
+in µs per step, with the fastest kernel, for systems of 10 FMUs or more.  A peer that cannot run a case gets the reason instead of a number.  ``--markdown``
 prints the README table.
 """
 from __future__ import annotations
@@ -151,14 +151,14 @@ def run_peer(peer: str, case: Case, stop: float, floor_library, fmpy_max: int) -
 
 
 def file_overhead(case: Case, stop: float, folder: Path) -> dict[str, float]:
-    """Percent that writing CSV and Parquet (with the journal) adds to the in-memory loop time."""
+    """Seconds that writing CSV and Parquet (with the journal) add to a run, and the in-memory loop's."""
     kernel = KERNELS[-1]
     loop, wall, _ = cosim_run(case, stop, kernel)
-    added = {}
+    added = {"loop": loop}
     for suffix in ("csv", "parquet"):
         target = folder / f"result.{suffix}"
         _, wall_file, _ = cosim_run(case, stop, kernel, output=target)
-        added[suffix] = 100.0 * (wall_file - wall) / loop
+        added[suffix] = wall_file - wall
         for written in folder.glob("result.*"):
             written.unlink()
     return added
@@ -190,14 +190,23 @@ def measure(families: list[str], sizes: list[int], steps: int, repeat: int, fmpy
                 seconds, case.results[peer] = outcome
                 case.best[peer] = min(case.best.get(peer, float("inf")), seconds / steps * 1e6)
             if case.system.n >= files_from:
-                added = file_overhead(case, stop, case.folder.parent)
                 best = overheads.setdefault(index, {})
-                for suffix, value in added.items():
-                    best[suffix] = min(best.get(suffix, float("inf")), value)
+                for key, seconds in file_overhead(case, stop, case.folder.parent).items():
+                    best[key] = min(best.get(key, float("inf")), seconds)
     for index, case in enumerate(cases):
-        for suffix, value in overheads.get(index, {}).items():
-            case.best[f"+{suffix}"] = value
+        best = overheads.get(index)
+        if best:
+            for suffix in ("csv", "parquet"):
+                case.best[f"+{suffix} µs"] = best[suffix] / steps * 1e6
+                case.best[f"+{suffix}"] = 100.0 * best[suffix] / best["loop"]
     return cases
+
+
+def file_cost(case: Case, suffix: str) -> str:
+    """"x % (y µs/step)": what writing the result adds, relative to the in-memory loop."""
+    if f"+{suffix}" not in case.best:
+        return "—"
+    return f"{case.best[f'+{suffix}']:.0f} % ({case.best[f'+{suffix} µs']:.2f})"
 
 
 def cell(case: Case, peer: str, digits: int = 2) -> str:
@@ -216,15 +225,14 @@ def table(cases: list[Case]) -> list[str]:
     header = ["FMUs", "system", "N"] + [f"{p} µs" for p in PEERS]
     for kernel in KERNELS:
         header += [f"{kernel}/container", f"{kernel}/libcosim", f"{kernel}/floor"]
-    header += ["CSV +%", "Parquet +%"]
+    header += ["CSV adds % (µs/step)", "Parquet adds % (µs/step)"]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for case in cases:
         row = [case.system.family.name, case.system.topology, str(case.system.n)]
         row += [cell(case, p) for p in PEERS]
         for kernel in KERNELS:
             row += [ratio(case, kernel, "container"), ratio(case, kernel, "libcosim"), ratio(case, kernel, "C floor")]
-        row += [f"{case.best['+csv']:.0f}" if "+csv" in case.best else "—",
-                f"{case.best['+parquet']:.0f}" if "+parquet" in case.best else "—"]
+        row += [file_cost(case, "csv"), file_cost(case, "parquet")]
         lines.append("| " + " | ".join(row) + " |")
     return lines
 
@@ -256,7 +264,7 @@ def main() -> None:
             print(f"  cosim {kernel}: / container {ratio(case, kernel, 'container')}, / libcosim "
                   f"{ratio(case, kernel, 'libcosim')}, / floor {ratio(case, kernel, 'C floor')}")
         if "+csv" in case.best:
-            print(f"  writing CSV adds {case.best['+csv']:.0f} %, Parquet {case.best['+parquet']:.0f} %")
+            print(f"  writing CSV adds {file_cost(case, 'csv')}, Parquet {file_cost(case, 'parquet')}")
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from cfmus import build_c_fmu  # tests/ is on sys.path (benchmarks/bench_native.py puts it there)
+from cfmus import build_c_fmu, fmi2_description  # tests/ is on sys.path (benchmarks/bench_native.py puts it there)
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 
@@ -49,25 +49,8 @@ FAMILIES = {
 
 
 def _model_description(name: str, variables: list[tuple[str, int, str, float | None]], dependencies: dict) -> str:
-    """FMI 2.0 CS model description: (name, value reference, causality, start); outputs list
-    the inputs they depend on (``dependencies``: output -> input names)."""
-    rows, unknowns = [], []
-    index = {var: i for i, (var, *_) in enumerate(variables, 1)}
-    for var, vr, causality, start in variables:
-        attrs = {"output": 'variability="continuous"', "input": 'variability="continuous"',
-                 "parameter": 'variability="fixed" initial="exact"'}[causality]
-        real = "<Real/>" if start is None else f'<Real start="{start}"/>'
-        rows.append(f'<ScalarVariable name="{var}" valueReference="{vr}" causality="{causality}" {attrs}>{real}'
-                    '</ScalarVariable>')
-        if causality == "output":
-            deps = " ".join(str(index[d]) for d in dependencies.get(var, ()))
-            unknowns.append(f'<Unknown index="{index[var]}" dependencies="{deps}"/>')
     guid = "{b3c1%04x-0000-4000-8000-%012x}" % (len(name), sum(map(ord, name)))
-    return ('<?xml version="1.0" encoding="UTF-8"?>\n'
-            f'<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{guid}" numberOfEventIndicators="0">'
-            f'<CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="true"/>'
-            f'<ModelVariables>{"".join(rows)}</ModelVariables>'
-            f'<ModelStructure><Outputs>{"".join(unknowns)}</Outputs></ModelStructure></fmiModelDescription>\n')
+    return fmi2_description(name, variables, dependencies, guid)
 
 
 VAN_DER_POL = r"""
