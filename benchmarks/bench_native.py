@@ -15,14 +15,18 @@ loading, unzipping, instantiation and initialisation are excluded):
   ``"native"`` (today's Python loop or the compiled one; the keyword is passed only when this
   cosim has it), every connector (outputs and inputs) recorded in memory; metadata
   ``loop_seconds``.
-* ``C floor``: benchmarks/native_floor.c (compiled here, called through ctypes in this process):
+* ``C floor``: benchmarks/native_floor.c (compiled here, called through ctypes in this process,
+  one library per FMU file as cosim loads them; a copy per instance made 99 OpenModelica
+  ``add`` blocks 10× slower):
   fmi2DoStep, one batched fmi2GetReal and fmi2SetReal per FMU, the routing and cosim's
   feedthrough settling in a C loop, every output and input appended to a C array, timed in C.
   Its results equal cosim's to the last bit (tests/test_bench_native.py).
 * ``container``: the fmu-manipulation-toolbox 2.0 container (``fmucontainer``, one thread) of
   the same FMUs, every embedded output exposed; stepped by the same C loop (one fmi2DoStep of
-  1 ms and one fmi2GetReal of all its outputs per step, recorded in the C array), timed in C.
-  The container is Jacobi: a feedthrough chain lags one step per block.
+  1 ms and one fmi2GetReal of all its outputs per step, recorded in the C array), timed in C,
+  in a fresh process per run (a second container of OpenModelica FMUs in one process crashed
+  it with a segmentation fault).  The container is Jacobi: a feedthrough chain lags one step
+  per block.
 * ``libcosim``: libcosim 0.11.2 through libcosimpy (tests/peers.py, ``run_libcosim``) on the
   same SSP folder, Jacobi, every output in its time-series observer; ``execution.step(n)`` timed.
 * ``fmpy.ssp``: ``fmpy.ssp.simulate_ssp`` on the packed ``.ssp`` (tests/peers.py), every SSD
@@ -41,10 +45,12 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import multiprocessing
 import os
 import sys
 import tempfile
 import time as _time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -118,7 +124,7 @@ def cosim_run(case: Case, stop: float, kernel: str, output: Path | None = None) 
     return meta["loop_seconds"], wall, result
 
 
-def run_peer(peer: str, case: Case, stop: float, floor_library, fmpy_max: int) -> tuple[float, np.ndarray] | str:
+def run_peer(peer: str, case: Case, stop: float, floor_library: Path, fmpy_max: int) -> tuple[float, np.ndarray] | str:
     """(loop seconds, samples) of ``peer`` on ``case``, or why it cannot run the case."""
     if peer.startswith("cosim"):
         kernel = peer.split()[1]
@@ -133,8 +139,11 @@ def run_peer(peer: str, case: Case, stop: float, floor_library, fmpy_max: int) -
         if isinstance(case.container, str):
             return case.container
         exposed = {f"{c}_{v}": f"{c}.{v}" for c, vs in case.outputs.items() for v in vs}   # build_container's names
-        seconds, result = run_c_floor(floor_library, [("container", str(case.container), {})],
-                                      {"container": list(exposed)}, [], [], 0.0, stop, STEP, settle=False)
+        # a fresh process per run: a second container of OpenModelica FMUs in one process crashed it
+        with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as isolated:
+            seconds, result = isolated.submit(run_c_floor, floor_library, [("container", str(case.container), {})],
+                                              {"container": list(exposed)}, [], [], 0.0, stop, STEP,
+                                              settle=False).result()
         result.dtype.names = ["time"] + [exposed[name.removeprefix("container.")] for name in result.dtype.names[1:]]
         return seconds, result
     signals = [f"{c}.{v}" for c, vs in case.outputs.items() for v in vs]

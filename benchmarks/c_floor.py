@@ -1,5 +1,6 @@
 """The C floor: benchmarks/native_floor.c, compiled here and called through ctypes, steps FMI 2.0
-Co-Simulation instances that fmpy has loaded (`floor.instantiated`).
+Co-Simulation instances that fmpy has loaded (`floor.instantiated`, one library per FMU file,
+as cosim loads them).
 
     library = compile_floor(folder)
     seconds, results = run_c_floor(library, fmus, outputs, connections, feedthrough, start, stop, step)
@@ -44,15 +45,19 @@ class _Failure(ctypes.Structure):
     _fields_ = [("instance", ctypes.c_int), ("step", ctypes.c_long), ("status", ctypes.c_int)]
 
 
-def compile_floor(folder: Path) -> ctypes.CDLL:
-    """native_floor.c compiled (-O2) with the system C compiler into ``folder`` and loaded."""
+def compile_floor(folder: Path) -> Path:
+    """native_floor.c compiled (-O2) with the system C compiler into ``folder``: the library's path."""
     compiler = shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
         raise RuntimeError("no C compiler (cc or gcc) on PATH: benchmarks/native_floor.c cannot be built")
     library = Path(folder) / "native_floor.so"
     subprocess.run([compiler, "-O2", "-Wall", "-Werror", "-shared", "-fPIC", "-o", str(library), str(SOURCE)],
                    check=True, capture_output=True, text=True)
-    lib = ctypes.CDLL(str(library))
+    return library
+
+
+def _load(library: Path) -> ctypes.CDLL:
+    lib = ctypes.CDLL(str(library))   # loaded once per process: dlopen of the same path shares it
     lib.floor_exchange.argtypes = [_p(_Floor), _p(_Failure)]
     lib.floor_run.argtypes = [_p(_Floor), ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_long,
                               _p(ctypes.c_double), _p(ctypes.c_double), _p(_Failure)]
@@ -64,7 +69,7 @@ def _pointer(array: np.ndarray, ctype):
 
 
 def run_c_floor(
-    library: ctypes.CDLL,
+    library: Path,
     fmus: Sequence[tuple[str, str, Mapping[str, float]]],
     outputs: Mapping[str, Sequence[str]],
     connections: Sequence[tuple[str, str, str, str]],
@@ -82,8 +87,9 @@ def run_c_floor(
                   inputs set are exactly the connected ones;
     feedthrough:  the instances whose outputs depend on their inputs, in dependency order.
     Returns (the loop's seconds, a structured array: ``time`` and ``comp.var`` for every output
-    and every connected input, one row per communication point).
+    and every connected input, one row per communication point).  ``library``: `compile_floor`'s.
     """
+    lib = _load(library)
     names = [name for name, _, _ in fmus]
     if len(set(names)) != len(names):
         raise ValueError("FMU instance names must be unique")
@@ -101,7 +107,7 @@ def run_c_floor(
     source = np.array([y_index[f"{src}.{sv}"] for c in order for v in inputs[c]
                        for src, sv, dst, dv in connections if (dst, dv) == (c, v)], dtype=np.intc)
 
-    with instantiated([fmus[names.index(c)] for c in order], start) as (slaves, variables):
+    with instantiated([fmus[names.index(c)] for c in order], start, shared_library=True) as (slaves, variables):
         def vrs(i: int, var_names: Sequence[str]) -> list[int]:
             found = [variables[i].get(v) for v in var_names]
             missing = [f"{order[i]}.{v}" for v, x in zip(var_names, found) if x is None or x.type != "Real"]
@@ -134,14 +140,14 @@ def run_c_floor(
 
         for slave in slaves:
             slave.enterInitializationMode()
-        check(library.floor_exchange(ctypes.byref(floor), ctypes.byref(failure)), "the exchange")
+        check(lib.floor_exchange(ctypes.byref(floor), ctypes.byref(failure)), "the exchange")
         for slave in slaves:
             slave.exitInitializationMode()
-        check(library.floor_exchange(ctypes.byref(floor), ctypes.byref(failure)), "the exchange")
+        check(lib.floor_exchange(ctypes.byref(floor), ctypes.byref(failure)), "the exchange")
         record = np.empty((n_steps + 1, len(y_names) + len(u_names)))
         record[0] = np.concatenate([y, u])
         seconds = ctypes.c_double()
-        check(library.floor_run(ctypes.byref(floor), start, stop, step, n_steps, _pointer(record[1:], ctypes.c_double),
+        check(lib.floor_run(ctypes.byref(floor), start, stop, step, n_steps, _pointer(record[1:], ctypes.c_double),
                                 ctypes.byref(seconds), ctypes.byref(failure)), "a call")
         for slave in slaves:
             slave.terminate()

@@ -40,22 +40,27 @@ __all__ = ["instantiated", "run_floor"]
 
 
 @contextmanager
-def instantiated(fmus: Sequence[tuple[str, str, Mapping[str, float]]], start: float):
+def instantiated(fmus: Sequence[tuple[str, str, Mapping[str, float]]], start: float, *,
+                 shared_library: bool = False):
     """FMI 2.0 CS instances of ``fmus`` [(name, fmu_path, {variable: start value})], each from its
-    own extraction (separate .so copies, as libcosim), set up at ``start`` (no stop time, as
-    libcosim and fmpy.ssp) with the start values set; yields (fmpy FMU2Slaves, {name: variable}
-    per instance) and frees the instances and extractions afterwards."""
+    own extraction (separate .so copies, as libcosim) or, ``shared_library``, one extraction per
+    FMU file (as cosim), set up at ``start`` (no stop time, as libcosim and fmpy.ssp) with the
+    start values set; yields (fmpy FMU2Slaves, {name: variable} per instance) and frees the
+    instances and extractions afterwards."""
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
     slaves, unzipdirs, variables = [], [], []
+    extracted: dict[str, str] = {}
     try:
         for name, path, params in fmus:
             md = read_model_description(path, validate=False)
             if md.fmiVersion != "2.0" or md.coSimulation is None:
                 raise ValueError(f"{name}: {path} is not an FMI 2.0 Co-Simulation FMU")
-            unzipdir = extract(path)
-            unzipdirs.append(unzipdir)
+            unzipdir = extracted.get(path) if shared_library else None
+            if unzipdir is None:
+                unzipdir = extracted[path] = extract(path)
+                unzipdirs.append(unzipdir)
             fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
             fmu.instantiate()
