@@ -8,4 +8,5 @@ Everything else about the package is in pyproject.toml.
 from setuptools import Extension, setup
 
 setup(ext_modules=[Extension("cosim.kernel._kernel", sources=["cosim/kernel/kernel.c"], optional=True,
-                             extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"])])
+                             extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math", "-pthread"],
+                             extra_link_args=["-pthread"])])

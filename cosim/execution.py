@@ -35,7 +35,7 @@ import ctypes
 import math
 import time as _time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -225,9 +225,13 @@ class Execution:
                              element="algorithm")
         if kernel not in KERNELS:
             raise SetupError(f"unknown kernel '{kernel}'; choose one of {', '.join(KERNELS)}.", element="--kernel")
-        if threads != 1:
-            raise SetupError(f"--threads {threads}: stepping components in parallel is not implemented; "
-                             "run with --threads 1.", element="--threads")
+        if not (isinstance(threads, int) and threads >= 1):
+            raise SetupError(f"the number of threads must be a whole number of at least 1; got {threads!r}.",
+                             element="--threads")
+        if threads > 1 and (algorithm != "jacobi" or kernel == "python"):
+            raise SetupError(f"--threads {threads} steps components in parallel within a Jacobi step of the "
+                             f"compiled kernel; this run is {algorithm} with the {kernel} kernel.",
+                             element="--threads", hint="Run with --threads 1, or Jacobi and --kernel auto.")
         self.plan = plan
         self.grid = grid
         self.algorithm = algorithm
@@ -247,12 +251,16 @@ class Execution:
         self.status = "not started"
         self.message = ""
         self.kernel_requested = kernel
+        self.threads = threads
+        #: with threads: the components whose doSteps run in parallel, and why the others do not
+        self.parallel: list[str] = []
+        self.serial: dict[str, str] = {}
         #: the loop that runs ("native" or "python"), decided when the FMUs are instantiated, and
         #: under "auto" why the Python loop runs
         self.kernel, self.kernel_reason = "python", ""
         self._native: native.Kernel | None = None
         self._plan_refusal = self._native_refusal() if kernel != "python" else ""
-        if kernel == "native" and self._plan_refusal:
+        if (kernel == "native" or threads > 1) and self._plan_refusal:
             self._refuse_native(self._plan_refusal)
 
     def _native_refusal(self) -> str:
@@ -320,10 +328,10 @@ class Execution:
         """The compiled loop when the plan and every instance allow it (`_native_refusal`,
         `cosim.instances.base.NativeInstance`); else, under "auto", the Python loop and why
         (one notice per process when the library is missing), under "native" a SetupError."""
-        types = [ty.type_name for ty in self.typed]
         functions, reason = {}, self._plan_refusal
         for name in self.order if not reason else ():
             inst = self.instances[name]
+            types = [ty.type_name for ty in self.typed if ty.out_slices[name][1] or ty.in_slices[name][1]]
             found = inst.native_functions(types) if isinstance(inst, NativeInstance) else \
                 f"component '{name}' offers no FMI function addresses ({type(inst).__name__})"
             if isinstance(found, str):
@@ -331,7 +339,7 @@ class Execution:
                 break
             functions[name] = found
         if reason:
-            if self.kernel_requested == "native":
+            if self.kernel_requested == "native" or self.threads > 1:
                 self._refuse_native(reason)
             if reason == native.library()[1]:
                 _notice_once(reason)
@@ -340,7 +348,8 @@ class Execution:
         operations = self._step_operations(functions) + self._exchange_operations(functions)
         sources = [(ty.address(buf, 0), n, ty.integer) for ty in self.typed
                    for buf, n in ((ty.Ybuf, len(ty.Y)), (ty.Ubuf, len(ty.U)))]
-        self._native = native.Kernel(operations, sources, self.grid, 1 + sum(n for _, n, _ in sources))
+        self._native = native.Kernel(operations, sources, self.grid, 1 + sum(n for _, n, _ in sources),
+                                     self.threads, len(self.order) if self.threads > 1 else 0)
         self.kernel = "native"
 
     def _call_operations(self, kind: int, comp: str, fn: NativeFunctions, at_step_end: bool = True) -> list:
@@ -371,7 +380,13 @@ class Execution:
             return native.Operation(native.OP_STEP, name, fn.api, fn.do_step, fn.component, step_out=fn.step_out,
                                     position=position)
         if self.algorithm != "gauss-seidel":
-            return [step(name, p) for p, name in enumerate(self.order)]
+            ops = [step(name, p) for p, name in enumerate(self.order)]
+            if self.threads > 1:  # round robin over the threads; a serial component on the caller's
+                self.serial = {name: functions[name].serial for name in self.order if functions[name].serial}
+                self.parallel = [name for name in self.order if name not in self.serial]
+                for i, name in enumerate(self.parallel):
+                    ops[self.order.index(name)] = replace(ops[self.order.index(name)], thread=i % self.threads)
+            return ops
         ops = []
         for p, name in enumerate(self.plan.gauss_seidel_order):
             ops += self._route_into_operations(name, functions, at_step_end=False)
@@ -592,8 +607,13 @@ class Execution:
             if self._gauss_seidel_step(gs[op.position + 1:], t, h, t_next, ended):
                 return True
         else:
-            for name, do_step, c in steppers[op.position + 1:]:
-                s = do_step(c, t, h, 1)
+            for position in range(op.position + 1, len(steppers)):
+                name, do_step, c = steppers[position]
+                if self.threads > 1:  # stepped already, in the parallel phase: its status
+                    s = self._native.statuses[position]
+                    s = self.instances[name].step_outcome(t, h, s) if self.instances[name].api == "fmi3" else s
+                else:
+                    s = do_step(c, t, h, 1)
                 if s and self._step_status(s, name, t, h, ended):
                     return True
         if ended:
@@ -657,6 +677,8 @@ class Execution:
             + f"; the run ended there, that point recorded (stop time {self.grid.stop:g})."
 
     def close(self) -> None:
+        if self._native is not None:
+            self._native.close()
         for inst in self.instances.values():
             inst.free()
         self.instances.clear()
@@ -675,7 +697,9 @@ class Execution:
         return None
 
     def metadata(self) -> dict:
-        kernel = {"kernel": self.kernel} | ({"kernel_reason": self.kernel_reason} if self.kernel_reason else {})
+        kernel = {"kernel": self.kernel} | ({"kernel_reason": self.kernel_reason} if self.kernel_reason else {}) \
+            | ({"threads": self.threads, "parallel_components": self.parallel, "serial_components": self.serial}
+               if self.threads > 1 else {})
         return {
             "algorithm": self.algorithm, **kernel,
             "gauss_seidel_order": self.plan.gauss_seidel_order if self.algorithm == "gauss-seidel" else None,

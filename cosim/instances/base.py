@@ -83,13 +83,30 @@ class NativeFunctions:
     (`cosim.kernel`): ``api`` 2 or 3, ``do_step``, and ``get``/``set`` by exchange type, each
     called with the C signature of its FMI version; ``step_out``: the addresses of
     fmi3DoStep's four out-arguments (eventHandlingNeeded, terminateSimulation, earlyReturn,
-    lastSuccessfulTime), which the instance reads after the call (`cosim.instances.fmi3`)."""
+    lastSuccessfulTime), which the instance reads after the call (`cosim.instances.fmi3`);
+    ``serial``: why its doStep must not run concurrently with other instances' ("": it may)."""
     api: int
     component: int
     do_step: int
     get: Mapping[str, int]
     set: Mapping[str, int]
     step_out: tuple[int, int, int, int] = (0, 0, 0, 0)
+    serial: str = ""
+
+
+def serial_reason(inst: InstanceBase) -> str:
+    """Why an instance's FMI calls must stay on one thread with the others' ("" if they need not):
+    its model description says canBeInstantiatedOnlyOncePerProcess (FMI 2.0 §4.3.1, FMI 3.0
+    §4.2.1: the FMU may keep global state), or it is a pythonfmu FMU (its library exports
+    ``finalizePythonInterpreter``, or, behind our drop-in loader, its generationTool says
+    PythonFMU), whose Python do_step holds the GIL: nothing to gain."""
+    cs = inst.desc.md.coSimulation
+    if cs is not None and cs.canBeInstantiatedOnlyOncePerProcess:
+        return f"component '{inst.name}' says canBeInstantiatedOnlyOncePerProcess"
+    if hasattr(inst.slave.dll, "finalizePythonInterpreter") \
+            or (inst.desc.md.generationTool or "").lower().startswith("pythonfmu"):
+        return f"component '{inst.name}' is a pythonfmu FMU (its Python do_step holds the GIL)"
+    return ""
 
 
 @runtime_checkable

@@ -12,7 +12,7 @@ from fmpy.model_description import ModelVariable
 
 from ..description import FMUDescription
 from ..errors import SetupError
-from .base import InstanceBase, NativeFunctions, address, end_instance, log_line
+from .base import InstanceBase, NativeFunctions, address, end_instance, log_line, serial_reason
 
 #: Log messages by instance name.  fmpy's native logger proxy (which formats the printf
 #: arguments) keeps one Python logger for the whole process, so one logger dispatches, and
@@ -79,7 +79,8 @@ class FMI2Instance(InstanceBase):
         if unknown:
             return f"component '{self.name}' exchanges {', '.join(unknown)} values"
         return NativeFunctions(2, self.component, address(raw["fmi2DoStep"]),
-                               {t: address(self.get[t]) for t in types}, {t: address(self.set[t]) for t in types})
+                               {t: address(self.get[t]) for t in types}, {t: address(self.set[t]) for t in types},
+                               serial=serial_reason(self))
 
     def instantiate(self, fmu_log: str = "errors") -> None:
         """Instantiate.  ``fmu_log``: "errors" (default) turns logging on with only the FMI 2.0

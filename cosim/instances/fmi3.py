@@ -36,7 +36,7 @@ from fmpy.model_description import ModelVariable
 
 from ..description import ArrayElement, FMUDescription, exchange_type
 from ..errors import SetupError
-from .base import STATUS, InstanceBase, NativeFunctions, address, end_instance, log_line
+from .base import STATUS, InstanceBase, NativeFunctions, address, end_instance, log_line, serial_reason
 
 FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR = 0, 1, 2, 3
 
@@ -137,7 +137,7 @@ class FMI3Instance(InstanceBase):
         return NativeFunctions(3, self.component, address(raw["fmi3DoStep"]),
                                {t: address(raw[f"fmi3Get{suffix[t]}"]) for t in types},
                                {t: address(raw[f"fmi3Set{suffix[t]}"]) for t in types},
-                               tuple(ctypes.addressof(v) for v in self._step_out))
+                               tuple(ctypes.addressof(v) for v in self._step_out), serial=serial_reason(self))
 
     def step_end(self, t: float, h: float) -> tuple[float | None, str]:
         """What ``do_step`` kept when it ended the run: t + h after OK or Warning with

@@ -31,7 +31,7 @@ LIBRARY_ENV = "COSIM_KERNEL_LIBRARY"
 
 class _Op(ctypes.Structure):
     _fields_ = [("kind", ctypes.c_int), ("api", ctypes.c_int), ("integer", ctypes.c_int), ("identity", ctypes.c_int),
-                ("fn", ctypes.c_void_p), ("instance", ctypes.c_void_p), ("vr", ctypes.c_void_p),
+                ("thread", ctypes.c_int), ("fn", ctypes.c_void_p), ("instance", ctypes.c_void_p), ("vr", ctypes.c_void_p),
                 ("n", ctypes.c_size_t), ("values", ctypes.c_void_p),
                 ("event", ctypes.c_void_p), ("terminate", ctypes.c_void_p), ("early", ctypes.c_void_p),
                 ("last", ctypes.c_void_p),
@@ -44,7 +44,8 @@ class _Source(ctypes.Structure):
 
 
 class _Program(ctypes.Structure):
-    _fields_ = [("ops", ctypes.POINTER(_Op)), ("n_ops", ctypes.c_int), ("sources", ctypes.POINTER(_Source)),
+    _fields_ = [("ops", ctypes.POINTER(_Op)), ("n_ops", ctypes.c_int), ("pool", ctypes.c_void_p),
+                ("n_parallel", ctypes.c_int), ("statuses", ctypes.POINTER(ctypes.c_int)), ("sources", ctypes.POINTER(_Source)),
                 ("n_sources", ctypes.c_int), ("columns", ctypes.c_int), ("start", ctypes.c_double),
                 ("step", ctypes.c_double), ("stop", ctypes.c_double), ("steps", ctypes.c_longlong)]
 
@@ -84,6 +85,10 @@ def library() -> tuple[ctypes.CDLL | None, str]:
     lib.cosim_watch_signals.restype = ctypes.c_int
     lib.cosim_unwatch_signals.argtypes = []
     lib.cosim_unwatch_signals.restype = None
+    lib.cosim_pool_new.argtypes = [ctypes.c_int]
+    lib.cosim_pool_new.restype = ctypes.c_void_p
+    lib.cosim_pool_free.argtypes = [ctypes.c_void_p]
+    lib.cosim_pool_free.restype = None
     return lib, ""
 
 
@@ -94,8 +99,9 @@ class Operation:
     ``kind``: OP_STEP, OP_GET, OP_SET (an FMI call of ``component``, ``api`` 2 or 3, at
     function address ``fn``) or OP_ROUTE (``route``: source and destination positions, factor,
     offset, identity, on the buffers ``Y`` and ``U``).  ``position``: for a doStep, the
-    component's place in the stepping order; ``at_step_end``: a failing get or set is reported
-    at the end of the step (else at its start, as Gauss–Seidel sets the inputs before a doStep).
+    component's place in the stepping order, and ``thread``: with threads, which one makes it
+    (0: the caller); ``at_step_end``: a failing get or set is reported at the end of the step
+    (else at its start, as Gauss–Seidel sets the inputs before a doStep).
     """
     kind: int
     component: str = ""
@@ -111,6 +117,7 @@ class Operation:
     Y: int = 0
     U: int = 0
     position: int = -1
+    thread: int = 0
     at_step_end: bool = True
 
     def what(self) -> str:
@@ -119,9 +126,12 @@ class Operation:
 
 class Kernel:
     """The compiled loop over one step's `Operation` list, recording ``sources`` (exchange
-    buffer addresses, lengths and whether they hold C ints) after each step on ``grid``."""
+    buffer addresses, lengths and whether they hold C ints) after each step on ``grid``; with
+    ``threads`` > 1, the first ``parallel`` operations (doSteps) run concurrently, each on its
+    ``thread`` (`close` ends the threads)."""
 
-    def __init__(self, operations: list[Operation], sources: list[tuple[int, int, bool]], grid, columns: int):
+    def __init__(self, operations: list[Operation], sources: list[tuple[int, int, bool]], grid, columns: int,
+                 threads: int = 1, parallel: int = 0):
         self.lib, reason = library()
         if self.lib is None:
             raise RuntimeError(reason)
@@ -129,7 +139,7 @@ class Kernel:
         self._keep: list = []
         ops = (_Op * max(1, len(operations)))()
         for o, op in zip(ops, operations):
-            o.kind, o.api, o.integer = op.kind, op.api, int(op.integer)
+            o.kind, o.api, o.integer, o.thread = op.kind, op.api, int(op.integer), op.thread
             o.fn, o.instance, o.vr, o.n, o.values = op.fn, op.instance, op.vr, op.n, op.values
             o.event, o.terminate, o.early, o.last = op.step_out
             if op.route is not None:
@@ -144,8 +154,15 @@ class Kernel:
         for s, (values, n, integer) in zip(srcs, sources):
             s.values, s.n, s.integer = values, n, int(integer)
         self._ops, self._sources = ops, srcs
-        self.program = _Program(ops, len(operations), srcs, len(sources), columns, grid.start, grid.step,
-                                grid.stop, grid.steps)
+        #: with threads: the statuses of the parallel doSteps of the last step
+        self.statuses = (ctypes.c_int * max(1, len(operations)))()
+        self.pool = None
+        if threads > 1:
+            self.pool = self.lib.cosim_pool_new(threads)
+            if not self.pool:
+                raise RuntimeError(f"the kernel could not start {threads - 1} threads")
+        self.program = _Program(ops, len(operations), self.pool, parallel if self.pool else 0, self.statuses,
+                                srcs, len(sources), columns, grid.start, grid.step, grid.stop, grid.steps)
         self.state = _Run()
         self.stop_flag = ctypes.c_int(0)
         self.state.stop = ctypes.addressof(self.stop_flag)
@@ -167,3 +184,9 @@ class Kernel:
 
     def unwatch_signals(self) -> None:
         self.lib.cosim_unwatch_signals()
+
+    def close(self) -> None:
+        """End the threads, if any (before the instances they call are freed)."""
+        if self.pool:
+            self.lib.cosim_pool_free(self.pool)
+            self.pool = self.program.pool = None

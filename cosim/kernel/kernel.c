@@ -18,10 +18,12 @@
  * No Python C API: loaded with ctypes, which releases the GIL for the call (pythonfmu FMUs
  * take it themselves in each FMI call). */
 #define _XOPEN_SOURCE 700
+#include <pthread.h>
 #include <signal.h>
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
@@ -36,9 +38,10 @@ typedef int (*fmi3Exchange)(void *, const unsigned int *, size_t, void *, size_t
 /* One operation of a step.  OP_STEP/OP_GET/OP_SET: an FMI call (api 2 or 3) on ``instance``;
  * fmi3DoStep's out-arguments are ``out`` (the instance's own, which Python reads after).
  * OP_ROUTE: U[dst[j]] = Y[src[j]] (identity) or Y[src[j]] * factor[j] + offset[j], on doubles
- * or (integer) on C ints, as fmi2Integer and fmi2Boolean are. */
+ * or (integer) on C ints, as fmi2Integer and fmi2Boolean are.  ``thread``: with a pool, which
+ * thread makes a doStep of the parallel phase (0: the calling thread). */
 typedef struct {
-    int kind, api, integer, identity;
+    int kind, api, integer, identity, thread;
     void *fn, *instance;
     const unsigned int *vr;
     size_t n;
@@ -57,9 +60,17 @@ typedef struct {
     int integer;
 } Source;
 
+struct Pool;
+
+/* ``pool`` (cosim_pool_new), when not NULL: the first ``n_parallel`` operations are doSteps
+ * made concurrently, each by its ``thread``, their statuses in ``statuses`` (Jacobi: the
+ * components step from the inputs of the last communication point, independently). */
 typedef struct {
     const Op *ops;
     int n_ops;
+    struct Pool *pool;
+    int n_parallel;
+    int *statuses;
     const Source *sources;
     int n_sources;
     int columns;
@@ -129,16 +140,33 @@ static int operate(const Op *o, double t, double h) {
     }
 }
 
+/* Whether the loop stops at operation o after status s: a doStep goes on after OK and Warning
+ * unless fmi3DoStep asks to terminate; a get or set after any status up to Warning. */
+static int stops(const Op *o, int s) {
+    return o->kind == OP_STEP ? (s != 0 && s != 1) || (o->api == 3 && *o->terminate) : s > 1;
+}
+
+static void parallel_steps(const Program *p, double t, double h);
+
 int cosim_run(const Program *p, Run *r) {
     int reason = 0;
     while (r->k < r->k_end) {
         double t = grid_time(p, r->k), t_next = grid_time(p, r->k + 1), h = t_next - t;
-        for (int i = 0; i < p->n_ops; i++) {
+        int first = 0;
+        if (p->pool != NULL) {
+            parallel_steps(p, t, h);
+            for (int i = 0; i < p->n_parallel; i++)
+                if (stops(&p->ops[i], p->statuses[i])) {
+                    r->op = i;
+                    r->status = p->statuses[i];
+                    return KERNEL_STATUS;
+                }
+            first = p->n_parallel;
+        }
+        for (int i = first; i < p->n_ops; i++) {
             const Op *o = &p->ops[i];
             int s = operate(o, t, h);
-            /* a doStep goes on after OK and Warning unless fmi3DoStep asks to terminate; a get
-             * or set after any status up to Warning */
-            if (o->kind == OP_STEP ? (s != 0 && s != 1) || (o->api == 3 && *o->terminate) : s > 1) {
+            if (stops(o, s)) {
                 r->op = i;
                 r->status = s;
                 return KERNEL_STATUS;
@@ -208,4 +236,121 @@ void cosim_unwatch_signals(void) {
     for (int i = 0; i < 3; i++) sigaction(WATCHED[i], &previous[i], NULL);
     watch_flag = NULL;
     watching = 0;
+}
+
+/* Threads for the parallel doSteps: each worker makes the doSteps of its ``thread`` number at
+ * every step, so an instance is only ever called by one thread; the calling thread makes those
+ * of thread 0 (and waits for the others). */
+typedef struct {
+    struct Pool *pool;
+    int thread;
+} Worker;
+
+typedef struct Pool {
+    int workers;
+    pthread_t *tid;
+    Worker *args;
+    pthread_mutex_t mu;
+    pthread_cond_t go, done;
+    long generation;
+    int pending, quit;
+    const Program *program;
+    double t, h;
+} Pool;
+
+static void steps_of(const Program *p, int thread, double t, double h) {
+    for (int i = 0; i < p->n_parallel; i++)
+        if (p->ops[i].thread == thread) p->statuses[i] = operate(&p->ops[i], t, h);
+}
+
+/* A pause in a spin-wait; a thread spins up to SPIN rounds before it sleeps on a condition
+ * variable (waking a sleeping thread costs tens of µs on a VM, the length of a fast step). */
+#define SPIN 20000
+static inline void pause_a_little(void) {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+}
+
+static void *work(void *arg) {
+    Worker *w = arg;
+    Pool *pool = w->pool;
+    long seen = 0;
+    for (;;) {
+        for (int i = 0; i < SPIN && __atomic_load_n(&pool->generation, __ATOMIC_ACQUIRE) == seen
+                                 && !__atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE); i++)
+            pause_a_little();
+        pthread_mutex_lock(&pool->mu);
+        while (__atomic_load_n(&pool->generation, __ATOMIC_ACQUIRE) == seen && !pool->quit)
+            pthread_cond_wait(&pool->go, &pool->mu);
+        int quit = pool->quit;
+        pthread_mutex_unlock(&pool->mu);
+        if (quit) return NULL;
+        seen = __atomic_load_n(&pool->generation, __ATOMIC_ACQUIRE);
+        steps_of(pool->program, w->thread, pool->t, pool->h);
+        if (__atomic_sub_fetch(&pool->pending, 1, __ATOMIC_ACQ_REL) == 0) {
+            pthread_mutex_lock(&pool->mu);
+            pthread_cond_signal(&pool->done);
+            pthread_mutex_unlock(&pool->mu);
+        }
+    }
+}
+
+static void parallel_steps(const Program *p, double t, double h) {
+    Pool *pool = p->pool;
+    pthread_mutex_lock(&pool->mu);
+    pool->program = p;
+    pool->t = t;
+    pool->h = h;
+    __atomic_store_n(&pool->pending, pool->workers, __ATOMIC_RELEASE);
+    __atomic_add_fetch(&pool->generation, 1, __ATOMIC_ACQ_REL);
+    pthread_cond_broadcast(&pool->go);
+    pthread_mutex_unlock(&pool->mu);
+    steps_of(p, 0, t, h);
+    for (int i = 0; i < SPIN && __atomic_load_n(&pool->pending, __ATOMIC_ACQUIRE) > 0; i++) pause_a_little();
+    pthread_mutex_lock(&pool->mu);
+    while (__atomic_load_n(&pool->pending, __ATOMIC_ACQUIRE) > 0) pthread_cond_wait(&pool->done, &pool->mu);
+    pthread_mutex_unlock(&pool->mu);
+}
+
+void cosim_pool_free(Pool *pool);
+
+/* A pool of threads - 1 workers (NULL if they cannot be started). */
+Pool *cosim_pool_new(int threads) {
+    Pool *pool = calloc(1, sizeof(Pool));
+    if (pool == NULL) return NULL;
+    pool->tid = calloc((size_t)threads, sizeof(pthread_t));
+    Worker *workers = pool->args = calloc((size_t)threads, sizeof(Worker));
+    pthread_mutex_init(&pool->mu, NULL);
+    pthread_cond_init(&pool->go, NULL);
+    pthread_cond_init(&pool->done, NULL);
+    if (pool->tid == NULL || workers == NULL) {
+        cosim_pool_free(pool);
+        return NULL;
+    }
+    for (int i = 1; i < threads; i++) {
+        workers[i].pool = pool;
+        workers[i].thread = i;
+        if (pthread_create(&pool->tid[pool->workers], NULL, work, &workers[i]) != 0) {
+            cosim_pool_free(pool);
+            return NULL;
+        }
+        pool->workers++;
+    }
+    return pool;
+}
+
+void cosim_pool_free(Pool *pool) {
+    if (pool == NULL) return;
+    pthread_mutex_lock(&pool->mu);
+    __atomic_store_n(&pool->quit, 1, __ATOMIC_RELEASE);
+    pthread_cond_broadcast(&pool->go);
+    pthread_mutex_unlock(&pool->mu);
+    for (int i = 0; i < pool->workers; i++) pthread_join(pool->tid[i], NULL);
+    pthread_mutex_destroy(&pool->mu);
+    pthread_cond_destroy(&pool->go);
+    pthread_cond_destroy(&pool->done);
+    free(pool->tid);
+    free(pool->args);
+    free(pool);
 }
