@@ -15,7 +15,7 @@ loading, unzipping, instantiation and initialisation are excluded):
   ``"native"`` (today's Python loop or the compiled one; the keyword is passed only when this
   cosim has it), every connector (outputs and inputs) recorded in memory; metadata
   ``loop_seconds``.
-* ``C floor``: benchmarks/native_floor.c (compiled here, called through ctypes in this process,
+* ``C floor``: benchmarks/native_floor.c (compiled here, called through ctypes in the run's process,
   one library per FMU file as cosim loads them; a copy per instance made 99 OpenModelica
   ``add`` blocks 10× slower):
   fmi2DoStep, one batched fmi2GetReal and fmi2SetReal per FMU, the routing and cosim's
@@ -23,17 +23,17 @@ loading, unzipping, instantiation and initialisation are excluded):
   Its results equal cosim's to the last bit (tests/test_bench_native.py).
 * ``container``: the fmu-manipulation-toolbox 2.0 container (``fmucontainer``, one thread) of
   the same FMUs, every embedded output exposed; stepped by the same C loop (one fmi2DoStep of
-  1 ms and one fmi2GetReal of all its outputs per step, recorded in the C array), timed in C,
-  in a fresh process per run (a second container of OpenModelica FMUs in one process crashed
-  it with a segmentation fault).  The container is Jacobi: a feedthrough chain lags one step
-  per block.
+  1 ms and one fmi2GetReal of all its outputs per step, recorded in the C array), timed in C.
+  The container is Jacobi: a feedthrough chain lags one step per block.
 * ``libcosim``: libcosim 0.11.2 through libcosimpy (tests/peers.py, ``run_libcosim``) on the
   same SSP folder, Jacobi, every output in its time-series observer; ``execution.step(n)`` timed.
 * ``fmpy.ssp``: ``fmpy.ssp.simulate_ssp`` on the packed ``.ssp`` (tests/peers.py), every SSD
   connector in its result array; from the first to the last ``do_step``.  Run up to
   ``--fmpy-max`` FMUs.
 
-Each number is the best of ``--repeat`` runs, the repeats interleaved over cases and peers.
+Each run has a fresh process of its own (`isolated`; one process for everything crashed after a
+few minutes of OpenModelica instances and containers coming and going).  Each number is the best
+of ``--repeat`` runs, the repeats interleaved over cases and peers.
 Printed: µs per step per system and the ratios cosim/container, cosim/libcosim, cosim/floor for
 each cosim kernel; and what writing the result adds, for CSV and Parquet: the wall time of
 ``run(prepared, output=...)`` (the file plus its journal, what ``cosim run -o`` does) minus that
@@ -51,7 +51,8 @@ import sys
 import tempfile
 import time as _time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -139,11 +140,8 @@ def run_peer(peer: str, case: Case, stop: float, floor_library: Path, fmpy_max: 
         if isinstance(case.container, str):
             return case.container
         exposed = {f"{c}_{v}": f"{c}.{v}" for c, vs in case.outputs.items() for v in vs}   # build_container's names
-        # a fresh process per run: a second container of OpenModelica FMUs in one process crashed it
-        with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as isolated:
-            seconds, result = isolated.submit(run_c_floor, floor_library, [("container", str(case.container), {})],
-                                              {"container": list(exposed)}, [], [], 0.0, stop, STEP,
-                                              settle=False).result()
+        seconds, result = run_c_floor(floor_library, [("container", str(case.container), {})],
+                                      {"container": list(exposed)}, [], [], 0.0, stop, STEP, settle=False)
         result.dtype.names = ["time"] + [exposed[name.removeprefix("container.")] for name in result.dtype.names[1:]]
         return seconds, result
     signals = [f"{c}.{v}" for c, vs in case.outputs.items() for v in vs]
@@ -157,6 +155,22 @@ def run_peer(peer: str, case: Case, stop: float, floor_library: Path, fmpy_max: 
         result = run_fmpy_ssp(case.ssp, 0.0, stop, STEP, signals, timing=timing)
         return timing["loop_seconds"], result
     raise ValueError(f"unknown peer {peer!r}")
+
+
+def bare(case: Case) -> Case:
+    """``case`` without its measurements, to send to a run's process."""
+    return replace(case, best={}, why={}, results={})
+
+
+def isolated(function, *args):
+    """``function(*args)`` in a fresh Python process (spawned), or why it has no result: many
+    OpenModelica FMU instances and containers created and freed in one process crashed it with a
+    segmentation fault after a few minutes, so every run gets a process of its own."""
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        try:
+            return pool.submit(function, *args).result()
+        except BrokenProcessPool:
+            return "the process crashed (the run died, e.g. a segmentation fault)"
 
 
 def file_overhead(case: Case, stop: float, folder: Path) -> dict[str, float]:
@@ -189,10 +203,12 @@ def measure(families: list[str], sizes: list[int], steps: int, repeat: int, fmpy
                 system = native_system(FAMILIES[family], topology, n)
                 cases.append(lay_out(system, fmus, folder / f"{family}_{topology}_{n}", stop))
     overheads: dict[int, dict[str, float]] = {}
-    for _ in range(repeat):
+    for round_ in range(repeat):
         for index, case in enumerate(cases):
+            print(f"round {round_ + 1}/{repeat}: {case.system.family.name}, {case.system.label}", file=sys.stderr,
+                  flush=True)
             for peer in peers:
-                outcome = run_peer(peer, case, stop, library, fmpy_max)
+                outcome = isolated(run_peer, peer, bare(case), stop, library, fmpy_max)
                 if isinstance(outcome, str):
                     case.why[peer] = outcome
                     continue
@@ -200,7 +216,11 @@ def measure(families: list[str], sizes: list[int], steps: int, repeat: int, fmpy
                 case.best[peer] = min(case.best.get(peer, float("inf")), seconds / steps * 1e6)
             if case.system.n >= files_from:
                 best = overheads.setdefault(index, {})
-                for key, seconds in file_overhead(case, stop, case.folder.parent).items():
+                added = isolated(file_overhead, bare(case), stop, case.folder.parent)
+                if isinstance(added, str):
+                    case.why["+csv"] = case.why["+parquet"] = added
+                    continue
+                for key, seconds in added.items():
                     best[key] = min(best.get(key, float("inf")), seconds)
     for index, case in enumerate(cases):
         best = overheads.get(index)
@@ -214,7 +234,7 @@ def measure(families: list[str], sizes: list[int], steps: int, repeat: int, fmpy
 def file_cost(case: Case, suffix: str) -> str:
     """"x % (y µs/step)": what writing the result adds, relative to the in-memory loop."""
     if f"+{suffix}" not in case.best:
-        return "—"
+        return case.why.get(f"+{suffix}", "—")
     return f"{case.best[f'+{suffix}']:.0f} % ({case.best[f'+{suffix} µs']:.2f})"
 
 
