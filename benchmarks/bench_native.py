@@ -192,7 +192,7 @@ def file_overhead(case: Case, stop: float, folder: Path) -> dict[str, float]:
 
 
 def measure(families: list[str], sizes: list[int], steps: int, repeat: int, fmpy_max: int, folder: Path,
-            peers: tuple[str, ...] = PEERS, files_from: int = 10) -> list[Case]:
+            files_from: int = 10) -> list[Case]:
     """Every case, every peer, best of ``repeat`` interleaved; the CSV/Parquet cost of the cases of
     ``files_from`` FMUs or more."""
     stop = steps * STEP
@@ -211,7 +211,7 @@ def measure(families: list[str], sizes: list[int], steps: int, repeat: int, fmpy
         for index, case in enumerate(cases):
             print(f"round {round_ + 1}/{repeat}: {case.system.family.name}, {case.system.label}", file=sys.stderr,
                   flush=True)
-            for peer in peers:
+            for peer in PEERS:
                 outcome = isolated(run_peer, peer, bare(case), stop, library, fmpy_max)
                 if isinstance(outcome, str):
                     case.why[peer] = outcome
@@ -242,9 +242,9 @@ def file_cost(case: Case, suffix: str) -> str:
     return f"{case.best[f'+{suffix}']:.0f} % ({case.best[f'+{suffix} µs']:.2f})"
 
 
-def cell(case: Case, peer: str, digits: int = 2) -> str:
+def cell(case: Case, peer: str) -> str:
     if peer in case.best:
-        return f"{case.best[peer]:.{digits}f}"
+        return f"{case.best[peer]:.2f}"
     return case.why.get(peer, "—")
 
 
