@@ -31,11 +31,63 @@ from __future__ import annotations
 import ctypes
 import shutil
 import time as _time
+from contextlib import contextmanager
 from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["run_floor"]
+__all__ = ["instantiated", "run_floor"]
+
+
+@contextmanager
+def instantiated(fmus: Sequence[tuple[str, str, Mapping[str, float]]], start: float, *,
+                 shared_library: bool = False):
+    """FMI 2.0 CS instances of ``fmus`` [(name, fmu_path, {variable: start value})], each from its
+    own extraction (separate .so copies, as libcosim) or, ``shared_library``, one extraction per
+    FMU file (as cosim), set up at ``start`` (no stop time, as libcosim and fmpy.ssp) with the
+    start values set; yields (fmpy FMU2Slaves, {name: variable} per instance) and frees the
+    instances and extractions afterwards."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    slaves, unzipdirs, variables = [], [], []
+    extracted: dict[str, str] = {}
+    try:
+        for name, path, params in fmus:
+            md = read_model_description(path, validate=False)
+            if md.fmiVersion != "2.0" or md.coSimulation is None:
+                raise ValueError(f"{name}: {path} is not an FMI 2.0 Co-Simulation FMU")
+            unzipdir = extracted.get(path) if shared_library else None
+            if unzipdir is None:
+                unzipdir = extracted[path] = extract(path)
+                unzipdirs.append(unzipdir)
+            fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
+                            modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+            fmu.instantiate()
+            slaves.append(fmu)
+            vars_ = {v.name: v for v in md.modelVariables}
+            variables.append(vars_)
+            fmu.setupExperiment(startTime=start)
+            for var, value in params.items():
+                v = vars_[var]
+                if v.type == "Real":
+                    fmu.setReal([v.valueReference], [float(value)])
+                elif v.type in ("Integer", "Enumeration"):
+                    fmu.setInteger([v.valueReference], [int(value)])
+                elif v.type == "Boolean":
+                    fmu.setBoolean([v.valueReference], [bool(value)])
+                else:
+                    raise TypeError(f"{name}.{var}: unsupported type {v.type}")
+        yield slaves, variables
+    finally:
+        for fmu in slaves:
+            try:
+                fmu.freeInstance()
+            except Exception:
+                pass
+        for d in unzipdirs:
+            shutil.rmtree(d, ignore_errors=True)
+
 
 def run_floor(
     fmus: Sequence[tuple[str, str, Mapping[str, float]]],
@@ -56,9 +108,6 @@ def run_floor(
     Returns (elapsed_seconds of the step loop, n_steps, results), results being a
     structured array with ``time`` and one column per record var, n_steps + 1 rows.
     """
-    from fmpy import extract, read_model_description
-    from fmpy.fmi2 import FMU2Slave
-
     if initial_inputs not in ("outputs", "zero", "start"):
         raise ValueError("initial_inputs must be 'outputs', 'zero' or 'start'")
     n_steps = round((stop - start) / step)
@@ -69,33 +118,7 @@ def run_floor(
     if len(set(names)) != len(names):
         raise ValueError("FMU instance names must be unique")
 
-    # --- load and instantiate (one extraction per instance: separate .so copies) ------
-    slaves, unzipdirs, variables = [], [], []
-    try:
-        for name, path, params in fmus:
-            md = read_model_description(path, validate=False)
-            if md.fmiVersion != "2.0" or md.coSimulation is None:
-                raise ValueError(f"{name}: {path} is not an FMI 2.0 Co-Simulation FMU")
-            unzipdir = extract(path)
-            unzipdirs.append(unzipdir)
-            fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
-                            modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
-            fmu.instantiate()
-            slaves.append(fmu)
-            vars_ = {v.name: v for v in md.modelVariables}
-            variables.append(vars_)
-            fmu.setupExperiment(startTime=start)  # no stop time, as libcosim and fmpy.ssp
-            for var, value in params.items():
-                v = vars_[var]
-                if v.type == "Real":
-                    fmu.setReal([v.valueReference], [float(value)])
-                elif v.type in ("Integer", "Enumeration"):
-                    fmu.setInteger([v.valueReference], [int(value)])
-                elif v.type == "Boolean":
-                    fmu.setBoolean([v.valueReference], [bool(value)])
-                else:
-                    raise TypeError(f"{name}.{var}: unsupported type {v.type}")
-
+    with instantiated(fmus, start) as (slaves, variables):
         index = {name: i for i, name in enumerate(names)}
 
         def real_vr(comp: str, var: str) -> int:
@@ -202,14 +225,6 @@ def run_floor(
 
         for fmu in slaves:
             fmu.terminate()
-    finally:
-        for fmu in slaves:
-            try:
-                fmu.freeInstance()
-            except Exception:
-                pass
-        for d in unzipdirs:
-            shutil.rmtree(d, ignore_errors=True)
 
     dtype = np.dtype([("time", "f8")] + [(name, "f8") for name in record_vars])
     return elapsed, n_steps, results.view(dtype).reshape(n_steps + 1)

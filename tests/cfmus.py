@@ -157,6 +157,33 @@ int fmi3UpdateDiscreteStates(void *c, bool *needUpdate, bool *terminate, bool *n
 PLATFORM = {"2.0": "linux64", "3.0": "x86_64-linux"}
 
 
+def fmi2_description(name: str, variables: list[tuple[str, int, str, float | None]],
+                     dependencies: dict[str, list[str]] | None, guid: str) -> str:
+    """An FMI 2.0 Co-Simulation model description for `build_c_fmu`: ``variables`` are (name, value
+    reference, causality "input"/"output"/"parameter", start or None), all Real; each output lists
+    the inputs it depends on (``dependencies``: output -> input names), or, with ``dependencies``
+    None, no ``dependencies`` attribute at all (which per FMI means "depends on every input")."""
+    rows, unknowns = [], []
+    index = {var: i for i, (var, *_) in enumerate(variables, 1)}
+    for var, vr, causality, start in variables:
+        attrs = {"output": 'variability="continuous"', "input": 'variability="continuous"',
+                 "parameter": 'variability="fixed" initial="exact"'}[causality]
+        real = "<Real/>" if start is None else f'<Real start="{start}"/>'
+        rows.append(f'<ScalarVariable name="{var}" valueReference="{vr}" causality="{causality}" {attrs}>{real}'
+                    '</ScalarVariable>')
+        if causality == "output":
+            if dependencies is None:
+                unknowns.append(f'<Unknown index="{index[var]}"/>')
+            else:
+                deps = " ".join(str(index[d]) for d in dependencies.get(var, ()))
+                unknowns.append(f'<Unknown index="{index[var]}" dependencies="{deps}"/>')
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n'
+            f'<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{guid}" numberOfEventIndicators="0">'
+            f'<CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="true"/>'
+            f'<ModelVariables>{"".join(rows)}</ModelVariables>'
+            f'<ModelStructure><Outputs>{"".join(unknowns)}</Outputs></ModelStructure></fmiModelDescription>\n')
+
+
 def build_c_fmu(dest: Path, identifier: str, model_description: str, body: str, fmi: str = "2.0",
                 model_exchange: bool = False) -> Path:
     """Compile ``body`` (see the module docstring) into ``dest/<identifier>.fmu`` with

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import cosim
-from cfmus import build_c_fmu
+from cfmus import build_c_fmu, fmi2_description
 from cosim.errors import RunError
 from cosim.loops import LoopSettings
 from ssdgen import ssd_text, write_system
@@ -30,25 +30,9 @@ def model_description(name: str, variables: list[tuple[str, int, str, float | No
                       true_dependencies: dict[str, str] | None = None) -> str:
     """FMI 2.0 CS model description: (name, value reference, causality, start); outputs list
     no ``dependencies`` (omit_dependencies) or their true ones (names of inputs)."""
-    rows, unknowns = [], []
-    for index, (var, vr, causality, start) in enumerate(variables, 1):
-        attrs = {"output": 'variability="continuous"', "input": 'variability="continuous"',
-                 "parameter": 'variability="fixed" initial="exact"'}[causality]
-        real = "<Real/>" if start is None else f'<Real start="{start}"/>'
-        rows.append(f'<ScalarVariable name="{var}" valueReference="{vr}" causality="{causality}" {attrs}>{real}'
-                    '</ScalarVariable>')
-        if causality == "output":
-            if omit_dependencies:
-                unknowns.append(f'<Unknown index="{index}"/>')
-            else:
-                deps = " ".join(str(i) for i, v in enumerate(variables, 1) if v[0] in (true_dependencies or {}).get(var, ""))
-                unknowns.append(f'<Unknown index="{index}" dependencies="{deps}"/>')
     guid = "{7a0c%04x-0000-4000-8000-%012x}" % (len(name), sum(map(ord, name)) + (0 if omit_dependencies else 1))
-    return ('<?xml version="1.0" encoding="UTF-8"?>\n'
-            f'<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{guid}" numberOfEventIndicators="0">'
-            f'<CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="true"/>'
-            f'<ModelVariables>{"".join(rows)}</ModelVariables>'
-            f'<ModelStructure><Outputs>{"".join(unknowns)}</Outputs></ModelStructure></fmiModelDescription>\n')
+    dependencies = None if omit_dependencies else {out: ins.split() for out, ins in (true_dependencies or {}).items()}
+    return fmi2_description(name, variables, dependencies, guid)
 
 
 #: (variables, true dependencies, C body); value references index s->r
