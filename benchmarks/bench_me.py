@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # the root first: tests/cosim would shadow cosim
 
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system

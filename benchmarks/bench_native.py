@@ -44,7 +44,6 @@ prints the README table.
 from __future__ import annotations
 
 import argparse
-import inspect
 import multiprocessing
 import os
 import sys
@@ -69,7 +68,7 @@ from peers import run_fmpy_ssp, run_libcosim  # noqa: E402
 
 STEP = 1e-3
 #: the cosim kernels this cosim has (``kernel`` keyword of `cosim.simulation.run`)
-KERNELS = ("python", "native") if "kernel" in inspect.signature(cosim.simulation.run).parameters else ("python",)
+KERNELS = ("python", "native")
 PEERS = ("cosim python", "cosim native", "C floor", "container", "libcosim", "fmpy.ssp")
 
 
@@ -113,14 +112,13 @@ def lay_out(system: System, fmus: dict[str, Path], folder: Path, stop: float) ->
 def cosim_run(case: Case, stop: float, kernel: str, output: Path | None = None) -> tuple[float, float, np.ndarray]:
     """(loop seconds, wall seconds of ``run``, samples) of one cosim run."""
     prepared = cosim.prepare(case.folder, stop_time=stop, use_providers=False)
-    options = {"kernel": kernel} if len(KERNELS) > 1 else {}   # the keyword only where cosim has it
     try:
         started = _time.perf_counter()
-        result, meta = cosim.simulation.run(prepared, output=output, **options)
+        result, meta = cosim.simulation.run(prepared, output=output, kernel=kernel)
         wall = _time.perf_counter() - started
     finally:
         prepared.close()
-    if kernel != "python" and meta.get("kernel") != kernel:
+    if meta["kernel"] != kernel:
         raise RuntimeError(f"asked for kernel {kernel!r}, cosim ran {meta.get('kernel')!r}")
     return meta["loop_seconds"], wall, result
 
@@ -129,8 +127,6 @@ def run_peer(peer: str, case: Case, stop: float, floor_library: Path, fmpy_max: 
     """(loop seconds, samples) of ``peer`` on ``case``, or why it cannot run the case."""
     if peer.startswith("cosim"):
         kernel = peer.split()[1]
-        if kernel not in KERNELS:
-            return "this cosim has no native kernel"
         seconds, _, result = cosim_run(case, stop, kernel)
         return seconds, result
     if peer == "C floor":
