@@ -12,7 +12,10 @@ communication step).  This base class
   variable and returns an error status instead of passing NaN on,
 - forwards greyfmu's warnings raised in ``build``, ``advance`` and a retune to the FMU log,
 - answers ``fmi2Get*``/``fmi2Set*`` through accessors compiled once per list of value
-  references (see `CompiledAccessors`), instead of pythonfmu's generic per-variable lookup.
+  references (see `CompiledAccessors`), instead of pythonfmu's generic per-variable lookup;
+- declares a mode parameter whose start is an ``IntEnum`` member as an FMI 2.0 Enumeration
+  (`EnumerationVariable`; its value still travels as fmi2Integer, FMI 2.0 §2.2.3) and refuses,
+  when the objects are built, a value that is not one of its items.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import math
 from abc import abstractmethod
 from collections.abc import Callable
 from contextlib import AbstractContextManager
+from enum import IntEnum
 from operator import attrgetter
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element
@@ -31,6 +35,11 @@ from pythonfmu.variables import ScalarVariable
 
 from greyfmu.forwarding import forward_warnings
 
+AS_WIRED = " (unit as wired)"
+"""Ends the description of a Real variable declared without a unit: a generic block (PID, FOPDT,
+Gain, ...) takes the unit of the signals connected to it (a gain: the output's per the input's).
+Declaring "1" there would make an importer that converts units (cosim, SSP tools) refuse a
+connection from a kgf/cm2 output, or scale a % one by 0.01."""
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
 
 
@@ -53,6 +62,47 @@ class RealVariable(_TypeAttributes, Real):
 
 class IntegerVariable(_TypeAttributes, Integer):
     """pythonfmu ``Integer`` with optional min and max."""
+
+
+class EnumerationVariable(IntegerVariable):
+    """An FMI 2.0 ``<Enumeration declaredType=...>`` variable whose items are the members of
+    ``choices`` (pythonfmu 0.7.0 has no Enumeration type: this writes the Integer element under
+    the Enumeration tag; ``greyfmu build`` adds the ``TypeDefinitions`` from ``choices``)."""
+
+    def __init__(self, name: str, *, choices: type[IntEnum], **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        self.choices = choices
+
+    def to_xml(self) -> Element:
+        node = super().to_xml()
+        node[0].tag = "Enumeration"
+        node[0].attrib = {"declaredType": self.choices.__name__, **node[0].attrib}
+        return node
+
+
+class AntiWindup(IntEnum):
+    """Anti-windup of the PI(D) controller FMUs at the output limits."""
+
+    NONE = 0
+    """None: the integral always integrates, as in the thesis's PI."""
+    CONDITIONAL_INTEGRATION = 1
+    """Conditional integration: the integral stops while the output is limited (ours)."""
+
+
+class Estimator(IntEnum):
+    """The on-line estimator of the TS models' consequents (greyfmu.control.ts_fuzzy.FuzzyRLS)."""
+
+    GLOBAL_FRLS = 1
+    """Global FRLS: one RLS on the stacked regressor, cost J_G."""
+    LOCAL_FRLS = 2
+    """Local FRLS (Angelov and Filev 2004): one RLS per rule weighted by its firing, cost J_L."""
+    MFRLS = 3
+    """Mixed FRLS, our reconstruction: a global update weighted 1 - mu_m and local updates weighted mu_m, (21) and (25)."""
+
+    @property
+    def rls_method(self) -> str:
+        """The ``method`` name greyfmu.control.ts_fuzzy.FuzzyRLS takes."""
+        return ("global", "local", "mixed")[self.value - 1]
 
 
 def _type_attributes(unit: str | None, minimum: float | None, maximum: float | None) -> dict[str, str]:
@@ -102,6 +152,8 @@ class GreyfmuSlave(Fmi2Slave):
         self._outputs: dict[int, Callable[[], float]] = {}
         """Value reference -> value function of each output, valid once the greyfmu objects are built."""
         self._built = False
+        self.choices: dict[str, type[IntEnum]] = {}
+        """Parameter name -> the IntEnum of each Enumeration parameter (read by ``greyfmu build``)."""
         self._get_real = CompiledAccessors(lambda vrs: self._compile_get(Real, vrs))
         self._get_integer = CompiledAccessors(lambda vrs: self._compile_get(Integer, vrs))
         self._get_boolean = CompiledAccessors(lambda vrs: self._compile_get(Boolean, vrs))
@@ -121,7 +173,9 @@ class GreyfmuSlave(Fmi2Slave):
         maximum: float | None = None,
         retune: Callable[[str, float], None] | None = None,
     ) -> None:
-        """Declare a parameter; an ``int`` start makes it an FMI Integer.
+        """Declare a parameter; an ``int`` start makes it an FMI Integer, an ``IntEnum`` member an
+        FMI Enumeration of that IntEnum's members (``minimum``/``maximum`` default to its smallest
+        and largest value).
 
         Without ``retune`` it is fixed: setting it makes the next use rebuild the greyfmu
         objects.  With ``retune`` it is tunable: set during a run, ``retune(name, value)``
@@ -144,16 +198,26 @@ class GreyfmuSlave(Fmi2Slave):
                 return
             setattr(self, name, value)
 
-        variable_type = IntegerVariable if isinstance(start, int) else RealVariable
-        variable = variable_type(
-            name,
-            start=start,
-            description=description,
-            causality=Fmi2Causality.parameter,
-            variability=Fmi2Variability.fixed if retune is None else Fmi2Variability.tunable,
-            setter=setter,
-            type_attributes=_type_attributes(unit, minimum, maximum),
-        )
+        declaration: dict[str, Any] = {
+            "start": start,
+            "description": description,
+            "causality": Fmi2Causality.parameter,
+            "variability": Fmi2Variability.fixed if retune is None else Fmi2Variability.tunable,
+            "setter": setter,
+        }
+        if isinstance(start, IntEnum):
+            choices = type(start)
+            self.choices[name] = choices
+            minimum = min(choices) if minimum is None else minimum
+            maximum = max(choices) if maximum is None else maximum
+            variable = EnumerationVariable(name, choices=choices, **{**declaration, "start": int(start)},
+                                           type_attributes=_type_attributes(unit, int(minimum), int(maximum)))
+        else:
+            real = not isinstance(start, int)
+            variable_type = RealVariable if real else IntegerVariable
+            if real and unit is None:
+                declaration["description"] += AS_WIRED
+            variable = variable_type(name, **declaration, type_attributes=_type_attributes(unit, minimum, maximum))
         self.register_variable(variable)
         self._attributes[variable.value_reference] = name
 
@@ -173,19 +237,20 @@ class GreyfmuSlave(Fmi2Slave):
 
     def integral_parameters(self) -> None:
         """integral_mode and u0 of the PI(D) controller FMUs: the thesis's (2.10)-(2.12)."""
-        self.parameter(
-            "integral_mode", 3, "Integral mode: 1 = (2.10), 2 = (2.11), 3 = (2.12) of the thesis", minimum=1, maximum=3
-        )
+        from greyfmu.control.pid import IntegralMode  # only the controller FMUs import greyfmu.control
+
+        self.parameter("integral_mode", IntegralMode.METHOD3,
+                       "Integral mode: METHOD1 = (2.10), METHOD2 = (2.11), METHOD3 = (2.12) of the thesis")
         self.parameter("u0", 0.0, "Initial output (bias): the integral starts here, so u = u0 while e = 0")
 
     def input(self, name: str, start: float, description: str, unit: str | None = None) -> None:
-        """Declare a continuous Real input."""
+        """Declare a continuous Real input (without ``unit``: `AS_WIRED`)."""
         self._claim(name)
         setattr(self, name, start)
         variable = RealVariable(
             name,
             start=start,
-            description=description,
+            description=description + ("" if unit else AS_WIRED),
             causality=Fmi2Causality.input,
             variability=Fmi2Variability.continuous,
             type_attributes=_type_attributes(unit, None, None),
@@ -202,7 +267,8 @@ class GreyfmuSlave(Fmi2Slave):
         unit: str | None = None,
         variability: Fmi2Variability = Fmi2Variability.continuous,
     ) -> None:
-        """Declare a Real output computed by ``value()`` from up-to-date greyfmu objects (initial="exact")."""
+        """Declare a Real output computed by ``value()`` from up-to-date greyfmu objects (initial="exact";
+        without ``unit``: `AS_WIRED`)."""
 
         def getter() -> float:
             self._ensure_built()
@@ -210,7 +276,7 @@ class GreyfmuSlave(Fmi2Slave):
 
         variable = RealVariable(
             name,
-            description=description,
+            description=description + ("" if unit else AS_WIRED),
             causality=Fmi2Causality.output,
             variability=variability,
             initial=Fmi2Initial.exact,
@@ -358,12 +424,21 @@ class GreyfmuSlave(Fmi2Slave):
         fmi2Fatal, reaches the master."""
         if not self._built:
             try:
+                self._check_choices()
                 with self.forwarding_warnings():
                     self.build()
             except (ValueError, ArithmeticError) as error:
                 self.log(f"{self.instance_name}: invalid parameters: {error}", Fmi2Status.error)
                 raise
             self._built = True
+
+    def _check_choices(self) -> None:
+        """Refuse an Enumeration parameter whose value is not one of its items (ValueError naming it)."""
+        for name, choices in self.choices.items():
+            value = getattr(self, name)
+            if value not in set(choices):
+                items = ", ".join(f"{member.value} = {member.name}" for member in choices)
+                raise ValueError(f"{name} = {value} is not an item of {choices.__name__} ({items})")
 
     def forwarding_warnings(self) -> AbstractContextManager[None]:
         """A context in which greyfmu's warnings (``greyfmu.forwarding``) reach this instance's FMU log as fmi2Warning."""

@@ -9,6 +9,9 @@ modelDescription.xml is then post-processed:
 - ``ModelStructure/Outputs/Unknown`` gets ``dependencies`` from the slave class's
   ``output_dependencies`` (pythonfmu omits it, which means "depends on every input");
 - ``UnitDefinitions`` declares every unit the variables use;
+- ``TypeDefinitions`` declares the Enumeration of every mode parameter (`_declare_enumerations`):
+  one ``SimpleType`` per IntEnum of the slave's ``choices``, its items the members with their
+  docstrings as descriptions;
 - then `greyfmu.dropin` makes it a drop-in FMU: greyfmu's loader as the linux64 binary, a
   stable GUID, version/licence/copyright, ``documentation/`` with index.html and the licences.
 
@@ -20,12 +23,16 @@ slaves can promise in general.
 
 from __future__ import annotations
 
+import ast
+import inspect
 import os
 import shutil
+import textwrap
 import sys
 import tempfile
 import zipfile
 from collections.abc import Callable, Iterable
+from enum import IntEnum
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -46,6 +53,7 @@ ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
 """The time stamp of every archive entry, so that rebuilding changes no byte but what changed."""
 
 BASE_UNITS: dict[str, dict[str, str]] = {
+    "1": {},
     "s": {"s": "1"},
     "%": {"factor": "0.01"},
     "%/s": {"s": "-1", "factor": "0.01"},
@@ -153,19 +161,22 @@ def _build_one(script: Path, fmu: Path) -> None:
             needsExecutionTool="false",
         )
         slave_class = get_model_class(script)  # build_FMU put fmus/ on sys.path and imported it
+        choices = slave_class(instance_name="greyfmu-build", resources=str(FMU_SOURCES)).choices
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
-        _rewrite_model_description(Path(built), partial, slave_class.output_dependencies, slave_class.requirements)
+        _rewrite_model_description(Path(built), partial, slave_class.output_dependencies, slave_class.requirements,
+                                   choices)
         os.replace(partial, fmu)
 
 
 def _rewrite_model_description(source: Path, target: Path, output_dependencies: dict[str, list[str]],
-                               requirements: tuple[str, ...]) -> None:
+                               requirements: tuple[str, ...], choices: dict[str, type[IntEnum]]) -> None:
     with zipfile.ZipFile(source) as archive:
         entries = {info.filename: archive.read(info) for info in archive.infolist()}
     root = ElementTree.fromstring(entries["modelDescription.xml"])
     model = root.get("modelName")
     _declare_output_dependencies(root, model, output_dependencies)
     _declare_units(root, model)
+    _declare_enumerations(root, model, choices)
     _write_archive(target, drop_in(entries, root, requirements))
 
 
@@ -280,3 +291,49 @@ def _declare_units(root: ElementTree.Element, model: str, tag: str = "Real") -> 
         ElementTree.SubElement(ElementTree.SubElement(definitions, "Unit", name=unit), "BaseUnit", BASE_UNITS[unit])
     position = list(root).index(root.find("CoSimulation")) + 1
     root.insert(position, definitions)
+
+
+def _declare_enumerations(root: ElementTree.Element, model: str, choices: dict[str, type[IntEnum]]) -> None:
+    """``TypeDefinitions/SimpleType/Enumeration/Item`` (FMI 2.0 §2.2.3) for the IntEnums of the
+    Enumeration parameters ``choices`` (parameter name -> IntEnum, the slave's ``choices``): the
+    SimpleType is named as the IntEnum and described by its docstring's first line; each item is a
+    member, described by the docstring under it in the IntEnum's source."""
+    types: dict[str, type[IntEnum]] = {}
+    for parameter, enumeration in choices.items():
+        known = types.setdefault(enumeration.__name__, enumeration)
+        if known is not enumeration:
+            raise BuildError(f"{model}: parameters {parameter} and another one use two IntEnums named "
+                             f"{enumeration.__name__} ({known.__module__}, {enumeration.__module__})")
+    if not types:
+        return
+    definitions = ElementTree.Element("TypeDefinitions")
+    for name in sorted(types):
+        enumeration = types[name]
+        if not enumeration.__doc__:
+            raise BuildError(f"{model}: IntEnum {name} ({enumeration.__module__}) has no docstring to describe it")
+        simple = ElementTree.SubElement(definitions, "SimpleType", name=name,
+                                        description=enumeration.__doc__.strip().splitlines()[0])
+        items = ElementTree.SubElement(simple, "Enumeration")
+        descriptions = _member_descriptions(enumeration)
+        for member in enumeration:
+            if member.name not in descriptions:
+                raise BuildError(f"{model}: member {member.name} of IntEnum {name} ({enumeration.__module__}) has "
+                                 "no docstring under it to describe the Enumeration item")
+            ElementTree.SubElement(items, "Item", name=member.name, value=str(member.value),
+                                   description=descriptions[member.name])
+    anchor = root.find("UnitDefinitions")
+    position = list(root).index(anchor if anchor is not None else root.find("CoSimulation")) + 1
+    root.insert(position, definitions)
+
+
+def _member_descriptions(enumeration: type[IntEnum]) -> dict[str, str]:
+    """Member name -> the string literal right under its assignment in the class body (an
+    attribute docstring), whitespace collapsed."""
+    body = ast.parse(textwrap.dedent(inspect.getsource(enumeration))).body[0].body
+    descriptions = {}
+    for statement, following in zip(body, body[1:]):
+        if (isinstance(statement, ast.Assign) and len(statement.targets) == 1
+                and isinstance(statement.targets[0], ast.Name) and isinstance(following, ast.Expr)
+                and isinstance(following.value, ast.Constant) and isinstance(following.value.value, str)):
+            descriptions[statement.targets[0].id] = " ".join(following.value.value.split())
+    return descriptions

@@ -28,7 +28,7 @@ from greyfmu.build import (
     provide_fmu,
 )
 from greyfmu.cli import main
-from greyfmu.dropin import BUILD_PYTHON, stable_guid
+from greyfmu.dropin import BUILD_PYTHON, PYTHONFMU_RUNTIME, stable_guid
 from greyfmu.loader import PLATFORMS, loader_binary
 from testfmus import edited_copy
 
@@ -263,13 +263,13 @@ def test_cli_reports_each_fmu_and_the_output_folder(built_fmus, capsys):
 
 def test_rewrite_refuses_an_output_without_a_declared_dependency_list(built_fmus, tmp_path):
     with pytest.raises(BuildError, match="output_dependencies"):
-        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {}, ("numpy", "scipy"))
+        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {}, ("numpy", "scipy"), {})
 
 
 def test_rewrite_refuses_an_output_without_initial_exact(built_fmus, tmp_path):
     broken = edited_copy(built_fmus["Gain"], tmp_path / "broken.fmu", lambda xml: xml.replace('initial="exact"', ""))
     with pytest.raises(BuildError, match="initial"):
-        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]}, ("numpy", "scipy"))
+        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]}, ("numpy", "scipy"), {})
 
 
 def test_rebuilding_gives_a_byte_identical_model_description_and_the_same_guid(built_fmus, tmp_path):
@@ -315,9 +315,13 @@ def test_fmu_states_version_licence_and_carries_the_notices_and_documentation(bu
 
 @pytest.mark.parametrize("name", ["PID", "OSMMGPC"])
 def test_fmu_carries_only_what_it_runs(built_fmus, name):
-    """No greyfmu build tooling (pythonfmu's package stays whole: see greyfmu.dropin)."""
+    """No greyfmu build tooling and no pythonfmu builder: pythonfmu's run-time modules only,
+    under the name greyfmu_pythonfmu (see greyfmu.dropin.vendor_pythonfmu)."""
     with zipfile.ZipFile(built_fmus[name]) as archive:
         names = set(archive.namelist())
+    assert not any(entry.startswith("resources/pythonfmu/") for entry in names)
+    assert {entry for entry in names if entry.startswith("resources/greyfmu_pythonfmu/")} == {
+        f"resources/greyfmu_pythonfmu/{module}" for module in PYTHONFMU_RUNTIME}
     build_side = {"resources/greyfmu/build.py", "resources/greyfmu/cli.py", "resources/greyfmu/dropin.py",
                   "resources/greyfmu/documentation.py"}
     assert not names & build_side
@@ -334,10 +338,14 @@ def test_without_a_compiler_for_a_platform_the_build_says_so_and_keeps_pythonfmu
 
 def test_a_host_with_an_fmus_resources_on_sys_path_still_imports_pythonfmus_builder(built_fmus, tmp_path):
     """fmpy leaves an FMU's resources/ on sys.path (and spawned workers inherit it): greyfmu's
-    FMU provider then imports pythonfmu.builder from the FMU's copy of pythonfmu."""
+    FMU provider then imports pythonfmu.builder, which must be the installed pythonfmu's, after
+    the FMU ran in that process: its run-time copy of pythonfmu is named greyfmu_pythonfmu."""
     shutil.unpack_archive(built_fmus["PID"], tmp_path, "zip")
-    script = f"import sys; sys.path.insert(0, {str(tmp_path / 'resources')!r}); import pythonfmu.builder; " \
-             "print(pythonfmu.__file__)"
-    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    script = (f"import sys, fmpy; sys.path.insert(0, {str(tmp_path / 'resources')!r}); "
+              f"fmpy.simulate_fmu({str(built_fmus['PID'])!r}, stop_time=0.2); "
+              "import pythonfmu.builder; print(pythonfmu.__file__); print(sys.modules['greyfmu_pythonfmu'].__file__)")
+    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert completed.returncode == 0, completed.stderr
-    assert completed.stdout.startswith(str(tmp_path / "resources"))
+    installed, runtime = completed.stdout.splitlines()[-2:]
+    assert "resources" not in installed and "site-packages" in installed
+    assert "resources" in runtime

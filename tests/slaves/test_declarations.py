@@ -1,0 +1,151 @@
+"""What an importer reads in our FMUs (issue 13, item 6): mode parameters as FMI 2.0
+Enumerations, a unit on every physical variable with UnitDefinitions a tool can convert,
+and the generic blocks' signals left to the units they are wired to."""
+
+import shutil
+import zipfile
+from xml.etree import ElementTree
+
+import pytest
+from fmpy import read_model_description
+from fmpy.fmi2 import FMU2Slave
+from pythonfmu.builder import get_model_class
+
+from cosim.errors import SetupError
+from cosim.units import BUILTIN, conversion, fmu_units, make_unit
+from greyfmu.build import FMU_SOURCES, fmu_names
+
+ALL = fmu_names()
+AS_WIRED = " (unit as wired)"
+
+ENUMERATIONS = {
+    # FMU: mode parameter -> its declared type
+    "PID": {"anti_windup": "AntiWindup", "derivative_on": "DerivativeOn", "integral_mode": "IntegralMode"},
+    "GainScheduledPID": {"law": "SchedulingLaw", "anti_windup": "AntiWindup", "derivative_on": "DerivativeOn",
+                         "integral_mode": "IntegralMode"},
+    "GrayPredictivePI": {"threshold": "Threshold", "anti_windup": "AntiWindup", "integral_mode": "IntegralMode"},
+    "GreyPredictor": {"threshold": "Threshold"},
+    "SOPDTPredictive": {"law": "ControlLaw"},
+    "FourTank": {"time_varying": "FourTankModel"},
+    "LookupTable": {"extrapolate": "Extrapolation"},
+    "OSMMGPC": {"group": "ModelGroup", "adapt": "Adaptation", "method": "Estimator"},
+    "TSEstimator": {"method": "Estimator", "dominance": "Dominance"},
+}
+COUNTS = {"seed", "identification_seed", "k_change", "ramp_origin", "delay", "N", "N1", "N2", "Nu", "n", "m",
+          "n_points", "rules", "na", "p"}
+"""Integer parameters that count or seed, not choose (they stay Integer)."""
+GENERIC = {
+    # generic blocks: their signals carry the units they are wired to
+    "PID": ["r", "y", "u", "e", "u_min", "u_max", "u0"],
+    "FOPDT": ["u", "d", "y", "K", "y0"],
+    "FirstOrderFilter": ["u", "y"],
+    "Gain": ["u", "y", "k"],
+    "Sum": ["u1", "u2", "u3", "y"],
+    "Step": ["y", "initial", "final"],
+    "LookupTable": ["u", "y"],
+}
+PLANT_UNITS = {
+    "BoilerTurbine": {"P": "kgf/cm2", "E": "MW", "L": "mm", "fuel": "%", "rate_fuel": "%/s"},
+    "SteamHeader": {"y1": "MPa", "fuel": "kg/s", "v1": "%", "u1": "1"},
+    "FourTank": {"u1": "1", "u2": "1", "h1": "1", "h4": "1"},
+    "TSEstimator": {"h1": "1", "y_hat1": "1", "mae2": "1"},
+    "OSMMGPC": {"r1": "MPa", "y2": "MPa", "u1": "1", "M_max": "1"},
+}
+
+
+NOT_BUILTIN = {"%/s": make_unit("%/s", factor=0.01, s=-1), "rad/s": make_unit("rad/s", rad=1, s=-1)}
+"""Our units that cosim.units.BUILTIN does not define."""
+
+
+def slave_choices(name, monkeypatch):
+    monkeypatch.syspath_prepend(str(FMU_SOURCES))  # the slaves import their base module by its bare name
+    return get_model_class(FMU_SOURCES / f"{name}.py")(instance_name="test").choices
+
+
+@pytest.mark.parametrize("name", sorted(ENUMERATIONS))
+def test_mode_parameters_are_enumerations_whose_items_are_the_slaves_intenum(built_fmus, name, monkeypatch):
+    md = read_model_description(str(built_fmus[name]))
+    enumerations = {v.name: v for v in md.modelVariables if v.type == "Enumeration"}
+    assert {n: v.declaredType.name for n, v in enumerations.items()} == ENUMERATIONS[name]
+    choices = slave_choices(name, monkeypatch)
+    with zipfile.ZipFile(built_fmus[name]) as archive:
+        root = ElementTree.fromstring(archive.read("modelDescription.xml"))
+    described = {simple.get("name"): simple.get("description") for simple in root.iter("SimpleType")}
+    for parameter, variable in enumerations.items():
+        items = variable.declaredType.items
+        assert [(item.name, int(item.value)) for item in items] == [(m.name, m.value) for m in choices[parameter]]
+        assert all(item.description for item in items) and described[variable.declaredType.name]
+        assert int(variable.start) in {int(item.value) for item in items}
+        assert all(item.name in variable.description for item in items), variable.description
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_the_integer_parameters_left_count_or_seed(built_fmus, name):
+    """An int-coded choice added later without an IntEnum fails here."""
+    md = read_model_description(str(built_fmus[name]))
+    integers = {v.name for v in md.modelVariables if v.type == "Integer" and v.causality == "parameter"}
+    assert integers <= COUNTS
+
+
+def test_an_enumeration_value_that_is_no_item_is_refused_naming_the_items(built_fmus, tmp_path, capsys):
+    md = read_model_description(str(built_fmus["PID"]))
+    shutil.unpack_archive(built_fmus["PID"], tmp_path, "zip")
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(tmp_path), modelIdentifier="PID", instanceName="test")
+    fmu.instantiate(loggingOn=True)
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    refs = {v.name: v.valueReference for v in md.modelVariables}
+    fmu.setInteger([refs["integral_mode"]], [2])  # an item, as fmi2Integer (an ssv:Integer binding)
+    assert fmu.getInteger([refs["integral_mode"]]) == [2]
+    fmu.setInteger([refs["integral_mode"]], [5])
+    with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
+        fmu.exitInitializationMode()
+    assert "integral_mode = 5 is not an item of IntegralMode (1 = METHOD1, 2 = METHOD2, 3 = METHOD3)" \
+        in capsys.readouterr().out
+    # fmi2Fatal: no further call, not even fmi2FreeInstance (FMI 2.0 §2.1.3)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_every_real_variable_has_a_unit_or_takes_the_wired_ones(built_fmus, name):
+    md = read_model_description(str(built_fmus[name]))
+    for variable in md.modelVariables:
+        if variable.type == "Real":
+            assert bool(variable.unit) != variable.description.endswith(AS_WIRED), variable.name
+    for generic in GENERIC.get(name, []):
+        variable = next(v for v in md.modelVariables if v.name == generic)
+        assert variable.unit is None and variable.description.endswith(AS_WIRED), generic
+
+
+@pytest.mark.parametrize("name", sorted(PLANT_UNITS))
+def test_plant_signals_carry_their_units(built_fmus, name):
+    md = read_model_description(str(built_fmus[name]))
+    units = {v.name: v.unit for v in md.modelVariables}
+    assert {n: units[n] for n in PLANT_UNITS[name]} == PLANT_UNITS[name]
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_unit_definitions_convert_as_the_masters_builtin_units(built_fmus, name):
+    """Each UnitDefinitions/Unit of ours is the unit cosim knows by that name (NIST SP 811
+    factors): kgf/cm2 = 98066.5 Pa, % = 0.01, MW = 1e6 W, mm = 1e-3 m; %/s and rad/s as written here."""
+    md = read_model_description(str(built_fmus[name]))
+    used = {v.unit for v in md.modelVariables if v.unit}
+    defined = fmu_units(md.unitDefinitions, name)
+    assert set(defined) == used
+    for unit in defined.values():
+        assert unit.same_as({**BUILTIN, **NOT_BUILTIN}[unit.name]), unit.describe()
+
+
+def test_a_generic_signal_declared_dimensionless_would_be_refused_or_rescaled():
+    """Why PID, FOPDT, Gain ... declare no unit: cosim (SSP 1.0 unit conversion) refuses a
+    connection from a dimensionless "1" to a force in N (ssp/pid_mass_damper wires PID.u to a
+    force input), and converts a % output into "1" by 0.01; without a unit it takes the value as is."""
+    with pytest.raises(SetupError, match="the dimensions differ"):
+        conversion(BUILTIN["1"], BUILTIN["N"])
+    assert conversion(BUILTIN["%"], BUILTIN["1"]) == (0.01, 0.0)
+
+
+def test_documentation_lists_the_enumeration_items_and_the_wired_units(built_fmus):
+    with zipfile.ZipFile(built_fmus["PID"]) as archive:
+        page = archive.read("documentation/index.html").decode()
+    assert "<td>IntegralMode</td><td>METHOD2</td><td>2</td><td>(2.11):" in page
+    assert "<td>r</td><td>input</td><td>continuous</td><td>Real</td><td>as wired</td>" in page
