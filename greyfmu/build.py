@@ -221,7 +221,9 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
       slaves handle any step, so it is set through the builder option;
     - ``ModelStructure/Output`` gets ``dependencies`` (value references, FMI 3.0 §2.4.8) from
       the slave class's ``output_dependencies``: absent, it means "depends on every input";
-    - ``UnitDefinitions`` declares the units the Float64 variables use (FMI 3.0 requires it).
+    - ``UnitDefinitions`` declares the units the Float64 variables use (FMI 3.0 requires it);
+    - each ``EnumerationType`` pythonfmu3 writes for a mode parameter gets its description and
+      its items' from the IntEnum, as `_declare_enumerations` does for FMI 2.0.
 
     Outputs keep pythonfmu3's ``initial="calculated"`` (the FMI 3.0 default for outputs), so they
     carry no start value and are listed as InitialUnknowns, as FMI 3.0 §2.4.8 requires.
@@ -237,8 +239,10 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
             entries = {info.filename: archive.read(info) for info in archive.infolist()}
         root = ElementTree.fromstring(entries["modelDescription.xml"])
         model = root.get("modelName")
-        _declare_output_dependencies3(root, model, _slave_class3(script).output_dependencies)
+        slave_class = _slave_class3(script)
+        _declare_output_dependencies3(root, model, slave_class.output_dependencies)
         _declare_units(root, model, tag="Float64")
+        _describe_enumerations3(root, model, slave_class(instance_name="greyfmu-build", resources=str(FMI3_SOURCES)).choices)
         ElementTree.indent(root)
         entries["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")
@@ -324,6 +328,21 @@ def _declare_enumerations(root: ElementTree.Element, model: str, choices: dict[s
     anchor = root.find("UnitDefinitions")
     position = list(root).index(anchor if anchor is not None else root.find("CoSimulation")) + 1
     root.insert(position, definitions)
+
+
+def _describe_enumerations3(root: ElementTree.Element, model: str, choices: dict[str, type[IntEnum]]) -> None:
+    """Describe each ``TypeDefinitions/EnumerationType`` (FMI 3.0 §2.4.4) and its items from
+    the IntEnum of the same name (``choices``: parameter name -> IntEnum)."""
+    types = {enumeration.__name__: enumeration for enumeration in choices.values()}
+    for node in root.iter("EnumerationType"):
+        enumeration = types[node.get("name")]
+        descriptions = _member_descriptions(enumeration)
+        node.set("description", enumeration.__doc__.strip().splitlines()[0])
+        for item in node.iter("Item"):
+            if item.get("name") not in descriptions:
+                raise BuildError(f"{model}: member {item.get('name')} of IntEnum {enumeration.__name__} has no "
+                                 "docstring under it to describe the Enumeration item")
+            item.set("description", descriptions[item.get("name")])
 
 
 def _member_descriptions(enumeration: type[IntEnum]) -> dict[str, str]:
