@@ -312,19 +312,12 @@ def _declare_enumerations(root: ElementTree.Element, model: str, choices: dict[s
         return
     definitions = ElementTree.Element("TypeDefinitions")
     for name in sorted(types):
-        enumeration = types[name]
-        if not enumeration.__doc__:
-            raise BuildError(f"{model}: IntEnum {name} ({enumeration.__module__}) has no docstring to describe it")
-        simple = ElementTree.SubElement(definitions, "SimpleType", name=name,
-                                        description=enumeration.__doc__.strip().splitlines()[0])
-        items = ElementTree.SubElement(simple, "Enumeration")
-        descriptions = _member_descriptions(enumeration)
-        for member in enumeration:
-            if member.name not in descriptions:
-                raise BuildError(f"{model}: member {member.name} of IntEnum {name} ({enumeration.__module__}) has "
-                                 "no docstring under it to describe the Enumeration item")
+        description, members = _enumeration_items(model, types[name])
+        items = ElementTree.SubElement(ElementTree.SubElement(definitions, "SimpleType", name=name,
+                                                              description=description), "Enumeration")
+        for member, item_description in members.items():
             ElementTree.SubElement(items, "Item", name=member.name, value=str(member.value),
-                                   description=descriptions[member.name])
+                                   description=item_description)
     anchor = root.find("UnitDefinitions")
     position = list(root).index(anchor if anchor is not None else root.find("CoSimulation")) + 1
     root.insert(position, definitions)
@@ -335,14 +328,25 @@ def _describe_enumerations3(root: ElementTree.Element, model: str, choices: dict
     the IntEnum of the same name (``choices``: parameter name -> IntEnum)."""
     types = {enumeration.__name__: enumeration for enumeration in choices.values()}
     for node in root.iter("EnumerationType"):
-        enumeration = types[node.get("name")]
-        descriptions = _member_descriptions(enumeration)
-        node.set("description", enumeration.__doc__.strip().splitlines()[0])
+        description, members = _enumeration_items(model, types[node.get("name")])
+        node.set("description", description)
+        descriptions = {member.name: item_description for member, item_description in members.items()}
         for item in node.iter("Item"):
-            if item.get("name") not in descriptions:
-                raise BuildError(f"{model}: member {item.get('name')} of IntEnum {enumeration.__name__} has no "
-                                 "docstring under it to describe the Enumeration item")
             item.set("description", descriptions[item.get("name")])
+
+
+def _enumeration_items(model: str, enumeration: type[IntEnum]) -> tuple[str, dict[IntEnum, str]]:
+    """An IntEnum's description (its docstring's first line) and each member's (the docstring
+    under it, `_member_descriptions`); BuildError naming what is undocumented."""
+    where = f"IntEnum {enumeration.__name__} ({enumeration.__module__})"
+    if not enumeration.__doc__:
+        raise BuildError(f"{model}: {where} has no docstring to describe the Enumeration type")
+    descriptions = _member_descriptions(enumeration)
+    undocumented = [member.name for member in enumeration if member.name not in descriptions]
+    if undocumented:
+        raise BuildError(f"{model}: members {undocumented} of {where} have no docstring under them to describe "
+                         "the Enumeration items")
+    return enumeration.__doc__.strip().splitlines()[0], {member: descriptions[member.name] for member in enumeration}
 
 
 def _member_descriptions(enumeration: type[IntEnum]) -> dict[str, str]:

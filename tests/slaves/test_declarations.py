@@ -3,17 +3,19 @@ Enumerations, a unit on every physical variable with UnitDefinitions a tool can 
 and the generic blocks' signals left to the units they are wired to."""
 
 import shutil
+from enum import IntEnum
 import zipfile
 from xml.etree import ElementTree
 
 import pytest
 from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu
 from pythonfmu.builder import get_model_class
 
 from cosim.errors import SetupError
 from cosim.units import BUILTIN, conversion, fmu_units, make_unit
-from greyfmu.build import FMU_SOURCES, fmu_names
+from greyfmu.build import FMU_SOURCES, BuildError, _enumeration_items, build_fmus, fmu_names
 
 ALL = fmu_names()
 AS_WIRED = " (unit as wired)"
@@ -149,3 +151,28 @@ def test_documentation_lists_the_enumeration_items_and_the_wired_units(built_fmu
         page = archive.read("documentation/index.html").decode()
     assert "<td>IntegralMode</td><td>METHOD2</td><td>2</td><td>(2.11):" in page
     assert "<td>r</td><td>input</td><td>continuous</td><td>Real</td><td>as wired</td>" in page
+
+
+def test_the_fmi3_pid_declares_its_integral_mode_as_an_enumeration(tmp_path):
+    """FMI 3.0 (PID3, pythonfmu3): ``<Enumeration declaredType>`` and a described ``EnumerationType``."""
+    (fmu,) = build_fmus(["PID3"], out_dir=tmp_path)
+    assert validate_fmu(str(fmu)) == []
+    md = read_model_description(str(fmu))
+    mode = next(v for v in md.modelVariables if v.name == "integral_mode")
+    assert (mode.type, mode.declaredType.name, int(mode.start)) == ("Enumeration", "IntegralMode", 3)
+    with zipfile.ZipFile(fmu) as archive:
+        root = ElementTree.fromstring(archive.read("modelDescription.xml"))
+    items = {item.get("name"): item.get("description") for item in root.iter("Item")}
+    assert list(items) == ["METHOD1", "METHOD2", "METHOD3"] and items["METHOD2"].startswith("(2.11)")
+
+
+def test_an_undocumented_enumeration_member_is_refused_by_the_build():
+    class Mode(IntEnum):
+        """Two modes."""
+
+        A = 1
+        """Documented."""
+        B = 2
+
+    with pytest.raises(BuildError, match=r"members \['B'\] of IntEnum Mode"):
+        _enumeration_items("Test", Mode)
