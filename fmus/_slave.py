@@ -16,6 +16,13 @@ communication step).  This base class
 - declares a mode parameter whose start is an ``IntEnum`` member as an FMI 2.0 Enumeration
   (`EnumerationVariable`; its value still travels as fmi2Integer, FMI 2.0 §2.2.3) and refuses,
   when the objects are built, a value that is not one of its items.
+
+Units: a physical variable declares its unit (``unit=``; dimensionless ones "1").  A generic
+block's signal (PID, FOPDT, Gain, Sum, sources, tables) declares none: it takes the unit of the
+signals wired to it (a gain: the output's per the input's), and documentation/index.html says
+"as wired".  A declared "1" would make an importer that converts units (cosim, SSP tools)
+refuse a connection to a force in N or from a kgf/cm2 output, and rescale a % signal by 0.01.
+The descriptions do not say it: hosts, cosim's plots among them, label a signal with its description.
 """
 
 from __future__ import annotations
@@ -35,11 +42,6 @@ from pythonfmu.variables import ScalarVariable
 
 from greyfmu.forwarding import forward_warnings
 
-AS_WIRED = " (unit as wired)"
-"""Ends the description of a Real variable declared without a unit: a generic block (PID, FOPDT,
-Gain, ...) takes the unit of the signals connected to it (a gain: the output's per the input's).
-Declaring "1" there would make an importer that converts units (cosim, SSP tools) refuse a
-connection from a kgf/cm2 output, or scale a % one by 0.01."""
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
 
 
@@ -213,10 +215,7 @@ class GreyfmuSlave(Fmi2Slave):
             variable = EnumerationVariable(name, choices=choices, **{**declaration, "start": int(start)},
                                            type_attributes=_type_attributes(unit, int(minimum), int(maximum)))
         else:
-            real = not isinstance(start, int)
-            variable_type = RealVariable if real else IntegerVariable
-            if real and unit is None:
-                declaration["description"] += AS_WIRED
+            variable_type = IntegerVariable if isinstance(start, int) else RealVariable
             variable = variable_type(name, **declaration, type_attributes=_type_attributes(unit, minimum, maximum))
         self.register_variable(variable)
         self._attributes[variable.value_reference] = name
@@ -244,13 +243,13 @@ class GreyfmuSlave(Fmi2Slave):
         self.parameter("u0", 0.0, "Initial output (bias): the integral starts here, so u = u0 while e = 0")
 
     def input(self, name: str, start: float, description: str, unit: str | None = None) -> None:
-        """Declare a continuous Real input (without ``unit``: `AS_WIRED`)."""
+        """Declare a continuous Real input (without ``unit``: as wired, see the module docstring)."""
         self._claim(name)
         setattr(self, name, start)
         variable = RealVariable(
             name,
             start=start,
-            description=description + ("" if unit else AS_WIRED),
+            description=description,
             causality=Fmi2Causality.input,
             variability=Fmi2Variability.continuous,
             type_attributes=_type_attributes(unit, None, None),
@@ -268,7 +267,7 @@ class GreyfmuSlave(Fmi2Slave):
         variability: Fmi2Variability = Fmi2Variability.continuous,
     ) -> None:
         """Declare a Real output computed by ``value()`` from up-to-date greyfmu objects (initial="exact";
-        without ``unit``: `AS_WIRED`)."""
+        without ``unit``: as wired, see the module docstring)."""
 
         def getter() -> float:
             self._ensure_built()
@@ -276,7 +275,7 @@ class GreyfmuSlave(Fmi2Slave):
 
         variable = RealVariable(
             name,
-            description=description + ("" if unit else AS_WIRED),
+            description=description,
             causality=Fmi2Causality.output,
             variability=variability,
             initial=Fmi2Initial.exact,

@@ -18,7 +18,6 @@ from cosim.units import BUILTIN, conversion, fmu_units, make_unit
 from greyfmu.build import FMU_SOURCES, BuildError, _enumeration_items, build_fmus, fmu_names
 
 ALL = fmu_names()
-AS_WIRED = " (unit as wired)"
 
 ENUMERATIONS = {
     # FMU: mode parameter -> its declared type
@@ -108,14 +107,17 @@ def test_an_enumeration_value_that_is_no_item_is_refused_naming_the_items(built_
 
 
 @pytest.mark.parametrize("name", ALL)
-def test_every_real_variable_has_a_unit_or_takes_the_wired_ones(built_fmus, name):
+def test_every_real_variable_has_a_unit_or_is_documented_as_wired(built_fmus, name):
     md = read_model_description(str(built_fmus[name]))
+    with zipfile.ZipFile(built_fmus[name]) as archive:
+        page = archive.read("documentation/index.html").decode()
     for variable in md.modelVariables:
         if variable.type == "Real":
-            assert bool(variable.unit) != variable.description.endswith(AS_WIRED), variable.name
+            unit = variable.unit or "as wired"
+            assert f"<td>{variable.name}</td><td>{variable.causality}</td><td>{variable.variability}</td>" \
+                   f"<td>Real</td><td>{unit}</td>" in page, variable.name
     for generic in GENERIC.get(name, []):
-        variable = next(v for v in md.modelVariables if v.name == generic)
-        assert variable.unit is None and variable.description.endswith(AS_WIRED), generic
+        assert next(v for v in md.modelVariables if v.name == generic).unit is None, generic
 
 
 @pytest.mark.parametrize("name", sorted(PLANT_UNITS))
