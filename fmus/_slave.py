@@ -13,9 +13,11 @@ communication step).  This base class
 - forwards greyfmu's warnings raised in ``build``, ``advance`` and a retune to the FMU log,
 - answers ``fmi2Get*``/``fmi2Set*`` through accessors compiled once per list of value
   references (see `CompiledAccessors`), instead of pythonfmu's generic per-variable lookup;
-- declares a mode parameter whose start is an ``IntEnum`` member as an FMI 2.0 Enumeration
-  (`EnumerationVariable`; its value still travels as fmi2Integer, FMI 2.0 §2.2.3) and refuses,
-  when the objects are built, a value that is not one of its items.
+- declares a mode parameter whose start is an ``IntEnum`` member as an FMI Integer whose range
+  and description name the IntEnum's members, and refuses, when the objects are built, a value
+  that is not one of them.  Not an FMI 2.0 Enumeration: libcosim 0.11.2, a peer SSP master,
+  applies no ``ssv:Integer`` binding to an Enumeration variable and aborts on ``ssv:Enumeration``
+  (tests/peers/test_crosscheck.py; an FMI 3.0 slave, PID3, does declare one).
 
 Units: a physical variable declares its unit (``unit=``; dimensionless ones "1").  A generic
 block's signal (PID, FOPDT, Gain, Sum, sources, tables) declares none: it takes the unit of the
@@ -64,22 +66,6 @@ class RealVariable(_TypeAttributes, Real):
 
 class IntegerVariable(_TypeAttributes, Integer):
     """pythonfmu ``Integer`` with optional min and max."""
-
-
-class EnumerationVariable(IntegerVariable):
-    """An FMI 2.0 ``<Enumeration declaredType=...>`` variable whose items are the members of
-    ``choices`` (pythonfmu 0.7.0 has no Enumeration type: this writes the Integer element under
-    the Enumeration tag; ``greyfmu build`` adds the ``TypeDefinitions`` from ``choices``)."""
-
-    def __init__(self, name: str, *, choices: type[IntEnum], **kwargs: Any) -> None:
-        super().__init__(name, **kwargs)
-        self.choices = choices
-
-    def to_xml(self) -> Element:
-        node = super().to_xml()
-        node[0].tag = "Enumeration"
-        node[0].attrib = {"declaredType": self.choices.__name__, **node[0].attrib}
-        return node
 
 
 class AntiWindup(IntEnum):
@@ -155,7 +141,7 @@ class GreyfmuSlave(Fmi2Slave):
         """Value reference -> value function of each output, valid once the greyfmu objects are built."""
         self._built = False
         self.choices: dict[str, type[IntEnum]] = {}
-        """Parameter name -> the IntEnum of each Enumeration parameter (read by ``greyfmu build``)."""
+        """Parameter name -> the IntEnum of each mode parameter (its values checked before a build)."""
         self._get_real = CompiledAccessors(lambda vrs: self._compile_get(Real, vrs))
         self._get_integer = CompiledAccessors(lambda vrs: self._compile_get(Integer, vrs))
         self._get_boolean = CompiledAccessors(lambda vrs: self._compile_get(Boolean, vrs))
@@ -175,9 +161,9 @@ class GreyfmuSlave(Fmi2Slave):
         maximum: float | None = None,
         retune: Callable[[str, float], None] | None = None,
     ) -> None:
-        """Declare a parameter; an ``int`` start makes it an FMI Integer, an ``IntEnum`` member an
-        FMI Enumeration of that IntEnum's members (``minimum``/``maximum`` default to its smallest
-        and largest value).
+        """Declare a parameter; an ``int`` start makes it an FMI Integer, and so does an ``IntEnum``
+        member: a mode parameter, whose description gets the members (``(1 = METHOD1, ...)``) and
+        whose ``minimum``/``maximum`` default to the smallest and largest value.
 
         Without ``retune`` it is fixed: setting it makes the next use rebuild the greyfmu
         objects.  With ``retune`` it is tunable: set during a run, ``retune(name, value)``
@@ -212,8 +198,9 @@ class GreyfmuSlave(Fmi2Slave):
             self.choices[name] = choices
             minimum = min(choices) if minimum is None else minimum
             maximum = max(choices) if maximum is None else maximum
-            variable = EnumerationVariable(name, choices=choices, **{**declaration, "start": int(start)},
-                                           type_attributes=_type_attributes(unit, int(minimum), int(maximum)))
+            items = ", ".join(f"{member.value} = {member.name}" for member in choices)
+            declaration.update(start=int(start), description=f"{description} ({items})")
+            variable = IntegerVariable(name, **declaration, type_attributes=_type_attributes(None, int(minimum), int(maximum)))
         else:
             variable_type = IntegerVariable if isinstance(start, int) else RealVariable
             variable = variable_type(name, **declaration, type_attributes=_type_attributes(unit, minimum, maximum))

@@ -9,9 +9,6 @@ modelDescription.xml is then post-processed:
 - ``ModelStructure/Outputs/Unknown`` gets ``dependencies`` from the slave class's
   ``output_dependencies`` (pythonfmu omits it, which means "depends on every input");
 - ``UnitDefinitions`` declares every unit the variables use;
-- ``TypeDefinitions`` declares the Enumeration of every mode parameter (`_declare_enumerations`):
-  one ``SimpleType`` per IntEnum of the slave's ``choices``, its items the members with their
-  docstrings as descriptions;
 - then `greyfmu.dropin` makes it a drop-in FMU: greyfmu's loader as the linux64 binary, a
   stable GUID, version/licence/copyright, ``documentation/`` with index.html and the licences.
 
@@ -161,22 +158,19 @@ def _build_one(script: Path, fmu: Path) -> None:
             needsExecutionTool="false",
         )
         slave_class = get_model_class(script)  # build_FMU put fmus/ on sys.path and imported it
-        choices = slave_class(instance_name="greyfmu-build", resources=str(FMU_SOURCES)).choices
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
-        _rewrite_model_description(Path(built), partial, slave_class.output_dependencies, slave_class.requirements,
-                                   choices)
+        _rewrite_model_description(Path(built), partial, slave_class.output_dependencies, slave_class.requirements)
         os.replace(partial, fmu)
 
 
 def _rewrite_model_description(source: Path, target: Path, output_dependencies: dict[str, list[str]],
-                               requirements: tuple[str, ...], choices: dict[str, type[IntEnum]]) -> None:
+                               requirements: tuple[str, ...]) -> None:
     with zipfile.ZipFile(source) as archive:
         entries = {info.filename: archive.read(info) for info in archive.infolist()}
     root = ElementTree.fromstring(entries["modelDescription.xml"])
     model = root.get("modelName")
     _declare_output_dependencies(root, model, output_dependencies)
     _declare_units(root, model)
-    _declare_enumerations(root, model, choices)
     _write_archive(target, drop_in(entries, root, requirements))
 
 
@@ -223,7 +217,7 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
       the slave class's ``output_dependencies``: absent, it means "depends on every input";
     - ``UnitDefinitions`` declares the units the Float64 variables use (FMI 3.0 requires it);
     - each ``EnumerationType`` pythonfmu3 writes for a mode parameter gets its description and
-      its items' from the IntEnum, as `_declare_enumerations` does for FMI 2.0.
+      its items' from the IntEnum (the members' docstrings).
 
     Outputs keep pythonfmu3's ``initial="calculated"`` (the FMI 3.0 default for outputs), so they
     carry no start value and are listed as InitialUnknowns, as FMI 3.0 §2.4.8 requires.
@@ -294,32 +288,6 @@ def _declare_units(root: ElementTree.Element, model: str, tag: str = "Real") -> 
     for unit in used:
         ElementTree.SubElement(ElementTree.SubElement(definitions, "Unit", name=unit), "BaseUnit", BASE_UNITS[unit])
     position = list(root).index(root.find("CoSimulation")) + 1
-    root.insert(position, definitions)
-
-
-def _declare_enumerations(root: ElementTree.Element, model: str, choices: dict[str, type[IntEnum]]) -> None:
-    """``TypeDefinitions/SimpleType/Enumeration/Item`` (FMI 2.0 §2.2.3) for the IntEnums of the
-    Enumeration parameters ``choices`` (parameter name -> IntEnum, the slave's ``choices``): the
-    SimpleType is named as the IntEnum and described by its docstring's first line; each item is a
-    member, described by the docstring under it in the IntEnum's source."""
-    types: dict[str, type[IntEnum]] = {}
-    for parameter, enumeration in choices.items():
-        known = types.setdefault(enumeration.__name__, enumeration)
-        if known is not enumeration:
-            raise BuildError(f"{model}: parameters {parameter} and another one use two IntEnums named "
-                             f"{enumeration.__name__} ({known.__module__}, {enumeration.__module__})")
-    if not types:
-        return
-    definitions = ElementTree.Element("TypeDefinitions")
-    for name in sorted(types):
-        description, members = _enumeration_items(model, types[name])
-        items = ElementTree.SubElement(ElementTree.SubElement(definitions, "SimpleType", name=name,
-                                                              description=description), "Enumeration")
-        for member, item_description in members.items():
-            ElementTree.SubElement(items, "Item", name=member.name, value=str(member.value),
-                                   description=item_description)
-    anchor = root.find("UnitDefinitions")
-    position = list(root).index(anchor if anchor is not None else root.find("CoSimulation")) + 1
     root.insert(position, definitions)
 
 

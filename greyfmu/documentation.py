@@ -3,7 +3,7 @@
 One page per FMU: what it is (the model description's ``description``: the paper, its
 equations and the defaults' source), the default experiment, every variable with causality,
 variability, type, unit ("as wired" for a Real declared without one), start, min, max and
-description, the items of each Enumeration type, the unit definitions, what the target needs
+description, the unit definitions, what the target needs
 (Python, modules, how the loader finds them) and the licences shipped with it.
 """
 
@@ -28,11 +28,6 @@ def index_html(root: ElementTree.Element, requirements: tuple[str, ...], loaders
     experiment_text = ", ".join(f"{key} = {escape(value)} s" if key != "tolerance" else f"{key} = {escape(value)}"
                                 for key, value in (experiment.attrib.items() if experiment is not None else []))
     rows = "\n".join(_variable_row(variable) for variable in root.iter("ScalarVariable"))
-    enumerations = "\n".join(
-        f"<tr><td>{escape(simple.get('name'))}</td><td>{escape(item.get('name'))}</td><td>{escape(item.get('value'))}</td>"
-        f"<td>{escape(item.get('description', ''))}</td></tr>"
-        for simple in root.iter("SimpleType") for item in simple.iter("Item")
-    ) or '<tr><td colspan="4">none</td></tr>'
     units = "\n".join(
         f"<tr><td>{escape(unit.get('name'))}</td><td>{escape(_base_unit(unit))}</td></tr>"
         for unit in root.iter("Unit")
@@ -62,11 +57,6 @@ td,th{{border:1px solid #999;padding:0.2em 0.5em;text-align:left;vertical-align:
 <p>A Real variable whose unit reads <em>as wired</em> has none declared: it takes the unit of the
 signals connected to it (a gain: the output's per the input's), so that an importer that converts
 units neither refuses nor rescales a connection from, say, a kgf/cm2 or % signal.</p>
-<h2>Enumerations</h2>
-<p>Mode parameters are FMI Enumerations; their values travel as fmi2Integer.</p>
-<table><tr><th>type</th><th>item</th><th>value</th><th>description</th></tr>
-{enumerations}
-</table>
 <h2>Units</h2>
 <table><tr><th>unit</th><th>in SI base units</th></tr>
 {units}

@@ -263,13 +263,13 @@ def test_cli_reports_each_fmu_and_the_output_folder(built_fmus, capsys):
 
 def test_rewrite_refuses_an_output_without_a_declared_dependency_list(built_fmus, tmp_path):
     with pytest.raises(BuildError, match="output_dependencies"):
-        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {}, ("numpy", "scipy"), {})
+        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {}, ("numpy", "scipy"))
 
 
 def test_rewrite_refuses_an_output_without_initial_exact(built_fmus, tmp_path):
     broken = edited_copy(built_fmus["Gain"], tmp_path / "broken.fmu", lambda xml: xml.replace('initial="exact"', ""))
     with pytest.raises(BuildError, match="initial"):
-        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]}, ("numpy", "scipy"), {})
+        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]}, ("numpy", "scipy"))
 
 
 def test_rebuilding_gives_a_byte_identical_model_description_and_the_same_guid(built_fmus, tmp_path):
