@@ -148,6 +148,7 @@ def _build_one(script: Path, fmu: Path) -> None:
     if script.parent == FMI3_SOURCES:
         _build_one_fmi3(script, fmu)
         return
+    _forget_embedded_copies(script)
     with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
         staged_package = Path(temp) / "package" / PACKAGE_DIR.name
         shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns(*BUILD_ONLY))
@@ -157,10 +158,32 @@ def _build_one(script: Path, fmu: Path) -> None:
             project_files=[staged_package, SLAVE_BASE],
             needsExecutionTool="false",
         )
-        slave_class = get_model_class(script)  # build_FMU put fmus/ on sys.path and imported it
+        script_class = slave_class(script)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
-        _rewrite_model_description(Path(built), partial, slave_class.output_dependencies, slave_class.requirements)
+        _rewrite_model_description(Path(built), partial, script_class.output_dependencies, script_class.requirements)
         os.replace(partial, fmu)
+
+
+def slave_class(script: Path) -> type:
+    """The slave class of ``fmus/<Name>.py`` as the source tree defines it (imported with fmus/
+    on sys.path, after `_forget_embedded_copies`)."""
+    _forget_embedded_copies(script)
+    sys.path.insert(0, str(FMU_SOURCES))
+    try:
+        return get_model_class(script)
+    finally:
+        sys.path.remove(str(FMU_SOURCES))
+
+
+def _forget_embedded_copies(script: Path) -> None:
+    """Drop from sys.modules the ``_slave`` and slave module an FMU of ours left in this process:
+    pythonfmu imports them from the FMU's resources/, and their base class is the FMU's
+    greyfmu_pythonfmu Fmi2Slave, which pythonfmu's builder does not recognise.  Running FMU
+    instances keep their classes; the next import reads fmus/."""
+    for name in (SLAVE_BASE.stem, script.stem):
+        module = sys.modules.get(name)
+        if module is not None and Path(getattr(module, "__file__", "") or "").parent != FMU_SOURCES:
+            del sys.modules[name]
 
 
 def _rewrite_model_description(source: Path, target: Path, output_dependencies: dict[str, list[str]],

@@ -16,7 +16,6 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
-from pythonfmu.builder import get_model_class
 
 from greyfmu.build import (
     FMU_SOURCES,
@@ -26,6 +25,7 @@ from greyfmu.build import (
     build_fmus,
     fmu_names,
     provide_fmu,
+    slave_class,
 )
 from greyfmu.cli import main
 from greyfmu.dropin import BUILD_PYTHON, PYTHONFMU_RUNTIME, stable_guid
@@ -95,9 +95,8 @@ def test_fmu_declares_the_agreed_interface(built_fmus, name):
 
 @pytest.mark.parametrize("name", ALL)
 def test_output_dependencies_are_written_as_the_slave_declares_them(built_fmus, name, monkeypatch):
-    monkeypatch.syspath_prepend(str(FMU_SOURCES))   # the slaves import their base module by its bare name
     md = read_model_description(str(built_fmus[name]))
-    declared = get_model_class(FMU_SOURCES / f"{name}.py").output_dependencies
+    declared = slave_class(FMU_SOURCES / f"{name}.py").output_dependencies
     assert {u.variable.name: [d.name for d in u.dependencies] for u in md.outputs} == declared
     if name in INTERFACE:
         assert declared == INTERFACE[name][2]
@@ -349,3 +348,16 @@ def test_a_host_with_an_fmus_resources_on_sys_path_still_imports_pythonfmus_buil
     installed, runtime = completed.stdout.splitlines()[-2:]
     assert "resources" not in installed and "site-packages" in installed
     assert "resources" in runtime
+
+
+def test_a_process_that_ran_an_fmu_still_builds_from_the_sources(built_fmus, tmp_path):
+    """pythonfmu imports an FMU's _slave and slave module from its resources/ into the host
+    process; their base is the FMU's greyfmu_pythonfmu Fmi2Slave.  A later build in that process
+    (greyfmu's provider during a cosim run) must read fmus/ instead (greyfmu.build.slave_class)."""
+    script = (f"import sys, fmpy; fmpy.simulate_fmu({str(built_fmus['Gain'])!r}, stop_time=0.2); "
+              "assert 'greyfmu_pythonfmu' in sys.modules['_slave'].Fmi2Slave.__module__; "
+              "from greyfmu.build import build_fmus; "
+              f"print(build_fmus(['Gain'], out_dir={str(tmp_path)!r}, force=True))")
+    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert completed.returncode == 0, completed.stderr
+    assert (tmp_path / "Gain.fmu").is_file()

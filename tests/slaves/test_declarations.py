@@ -12,11 +12,10 @@ import pytest
 from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
-from pythonfmu.builder import get_model_class
 
 from cosim.errors import SetupError
 from cosim.units import BUILTIN, conversion, fmu_units, make_unit
-from greyfmu.build import FMU_SOURCES, BuildError, _enumeration_items, build_fmus, fmu_names
+from greyfmu.build import FMU_SOURCES, BuildError, _enumeration_items, build_fmus, fmu_names, slave_class
 
 ALL = fmu_names()
 
@@ -59,19 +58,17 @@ NOT_BUILTIN = {"%/s": make_unit("%/s", factor=0.01, s=-1), "rad/s": make_unit("r
 """Our units that cosim.units.BUILTIN does not define."""
 
 
-def slave_choices(name, monkeypatch):
-    monkeypatch.syspath_prepend(str(FMU_SOURCES))  # the slaves import their base module by its bare name
-    return get_model_class(FMU_SOURCES / f"{name}.py")(instance_name="test").choices
+def slave_choices(name):
+    return slave_class(FMU_SOURCES / f"{name}.py")(instance_name="test").choices
 
 
 @pytest.mark.parametrize("name", sorted(MODES))
-def test_mode_parameters_are_integers_whose_description_and_range_give_the_intenums_members(
-        built_fmus, name, monkeypatch):
+def test_mode_parameters_are_integers_whose_description_and_range_give_the_intenums_members(built_fmus, name):
     """FMI 2.0 Integer, not Enumeration: libcosim 0.11.2 applies no ssv:Integer binding to an
     Enumeration variable (tests/peers/test_crosscheck.py, grey_fig312: grey_pi.u differs by 5.2)
     and aborts on an ssv:Enumeration one (ssp_parser.cpp:69 Internal error)."""
     md = read_model_description(str(built_fmus[name]))
-    choices = slave_choices(name, monkeypatch)
+    choices = slave_choices(name)
     assert {parameter: enumeration.__name__ for parameter, enumeration in choices.items()} == MODES[name]
     variables = {v.name: v for v in md.modelVariables}
     for parameter, enumeration in choices.items():
