@@ -34,9 +34,9 @@ class GM3t1Identifier(GreyfmuSlave):
         self.output("ks", "Identified static sensitivity (0 until valid)", lambda: self._value("ks"), variability=discrete)
         self.output("wn", "Identified natural frequency (0 until valid)", lambda: self._value("wn"), unit="rad/s",
                     variability=discrete)
-        self.output("zeta", "Identified damping ratio (0 until valid)", lambda: self._value("zeta"), variability=discrete)
+        self.output("zeta", "Identified damping ratio (0 until valid)", lambda: self._value("zeta"), unit="1", variability=discrete)
         self.output("valid", "1 when a stable model was identified, else 0",
-                    lambda: float(self.identifier.result is not None), variability=discrete)
+                    lambda: float(self.identifier.result is not None), unit="1", variability=discrete)
 
     def build(self) -> None:
         self.identifier = StepIdentifier(self.a, self.N, self.Ts)

@@ -4,15 +4,30 @@ from typing import Any
 
 from pythonfmu import DefaultExperiment, Fmi2Variability
 
-from _slave import REQUIREMENTS, GreyfmuSlave
-from greyfmu.control import ITAE, GainSchedule, GainScheduledPID as Controller, Gains, Interpolation, OperatingPoint
+from enum import IntEnum
+
+from _slave import REQUIREMENTS, AntiWindup, GreyfmuSlave
+from greyfmu.control import ITAE, DerivativeOn, GainSchedule, GainScheduledPID as Controller, Gains, Interpolation, OperatingPoint
 from greyfmu.signals import SampleClock
 
 MAX_POINTS = 8
 """FMI 2.0 has no array parameters: the table is n_points rows of the numbered scalars W_i, Kc_i, Ti_i, Td_i."""
 
-LAW_ITAE = 4
-"""Value of ``law`` that selects the ITAE rule (2.8) on the process-parameter inputs instead of the table."""
+
+
+class SchedulingLaw(IntEnum):
+    """How the gains follow the scheduling variable (thesis §2.3.1): greyfmu.control.Interpolation or ITAE."""
+
+    THRESHOLD = Interpolation.THRESHOLD
+    """Switch from the gains of W_i to those of W_{i+1} at the midpoint W*_i."""
+    FGS1 = Interpolation.FGS1
+    """(2.6): Kc, Kc/Ti and Kc·Td linear in W."""
+    FGS2 = Interpolation.FGS2
+    """(2.7): Kc, Ti and Td linear in W."""
+    MFGS = Interpolation.MFGS
+    """(2.9): 1/Kc, Ti and Td linear in W."""
+    ITAE = 4
+    """(2.8): the ITAE rule on the process-parameter inputs Kp, T, tau (the table is unused)."""
 
 # Simulation 2.5 of the thesis (dead time varies): the MFGS table at y = 0.76 and y = 7.
 DEFAULT_TABLE = [(0.76, 8.0346, 7.1713, 1.5363), (7.0, 1.75, 23.52, 7.62)]
@@ -39,8 +54,7 @@ class GainScheduledPID(GreyfmuSlave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.parameter(
-            "law", 3, "Scheduling law: 0 threshold, 1 FGS1 (2.6), 2 FGS2 (2.7), 3 MFGS (2.9), 4 ITAE (2.8)",
-            minimum=0, maximum=4,
+            "law", SchedulingLaw.MFGS, "Scheduling law: THRESHOLD, FGS1 (2.6), FGS2 (2.7), MFGS (2.9) or ITAE (2.8)"
         )
         self.parameter("n_points", 2, f"Number of operating points used, 1..{MAX_POINTS}", minimum=1, maximum=MAX_POINTS)
         for i in range(1, MAX_POINTS + 1):
@@ -51,13 +65,13 @@ class GainScheduledPID(GreyfmuSlave):
             self.parameter(f"Ti_{i}", Ti, f"Integral time at {used}, > 0", unit="s")
             self.parameter(f"Td_{i}", Td, f"Derivative time at {used}, >= 0", unit="s")
         for name, value in zip("ABCDEF", (1.357, 0.947, 1.176, 0.738, 0.381, 0.995)):
-            self.parameter(name, value, f"ITAE constant {name} of (2.8) (law = 4 only)")
-        self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N")
+            self.parameter(name, value, f"ITAE constant {name} of (2.8) (law = ITAE only)", unit="1")
+        self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N", unit="1")
         self.parameter("Ts", 0.1, "Sample time", unit="s")
-        self.parameter("anti_windup", 1, "1 = conditional-integration anti-windup at the output limits (ours), "
-                       "0 = none, the integral always integrates (the thesis's PI)", minimum=0, maximum=1)
-        self.parameter("derivative_on", 0, "Signal the D term differentiates: 0 = measurement -y (ours, no set-point "
-                       "kick), 1 = error e (the thesis's Td de/dt, (2.6a))", minimum=0, maximum=1)
+        self.parameter("anti_windup", AntiWindup.CONDITIONAL_INTEGRATION,
+                       "Anti-windup: CONDITIONAL_INTEGRATION at the output limits (ours) or NONE (the thesis's PI)")
+        self.parameter("derivative_on", DerivativeOn.MEASUREMENT, "Signal the D term differentiates: MEASUREMENT -y "
+                       "(ours, no set-point kick) or ERROR e (the thesis's Td de/dt, (2.6a))")
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -74,7 +88,7 @@ class GainScheduledPID(GreyfmuSlave):
         self.output("Td", "Scheduled derivative time", lambda: self._gains().Td, unit="s", variability=discrete)
 
     def build(self) -> None:
-        if self.law == LAW_ITAE:
+        if self.law == SchedulingLaw.ITAE:
             itae = ITAE(self.A, self.B, self.C, self.D, self.E, self.F)
             schedule = lambda process: itae(*process)  # noqa: E731
         else:
@@ -98,7 +112,7 @@ class GainScheduledPID(GreyfmuSlave):
         self.clock = SampleClock(self.Ts, self.experiment_start)
 
     def _scheduling_variable(self) -> float | tuple[float, float, float]:
-        return (self.Kp, self.T, self.tau) if self.law == LAW_ITAE else self.W
+        return (self.Kp, self.T, self.tau) if self.law == SchedulingLaw.ITAE else self.W
 
     def _gains(self) -> Gains:
         gains = self.controller.gains

@@ -4,8 +4,9 @@ from typing import Any
 
 from pythonfmu import DefaultExperiment, Fmi2Variability
 
-from _slave import REQUIREMENTS, GreyfmuSlave
+from _slave import REQUIREMENTS, AntiWindup, GreyfmuSlave
 from greyfmu.control import GrayPredictivePI as Controller
+from greyfmu.grey import Threshold
 from greyfmu.signals import SampleClock
 
 
@@ -14,7 +15,7 @@ class GrayPredictivePI(GreyfmuSlave):
         "Error-prediction-based grey predictive PI (thesis 000_*, §3.2, Fig. 3.14, (3.29)): the error e = r - y plus "
         "the bias B goes through a moving-window GM(1,1) predictor (n samples every m-th sample, LDISPI §3.1.6); the "
         "PI of the PID FMU (integral modes (2.10)-(2.12), limits, optional anti-windup) acts on the predicted error "
-        "e_hat, ph seconds ahead when a > a_min (threshold 1, §4.2 as printed) or |a| > a_min (2), the estimated "
+        "e_hat, ph seconds ahead when a > a_min (threshold SIGNED, §4.2 as printed) or |a| > a_min (MAGNITUDE), the estimated "
         "current error otherwise. Sampled at Ts with zero-order "
         "hold, no direct feedthrough. Defaults: ph = 25 s, B = 50, a_min = 0.035 of §4.2; Kc, Ti for "
         "1/((1+30s)(1+5s)). " + REQUIREMENTS
@@ -31,12 +32,12 @@ class GrayPredictivePI(GreyfmuSlave):
         self.parameter("m", 5, "LDISPI data interval: every m-th error sample enters the window", minimum=1)
         self.parameter("ph", 25.0, "Prediction horizon", unit="s", minimum=0.0)
         self.parameter("B", 50.0, "Bias keeping e + B positive (3.29b)", minimum=0.0)
-        self.parameter("a_min", 0.035, "Predict only when a passes a_min (see threshold), else estimate the current error",
+        self.parameter("a_min", 0.035, "Predict only when a passes a_min (see threshold), else estimate the current error", unit="1",
                        minimum=0.0)
-        self.parameter("threshold", 1, "Predict/estimate rule: 1 = a > a_min (§4.2 as printed), 2 = |a| > a_min",
-                       minimum=1, maximum=2)
-        self.parameter("anti_windup", 1, "1 = conditional-integration anti-windup at the output limits (ours), "
-                       "0 = none, the integral always integrates (the thesis's PI)", minimum=0, maximum=1)
+        self.parameter("threshold", Threshold.SIGNED,
+                       "Predict/estimate rule: SIGNED a > a_min (§4.2 as printed) or MAGNITUDE |a| > a_min")
+        self.parameter("anti_windup", AntiWindup.CONDITIONAL_INTEGRATION,
+                       "Anti-windup: CONDITIONAL_INTEGRATION at the output limits (ours) or NONE (the thesis's PI)")
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -46,10 +47,10 @@ class GrayPredictivePI(GreyfmuSlave):
         self.output("e", "Control error r - y at the last sample", lambda: self.controller.e, variability=discrete)
         self.output("e_hat", "Predicted error the PI acted on at the last sample", lambda: self.controller.e_hat,
                     variability=discrete)
-        self.output("a", "GM(1,1) development coefficient a(i) of the last fit", lambda: self.controller.predictor.a,
+        self.output("a", "GM(1,1) development coefficient a(i) of the last fit", lambda: self.controller.predictor.a, unit="1",
                     variability=discrete)
         self.output("mode", "0 filling, 1 estimated, 2 predicted, 3 fallback (no valid model)",
-                    lambda: float(self.controller.mode), variability=discrete)
+                    lambda: float(self.controller.mode), unit="1", variability=discrete)
 
     def build(self) -> None:
         self.controller = Controller(

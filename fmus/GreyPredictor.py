@@ -6,6 +6,7 @@ from pythonfmu import DefaultExperiment, Fmi2Variability
 
 from _slave import REQUIREMENTS, GreyfmuSlave
 from greyfmu.grey import GreyPredictor as Predictor
+from greyfmu.grey import Threshold
 from greyfmu.signals import SampleClock
 
 
@@ -13,7 +14,7 @@ class GreyPredictor(GreyfmuSlave):
     description = (
         "Moving-window GM(1,1) grey predictor (thesis 000_*, §3.1.5-3.1.6, (3.5e)-(3.7b), (3.29)): samples x every "
         "Ts, fits GM(1,1) to n samples spaced m samples apart (LDISPI; m = 1: plain window) after adding the bias B, "
-        "and outputs the prediction ph seconds ahead minus B when |a| > a_min (threshold 2) or a > a_min (1), else "
+        "and outputs the prediction ph seconds ahead minus B when |a| > a_min (threshold MAGNITUDE) or a > a_min (SIGNED), else "
         "the model's estimate of the "
         "current sample; the current sample itself until the window is full or when no valid model exists "
         "(biased sample <= 0, singular fit, |a| >= 2). Zero-order hold between samples, no direct feedthrough. "
@@ -29,19 +30,19 @@ class GreyPredictor(GreyfmuSlave):
         self.parameter("m", 1, "Data interval (LDISPI): every m-th sample enters the window", minimum=1)
         self.parameter("ph", 20.0, "Prediction horizon", unit="s", minimum=0.0)
         self.parameter("B", 0.0, "Bias added before the fit, removed after it (3.29b)", minimum=0.0)
-        self.parameter("a_min", 0.0, "Predict only when a passes a_min (see threshold), else estimate the current value",
+        self.parameter("a_min", 0.0, "Predict only when a passes a_min (see threshold), else estimate the current value", unit="1",
                        minimum=0.0)
-        self.parameter("threshold", 2, "Predict/estimate rule: 1 = a > a_min (§4.2 as printed), 2 = |a| > a_min "
-                       "(with a_min = 0: always, chapter 3)", minimum=1, maximum=2)
+        self.parameter("threshold", Threshold.MAGNITUDE, "Predict/estimate rule: SIGNED a > a_min (§4.2 as printed) or "
+                       "MAGNITUDE |a| > a_min (with a_min = 0: always, chapter 3)")
         self.input("x", 0.0, "Signal to predict")
         self.output("x_hat", "Prediction ph ahead (held between samples)", lambda: self.predictor.prediction,
                     variability=Fmi2Variability.discrete)
-        self.output("a", "GM(1,1) development coefficient a(i) of the last fit", lambda: self.predictor.a,
+        self.output("a", "GM(1,1) development coefficient a(i) of the last fit", lambda: self.predictor.a, unit="1",
                     variability=Fmi2Variability.discrete)
         self.output("b", "GM(1,1) grey input b(i) of the last fit", lambda: self.predictor.b,
                     variability=Fmi2Variability.discrete)
         self.output("mode", "0 filling, 1 estimated, 2 predicted, 3 fallback (no valid model)",
-                    lambda: float(self.predictor.mode), variability=Fmi2Variability.discrete)
+                    lambda: float(self.predictor.mode), unit="1", variability=Fmi2Variability.discrete)
 
     def build(self) -> None:
         self.predictor = Predictor(n=self.n, m=self.m, horizon=self.ph / self.Ts, bias=self.B, a_min=self.a_min,

@@ -2,18 +2,40 @@
 
 import copy
 import functools
+from enum import IntEnum
 from typing import Any
 
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Variability
 
-from _slave import REQUIREMENTS, GreyfmuSlave
+from _slave import REQUIREMENTS, Estimator, GreyfmuSlave
 from greyfmu.control import OSMMGPC as OSMMController
 from greyfmu.control import ARXStructure, Bounds, TSModel, boiler_groups, identify_group_models
 from greyfmu.plants import SteamHeader, excitation_run
 from greyfmu.signals import SampleClock
 
-METHODS = {1: "global", 2: "local", 3: "mixed"}
+
+
+class ModelGroup(IntEnum):
+    """Which boiler pair the GPC drives: OSMM scheduling or one fixed pair (the paper's groups (27))."""
+
+    SCHEDULED = 0
+    """The OSMM scheduling picks the pair at every sample (the paper's algorithm)."""
+    PAIR_1_2 = 1
+    """Boilers 1 and 2, fixed."""
+    PAIR_1_3 = 2
+    """Boilers 1 and 3, fixed."""
+    PAIR_2_3 = 3
+    """Boilers 2 and 3, fixed."""
+
+
+class Adaptation(IntEnum):
+    """Whether the TS models' consequents are estimated on line."""
+
+    FROZEN = 0
+    """The initial identified models stay fixed."""
+    ONLINE = 1
+    """On-line estimation by the chosen estimator (the paper's algorithm)."""
 
 
 @functools.lru_cache(maxsize=4)
@@ -35,7 +57,7 @@ class OSMMGPC(GreyfmuSlave):
         "C(3,2) boiler groups by MFRLS (our reconstruction), compute the regulating efficiencies (31) "
         "(unit-consistent form, see greyfmu.control.osmm) and choose the best group (32), solve the 2x2 "
         "constrained GPC (34)-(39) on the active model (33) and add the moves to the chosen boilers; the third "
-        "boiler holds its firing. group = 1, 2, 3 fixes the pair (1,2), (1,3), (2,3): a plain GPC with the same "
+        "boiler holds its firing. group = PAIR_1_2, PAIR_1_3, PAIR_2_3 fixes that pair: a plain GPC with the same "
         "adaptive models. Initial TS models are identified at initialisation from open-loop runs of "
         "greyfmu.plants.SteamHeader (default parameters; about 5 s). Sampled at Ts with zero-order hold; no "
         "direct feedthrough. Needs the QP solver daqp on the target Python besides numpy/scipy. " + REQUIREMENTS
@@ -52,15 +74,15 @@ class OSMMGPC(GreyfmuSlave):
         self.parameter("Nu", 5, "Control horizon", minimum=1)
         self.parameter("output_weight", 1.0, "Output-error weight lambda(j) of (34)", minimum=0.0)
         self.parameter("move_weight", 1.0, "Move weight Q(j) of (34)", minimum=0.0)
-        self.parameter("alpha", 0.0, "Reference smoothing a of (36)", minimum=0.0, maximum=0.999)
-        self.parameter("M_min", 0.3, "Lowest firing M_min of (35) (p.u.)")
-        self.parameter("M_max", 1.2, "Highest firing M_max of (35) (p.u.)")
-        self.parameter("dM_max", 0.05, "Largest firing move per sample |dM| of (35) (p.u.)", minimum=0.0)
-        self.parameter("M0", 0.75, "Initial firing of every boiler (p.u.)")
-        self.parameter("group", 0, "0 = OSMM scheduling; 1, 2, 3 = fixed pair (1,2), (1,3), (2,3)", minimum=0, maximum=3)
-        self.parameter("adapt", 1, "1 = on-line estimation of the TS models, 0 = frozen initial models", minimum=0, maximum=1)
-        self.parameter("method", 3, "1 = global FRLS, 2 = local FRLS, 3 = MFRLS", minimum=1, maximum=3)
-        self.parameter("forgetting", 1.0, "Forgetting factor in (0, 1]", minimum=0.0, maximum=1.0)
+        self.parameter("alpha", 0.0, "Reference smoothing a of (36)", unit="1", minimum=0.0, maximum=0.999)
+        self.parameter("M_min", 0.3, "Lowest firing M_min of (35) (p.u.)", unit="1")
+        self.parameter("M_max", 1.2, "Highest firing M_max of (35) (p.u.)", unit="1")
+        self.parameter("dM_max", 0.05, "Largest firing move per sample |dM| of (35) (p.u.)", unit="1", minimum=0.0)
+        self.parameter("M0", 0.75, "Initial firing of every boiler (p.u.)", unit="1")
+        self.parameter("group", ModelGroup.SCHEDULED, "Boiler pair: SCHEDULED by OSMM, or fixed PAIR_1_2, PAIR_1_3 or PAIR_2_3")
+        self.parameter("adapt", Adaptation.ONLINE, "TS models: ONLINE estimation or FROZEN initial models")
+        self.parameter("method", Estimator.MFRLS, "On-line estimator: GLOBAL_FRLS, LOCAL_FRLS or MFRLS")
+        self.parameter("forgetting", 1.0, "Forgetting factor in (0, 1]", unit="1", minimum=0.0, maximum=1.0)
         self.parameter("omega", 0.01, "Initial covariance C(0) = omega I of the estimators", minimum=0.0)
         self.parameter("rules", 3, "Rules per TS model", minimum=1)
         self.parameter("identification_time", 3000.0, "Length of each open-loop identification run", unit="s")
@@ -70,9 +92,9 @@ class OSMMGPC(GreyfmuSlave):
         self.input("y1", 8.75, "Measured P_m2", unit="MPa")
         self.input("y2", 8.75, "Measured P_m4", unit="MPa")
         for i in (1, 2, 3):
-            self.output(f"u{i}", f"Firing demand M_{i} of boiler {i} (p.u.)", lambda i=i: float(self.controller.M[i - 1]),
+            self.output(f"u{i}", f"Firing demand M_{i} of boiler {i} (p.u.)", lambda i=i: float(self.controller.M[i - 1]), unit="1",
                         variability=Fmi2Variability.discrete)
-        self.output("active_group", "Chosen group: 1 = (1,2), 2 = (1,3), 3 = (2,3)", lambda: float(self.controller.group + 1),
+        self.output("active_group", "Chosen group: 1 = (1,2), 2 = (1,3), 3 = (2,3)", lambda: float(self.controller.group + 1), unit="1",
                     variability=Fmi2Variability.discrete)
 
     def build(self) -> None:
@@ -82,7 +104,7 @@ class OSMMGPC(GreyfmuSlave):
             self.output_weight, self.move_weight, self.alpha,
             Bounds(self.M_min, self.M_max, -self.dM_max, self.dM_max),
             fixed_group=None if self.group == 0 else self.group - 1, adapt=bool(self.adapt),
-            method=METHODS[self.method], forgetting=self.forgetting, omega=self.omega,
+            method=Estimator(self.method).rls_method, forgetting=self.forgetting, omega=self.omega,
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)
 

@@ -4,8 +4,9 @@ from typing import Any
 
 from pythonfmu import DefaultExperiment, Fmi2Variability
 
-from _slave import REQUIREMENTS, GreyfmuSlave
+from _slave import REQUIREMENTS, AntiWindup, GreyfmuSlave
 from greyfmu.control import PID as PIDController
+from greyfmu.control.pid import DerivativeOn
 from greyfmu.signals import SampleClock
 
 
@@ -27,12 +28,12 @@ class PID(GreyfmuSlave):
         self.parameter("Kc", 8.0345, "Controller gain (1.6069/Kp with Kp = 0.2)")
         self.parameter("Ti", 7.1713, "Integral time", unit="s")
         self.parameter("Td", 1.5363, "Derivative time (0 disables the derivative term)", unit="s", minimum=0.0)
-        self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N")
+        self.parameter("N", 10.0, "Derivative filter factor: filter time constant Td/N", unit="1")
         self.parameter("Ts", 0.1, "Sample time", unit="s")
-        self.parameter("anti_windup", 1, "1 = conditional-integration anti-windup at the output limits (ours), "
-                       "0 = none, the integral always integrates (the thesis's PI)", minimum=0, maximum=1)
-        self.parameter("derivative_on", 0, "Signal the D term differentiates: 0 = measurement -y (ours, no set-point "
-                       "kick), 1 = error e (the thesis's Td de/dt, (2.6a))", minimum=0, maximum=1)
+        self.parameter("anti_windup", AntiWindup.CONDITIONAL_INTEGRATION,
+                       "Anti-windup: CONDITIONAL_INTEGRATION at the output limits (ours) or NONE (the thesis's PI)")
+        self.parameter("derivative_on", DerivativeOn.MEASUREMENT, "Signal the D term differentiates: MEASUREMENT -y "
+                       "(ours, no set-point kick) or ERROR e (the thesis's Td de/dt, (2.6a))")
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")

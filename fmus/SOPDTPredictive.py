@@ -7,7 +7,7 @@ from pythonfmu import DefaultExperiment, Fmi2Variability
 from pythonfmu.enums import Fmi2Status
 
 from _slave import REQUIREMENTS, GreyfmuSlave
-from greyfmu.control import SOPDTPredictive as SOPDTPredictiveController
+from greyfmu.control import ControlLaw, SOPDTPredictive as SOPDTPredictiveController
 from greyfmu.signals import SampleClock
 
 
@@ -31,13 +31,13 @@ class SOPDTPredictive(GreyfmuSlave):
         self.tunable("K", 1.2, "Process steady-state gain K (> 0)")
         self.tunable("T0", 200.0, "Process dominant time constant T0 (> 0)", unit="s")
         self.tunable("tau", 90.0, "Process dead time tau (>= 0)", unit="s")
-        self.tunable("xi", 0.6, "Time-constant allocation coefficient xi in (0, 1], (2)")
-        self.tunable("X_k", 1.5, "Adjustment coefficient of K, (3); > 1 for stability")
-        self.tunable("X_t", 1.0, "Adjustment coefficient of T0, (2)")
-        self.tunable("X_d", 1.0, "Adjustment coefficient of tau: m = [X_d tau/Ts]")
-        self.tunable("X_p", 0.6, "Control weighting coefficient X_p in (0, 1], (7)")
+        self.tunable("xi", 0.6, "Time-constant allocation coefficient xi in (0, 1], (2)", unit="1")
+        self.tunable("X_k", 1.5, "Adjustment coefficient of K, (3); > 1 for stability", unit="1")
+        self.tunable("X_t", 1.0, "Adjustment coefficient of T0, (2)", unit="1")
+        self.tunable("X_d", 1.0, "Adjustment coefficient of tau: m = [X_d tau/Ts]", unit="1")
+        self.tunable("X_p", 0.6, "Control weighting coefficient X_p in (0, 1], (7)", unit="1")
         self.parameter("Ts", 40.0, "Sampling period T of the paper: N = [(tau + 3 T0)/Ts] should lie in 15..20", unit="s")
-        self.parameter("law", 7, "Control law by the paper's equation number: 7, 12 or 15", minimum=7, maximum=15)
+        self.parameter("law", ControlLaw.ONE_MOVE, "Control law: ONE_MOVE (7), TWO_MOVES (12) or TWO_MOVES_HELD (15) of the paper")
         self.parameter("T_ref", 0.0, "Reference-trajectory time constant (0 = setpoint step, Fig. 5)", unit="s", minimum=0.0)
         self.output_limit_parameters()
         self.parameter("u0", 0.0, "Initial output; the controller starts bumplessly from it")
@@ -45,8 +45,8 @@ class SOPDTPredictive(GreyfmuSlave):
         self.input("y", 0.0, "Measured process output Y")
         self.output("u", "Controller output u_t, held between samples", lambda: self.controller.u, variability=Fmi2Variability.discrete)
         self.output("e", "Control error r - Y at the last sample", lambda: self.controller.e, variability=Fmi2Variability.discrete)
-        self.output("m", "Integer dead time of the current design", lambda: float(self.controller.design.m), variability=Fmi2Variability.discrete)
-        self.output("N", "Prediction horizon of the current design", lambda: float(self.controller.design.N), variability=Fmi2Variability.discrete)
+        self.output("m", "Integer dead time of the current design", lambda: float(self.controller.design.m), unit="1", variability=Fmi2Variability.discrete)
+        self.output("N", "Prediction horizon of the current design", lambda: float(self.controller.design.N), unit="1", variability=Fmi2Variability.discrete)
         self._measurement_missing = False
 
     def tunable(self, name: str, start: float, description: str, unit: str | None = None) -> None:

@@ -23,7 +23,7 @@ class SecondOrder(GreyfmuSlave):
         super().__init__(**kwargs)
         self.parameter("K", 1.0, "Static gain (nonzero)")
         self.parameter("wn", 0.026726124191242, "Natural frequency (> 0)", unit="rad/s")
-        self.parameter("zeta", 0.400891862868637, "Damping ratio (> 0)")
+        self.parameter("zeta", 0.400891862868637, "Damping ratio (> 0)", unit="1")
         self.parameter("tau", 0.0, "Dead time", unit="s", minimum=0.0)
         self.parameter("y0", 0.0, "Initial output (the plant starts at rest)")
         self.input("u", 0.0, "Manipulated variable")

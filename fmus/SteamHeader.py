@@ -25,13 +25,13 @@ class SteamHeader(GreyfmuSlave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self.parameter("u0", 0.75, "Initial firing of every boiler (p.u. of rated firing)")
+        self.parameter("u0", 0.75, "Initial firing of every boiler (p.u. of rated firing)", unit="1")
         self.parameter("tau_f", 15.0, "Firing lag", unit="s", minimum=0.0)
         self.parameter("tau_g", 60.0, "Steam generation lag", unit="s", minimum=0.0)
         self.parameter("F_N", 7.2, "Fuel at rated firing", unit="kg/s", minimum=0.0)
         self.parameter("max_substep", 0.25, "Largest RK4 sub-step", unit="s", minimum=0.0)
         for i in (1, 2, 3):
-            self.input(f"u{i}", 0.75, f"Firing demand of boiler {i} (p.u. of rated firing)")
+            self.input(f"u{i}", 0.75, f"Firing demand of boiler {i} (p.u. of rated firing)", unit="1")
         self.input("v1", 50.0, "Valve opening of turbine 1", unit="%")
         self.input("v2", 50.0, "Valve opening of turbine 2", unit="%")
         self.output("y1", "Header pressure P_m2 (segment of turbine 1)", lambda: float(self.plant.x[9]), unit="MPa")

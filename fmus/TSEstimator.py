@@ -1,17 +1,30 @@
 """On-line TS model estimator FMU (global FRLS, local FRLS or MFRLS) on the four-tank levels."""
 
+from enum import IntEnum
 from typing import Any
 
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Variability
 
-from _slave import REQUIREMENTS, GreyfmuSlave
+from _slave import REQUIREMENTS, Estimator, GreyfmuSlave
 from greyfmu.control import FuzzyRLS
 from greyfmu.control.four_tank_ts import regressor, table1_model
 from greyfmu.signals import SampleClock
 
-METHODS = {1: "global", 2: "local", 3: "mixed"}
-DOMINANCE = {1: "firing", 2: "normalised"}
+
+
+class Dominance(IntEnum):
+    """The MFRLS mixing weight mu_m of a sample (greyfmu.control.ts_fuzzy.FuzzyRLS ``dominance``)."""
+
+    MAX_FIRING = 1
+    """The largest raw firing degree max tau_i of the sample (recovered-models.md §6)."""
+    NORMALISED_MAX_MEMBERSHIP = 2
+    """(R max lambda_i - 1)/(R - 1): 1 in one rule's core, 0 where all rules fire evenly (the paper's §3 wording)."""
+
+    @property
+    def rls_dominance(self) -> str:
+        """The ``dominance`` name greyfmu.control.ts_fuzzy.FuzzyRLS takes."""
+        return ("firing", "normalised")[self.value - 1]
 
 
 class TSEstimator(GreyfmuSlave):
@@ -28,21 +41,21 @@ class TSEstimator(GreyfmuSlave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self.parameter("method", 3, "1 = global FRLS, 2 = local FRLS, 3 = MFRLS", minimum=1, maximum=3)
-        self.parameter("forgetting", 0.99, "Forgetting factor in (0, 1]", minimum=0.0, maximum=1.0)
+        self.parameter("method", Estimator.MFRLS, "On-line estimator: GLOBAL_FRLS, LOCAL_FRLS or MFRLS")
+        self.parameter("forgetting", 0.99, "Forgetting factor in (0, 1]", unit="1", minimum=0.0, maximum=1.0)
         self.parameter("omega", 100.0, "Initial covariance C(0) = omega I")
-        self.parameter("dominance", 2, "MFRLS mixing weight: 1 = max firing, 2 = normalised max membership", minimum=1, maximum=2)
+        self.parameter("dominance", Dominance.NORMALISED_MAX_MEMBERSHIP, "MFRLS mixing weight: MAX_FIRING or NORMALISED_MAX_MEMBERSHIP")
         self.parameter("Ts", 1.0, "Sample period", unit="s")
         for i in range(1, 5):
-            self.input(f"h{i}", 0.0, f"Measured level of tank {i}")
-        self.output("y_hat1", "A-priori prediction of h1", lambda: self.y_hat[0], variability=Fmi2Variability.discrete)
-        self.output("y_hat2", "A-priori prediction of h2", lambda: self.y_hat[1], variability=Fmi2Variability.discrete)
-        self.output("mae1", "Mean absolute error (43) of h1 so far", lambda: self.mae[0], variability=Fmi2Variability.discrete)
-        self.output("mae2", "Mean absolute error (43) of h2 so far", lambda: self.mae[1], variability=Fmi2Variability.discrete)
+            self.input(f"h{i}", 0.0, f"Measured level of tank {i}", unit="1")
+        self.output("y_hat1", "A-priori prediction of h1", lambda: self.y_hat[0], unit="1", variability=Fmi2Variability.discrete)
+        self.output("y_hat2", "A-priori prediction of h2", lambda: self.y_hat[1], unit="1", variability=Fmi2Variability.discrete)
+        self.output("mae1", "Mean absolute error (43) of h1 so far", lambda: self.mae[0], unit="1", variability=Fmi2Variability.discrete)
+        self.output("mae2", "Mean absolute error (43) of h2 so far", lambda: self.mae[1], unit="1", variability=Fmi2Variability.discrete)
 
     def build(self) -> None:
         self.estimators = [
-            FuzzyRLS(table1_model(j), METHODS[self.method], self.forgetting, self.omega, DOMINANCE[self.dominance])
+            FuzzyRLS(table1_model(j), Estimator(self.method).rls_method, self.forgetting, self.omega, Dominance(self.dominance).rls_dominance)
             for j in (1, 2)
         ]
         self.clock = SampleClock(self.Ts, self.experiment_start)

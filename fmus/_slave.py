@@ -12,7 +12,19 @@ communication step).  This base class
   variable and returns an error status instead of passing NaN on,
 - forwards greyfmu's warnings raised in ``build``, ``advance`` and a retune to the FMU log,
 - answers ``fmi2Get*``/``fmi2Set*`` through accessors compiled once per list of value
-  references (see `CompiledAccessors`), instead of pythonfmu's generic per-variable lookup.
+  references (see `CompiledAccessors`), instead of pythonfmu's generic per-variable lookup;
+- declares a mode parameter whose start is an ``IntEnum`` member as an FMI Integer whose range
+  and description name the IntEnum's members, and refuses, when the objects are built, a value
+  that is not one of them.  Not an FMI 2.0 Enumeration: libcosim 0.11.2, a peer SSP master,
+  applies no ``ssv:Integer`` binding to an Enumeration variable and aborts on ``ssv:Enumeration``
+  (tests/peers/test_crosscheck.py; an FMI 3.0 slave, PID3, does declare one).
+
+Units: a physical variable declares its unit (``unit=``; dimensionless ones "1").  A generic
+block's signal (PID, FOPDT, Gain, Sum, sources, tables) declares none: it takes the unit of the
+signals wired to it (a gain: the output's per the input's), and documentation/index.html says
+"as wired".  A declared "1" would make an importer that converts units (cosim, SSP tools)
+refuse a connection to a force in N or from a kgf/cm2 output, and rescale a % signal by 0.01.
+The descriptions do not say it: hosts, cosim's plots among them, label a signal with its description.
 """
 
 from __future__ import annotations
@@ -21,6 +33,7 @@ import math
 from abc import abstractmethod
 from collections.abc import Callable
 from contextlib import AbstractContextManager
+from enum import IntEnum
 from operator import attrgetter
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element
@@ -53,6 +66,31 @@ class RealVariable(_TypeAttributes, Real):
 
 class IntegerVariable(_TypeAttributes, Integer):
     """pythonfmu ``Integer`` with optional min and max."""
+
+
+class AntiWindup(IntEnum):
+    """Anti-windup of the PI(D) controller FMUs at the output limits."""
+
+    NONE = 0
+    """None: the integral always integrates, as in the thesis's PI."""
+    CONDITIONAL_INTEGRATION = 1
+    """Conditional integration: the integral stops while the output is limited (ours)."""
+
+
+class Estimator(IntEnum):
+    """The on-line estimator of the TS models' consequents (greyfmu.control.ts_fuzzy.FuzzyRLS)."""
+
+    GLOBAL_FRLS = 1
+    """Global FRLS: one RLS on the stacked regressor, cost J_G."""
+    LOCAL_FRLS = 2
+    """Local FRLS (Angelov and Filev 2004): one RLS per rule weighted by its firing, cost J_L."""
+    MFRLS = 3
+    """Mixed FRLS, our reconstruction: a global update weighted 1 - mu_m and local updates weighted mu_m, (21) and (25)."""
+
+    @property
+    def rls_method(self) -> str:
+        """The ``method`` name greyfmu.control.ts_fuzzy.FuzzyRLS takes."""
+        return ("global", "local", "mixed")[self.value - 1]
 
 
 def _type_attributes(unit: str | None, minimum: float | None, maximum: float | None) -> dict[str, str]:
@@ -102,6 +140,8 @@ class GreyfmuSlave(Fmi2Slave):
         self._outputs: dict[int, Callable[[], float]] = {}
         """Value reference -> value function of each output, valid once the greyfmu objects are built."""
         self._built = False
+        self.choices: dict[str, type[IntEnum]] = {}
+        """Parameter name -> the IntEnum of each mode parameter (its values checked before a build)."""
         self._get_real = CompiledAccessors(lambda vrs: self._compile_get(Real, vrs))
         self._get_integer = CompiledAccessors(lambda vrs: self._compile_get(Integer, vrs))
         self._get_boolean = CompiledAccessors(lambda vrs: self._compile_get(Boolean, vrs))
@@ -121,7 +161,9 @@ class GreyfmuSlave(Fmi2Slave):
         maximum: float | None = None,
         retune: Callable[[str, float], None] | None = None,
     ) -> None:
-        """Declare a parameter; an ``int`` start makes it an FMI Integer.
+        """Declare a parameter; an ``int`` start makes it an FMI Integer, and so does an ``IntEnum``
+        member: a mode parameter, whose description gets the members (``(1 = METHOD1, ...)``) and
+        whose ``minimum``/``maximum`` default to the smallest and largest value.
 
         Without ``retune`` it is fixed: setting it makes the next use rebuild the greyfmu
         objects.  With ``retune`` it is tunable: set during a run, ``retune(name, value)``
@@ -144,16 +186,24 @@ class GreyfmuSlave(Fmi2Slave):
                 return
             setattr(self, name, value)
 
-        variable_type = IntegerVariable if isinstance(start, int) else RealVariable
-        variable = variable_type(
-            name,
-            start=start,
-            description=description,
-            causality=Fmi2Causality.parameter,
-            variability=Fmi2Variability.fixed if retune is None else Fmi2Variability.tunable,
-            setter=setter,
-            type_attributes=_type_attributes(unit, minimum, maximum),
-        )
+        declaration: dict[str, Any] = {
+            "start": start,
+            "description": description,
+            "causality": Fmi2Causality.parameter,
+            "variability": Fmi2Variability.fixed if retune is None else Fmi2Variability.tunable,
+            "setter": setter,
+        }
+        if isinstance(start, IntEnum):
+            choices = type(start)
+            self.choices[name] = choices
+            minimum = min(choices) if minimum is None else minimum
+            maximum = max(choices) if maximum is None else maximum
+            items = ", ".join(f"{member.value} = {member.name}" for member in choices)
+            declaration.update(start=int(start), description=f"{description} ({items})")
+            variable = IntegerVariable(name, **declaration, type_attributes=_type_attributes(None, int(minimum), int(maximum)))
+        else:
+            variable_type = IntegerVariable if isinstance(start, int) else RealVariable
+            variable = variable_type(name, **declaration, type_attributes=_type_attributes(unit, minimum, maximum))
         self.register_variable(variable)
         self._attributes[variable.value_reference] = name
 
@@ -173,13 +223,14 @@ class GreyfmuSlave(Fmi2Slave):
 
     def integral_parameters(self) -> None:
         """integral_mode and u0 of the PI(D) controller FMUs: the thesis's (2.10)-(2.12)."""
-        self.parameter(
-            "integral_mode", 3, "Integral mode: 1 = (2.10), 2 = (2.11), 3 = (2.12) of the thesis", minimum=1, maximum=3
-        )
+        from greyfmu.control.pid import IntegralMode  # only the controller FMUs import greyfmu.control
+
+        self.parameter("integral_mode", IntegralMode.METHOD3,
+                       "Integral mode: METHOD1 = (2.10), METHOD2 = (2.11), METHOD3 = (2.12) of the thesis")
         self.parameter("u0", 0.0, "Initial output (bias): the integral starts here, so u = u0 while e = 0")
 
     def input(self, name: str, start: float, description: str, unit: str | None = None) -> None:
-        """Declare a continuous Real input."""
+        """Declare a continuous Real input (without ``unit``: as wired, see the module docstring)."""
         self._claim(name)
         setattr(self, name, start)
         variable = RealVariable(
@@ -202,7 +253,8 @@ class GreyfmuSlave(Fmi2Slave):
         unit: str | None = None,
         variability: Fmi2Variability = Fmi2Variability.continuous,
     ) -> None:
-        """Declare a Real output computed by ``value()`` from up-to-date greyfmu objects (initial="exact")."""
+        """Declare a Real output computed by ``value()`` from up-to-date greyfmu objects (initial="exact";
+        without ``unit``: as wired, see the module docstring)."""
 
         def getter() -> float:
             self._ensure_built()
@@ -358,12 +410,21 @@ class GreyfmuSlave(Fmi2Slave):
         fmi2Fatal, reaches the master."""
         if not self._built:
             try:
+                self._check_choices()
                 with self.forwarding_warnings():
                     self.build()
             except (ValueError, ArithmeticError) as error:
                 self.log(f"{self.instance_name}: invalid parameters: {error}", Fmi2Status.error)
                 raise
             self._built = True
+
+    def _check_choices(self) -> None:
+        """Refuse an Enumeration parameter whose value is not one of its items (ValueError naming it)."""
+        for name, choices in self.choices.items():
+            value = getattr(self, name)
+            if value not in set(choices):
+                items = ", ".join(f"{member.value} = {member.name}" for member in choices)
+                raise ValueError(f"{name} = {value} is not an item of {choices.__name__} ({items})")
 
     def forwarding_warnings(self) -> AbstractContextManager[None]:
         """A context in which greyfmu's warnings (``greyfmu.forwarding``) reach this instance's FMU log as fmi2Warning."""

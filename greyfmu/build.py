@@ -20,12 +20,16 @@ slaves can promise in general.
 
 from __future__ import annotations
 
+import ast
+import inspect
 import os
 import shutil
+import textwrap
 import sys
 import tempfile
 import zipfile
 from collections.abc import Callable, Iterable
+from enum import IntEnum
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -46,6 +50,7 @@ ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
 """The time stamp of every archive entry, so that rebuilding changes no byte but what changed."""
 
 BASE_UNITS: dict[str, dict[str, str]] = {
+    "1": {},
     "s": {"s": "1"},
     "%": {"factor": "0.01"},
     "%/s": {"s": "-1", "factor": "0.01"},
@@ -143,6 +148,7 @@ def _build_one(script: Path, fmu: Path) -> None:
     if script.parent == FMI3_SOURCES:
         _build_one_fmi3(script, fmu)
         return
+    _forget_embedded_copies(script)
     with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
         staged_package = Path(temp) / "package" / PACKAGE_DIR.name
         shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns(*BUILD_ONLY))
@@ -152,10 +158,32 @@ def _build_one(script: Path, fmu: Path) -> None:
             project_files=[staged_package, SLAVE_BASE],
             needsExecutionTool="false",
         )
-        slave_class = get_model_class(script)  # build_FMU put fmus/ on sys.path and imported it
+        script_class = slave_class(script)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
-        _rewrite_model_description(Path(built), partial, slave_class.output_dependencies, slave_class.requirements)
+        _rewrite_model_description(Path(built), partial, script_class.output_dependencies, script_class.requirements)
         os.replace(partial, fmu)
+
+
+def slave_class(script: Path) -> type:
+    """The slave class of ``fmus/<Name>.py`` as the source tree defines it (imported with fmus/
+    on sys.path, after `_forget_embedded_copies`)."""
+    _forget_embedded_copies(script)
+    sys.path.insert(0, str(FMU_SOURCES))
+    try:
+        return get_model_class(script)
+    finally:
+        sys.path.remove(str(FMU_SOURCES))
+
+
+def _forget_embedded_copies(script: Path) -> None:
+    """Drop from sys.modules the ``_slave`` and slave module an FMU of ours left in this process:
+    pythonfmu imports them from the FMU's resources/, and their base class is the FMU's
+    greyfmu_pythonfmu Fmi2Slave, which pythonfmu's builder does not recognise.  Running FMU
+    instances keep their classes; the next import reads fmus/."""
+    for name in (SLAVE_BASE.stem, script.stem):
+        module = sys.modules.get(name)
+        if module is not None and Path(getattr(module, "__file__", "") or "").parent != FMU_SOURCES:
+            del sys.modules[name]
 
 
 def _rewrite_model_description(source: Path, target: Path, output_dependencies: dict[str, list[str]],
@@ -210,7 +238,9 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
       slaves handle any step, so it is set through the builder option;
     - ``ModelStructure/Output`` gets ``dependencies`` (value references, FMI 3.0 §2.4.8) from
       the slave class's ``output_dependencies``: absent, it means "depends on every input";
-    - ``UnitDefinitions`` declares the units the Float64 variables use (FMI 3.0 requires it).
+    - ``UnitDefinitions`` declares the units the Float64 variables use (FMI 3.0 requires it);
+    - each ``EnumerationType`` pythonfmu3 writes for a mode parameter gets its description and
+      its items' from the IntEnum (the members' docstrings).
 
     Outputs keep pythonfmu3's ``initial="calculated"`` (the FMI 3.0 default for outputs), so they
     carry no start value and are listed as InitialUnknowns, as FMI 3.0 §2.4.8 requires.
@@ -226,8 +256,10 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
             entries = {info.filename: archive.read(info) for info in archive.infolist()}
         root = ElementTree.fromstring(entries["modelDescription.xml"])
         model = root.get("modelName")
-        _declare_output_dependencies3(root, model, _slave_class3(script).output_dependencies)
+        slave_class = _slave_class3(script)
+        _declare_output_dependencies3(root, model, slave_class.output_dependencies)
         _declare_units(root, model, tag="Float64")
+        _describe_enumerations3(root, model, slave_class(instance_name="greyfmu-build", resources=str(FMI3_SOURCES)).choices)
         ElementTree.indent(root)
         entries["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")
@@ -280,3 +312,42 @@ def _declare_units(root: ElementTree.Element, model: str, tag: str = "Real") -> 
         ElementTree.SubElement(ElementTree.SubElement(definitions, "Unit", name=unit), "BaseUnit", BASE_UNITS[unit])
     position = list(root).index(root.find("CoSimulation")) + 1
     root.insert(position, definitions)
+
+
+def _describe_enumerations3(root: ElementTree.Element, model: str, choices: dict[str, type[IntEnum]]) -> None:
+    """Describe each ``TypeDefinitions/EnumerationType`` (FMI 3.0 §2.4.4) and its items from
+    the IntEnum of the same name (``choices``: parameter name -> IntEnum)."""
+    types = {enumeration.__name__: enumeration for enumeration in choices.values()}
+    for node in root.iter("EnumerationType"):
+        description, members = _enumeration_items(model, types[node.get("name")])
+        node.set("description", description)
+        descriptions = {member.name: item_description for member, item_description in members.items()}
+        for item in node.iter("Item"):
+            item.set("description", descriptions[item.get("name")])
+
+
+def _enumeration_items(model: str, enumeration: type[IntEnum]) -> tuple[str, dict[IntEnum, str]]:
+    """An IntEnum's description (its docstring's first line) and each member's (the docstring
+    under it, `_member_descriptions`); BuildError naming what is undocumented."""
+    where = f"IntEnum {enumeration.__name__} ({enumeration.__module__})"
+    if not enumeration.__doc__:
+        raise BuildError(f"{model}: {where} has no docstring to describe the Enumeration type")
+    descriptions = _member_descriptions(enumeration)
+    undocumented = [member.name for member in enumeration if member.name not in descriptions]
+    if undocumented:
+        raise BuildError(f"{model}: members {undocumented} of {where} have no docstring under them to describe "
+                         "the Enumeration items")
+    return enumeration.__doc__.strip().splitlines()[0], {member: descriptions[member.name] for member in enumeration}
+
+
+def _member_descriptions(enumeration: type[IntEnum]) -> dict[str, str]:
+    """Member name -> the string literal right under its assignment in the class body (an
+    attribute docstring), whitespace collapsed."""
+    body = ast.parse(textwrap.dedent(inspect.getsource(enumeration))).body[0].body
+    descriptions = {}
+    for statement, following in zip(body, body[1:]):
+        if (isinstance(statement, ast.Assign) and len(statement.targets) == 1
+                and isinstance(statement.targets[0], ast.Name) and isinstance(following, ast.Expr)
+                and isinstance(following.value, ast.Constant) and isinstance(following.value.value, str)):
+            descriptions[statement.targets[0].id] = " ".join(following.value.value.split())
+    return descriptions

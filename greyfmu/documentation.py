@@ -2,8 +2,9 @@
 
 One page per FMU: what it is (the model description's ``description``: the paper, its
 equations and the defaults' source), the default experiment, every variable with causality,
-variability, type, unit, start, min, max and description, the unit definitions, what the
-target needs (Python, modules, how the loader finds them) and the licences shipped with it.
+variability, type, unit ("as wired" for a Real declared without one), start, min, max and
+description, the unit definitions, what the target needs
+(Python, modules, how the loader finds them) and the licences shipped with it.
 """
 
 from __future__ import annotations
@@ -53,6 +54,9 @@ td,th{{border:1px solid #999;padding:0.2em 0.5em;text-align:left;vertical-align:
 <th>description</th></tr>
 {rows}
 </table>
+<p>A Real variable whose unit reads <em>as wired</em> has none declared: it takes the unit of the
+signals connected to it (a gain: the output's per the input's), so that an importer that converts
+units neither refuses nor rescales a connection from, say, a kgf/cm2 or % signal.</p>
 <h2>Units</h2>
 <table><tr><th>unit</th><th>in SI base units</th></tr>
 {units}
@@ -93,7 +97,7 @@ def _variable_row(variable: ElementTree.Element) -> str:
     cells = [
         variable.get("name"), variable.get("causality", "local"), variable.get("variability", "continuous"),
         kind.tag + (f" ({kind.get('declaredType')})" if kind.get("declaredType") else ""),
-        kind.get("unit", ""), kind.get("start", ""), kind.get("min", ""), kind.get("max", ""),
+        kind.get("unit", "as wired" if kind.tag == "Real" else ""), kind.get("start", ""), kind.get("min", ""), kind.get("max", ""),
         variable.get("description", ""),
     ]
     return "<tr>" + "".join(f"<td>{escape(cell)}</td>" for cell in cells) + "</tr>"

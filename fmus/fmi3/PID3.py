@@ -7,6 +7,7 @@ from pythonfmu3 import DefaultExperiment, Fmi3Slave, Fmi3Variability
 
 from _slave3 import REQUIREMENTS, GreyfmuSlave3
 from greyfmu.control import PID as PIDController
+from greyfmu.control.pid import IntegralMode
 from greyfmu.signals import SampleClock
 
 
@@ -30,7 +31,8 @@ class PID3(GreyfmuSlave3, Fmi3Slave):  # pythonfmu3 finds the slave class by a t
         self.parameter("u_min", -1e10, "Lower output limit")
         self.parameter("u_max", 1e10, "Upper output limit")
         self.parameter("du_max", 0.0, "Output rate limit in units of u per second (0 = none)")
-        self.parameter("integral_mode", 3, "Integral mode: 1 = (2.10), 2 = (2.11), 3 = (2.12) of the thesis")
+        self.parameter("integral_mode", IntegralMode.METHOD3,
+                       "Integral mode: METHOD1 = (2.10), METHOD2 = (2.11), METHOD3 = (2.12) of the thesis")
         self.parameter("u0", 0.0, "Initial output (bias): the integral starts here, so u = u0 while e = 0")
         self.input("r", 0.0, "Set-point")
         self.input("y", 0.0, "Measured process output")

@@ -19,13 +19,26 @@ import math
 from abc import abstractmethod
 from collections.abc import Callable
 from contextlib import AbstractContextManager
+from enum import IntEnum
 from typing import Any, ClassVar
 
 from pythonfmu3 import Float64, Fmi3Causality, Fmi3Slave, Fmi3Status, Fmi3StepResult, Fmi3Variability, Int32
+from pythonfmu3.variable_types import EnumerationType
+from pythonfmu3.variables import Enumeration
 
 from greyfmu.forwarding import forward_warnings
 
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
+
+
+class ScalarEnumeration(Enumeration):
+    """pythonfmu3 0.3.4's Enumeration lacks the ``dimensions`` and ``size`` its get_int64 and
+    set_int64 read: a scalar has no dimensions and size 1."""
+
+    dimensions: tuple[()] = ()
+
+    def size(self, variables: dict) -> int:
+        return 1
 
 
 class GreyfmuSlave3(Fmi3Slave):
@@ -43,22 +56,31 @@ class GreyfmuSlave3(Fmi3Slave):
         self._input_names: list[str] = []
         self._output_values: dict[str, Callable[[], float]] = {}
         self._built = False
+        self.choices: dict[str, type[IntEnum]] = {}
+        """Parameter name -> the IntEnum of each Enumeration parameter (``greyfmu build`` describes its items)."""
         self.register_variable(Float64("time", causality=Fmi3Causality.independent, variability=Fmi3Variability.continuous,
                                        description="Simulation time"))
 
     def parameter(self, name: str, start: float | int, description: str, unit: str | None = None) -> None:
-        """Declare a fixed parameter (an ``int`` start makes it Int32); setting it makes the next
-        use rebuild the greyfmu objects."""
+        """Declare a fixed parameter (an ``int`` start makes it Int32, an ``IntEnum`` member an
+        Enumeration of that IntEnum's members, FMI 3.0 §2.4.7.8); setting it makes the next use
+        rebuild the greyfmu objects."""
         setattr(self, name, start)
 
         def setter(value: float | int) -> None:
             setattr(self, name, value)
             self._built = False
 
+        declaration = {"description": description, "causality": Fmi3Causality.parameter,
+                       "variability": Fmi3Variability.fixed, "setter": setter}
+        if isinstance(start, IntEnum):
+            self.choices[name] = type(start)
+            self.register_variable(ScalarEnumeration(name, start=int(start), **declaration),
+                                   var_type=EnumerationType(type(start).__name__, type(start)))
+            return
         variable_type = Int32 if isinstance(start, int) else Float64
         extra = {"unit": unit} if unit is not None and variable_type is Float64 else {}
-        self.register_variable(variable_type(name, start=start, description=description, causality=Fmi3Causality.parameter,
-                                             variability=Fmi3Variability.fixed, setter=setter, **extra))
+        self.register_variable(variable_type(name, start=start, **declaration, **extra))
 
     def input(self, name: str, start: float, description: str) -> None:
         """Declare a continuous Float64 input."""

@@ -16,7 +16,6 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
-from pythonfmu.builder import get_model_class
 
 from greyfmu.build import (
     FMU_SOURCES,
@@ -26,9 +25,10 @@ from greyfmu.build import (
     build_fmus,
     fmu_names,
     provide_fmu,
+    slave_class,
 )
 from greyfmu.cli import main
-from greyfmu.dropin import BUILD_PYTHON, stable_guid
+from greyfmu.dropin import BUILD_PYTHON, PYTHONFMU_RUNTIME, stable_guid
 from greyfmu.loader import PLATFORMS, loader_binary
 from testfmus import edited_copy
 
@@ -95,9 +95,8 @@ def test_fmu_declares_the_agreed_interface(built_fmus, name):
 
 @pytest.mark.parametrize("name", ALL)
 def test_output_dependencies_are_written_as_the_slave_declares_them(built_fmus, name, monkeypatch):
-    monkeypatch.syspath_prepend(str(FMU_SOURCES))   # the slaves import their base module by its bare name
     md = read_model_description(str(built_fmus[name]))
-    declared = get_model_class(FMU_SOURCES / f"{name}.py").output_dependencies
+    declared = slave_class(FMU_SOURCES / f"{name}.py").output_dependencies
     assert {u.variable.name: [d.name for d in u.dependencies] for u in md.outputs} == declared
     if name in INTERFACE:
         assert declared == INTERFACE[name][2]
@@ -315,9 +314,13 @@ def test_fmu_states_version_licence_and_carries_the_notices_and_documentation(bu
 
 @pytest.mark.parametrize("name", ["PID", "OSMMGPC"])
 def test_fmu_carries_only_what_it_runs(built_fmus, name):
-    """No greyfmu build tooling (pythonfmu's package stays whole: see greyfmu.dropin)."""
+    """No greyfmu build tooling and no pythonfmu builder: pythonfmu's run-time modules only,
+    under the name greyfmu_pythonfmu (see greyfmu.dropin.vendor_pythonfmu)."""
     with zipfile.ZipFile(built_fmus[name]) as archive:
         names = set(archive.namelist())
+    assert not any(entry.startswith("resources/pythonfmu/") for entry in names)
+    assert {entry for entry in names if entry.startswith("resources/greyfmu_pythonfmu/")} == {
+        f"resources/greyfmu_pythonfmu/{module}" for module in PYTHONFMU_RUNTIME}
     build_side = {"resources/greyfmu/build.py", "resources/greyfmu/cli.py", "resources/greyfmu/dropin.py",
                   "resources/greyfmu/documentation.py"}
     assert not names & build_side
@@ -334,10 +337,27 @@ def test_without_a_compiler_for_a_platform_the_build_says_so_and_keeps_pythonfmu
 
 def test_a_host_with_an_fmus_resources_on_sys_path_still_imports_pythonfmus_builder(built_fmus, tmp_path):
     """fmpy leaves an FMU's resources/ on sys.path (and spawned workers inherit it): greyfmu's
-    FMU provider then imports pythonfmu.builder from the FMU's copy of pythonfmu."""
+    FMU provider then imports pythonfmu.builder, which must be the installed pythonfmu's, after
+    the FMU ran in that process: its run-time copy of pythonfmu is named greyfmu_pythonfmu."""
     shutil.unpack_archive(built_fmus["PID"], tmp_path, "zip")
-    script = f"import sys; sys.path.insert(0, {str(tmp_path / 'resources')!r}); import pythonfmu.builder; " \
-             "print(pythonfmu.__file__)"
-    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    script = (f"import sys, fmpy; sys.path.insert(0, {str(tmp_path / 'resources')!r}); "
+              f"fmpy.simulate_fmu({str(built_fmus['PID'])!r}, stop_time=0.2); "
+              "import pythonfmu.builder; print(pythonfmu.__file__); print(sys.modules['greyfmu_pythonfmu'].__file__)")
+    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert completed.returncode == 0, completed.stderr
-    assert completed.stdout.startswith(str(tmp_path / "resources"))
+    installed, runtime = completed.stdout.splitlines()[-2:]
+    assert "resources" not in installed and "site-packages" in installed
+    assert "resources" in runtime
+
+
+def test_a_process_that_ran_an_fmu_still_builds_from_the_sources(built_fmus, tmp_path):
+    """pythonfmu imports an FMU's _slave and slave module from its resources/ into the host
+    process; their base is the FMU's greyfmu_pythonfmu Fmi2Slave.  A later build in that process
+    (greyfmu's provider during a cosim run) must read fmus/ instead (greyfmu.build.slave_class)."""
+    script = (f"import sys, fmpy; fmpy.simulate_fmu({str(built_fmus['Gain'])!r}, stop_time=0.2); "
+              "assert 'greyfmu_pythonfmu' in sys.modules['_slave'].Fmi2Slave.__module__; "
+              "from greyfmu.build import build_fmus; "
+              f"print(build_fmus(['Gain'], out_dir={str(tmp_path)!r}, force=True))")
+    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert completed.returncode == 0, completed.stderr
+    assert (tmp_path / "Gain.fmu").is_file()

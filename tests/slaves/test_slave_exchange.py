@@ -17,9 +17,8 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from pythonfmu import Fmi2Causality, Fmi2Slave, Integer, Real
-from pythonfmu.builder import get_model_class
 
-from greyfmu.build import FMU_SOURCES
+from greyfmu.build import FMU_SOURCES, slave_class
 
 ROOT = Path(__file__).resolve().parents[2]
 FMI2_SLAVES = sorted(path.stem for path in FMU_SOURCES.glob("*.py") if not path.name.startswith("_"))
@@ -35,7 +34,7 @@ def _slave_sources_importable():
 
 
 def slave_pair(name: str) -> tuple[Fmi2Slave, Fmi2Slave]:
-    cls = get_model_class(FMU_SOURCES / f"{name}.py")
+    cls = slave_class(FMU_SOURCES / f"{name}.py")
     return cls(instance_name=f"{name}_compiled"), cls(instance_name=f"{name}_generic")
 
 
