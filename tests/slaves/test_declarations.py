@@ -66,7 +66,8 @@ def slave_choices(name):
 def test_mode_parameters_are_integers_whose_description_and_range_give_the_intenums_members(built_fmus, name):
     """FMI 2.0 Integer, not Enumeration: libcosim 0.11.2 applies no ssv:Integer binding to an
     Enumeration variable (tests/peers/test_crosscheck.py, grey_fig312: grey_pi.u differs by 5.2)
-    and aborts on an ssv:Enumeration one (ssp_parser.cpp:69 Internal error)."""
+    and aborts on an ssv:Enumeration one (ssp_parser.cpp:69 Internal error); its API refuses
+    integer_initial_value on an Enumeration variable too, so there a libcosim user could not set them."""
     md = read_model_description(str(built_fmus[name]))
     choices = slave_choices(name)
     assert {parameter: enumeration.__name__ for parameter, enumeration in choices.items()} == MODES[name]
