@@ -325,5 +325,10 @@ class IsolatedInstance:
                 self._reap(kill=False)
             self.component = None
 
+    def native_functions(self, types) -> str:
+        """Why the compiled loop cannot drive it (`cosim.instances.base.NativeInstance`): its FMI
+        functions live in another process."""
+        return f"component '{self.name}' runs in a process of its own (--isolate)"
+
     def last_messages(self) -> str:
         return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
