@@ -359,13 +359,13 @@ class Execution:
 
     def _call_operations(self, kind: int, comp: str, fn: NativeFunctions, at_step_end: bool = True) -> list:
         """The gets (or sets) of ``comp`` as kernel operations: one per exchange type, as ``calls``."""
-        table = fn.get if kind == native.OP_GET else fn.set
-        slices = {id(ty): (ty.out_slices if kind == native.OP_GET else ty.in_slices)[comp] for ty in self.typed}
+        get = kind == native.OP_GET
+        table = fn.get if get else fn.set
         ops = []
         for ty in self.typed:
-            start, n, vr = slices[id(ty)]
+            start, n, vr = (ty.out_slices if get else ty.in_slices)[comp]
             if n:
-                buf = ty.Ybuf if kind == native.OP_GET else ty.Ubuf
+                buf = ty.Ybuf if get else ty.Ubuf
                 ops.append(native.Operation(kind, comp, fn.api, table[ty.type_name], fn.component,
                                             ctypes.addressof(vr), n, ty.address(buf, start), at_step_end=at_step_end))
         return ops
@@ -550,8 +550,7 @@ class Execution:
                 record(t_next)
                 self.last_time = t_next
                 if stop:
-                    self.status = self.stop.status()
-                    self.message = f"stopped by {self.stop.describe()} at t = {t_next:g}."
+                    self._stopped(t_next)
                     return
             if progress is not None:
                 progress.update(min(block + stride, n_steps) - block)
@@ -586,8 +585,7 @@ class Execution:
                     elif reason & native.KERNEL_STOP or stop.flag:
                         if not stop.flag:
                             stop.flag.append(kernel.stop_flag.value)
-                        self.status = stop.status()
-                        self.message = f"stopped by {stop.describe()} at t = {self.last_time:g}."
+                        self._stopped(self.last_time)
                         return
                 if progress is not None:
                     progress.update(end - block)
@@ -630,10 +628,14 @@ class Execution:
         self._recorder.record(t_next)
         self.last_time = t_next
         if self.stop.flag:
-            self.status = self.stop.status()
-            self.message = f"stopped by {self.stop.describe()} at t = {t_next:g}."
+            self._stopped(t_next)
             return True
         return False
+
+    def _stopped(self, t: float) -> None:
+        """The run ends at communication point ``t`` on the signal in ``self.stop``."""
+        self.status = self.stop.status()
+        self.message = f"stopped by {self.stop.describe()} at t = {t:g}."
 
     def _gauss_seidel_step(self, gs, t: float, h: float, t_next: float, ended: list) -> bool:
         """Each FMU in dependency order: inputs from the freshest outputs, step, read outputs."""
