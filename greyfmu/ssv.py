@@ -1,4 +1,4 @@
-"""Write SSP 1.0 parameter sets (``.ssv``) from Python values, and name matrix entries as FMI scalars.
+"""Write and read SSP 1.0 parameter sets (``.ssv``), and name matrix entries as FMI scalars.
 
 FMI 2.0 has no array variables, so a matrix M is passed as scalars ``M_i_j`` (1-based).
 """
@@ -6,6 +6,7 @@ FMI 2.0 has no array variables, so a matrix M is passed as scalars ``M_i_j`` (1-
 from __future__ import annotations
 
 from pathlib import Path
+from xml.etree import ElementTree
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -42,3 +43,30 @@ def write_parameter_set(path: str | Path, name: str, values: dict[str, float | i
     path = Path(path)
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def read_parameter_set(path: str | Path) -> dict[str, float | int]:
+    """The ``ssv:Real`` and ``ssv:Integer`` values of a parameter set, by parameter name (the inverse
+    of `write_parameter_set`; other types are left out).  Raises ``ValueError`` naming the file and
+    the parameter when a value is missing or not a number."""
+    path = Path(path)
+    values: dict[str, float | int] = {}
+    for parameter in ElementTree.parse(path).getroot().iter(f"{{{SSV_NAMESPACE}}}Parameter"):
+        name = parameter.get("name", "")
+        for kind, convert in (("Real", float), ("Integer", int)):
+            element = parameter.find(f"{{{SSV_NAMESPACE}}}{kind}")
+            if element is None:
+                continue
+            try:
+                values[name] = convert(element.get("value", ""))
+            except ValueError as error:
+                raise ValueError(f"{path}: parameter {name!r}: ssv:{kind} value "
+                                 f"{element.get('value')!r} is not a number") from error
+    return values
+
+
+def parameter_matrix(values: dict[str, float | int], name: str, rows: int, columns: int) -> np.ndarray:
+    """The matrix ``name`` from its scalars ``name_i_j`` (inverse of `matrix_parameters`); an entry
+    that is not in ``values`` is 0, as the FMUs' start values are."""
+    return np.array([[float(values.get(f"{name}_{i + 1}_{j + 1}", 0.0)) for j in range(columns)]
+                     for i in range(rows)])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import cosim
-from greyfmu.control.digital_pi import closed_loop, design_digital_pi, stationary_variances
+from greyfmu.control.digital_pi import closed_loop, design_digital_pi, stationary_variances, stored_design
 from greyfmu.control.digital_pi.examples import ch47, wood_berry
 
 CASES = {"dpi_ch47": (ch47, (1.0, 2.0, 3.0, 4.0)), "dpi_wood_berry": (wood_berry, (200.0, 400.0, 600.0, 800.0))}
@@ -38,18 +38,43 @@ def test_static_decoupling_and_disturbance_rejection(deterministic):
 
 
 def test_cosimulation_equals_the_designed_discrete_loop(deterministic):
-    """Up to the r2 step the FMU loop equals the closed loop (9)/(10) + PI + observer sampled at kT."""
+    """Up to the r2 step the FMU loop equals the closed loop (9)/(10) + PI + observer sampled at kT, built
+    from the gains the scenario's controller.ssv gives the FMU (as a deployed controller has them), not
+    from a design recomputed here: at the paper's disc the Wood–Berry design moves by up to 2.7 % between
+    OpenBLAS kernels (test_stored_design_is_the_design_up_to_its_conditioning).  The tolerance is relative
+    to the largest output of the transient: the loop matrix has cond ≈ 1e18 (Wood–Berry), so the
+    matrix–vector products of 400 steps, summed in a kernel's own order, differ in their last bits."""
     name, result = deterministic
     example = CASES[name][0]()
-    A, B_r, _, C_y, _ = closed_loop(design_of(example))
+    design = stored_design(design_of(example), f"ssp/{name}/controller.ssv")
+    A, B_r, _, C_y, _ = closed_loop(design)
     xi = np.zeros(A.shape[0])
     steps = int(round(CASES[name][1][0] / example.Ts))
     expected = []
     for _ in range(steps):
         expected.append(C_y @ xi)
         xi = A @ xi + B_r @ np.array([1.0, 0.0])
+    expected = np.array(expected)
     simulated = np.column_stack([result["plant.y1"][:steps], result["plant.y2"][:steps]])
-    np.testing.assert_allclose(simulated, np.array(expected), rtol=1e-9, atol=1e-8)
+    np.testing.assert_allclose(simulated, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_stored_design_is_the_design_up_to_its_conditioning(name):
+    """The controller.ssv gains are this machine's design up to what the design's conditioning allows:
+    the closed-loop poles of the stored gains lie in the paper's disc |z − β| < α, and the stored gains
+    equal a design recomputed here within 10 % for Wood–Berry (at the disc (0.2, 0.7), cond(P) ≈ 2.3e14:
+    measured up to 2.7 % (K2) between the Prescott, Nehalem, Sandybridge, Haswell and Zen kernels of
+    OpenBLAS, Riccati backward error 4.2e-3–4.8e-3) and 1e-6 for the CH-47 (the kernels agree to 5e-14)."""
+    example = CASES[name][0]()
+    fresh = design_of(example)
+    stored = stored_design(fresh, f"ssp/{name}/controller.ssv")
+    A = stored.Gbar - stored.Hbar @ np.hstack([stored.F + stored.K1 @ stored.augmented.Cp, stored.K2])
+    assert np.abs(np.linalg.eigvals(A) - example.beta).max() < example.alpha
+    tolerance = {"dpi_wood_berry": 0.10, "dpi_ch47": 1e-6}[name]
+    for matrix in ("F", "K2"):
+        ours, theirs = getattr(stored, matrix), getattr(fresh, matrix)
+        assert np.abs(ours - theirs).max() <= tolerance * np.abs(theirs).max(), matrix
 
 
 @pytest.mark.parametrize("name, stop", [("dpi_ch47", 20.0), ("dpi_wood_berry", 2000.0)])

@@ -28,7 +28,7 @@ from greyfmu.control.digital_pi.identification import (
     one_step_predictions,
 )
 from greyfmu.control.digital_pi.observer import continuous_noise_gain, innovation_observer, kalman_innovation
-from greyfmu.control.digital_pi.parameters import MAX_CHANNELS, MAX_ORDER, design_parameters, write_design_ssv
+from greyfmu.control.digital_pi.parameters import MAX_CHANNELS, MAX_ORDER, design_parameters, stored_design, write_design_ssv
 
 __all__ = [
     "ARMAX",
@@ -67,6 +67,7 @@ __all__ = [
     "static_decoupling",
     "static_gain",
     "stationary_variances",
+    "stored_design",
     "with_observer_gain",
     "write_design_ssv",
 ]
