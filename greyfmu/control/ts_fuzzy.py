@@ -255,7 +255,7 @@ class FuzzyRLS:
         if self.dominance == "firing":
             return mu_max
         R = len(lam)
-        return 1.0 if R == 1 else float((R * lam.max() - 1.0) / R)
+        return 1.0 if R == 1 else float((R * lam.max() - 1.0) / (R - 1.0))
 
     def update(
         self, z: ArrayLike, x: ArrayLike, y: float, memberships: tuple[NDArray[np.float64], float] | None = None
