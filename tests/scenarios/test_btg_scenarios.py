@@ -92,13 +92,13 @@ def test_mfgs_turbine_gain_at_76_MW_is_4_555():
 
 @pytest.mark.parametrize("load", [58, 76, 101])
 def test_sim_4_1_grey_pi_and_pi_step_responses_alike(load):
-    """Sim. 4.1 (Figures 4.5-4.7): overshoots of the pressure step within 2 percentage points.  HOLDS ONLY WHILE
-    THE GREY PI DOES NOT PREDICT: at the thesis's a_min = 0.035 it predicts in no sample (the PI on the GM(1,1)
-    estimate, Δ ≤ 0.3 pp); with its predictor active (|a| > 0, 98 % of the samples) it overshoots 2.4-2.9 pp
+    """Sim. 4.1 (Figures 4.5-4.7): overshoots of the pressure step alike.  HOLDS ONLY WHILE THE GREY PI DOES NOT
+    PREDICT: at the thesis's a_min = 0.035 it predicts in no sample (the PI on the GM(1,1) estimate, Δ 0.19-0.22 pp,
+    asserted < 0.5 pp: a 25 % gain error in the grey PI gives 0.6-1.4 pp); with its predictor active (|a| > 0, 98 % of the samples) it overshoots 2.4-2.9 pp
     less than the PI (10.3/10.7/12.7 % against 12.7/13.3/15.7 %): outside the 2-pp criterion.
     The PI's 12-16 % is above the thesis's 10 % design criterion (docs/btg.md)."""
     pi, grey = run(f"sim41_{load}", "pi", 800.0), run(f"sim41_{load}", "grey", 800.0)
-    assert abs(overshoot(grey) - overshoot(pi)) < 2.0 and predicting(grey) == 0.0
+    assert abs(overshoot(grey) - overshoot(pi)) < 0.5 and predicting(grey) == 0.0
     assert 10.0 < overshoot(pi) < 17.0
     assert settled(pi) and settled(grey)
     active = run(f"sim41_{load}", "grey", 800.0, form="always")
