@@ -6,8 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 from scipy.linalg import solve_discrete_are
 from scipy.signal import cont2discrete
 
@@ -279,10 +277,34 @@ def _outcome(seed: int) -> bool:
     return True
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.integers(0, 2**32 - 1))
-def test_poles_in_disc_for_random_systems(seed):
-    _outcome(seed)
+def _in_disc_independently(G: np.ndarray, H: np.ndarray, K: np.ndarray, alpha: float, beta: float) -> bool:
+    """Every eigenvalue of G − HK strictly inside |z − β| < α: numpy's eigenvalues, not the design module's check."""
+    return bool(np.all(np.abs(np.linalg.eigvals(G - H @ K) - beta) < alpha))
+
+
+def _ordinary_lqr(G: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """The ordinary LQR gain (Q = I, R = I, no disc) by scipy's DARE: what (26)-(27) give for α = 1, β = 0."""
+    P = solve_discrete_are(G, H, np.eye(G.shape[0]), np.eye(H.shape[1]))
+    return np.linalg.solve(np.eye(H.shape[1]) + H.T @ P @ H, H.T @ P @ G)
+
+
+def test_poles_in_disc_for_random_systems():
+    """300 seeded random systems and discs: at most 1 % refused, every accepted gain puts all poles of G − HK in
+    the disc (checked with numpy's eigenvalues), and the check discriminates: the ordinary LQR gain of the same
+    system leaves a pole outside the disc in more than half of them (measured: 165 of 300), so a design that fell back to it
+    would fail here."""
+    refused = ordinary_outside = 0
+    for seed in range(300):
+        G, H, alpha, beta = _random_case(seed)
+        ordinary_outside += not _in_disc_independently(G, H, _ordinary_lqr(G, H), alpha, beta)
+        try:
+            K = dlqr_disc(G, H, np.eye(G.shape[0]), np.eye(H.shape[1]), alpha, beta).K
+        except DesignError:
+            refused += 1
+            continue
+        assert _in_disc_independently(G, H, K, alpha, beta), seed
+    assert refused <= 3
+    assert ordinary_outside >= 150
 
 
 def test_fraction_of_random_systems_designed():

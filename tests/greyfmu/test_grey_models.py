@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from fractions import Fraction
+from itertools import accumulate
 
 import numpy as np
 import pytest
@@ -28,8 +31,25 @@ def test_example_3_1_ago():
     np.testing.assert_allclose(e1[1:9], printed[1:], atol=0.115)
     np.testing.assert_allclose(e1[9:], [6792.475, 7581.008, 8380.508], atol=1e-9)
     np.testing.assert_allclose(np.array([6972.6, 7761.1, 8560.6]) - e1[9:], 180.1, atol=0.1)
-    np.testing.assert_allclose(iago(e1), E0, rtol=1e-14)
-    assert np.std(np.diff(e1)) == pytest.approx(np.std(E0[1:]))  # IAGO undoes AGO
+    exact = list(accumulate(Fraction(str(x)) for x in E0))  # (3.2a) in exact decimal arithmetic
+    np.testing.assert_allclose(e1, [float(v) for v in exact], rtol=1e-14)
+    np.testing.assert_allclose(iago(e1), E0, rtol=1e-14)  # (3.2b) undoes (3.2a)
+    np.testing.assert_allclose(iago([float(v) for v in exact]), E0, rtol=1e-14)
+
+
+def reference_gm11(window: list[float]) -> tuple[float, float, Callable[[float], float]]:
+    """GM(1,1) written out independently of greyfmu: (a, b) by least squares on (3.5a) with Z of (3.5b)
+    (numpy.linalg.lstsq, not the closed form (3.6)), and ê0(k) = ê1(k) − ê1(k − 1) from (3.7a)."""
+    x = np.asarray(window, dtype=float)
+    e1 = np.cumsum(x)
+    z = 0.5 * (e1[1:] + e1[:-1])
+    (a, b), *_ = np.linalg.lstsq(np.column_stack((-z, np.ones_like(z))), x[1:], rcond=None)
+    r = (1.0 - 0.5 * a) / (1.0 + 0.5 * a)
+
+    def e1_hat(k: float) -> float:
+        return (x[0] - b / a) * r ** (k - 1.0) + b / a
+
+    return float(a), float(b), lambda k: e1_hat(k) - e1_hat(k - 1.0)
 
 
 def test_simulation_3_2_windows():
@@ -108,9 +128,10 @@ def test_predictor_modes_and_ldispi_window():
         if k < 15:
             assert predictor.mode is PredictorMode.FILLING and out == x
     assert predictor.mode is PredictorMode.PREDICTED
-    window = np.array(signal[0:16:5]) + 1.0
-    expected = GM11.fit(window).predict(4 + 20 / 5) - 1.0
-    assert out == pytest.approx(expected, rel=1e-12)
+    window = [signal[k] + 1.0 for k in (0, 5, 10, 15)]  # every 5th sample, biased by B = 1
+    a, _, e0_hat = reference_gm11(window)
+    assert predictor.a == pytest.approx(a, rel=1e-9)
+    assert out == pytest.approx(e0_hat(4 + 20 / 5) - 1.0, rel=1e-9)  # n + horizon/m = 8th GM sample
     assert out > signal[15]  # a rising signal is predicted to keep rising
 
 
@@ -119,8 +140,11 @@ def test_predictor_a_min_rule_estimates_the_current_value():
     predictor = GreyPredictor(n=4, m=1, horizon=25, bias=50.0, a_min=0.035)
     for x in [0.0, 0.1, 0.2, 0.3]:
         out = predictor.update(x)
-    assert abs(predictor.a) <= 0.035 and predictor.mode is PredictorMode.ESTIMATED
-    assert out == pytest.approx(GM11.fit([50.0, 50.1, 50.2, 50.3]).predict(4) - 50.0, rel=1e-12)
+    a, _, e0_hat = reference_gm11([50.0, 50.1, 50.2, 50.3])
+    assert predictor.a == pytest.approx(a, rel=1e-9) and abs(a) <= 0.035
+    assert predictor.mode is PredictorMode.ESTIMATED
+    assert out == pytest.approx(e0_hat(4) - 50.0, rel=1e-9)  # ê0(n), not ê0(n + 25)
+    assert abs(e0_hat(4 + 25) - 50.0 - out) > 1.0  # the prediction would differ
     assert out == pytest.approx(0.3, abs=1e-3)
 
 

@@ -1,6 +1,7 @@
 """PID and the integral modes (2.10)-(2.12) of the thesis, §2.3.2."""
 
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -24,10 +25,16 @@ def test_worked_example_methods_2_and_3_follow_the_equations_not_the_printed_num
     Ti(k) = 15 instead: 60·15/5 = 180, (5/10)·(180 + 1) = 90.5.
     (2.12) gives 5·(60/4.5 + 1/10) = 67.1667; the printed 67.15 rounds 60/4.5 to 13.33.
     """
-    assert integral_step(IntegralMode.METHOD2, **EXAMPLE) == pytest.approx(100.5, abs=1e-12)
-    assert integral_step(IntegralMode.METHOD3, **EXAMPLE) == pytest.approx(67.1667, abs=1e-4)
-    assert (5.0 / 10.0) * (60.0 * 15.0 / 5.0 + 1.0) == 90.5
-    assert 5.0 * (13.33 + 0.1) == pytest.approx(67.15, abs=1e-12)
+    # (2.11) and (2.12) in exact rational arithmetic: 201/2 and 403/6.
+    I_prev, e, Kc, Ti, Kc_prev, Ti_prev = (Fraction(v) for v in ("60", "1", "5", "10", "4.5", "15"))
+    method2 = (Kc / Ti) * (I_prev / (Kc_prev / Ti_prev) + e)
+    method3 = Kc * (I_prev / Kc_prev + e / Ti)
+    assert (method2, method3) == (Fraction(201, 2), Fraction(403, 6))
+    assert integral_step(IntegralMode.METHOD2, **EXAMPLE) == pytest.approx(float(method2), rel=1e-15)
+    assert integral_step(IntegralMode.METHOD3, **EXAMPLE) == pytest.approx(float(method3), rel=1e-15)
+    # The printed numbers are not what the equations give: 10 and 0.0167 away.
+    assert integral_step(IntegralMode.METHOD2, **EXAMPLE) - 90.5 == pytest.approx(10.0, abs=1e-12)
+    assert integral_step(IntegralMode.METHOD3, **EXAMPLE) - 67.15 == pytest.approx(1.0 / 60.0, abs=1e-12)
 
 
 def test_integral_step_accepts_plain_integers_and_rejects_unknown_modes():

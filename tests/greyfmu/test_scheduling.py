@@ -16,7 +16,6 @@ from greyfmu.control import (
     Interpolation,
     OperatingPoint,
     ScheduleError,
-    integral_step,
 )
 from greyfmu.plants import FOPDT, PiecewiseParameter, ScheduledFOPDT
 
@@ -208,12 +207,14 @@ def test_scheduled_pid_uses_the_pid_integral_modes_worked_example():
     The integral follows `integral_step` (60.5, 100.5, 67.1667; the thesis prints 90.5 and 67.15 for the
     last two, see tests/greyfmu/test_pid.py); u adds the proportional part Kc·e = 5.
     """
-    for mode, expected in ((1, 60.5), (2, 100.5), (3, 5.0 * (60.0 / 4.5 + 0.1))):
-        gains = iter([Gains(4.5, 15.0, 0.0), Gains(5.0, 10.0, 0.0)])
+    for mode, expected in ((1, 60.5), (2, 100.5), (3, 403.0 / 6.0)):  # (2.10)-(2.12) by hand: 60 + 0.5, 0.5·201, 5·(40/3 + 1/10)
+        gains = iter([Gains(4.5, 15.0, 0.0), Gains(5.0, 10.0, 0.0), Gains(5.0, 10.0, 0.0)])
         pid = GainScheduledPID(lambda _: next(gains), 1.0, integral_mode=mode, u0=60.0)
         assert pid.step(0.0, 0.0, W=None) == 60.0
         assert pid.step(1.0, 0.0, W=None) == pytest.approx(5.0 + expected, abs=1e-12)
-        assert pid.pid.I == integral_step(mode, 60.0, 1.0, 5.0, 10.0, 4.5, 15.0, 1.0)
+        assert pid.pid.I == pytest.approx(expected, abs=1e-12)
+        # Gains unchanged from k+1 to k+2: every mode adds Kc·Ts/Ti·e = 0.5 (the rescaling cancels).
+        assert pid.step(1.0, 0.0, W=None) == pytest.approx(5.0 + expected + 0.5, abs=1e-12)
 
 
 def test_scheduled_pid_equals_a_pid_with_the_same_gain_sequence():

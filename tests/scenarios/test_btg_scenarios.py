@@ -24,10 +24,16 @@ LEVEL_SETPOINT_MODEL_MM = 100.0
 
 
 FORMS = {"ours": (), "thesis": ("thesis.ssv",), "thesis |a|": ("thesis.ssv", "magnitude.ssv"),
-         "thesis always": ("thesis.ssv", "grey_always.ssv")}
+         "thesis always": ("thesis.ssv", "grey_always.ssv"), "always": ("grey_always.ssv",)}
 """Controller forms (docs/btg.md): ours (anti-windup, outputs 0-100 %, |a| > a_min); the thesis's as printed
 (no anti-windup, no output limits, a > a_min); the thesis's PI form with our |a| rule; the same predicting
-whenever |a| > 0 (a corner of docs/btg_sensitivity_tables.md)."""
+whenever |a| > 0 (a corner of docs/btg_sensitivity_tables.md); ours predicting whenever |a| > 0 ("always": the
+grey PI with its predictor active, where ours never predicts and is the PI on the GM(1,1) estimate)."""
+
+
+def predicting(r: np.ndarray) -> float:
+    """Share of the samples in which the grey PI acted on a prediction (mode 2 = PREDICTED)."""
+    return float(np.mean(r["fuel_grey.mode"] == 2))
 
 
 @lru_cache(maxsize=None)
@@ -86,13 +92,18 @@ def test_mfgs_turbine_gain_at_76_MW_is_4_555():
 
 @pytest.mark.parametrize("load", [58, 76, 101])
 def test_sim_4_1_grey_pi_and_pi_step_responses_alike(load):
-    """Sim. 4.1 (Figures 4.5-4.7): overshoots of the pressure step within 2 percentage points. HOLDS.
-
-    Both are 12-16 %, above the thesis's 10 % design criterion (docs/btg.md)."""
+    """Sim. 4.1 (Figures 4.5-4.7): overshoots of the pressure step alike.  HOLDS ONLY WHILE THE GREY PI DOES NOT
+    PREDICT: at the thesis's a_min = 0.035 it predicts in no sample (the PI on the GM(1,1) estimate, Δ 0.19-0.22 pp,
+    asserted < 0.5 pp: a 25 % gain error in the grey PI gives 0.6-1.4 pp); with its predictor active (|a| > 0, 98 % of the samples) it overshoots 2.4-2.9 pp
+    less than the PI (10.3/10.7/12.7 % against 12.7/13.3/15.7 %): outside the 2-pp criterion.
+    The PI's 12-16 % is above the thesis's 10 % design criterion (docs/btg.md)."""
     pi, grey = run(f"sim41_{load}", "pi", 800.0), run(f"sim41_{load}", "grey", 800.0)
-    assert abs(overshoot(grey) - overshoot(pi)) < 2.0
+    assert abs(overshoot(grey) - overshoot(pi)) < 0.5 and predicting(grey) == 0.0
     assert 10.0 < overshoot(pi) < 17.0
     assert settled(pi) and settled(grey)
+    active = run(f"sim41_{load}", "grey", 800.0, form="always")
+    assert predicting(active) > 0.9 and settled(active)
+    assert 2.0 < overshoot(pi) - overshoot(active) < 3.5
 
 
 def test_figures_4_2_4_3_design_criterion_10_percent_overshoot():
@@ -147,11 +158,16 @@ def test_sim_4_2_fast_ramps_thesis_pi_unstable_grey_pi_stable_with_magnitude_rul
 @pytest.mark.parametrize("case", [1, 2, 3, 4])
 def test_sim_4_2_slow_ramps_same_overshoot(case):
     """Sim. 4.2 CASES 1-4 (9 MW/min): "the overshoots for both systems ... are almost the same".  REPRODUCED: peak
-    |e_P| within 0.15 kgf/cm2 of the PI's (2.69/2.78, 2.83/2.73, 3.02/2.92, 2.86/2.95 in the full runs); the grey PI
-    never predicts, so it is the PI acting on the GM(1,1) estimate of the error."""
+    |e_P| within 0.15 kgf/cm2 of the PI's (2.69/2.78, 2.83/2.73, 3.02/2.92, 2.86/2.95 in the full runs) where the
+    grey PI never predicts (the PI acting on the GM(1,1) estimate of the error), and with its predictor active
+    (97 % of the samples) within 0.35 kgf/cm2, about 10 % (2.41, 3.08, 3.31, 2.58 against 2.69, 2.83, 3.02, 2.86)."""
     pi, grey = run(f"sim42_case{case}", "pi", 600.0), run(f"sim42_case{case}", "grey", 600.0)
-    assert abs(np.max(np.abs(pressure_error(grey))) - np.max(np.abs(pressure_error(pi)))) < 0.15
-    assert not np.any(grey["fuel_grey.mode"] == 2)
+    peak_pi = np.max(np.abs(pressure_error(pi)))
+    assert abs(np.max(np.abs(pressure_error(grey))) - peak_pi) < 0.15
+    assert predicting(grey) == 0.0
+    active = run(f"sim42_case{case}", "grey", 600.0, form="always")
+    assert predicting(active) > 0.9
+    assert 0.15 < abs(np.max(np.abs(pressure_error(active))) - peak_pi) < 0.35
 
 
 def test_sim_4_2_grey_error_8_to_10_only_in_case_5():
@@ -183,29 +199,43 @@ def test_sim_4_3_case_1_pulse_rejection_equal_not_a_third():
     assert not np.any(grey["fuel_grey.mode"] == 2)
 
 
-@pytest.mark.parametrize("case", [2, 3])
-def test_sim_4_3_cases_2_3_first_pulse_alike(case):
-    """Sim. 4.3 CASE 2 (400 s period): "still much better" with the grey PI — NOT REPRODUCED; CASE 3 (13 % pulse):
-    "almost the same" — REPRODUCED.  Here both are alike: first-pulse peak |e_P| and fuel range within 10 % of the PI's
-    (CASE 2: 1.02 and 1.05, the grey PI using more fuel; full runs with noise: peak ratios 1.02 and 0.99), the grey PI
-    never predicting.  Noise-free, master step 0.5 s."""
+@pytest.mark.parametrize("case, active_ratio", [(2, (0.55, 0.75)), (3, (0.6, 0.8))])
+def test_sim_4_3_cases_2_3_first_pulse_alike(case, active_ratio):
+    """Sim. 4.3 CASE 2 (400 s period): "still much better" with the grey PI; CASE 3 (13 % pulse): "almost the same".
+    At the thesis's a_min = 0.035 the grey PI never predicts and both are alike: first-pulse peak |e_P| and fuel range
+    within 10 % of the PI's (CASE 2: 1.02 and 1.05; full runs with noise: peak ratios 1.02 and 0.99) — CASE 2 NOT
+    REPRODUCED, CASE 3 reproduced only as the PI against itself.  With the predictor active (|a| > 0, 97 % of the
+    samples) the peak ratio is 0.64 (CASE 2, fuel range 0.85: "much better" REPRODUCED) and 0.70 (CASE 3, fuel 0.99:
+    "almost the same" NOT REPRODUCED).  Noise-free, master step 0.5 s."""
     pi = run(f"sim43_case{case}", "pi", 500.0, noise=False)
+    peak_pi, range_pi = np.max(np.abs(pressure_error(pi))), np.ptp(pi[FUEL["pi"]])
     grey = run(f"sim43_case{case}", "grey", 500.0, noise=False)
-    ratio = np.max(np.abs(pressure_error(grey))) / np.max(np.abs(pressure_error(pi)))
-    assert 0.9 < ratio < 1.1 and 0.9 < np.ptp(grey[FUEL["grey"]]) / np.ptp(pi[FUEL["pi"]]) < 1.1
-    assert not np.any(grey["fuel_grey.mode"] == 2)
+    ratio = np.max(np.abs(pressure_error(grey))) / peak_pi
+    assert 0.9 < ratio < 1.1 and 0.9 < np.ptp(grey[FUEL["grey"]]) / range_pi < 1.1
+    assert predicting(grey) == 0.0
+    active = run(f"sim43_case{case}", "grey", 500.0, noise=False, form="always")
+    assert predicting(active) > 0.9
+    low, high = active_ratio
+    assert low < np.max(np.abs(pressure_error(active))) / peak_pi < high
+    assert np.ptp(active[FUEL["grey"]]) / range_pi < 1.0
 
 
 @pytest.mark.parametrize("case", [1, 2])
 def test_sim_4_4_noise_sensitivity_within_20_percent(case):
-    """Sim. 4.4 CASES 1-2 (white noise on the pressure): the variance of the fuel command's noise-induced
-    part (noisy minus noise-free run) of the grey PI is within 20 % of the PI's. HOLDS."""
-    share = {}
-    for controller in ("pi", "grey"):
-        noisy = run(f"sim44_case{case}", controller, 700.0)
-        clean = run(f"sim44_case{case}", controller, 700.0, noise=False)
-        share[controller] = np.var(noisy[FUEL[controller]] - clean[FUEL[controller]])
-    assert 0.8 < share["grey"] / share["pi"] < 1.2
+    """Sim. 4.4 CASES 1-2 (white noise on the pressure): the variance of the fuel command's noise-induced part
+    (noisy minus noise-free run) of the grey PI within 20 % of the PI's.  HOLDS ONLY WHERE THE GREY PI DOES NOT
+    PREDICT: at a_min = 0.035 it predicts in 0 % of the samples (ratio 0.96, 1.03: the PI compared with itself on
+    the GM(1,1) estimate); with the predictor active (|a| > 0, 98 %) the ratio is 12.5 and 28.8 (std 3.5×, 5.4×):
+    NOT REPRODUCED for a grey PI that predicts."""
+    share, modes = {}, {}
+    for controller, form in (("pi", "ours"), ("grey", "ours"), ("grey", "always")):
+        noisy = run(f"sim44_case{case}", controller, 700.0, form=form)
+        clean = run(f"sim44_case{case}", controller, 700.0, noise=False, form=form)
+        share[controller, form] = np.var(noisy[FUEL[controller]] - clean[FUEL[controller]])
+        modes[controller, form] = predicting(noisy) if controller == "grey" else None
+    assert 0.8 < share["grey", "ours"] / share["pi", "ours"] < 1.2 and modes["grey", "ours"] == 0.0
+    assert modes["grey", "always"] > 0.9
+    assert share["grey", "always"] / share["pi", "ours"] > 10.0
 
 
 def pulse_merits(controller: str, form: str) -> tuple[float, float, float]:

@@ -4,6 +4,7 @@ Paper: Pan, Shen & Luh (2012), seed 003, §5.  Where our reconstruction does not
 paper, the test records the number we get (docs/osmm_gpc.md says why).
 """
 
+import os
 import sys
 from pathlib import Path
 
@@ -39,12 +40,12 @@ def mfrls_run(built_fmus):
     return cosim.simulate("ssp/osmm_mfrls", stop_time=1500, step_size=1.0)
 
 
-def test_table2_mae_ordering(mfrls_run):
+def test_table2_mae_pinned_seeds_recorded(mfrls_run):
+    """The scenario's own PRBS seeds (1, 2): the recorded MAE (43) of each estimator (Table 2's are from its own
+    model).  Whether Table 2's ordering holds depends on the seeds: test_table2_ordering_over_seed_pairs."""
     mae = {name: (mfrls_run[f"{name}.mae1"][-1], mfrls_run[f"{name}.mae2"][-1]) for name in PAPER_TABLE2}
     for name, (h1, h2) in OURS_TABLE2.items():
-        assert mae[name] == pytest.approx((h1, h2), abs=1e-3)  # recorded values (Table 2's are from its own model)
-    for j in (0, 1):  # Table 2's ordering: MFRLS < local FRLS < global FRLS, on both outputs
-        assert mae["mfrls"][j] < mae["local_frls"][j] < mae["global_frls"][j]
+        assert mae[name] == pytest.approx((h1, h2), abs=1e-3)
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +88,18 @@ def test_table3_fuel_recorded(header_runs):
 
 # --- issue 15: the tables under seed spread (docs/osmm_tables.md has all 20 seeds; these are the first ones)
 
-SUBSET = {"continuous ramp (scenario)": range(4), "literal ramp of (41)": range(4), "raw-firing μ_m (MFRLS dominance = 1)": range(2)}
+FULL_SEEDS = os.environ.get("GREYFMU_SEEDS") == "full"
+"""GREYFMU_SEEDS=full: Table 2's ordering over 40 seed pairs (s = 0 … 39, about 2 min more) instead of 8."""
+TABLE2_ORDERING_HOLDS = (0, 1, 5, 8, 9, 12, 13, 15, 24, 25, 26, 29, 30, 33)
+"""The s of the seed pairs (2s + 1, 2s + 2), s < 40, where MFRLS < local < global holds on both outputs (measured):
+8 of s = 0 … 19 (docs/osmm_tables.md), 6 of the fresh s = 20 … 39."""
+SUBSET = {"continuous ramp (scenario)": range(40 if FULL_SEEDS else 8), "literal ramp of (41)": range(4),
+          "raw-firing μ_m (MFRLS dominance = 1)": range(2)}
+
+
+def is_table2_ordered(row: dict[str, tuple[float, float]]) -> bool:
+    """Table 2's ordering MFRLS < local FRLS < global FRLS on both outputs h1, h2."""
+    return all(row["mfrls"][j] < row["local_frls"][j] < row["global_frls"][j] for j in (0, 1))
 
 
 @pytest.fixture(scope="module")
@@ -106,10 +118,22 @@ def test_table2_ordering_depends_on_the_seed_and_mfrls_margin_is_small(table2_se
         assert counts["local < global (h1)"] == counts["local < global (h2)"] == len(rows), variant
         assert 0 < counts["MFRLS < local < global (h1 and h2)"] < len(rows), variant  # seed-dependent
         assert all(abs(mfrls_margin(r, j)) < 3.0 for r in rows for j in (0, 1)), variant  # never the paper's 26 %
-    continuous, literal = table2_seeds["continuous ramp (scenario)"], table2_seeds["literal ramp of (41)"]
+    continuous, literal = table2_seeds["continuous ramp (scenario)"][:4], table2_seeds["literal ramp of (41)"]
     assert table2_orderings(continuous)["MFRLS < local < global (h1 and h2)"] == 2  # s = 0, 1 (docs/osmm_tables.md)
     for name in ("global_frls", "local_frls", "mfrls"):  # the literal ramp (c down to 0.25) is easier to track
         assert np.mean([r[name][0] for r in literal]) < np.mean([r[name][0] for r in continuous])
+
+
+def test_table2_ordering_over_seed_pairs(table2_seeds):
+    """Table 2's ordering MFRLS < local FRLS < global FRLS (both outputs) over PRBS seed pairs: NOT REPRODUCED over
+    seeds — it holds in a minority (3 of s = 0 … 7; with GREYFMU_SEEDS=full 8 of s = 0 … 19 and 6 of s = 20 … 39).
+    The test asserts the measured set of seeds where it holds, so a change to the estimators changes the set."""
+    rows = table2_seeds["continuous ramp (scenario)"]
+    holds = tuple(s for s, row in enumerate(rows) if is_table2_ordered(row))
+    assert holds == tuple(s for s in TABLE2_ORDERING_HOLDS if s < len(rows))
+    assert 0 < len(holds) < len(rows) / 2  # a minority: "not reproduced over seeds"
+    if FULL_SEEDS:
+        assert sum(s < 20 for s in holds) == 8 and sum(s >= 20 for s in holds) == 6
 
 
 def test_raw_firing_mixing_weight_does_not_make_mfrls_global_frls(table2_seeds):
