@@ -103,7 +103,8 @@ def seeds_table(reading: str = SEED_READING) -> str:
             runs = [merits(simulate(case, controller, reading, seed)) for seed in SEEDS]
             verdicts[controller] = [stable(m) for m in runs]
             ep, lv = np.array([m["tail_ep"] for m in runs]), np.array([m["level_tail"] for m in runs])
-            lines.append(f"| {case} | {controller} | {sum(verdicts[controller])} | {np.median(ep):.2f} | "
+            label = controller.replace("|", "\\|")  # a table cell
+            lines.append(f"| {case} | {label} | {sum(verdicts[controller])} | {np.median(ep):.2f} | "
                          f"{ep.min():.2f}-{ep.max():.2f} | {np.median(lv):.3g} | {lv.min():.3g}-{lv.max():.3g} |")
             print(lines[-1], flush=True)
         held = sum(not p and g for p, g in zip(verdicts["PI"], verdicts["grey |a|"]))

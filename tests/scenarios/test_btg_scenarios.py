@@ -177,6 +177,25 @@ def test_sim_4_2_printed_parallel_pi_settles_so_the_claim_fails_in_the_papers_re
     assert not settled(run(f"sim42_case{case}", "pi", 1500.0, form="thesis"))  # the same case in the ISA reading
 
 
+SEEDS = (None, *range(1, 20)) if SEEDS_FULL else (None, 1, 2)
+"""Noise seeds: None = the case file's 23341 (the thesis's); 1-19 more with GREYFMU_SEEDS=full."""
+CLAIM_HELD = {5: 11, 7: 15, 8: 12} if SEEDS_FULL else {7: 3}
+"""Seeds (of SEEDS) in which "PI unstable, grey PI stable" holds, per CASE: docs/btg_readings_tables.md (full)."""
+
+
+@pytest.mark.parametrize("case", sorted(CLAIM_HELD))
+def test_sim_4_2_stability_verdict_over_noise_seeds(case):
+    """Sim. 4.2 CASES 5-8 "PI unstable, grey PI stable" over noise realisations, in the reading where it holds with
+    the thesis's seed (ISA PI without anti-windup, grey PI with |a|, turbine and level PIs ours).  Default: CASE 7,
+    the thesis's seed and two more (3/3); GREYFMU_SEEDS=full: CASES 5, 7, 8 over 20 seeds: 11, 15, 12 of 20 (most seeds, CASE 5
+    barely; the PI is unstable in all 20, the grey PI's last 300 s |e_P| median 0.29 / 0.23 / 0.37, max 14.6 /
+    13.3 / 17.6 kgf/cm2).
+    Stability includes the drum level (settled)."""
+    held = sum(not settled(run(f"sim42_case{case}", "pi", 1500.0, form="thesis", seed=seed))
+               and settled(run(f"sim42_case{case}", "grey", 1500.0, form="thesis |a|", seed=seed)) for seed in SEEDS)
+    assert held == CLAIM_HELD[case]
+
+
 @pytest.mark.parametrize("case", [1, 2, 3, 4])
 def test_sim_4_2_slow_ramps_same_overshoot(case):
     """Sim. 4.2 CASES 1-4 (9 MW/min): "the overshoots for both systems ... are almost the same".  REPRODUCED: peak
