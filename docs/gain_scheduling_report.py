@@ -35,7 +35,7 @@ MODE_STUDIES = {
         "step_low, D on e": ("step_low", "derivative_error"),
         "step_up": ("step_up",),
         "step_up, D on e": ("step_up", "derivative_error"),
-        "reversed: Kp falls in y, 7.26 → 3.76": ("kp_falling",),
+        "reversed: Kp falls along the step 0.5 → 4": ("kp_falling",),
     }, 300.0),
     "gs_sim2_2": ("Simulation 2.2 — dead time varies, integral modes (Figure 2.2)", {
         "step_up": ("step_up",),

@@ -6,6 +6,7 @@ from pythonfmu import DefaultExperiment, Fmi2Variability
 
 from _slave import REQUIREMENTS, AntiWindup, GreyfmuSlave
 from greyfmu.control import GrayPredictivePI as Controller
+from greyfmu.control.pid import PIForm
 from greyfmu.grey import Threshold
 from greyfmu.signals import SampleClock
 
@@ -38,6 +39,8 @@ class GrayPredictivePI(GreyfmuSlave):
                        "Predict/estimate rule: SIGNED a > a_min (§4.2 as printed) or MAGNITUDE |a| > a_min")
         self.parameter("anti_windup", AntiWindup.CONDITIONAL_INTEGRATION,
                        "Anti-windup: CONDITIONAL_INTEGRATION at the output limits (ours) or NONE (the thesis's PI)")
+        self.parameter("form", PIForm.ISA, "Where Kc enters the PI: ISA Kc[e + (1/Ti)∫e] (ours, (2.6a)) or PARALLEL "
+                       "Kc·e + (1/Ti)∫e (§4.2 of the thesis as printed)")
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -55,7 +58,7 @@ class GrayPredictivePI(GreyfmuSlave):
     def build(self) -> None:
         self.controller = Controller(
             self.Kc, self.Ti, self.Ts, n=self.n, m=self.m, ph=self.ph, B=self.B, a_min=self.a_min,
-            threshold=self.threshold, anti_windup=bool(self.anti_windup), **self.output_limits(), **self.integral_options(),
+            threshold=self.threshold, anti_windup=bool(self.anti_windup), form=self.form, **self.output_limits(), **self.integral_options(),
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)
 

@@ -6,13 +6,13 @@ from pythonfmu import DefaultExperiment, Fmi2Variability
 
 from _slave import REQUIREMENTS, AntiWindup, GreyfmuSlave
 from greyfmu.control import PID as PIDController
-from greyfmu.control.pid import DerivativeOn
+from greyfmu.control.pid import DerivativeOn, PIForm
 from greyfmu.signals import SampleClock
 
 
 class PID(GreyfmuSlave):
     description = (
-        "Sampled ideal (ISA) PID u = Kc[e + (1/Ti)∫e dt + Td de/dt], e = r - y, with the derivative on the "
+        "Sampled ideal (ISA) PID u = Kc[e + (1/Ti)∫e dt + Td de/dt] (or the parallel form, parameter form), e = r - y, with the derivative on the "
         "measurement (default) or on the error (the thesis's form) filtered by Td/N (backward Euler), output and rate "
         "limits, conditional-integration anti-windup (switchable off) and the integral modes (2.10)-(2.12) of the "
         "thesis. Sampled at Ts with zero-order hold: "
@@ -34,6 +34,8 @@ class PID(GreyfmuSlave):
                        "Anti-windup: CONDITIONAL_INTEGRATION at the output limits (ours) or NONE (the thesis's PI)")
         self.parameter("derivative_on", DerivativeOn.MEASUREMENT, "Signal the D term differentiates: MEASUREMENT -y "
                        "(ours, no set-point kick) or ERROR e (the thesis's Td de/dt, (2.6a))")
+        self.parameter("form", PIForm.ISA, "Where Kc enters: ISA Kc[e + (1/Ti)∫e + Td de/dt] (ours, (2.6a)) or "
+                       "PARALLEL Kc·e + (1/Ti)∫e + Td de/dt (§4.2 of the thesis as printed)")
         self.output_limit_parameters()
         self.integral_parameters()
         self.input("r", 0.0, "Set-point")
@@ -50,6 +52,7 @@ class PID(GreyfmuSlave):
             N=self.N,
             anti_windup=bool(self.anti_windup),
             derivative_on=self.derivative_on,
+            form=self.form,
             **self.output_limits(),
             **self.integral_options(),
         )

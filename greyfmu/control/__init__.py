@@ -1,8 +1,8 @@
 """Controllers as plain classes following `greyfmu.contract.Controller`: one ``step`` per sample, ``reset()`` to start over."""
 
-from greyfmu.control.pid import PID, DerivativeOn, IntegralMode, integral_step
+from greyfmu.control.pid import PID, DerivativeOn, IntegralMode, PIForm, integral_step
 
-__all__ = ["PID", "DerivativeOn", "IntegralMode", "integral_step"]
+__all__ = ["PID", "DerivativeOn", "IntegralMode", "PIForm", "integral_step"]
 
 from greyfmu.control.sopdt_predictive import (
     ControlLaw,

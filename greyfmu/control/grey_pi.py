@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from greyfmu.control.pid import PID, IntegralMode
+from greyfmu.control.pid import PID, IntegralMode, PIForm
 from greyfmu.grey.predictor import GreyPredictor, PredictorMode, Threshold
 
 
@@ -19,8 +19,8 @@ class GrayPredictivePI:
       SIGNED, §4.2 as printed; MAGNITUDE: |a| > a_min), the estimate of the current error
       otherwise;
     - the PI is the `PID` with Td = 0 fed with ê: ``u(k) = Kc·ê(k) + I(k)``, its integral
-      law (2.10)-(2.12), limits, rate limit and anti-windup (``anti_windup=False``: the
-      thesis's PI) unchanged.
+      law (2.10)-(2.12), limits, rate limit, anti-windup (``anti_windup=False``: the
+      thesis's PI) and form (``PIForm.PARALLEL``: §4.2's printed Kc·e + (1/Ti)∫e) unchanged.
 
     With a constant error the predictor gives a → 0 and ê → e (Propositions 3.4/3.5), so
     the loop has the steady state of the plain PI: no offset (Theorem 3.5).  Until the
@@ -45,9 +45,10 @@ class GrayPredictivePI:
         u0: float = 0.0,
         anti_windup: bool = True,
         threshold: Threshold | int = Threshold.SIGNED,
+        form: PIForm | int = PIForm.ISA,
     ) -> None:
         self.pi = PID(Kc, Ti, 0.0, Ts, u_min=u_min, u_max=u_max, du_max=du_max, integral_mode=integral_mode, u0=u0,
-                      anti_windup=anti_windup)
+                      anti_windup=anti_windup, form=form)
         if not (math.isfinite(ph) and ph >= 0.0):
             raise ValueError(f"GrayPredictivePI: prediction horizon ph must be a finite number >= 0 s, got {ph}")
         self.Ts = Ts

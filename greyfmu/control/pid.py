@@ -24,6 +24,15 @@ class IntegralMode(IntEnum):
     """(2.12): the accumulated ∫e/Ti is kept; the integral output is rescaled by Kc(k)."""
 
 
+class PIForm(IntEnum):
+    """How Kc enters the integral and derivative terms."""
+
+    ISA = 0
+    """Ideal (ISA): u = Kc·[e + (1/Ti)∫e dt + Td·de/dt], the thesis's (2.6a)/(2.9a) (our default)."""
+    PARALLEL = 1
+    """Parallel: u = Kc·e + (1/Ti)∫e dt + Td·de/dt, as §4.2 of the thesis prints the fuel and level PIs."""
+
+
 class DerivativeOn(IntEnum):
     """Which signal the D term differentiates."""
 
@@ -78,6 +87,10 @@ def _check_gains(Kc: float, Ti: float, Td: float) -> None:
 class PID:
     """Discrete ideal PID ``u = Kc·[e + (1/Ti)∫e dt + Td·de/dt]``, ``e = r − y`` (thesis (2.6a)).
 
+    ``form = PIForm.PARALLEL`` gives §4.2's printed ``u = Kc·e + (1/Ti)∫e dt + Td·de/dt``: the
+    integral and derivative terms below then use the gain 1 where they use Kc (so the integral
+    modes (2.10)-(2.12) rescale by 1/Ti only).
+
     ``step(r, y)`` is one sample k (sample time Ts):
 
     - ``P(k) = Kc·e(k)``
@@ -121,6 +134,7 @@ class PID:
         u0: float = 0.0,
         anti_windup: bool = True,
         derivative_on: DerivativeOn | int = DerivativeOn.MEASUREMENT,
+        form: PIForm | int = PIForm.ISA,
     ) -> None:
         _check_gains(Kc, Ti, Td)
         if not (math.isfinite(Ts) and Ts > 0.0):
@@ -135,6 +149,7 @@ class PID:
         self.u0 = u0
         self.anti_windup = bool(anti_windup)
         self.derivative_on = DerivativeOn(derivative_on)
+        self.form = PIForm(form)
         self._initial_gains = (Kc, Ti, Td)
         self.reset()
 
@@ -159,7 +174,7 @@ class PID:
         x = e if self.derivative_on is DerivativeOn.ERROR else -y
         x_prev = x if self._x_prev is None else self._x_prev
         Tf = self.Td / self.N
-        D = (Tf * self.D + self.Kc * self.Td * (x - x_prev)) / (Tf + self.Ts)
+        D = (Tf * self.D + self._id_gain(self.Kc) * self.Td * (x - x_prev)) / (Tf + self.Ts)
         P = self.Kc * e
         I = self._integral(e)
         v = P + I + D
@@ -173,8 +188,13 @@ class PID:
         self._Kc_prev, self._Ti_prev = self.Kc, self.Ti
         return u
 
+    def _id_gain(self, Kc: float) -> float:
+        """The gain of the integral and derivative terms: Kc (ISA) or 1 (PARALLEL)."""
+        return Kc if self.form is PIForm.ISA else 1.0
+
     def _integral(self, e: float) -> float:
-        return integral_step(self.integral_mode, self.I, e, self.Kc, self.Ti, self._Kc_prev, self._Ti_prev, self.Ts)
+        return integral_step(self.integral_mode, self.I, e, self._id_gain(self.Kc), self.Ti,
+                             self._id_gain(self._Kc_prev), self._Ti_prev, self.Ts)
 
     def _limit(self, v: float) -> float:
         return self.limits.apply(v, self.u)

@@ -6,7 +6,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from greyfmu.control import PID, DerivativeOn, IntegralMode, integral_step
+from greyfmu.control import PID, DerivativeOn, IntegralMode, PIForm, integral_step
 
 # §2.3.2 worked example: at k the three I-mode controllers output 60 with Kc = 4.5, Ti = 15;
 # at k+1, e = 1, Kc = 5, Ti = 10, Ts = 1.
@@ -65,6 +65,16 @@ def test_p_plus_i_output_and_bumpless_start():
         assert u == pytest.approx(u0 + Kc * (1.0 + k * Ts / Ti), abs=1e-12)
     pid.reset()
     assert (pid.u, pid.I, pid.e) == (u0, u0, 0.0)
+
+
+@pytest.mark.parametrize("mode", list(IntegralMode))
+def test_parallel_form_integrates_without_kc(mode):
+    """§4.2's printed u = Kc·e + (1/Ti)∫e: with a constant error the integral grows by Ts·e/Ti per sample, not
+    Kc·Ts·e/Ti (the ISA form of the previous test)."""
+    Kc, Ti, Ts, u0 = 2.0, 5.0, 0.5, 1.25
+    pid = PID(Kc, Ti, 0.0, Ts, u0=u0, form=PIForm.PARALLEL, integral_mode=mode)
+    for k in range(1, 6):
+        assert pid.step(1.0, 0.0) == pytest.approx(u0 + Kc * 1.0 + k * Ts / Ti, abs=1e-12)
 
 
 def test_set_gains_applies_the_integral_law_with_the_previous_gains_on_the_next_sample():

@@ -35,7 +35,8 @@ from testfmus import edited_copy
 INTERFACE = {
     # name: (parameters, inputs, outputs -> same-instant input dependencies)
     "PID": (
-        ["Kc", "Ti", "Td", "N", "Ts", "anti_windup", "derivative_on", "u_min", "u_max", "du_max", "integral_mode", "u0"],
+        ["Kc", "Ti", "Td", "N", "Ts", "anti_windup", "derivative_on", "form", "u_min", "u_max", "du_max", "integral_mode",
+         "u0"],
         ["r", "y"],
         {"u": [], "e": []},
     ),

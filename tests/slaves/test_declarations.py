@@ -21,10 +21,11 @@ ALL = fmu_names()
 
 MODES = {
     # FMU: mode parameter -> its IntEnum
-    "PID": {"anti_windup": "AntiWindup", "derivative_on": "DerivativeOn", "integral_mode": "IntegralMode"},
+    "PID": {"anti_windup": "AntiWindup", "derivative_on": "DerivativeOn", "form": "PIForm", "integral_mode": "IntegralMode"},
     "GainScheduledPID": {"law": "SchedulingLaw", "anti_windup": "AntiWindup", "derivative_on": "DerivativeOn",
                          "integral_mode": "IntegralMode"},
-    "GrayPredictivePI": {"threshold": "Threshold", "anti_windup": "AntiWindup", "integral_mode": "IntegralMode"},
+    "GrayPredictivePI": {"threshold": "Threshold", "anti_windup": "AntiWindup", "form": "PIForm",
+                         "integral_mode": "IntegralMode"},
     "GreyPredictor": {"threshold": "Threshold"},
     "SOPDTPredictive": {"law": "ControlLaw"},
     "FourTank": {"time_varying": "FourTankModel"},
