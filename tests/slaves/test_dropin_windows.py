@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from greyfmu.build import build_fmus
+
 from dropinhost import HOST_SOURCE, compile_host, environment, run_host, unzip
 
 WINE = shutil.which("wine64") or "/usr/lib/wine/wine64"
@@ -152,6 +154,25 @@ def test_win64_binary_of_every_fmu_is_our_loader(built_fmus, tmp_path):
         assert (dll.parent / "pythonfmu-export.dll").is_file(), f"{name}: pythonfmu's DLL is not beside the loader"
         checked.append(name)
     assert len(checked) == len(built_fmus) > 20
+
+
+def test_an_fmu_built_before_mingw_was_installed_is_rebuilt_with_the_loader(tmp_path):
+    """build_fmus keeps an up-to-date FMU, except one whose win64 DLL is pythonfmu's own (built
+    when there was no mingw-w64) now that mingw-w64 is on PATH."""
+    require({"gcc-mingw-w64-x86-64": MINGW})
+    (fmu,) = build_fmus(["Step"], out_dir=tmp_path)
+    with zipfile.ZipFile(fmu) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    entries["binaries/win64/Step.dll"] = entries.pop("binaries/win64/pythonfmu-export.dll")
+    with zipfile.ZipFile(fmu, "w") as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+    lines = []
+    build_fmus(["Step"], out_dir=tmp_path, echo=lines.append)
+    build_fmus(["Step"], out_dir=tmp_path, echo=lines.append)
+    assert [line.split(" (")[0] for line in lines] == ["Step: built", "Step: up to date"]
+    with zipfile.ZipFile(fmu) as archive:
+        assert "binaries/win64/pythonfmu-export.dll" in archive.namelist()
 
 
 def test_a_pid_loop_around_a_plant_runs_in_a_windows_host_without_python_as_on_linux(
