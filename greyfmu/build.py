@@ -36,6 +36,7 @@ from xml.etree import ElementTree
 from pythonfmu.builder import FmuBuilder, get_model_class
 
 from greyfmu.dropin import BuildError, drop_in
+from greyfmu.loader import PLATFORMS, compiler
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPOSITORY_ROOT = PACKAGE_DIR.parent
@@ -95,7 +96,8 @@ def build_fmus(
     """Build the named FMUs (all FMI 2.0 ones when ``names`` is None) into ``out_dir`` (default build/fmus).
 
     An FMU newer than all its sources (its script, ``fmus/_slave.py``, every file of the
-    greyfmu package, the loader's C source included) is kept unless ``force``.  ``echo`` receives one line per FMU.  Returns the
+    greyfmu package, the loader's C source included) is kept unless ``force`` or it was built
+    without a loader that a compiler now on PATH can build (mingw-w64 installed since).  ``echo`` receives one line per FMU.  Returns the
     FMU paths in the order of ``names``.
     """
     available = fmu_names() + fmi3_fmu_names()
@@ -115,7 +117,8 @@ def build_fmus(
         base = SLAVE_BASE3 if script.parent == FMI3_SOURCES else SLAVE_BASE
         fmu = out_dir / f"{name}.fmu"
         newest_source = max(newest_common_source, base.stat().st_mtime, script.stat().st_mtime)
-        if not force and fmu.is_file() and fmu.stat().st_mtime > newest_source:
+        if not force and fmu.is_file() and fmu.stat().st_mtime > newest_source \
+                and not (base == SLAVE_BASE and _misses_a_loader(fmu)):
             status = "up to date"
         else:
             _build_one(script, fmu)
@@ -124,6 +127,18 @@ def build_fmus(
             echo(f"{name}: {status} ({fmu})")
         paths.append(fmu)
     return paths
+
+
+def _misses_a_loader(fmu: Path) -> bool:
+    """True when ``fmu`` ships pythonfmu's own library for a platform whose loader compiler is on
+    PATH now: an FMI 2.0 drop-in FMU built with the loader keeps pythonfmu's library beside it as
+    ``pythonfmu-export.*``, so a platform folder without that file was built without the loader."""
+    with zipfile.ZipFile(fmu) as archive:
+        names = set(archive.namelist())
+    return any(compiler(platform) is not None
+               and any(name.startswith(f"binaries/{platform.folder}/") and name.endswith(platform.suffix) for name in names)
+               and f"binaries/{platform.folder}/{platform.pythonfmu_library}" not in names
+               for platform in PLATFORMS)
 
 
 def provide_fmu(file_name: str) -> Path | None:
