@@ -18,6 +18,18 @@ if "COSIM_FUZZ" in os.environ:
 
 
 @pytest.fixture(scope="session")
+def debian_python() -> Path:
+    """The python of a virtual environment made from Debian's /usr/bin/python3 (static libpython),
+    the project installed (tests/pythons.py, cached under build/); skipped where there is none."""
+    from pythons import Unavailable, debian_venv
+
+    try:
+        return debian_venv()
+    except Unavailable as why:
+        pytest.skip(str(why))
+
+
+@pytest.fixture(scope="session")
 def built_fmus() -> dict[str, Path]:
     """All FMUs of fmus/, built once per session into build/fmus (kept if up to date)."""
     return {path.stem: path for path in build_fmus()}

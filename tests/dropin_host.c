@@ -7,14 +7,17 @@
  *     set I VR VALUE                 fmi2SetReal before initialisation
  *     connect I VR J VR              output VR of instance I drives input VR of instance J
  *     record I VR NAME               a CSV column
+ *     embed LIBPYTHON init|load      (Linux, before any fmu) dlopen LIBPYTHON RTLD_LOCAL, as a host
+ *                                    embedding Python does, and with init Py_InitializeEx(0) (the
+ *                                    main thread keeps the GIL)
  *
  * Fixed-step Jacobi: inputs are set from the outputs at t, then every instance steps [t, t+h];
  * t_k = START + k*STEP.  In initialisation mode the connections are propagated as many times as
  * there are instances (settles any acyclic feedthrough chain).  Before the first fmi2Instantiate
  * it prints "python-before-instantiate: yes|no" (a libpython mapped in /proc/self/maps; on
  * Windows a loaded python*.dll), after
- * the last one "python-after-instantiate: yes|no".  Exit 0 on success, 1 if an FMI call fails,
- * 2 for usage errors.
+ * the last one "python-after-instantiate: yes|no" and (Linux) "libpython-files: N", the number of
+ * distinct libpython files mapped.  Exit 0 on success, 1 if an FMI call fails, 2 for usage errors.
  */
 #include <stdarg.h>
 #include <stdio.h>
@@ -57,6 +60,23 @@ static int python_mapped(void) {
         if (strstr(line, "libpython")) found = 1;
     if (maps) fclose(maps);
     return found;
+}
+
+/* The number of distinct libpython files in /proc/self/maps (a second interpreter makes it 2). */
+static int libpython_files(void) {
+    FILE *maps = fopen("/proc/self/maps", "r");
+    char line[4096], files[8][4096];
+    int count = 0;
+    while (maps && fgets(line, sizeof line, maps)) {
+        char *file = strchr(line, '/');
+        if (file == NULL || strstr(file, "libpython") == NULL) continue;
+        file[strcspn(file, "\n")] = '\0';
+        int seen = 0;
+        for (int k = 0; k < count; k++) seen |= !strcmp(files[k], file);
+        if (!seen && count < 8) snprintf(files[count++], sizeof files[0], "%s", file);
+    }
+    if (maps) fclose(maps);
+    return count;
 }
 #endif
 
@@ -118,6 +138,17 @@ static void *symbol(void *library, const char *name) {
     }
     return found;
 }
+#ifndef _WIN32
+/* What a host embedding Python does: its libpython loaded RTLD_LOCAL, initialised if `init`. */
+static void embed(const char *libpython, int init) {
+    void *library = dlopen(libpython, RTLD_NOW | RTLD_LOCAL);
+    if (!library) {
+        fprintf(stderr, "dlopen failed: %s\n", dlerror());
+        exit(1);
+    }
+    if (init) ((void (*)(int))symbol(library, "Py_InitializeEx"))(0);
+}
+#endif
 
 static void load(const char *dir, const char *identifier) {
     char path[4096];
@@ -190,6 +221,11 @@ int main(int argc, char **argv) {
             connections[connection_count].to = atoi(argv[a + 3]);
             connections[connection_count++].to_vr = (unsigned)atoi(argv[a + 4]);
             a += 5;
+#ifndef _WIN32
+        } else if (!strcmp(argv[a], "embed") && a + 2 < argc) {
+            embed(argv[a + 1], !strcmp(argv[a + 2], "init"));
+            a += 3;
+#endif
         } else if (!strcmp(argv[a], "record") && a + 3 < argc) {
             columns[column_count].i = atoi(argv[a + 1]);
             columns[column_count].vr = (unsigned)atoi(argv[a + 2]);
@@ -214,6 +250,9 @@ int main(int argc, char **argv) {
         }
     }
     printf("python-after-instantiate: %s\n", python_mapped() ? "yes" : "no");
+#ifndef _WIN32
+    printf("libpython-files: %d\n", libpython_files());
+#endif
     for (int i = 0; i < fmu_count; i++)
         if (!check(fmus[i].setup(fmus[i].c, 0, 0.0, start, 1, stop), "fmi2SetupExperiment", i, start)) return 1;
     for (int k = 0; k < set_count; k++)

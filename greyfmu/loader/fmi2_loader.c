@@ -6,7 +6,9 @@
  * (binaries/linux64/<modelIdentifier>.so, binaries/win64/<modelIdentifier>.dll; the platform
  * layer is platform.h).  On the first fmi2Instantiate:
  *
- *   1. If the host process already runs an initialised Python (fmpy, cosim), that one is used.
+ *   1. If the host process already runs an initialised Python (fmpy, cosim), that one is used,
+ *      however libpython is linked (platform.h, loaded_python); a libpython loaded but not
+ *      initialised is initialised below only if it is the chosen candidate's: never a second one.
  *   2. Otherwise a Python is chosen in this order (README, "The FMUs"):
  *        a. the interpreter named by the environment variable GREYFMU_PYTHON (no fallback if set),
  *        b. the interpreter that built the FMU (resources/greyfmu_build_python.txt),
@@ -321,10 +323,14 @@ static int start_python(const Interpreter *python, PythonApi *api, char *problem
 }
 
 
-/* Find, load and initialise a Python in this process (unless it already has one). */
+/* Find, load and initialise a Python in this process, unless it already runs one.  Never a second
+ * libpython: one already loaded but not initialised is initialised, if it is the candidate's. */
 static int ensure_python(const char *root, PythonApi *api, char *problem, size_t size) {
     void *host_python = loaded_python();
-    if (host_python != NULL) return resolve(host_python, api, problem, size);
+    if (host_python != NULL) {
+        if (!resolve(host_python, api, problem, size)) return 0;
+        if (api->IsInitialized()) return 1;
+    }
 
     char candidates[3][PATH_MAX];
     const char *origin[3];
@@ -362,7 +368,11 @@ static int ensure_python(const char *root, PythonApi *api, char *problem, size_t
         Interpreter found = {.path = NULL};
         char why[4096] = "";
         if (query_candidate(candidates[i], root, &found, why, sizeof why)) {
-            int ok = start_python(&found, api, problem, size);
+            int ok = host_python == NULL || is_loaded_python(host_python, found.libpython);
+            if (!ok)
+                append(problem, size, "this process already has a libpython, not initialised, that is not %s's (%s): "
+                       "set GREYFMU_PYTHON to the Python of the host's libpython", found.executable, found.libpython);
+            ok = ok && start_python(&found, api, problem, size);
             free(found.path);
             return ok;
         }

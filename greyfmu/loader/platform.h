@@ -80,6 +80,9 @@ static void *loaded_python(void) {
     return NULL;
 }
 
+/* Whether the file `path` is the pythonXY.dll `python` (from loaded_python) already in this process. */
+static int is_loaded_python(void *python, const char *path) { return GetModuleHandleA(path) == (HMODULE)python; }
+
 static int library_path(char *path, size_t size) {
     HMODULE self;
     if (!GetModuleHandleExA(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS | GET_MODULE_HANDLE_EX_FLAG_UNCHANGED_REFCOUNT,
@@ -168,6 +171,7 @@ static int run_query(const char *python, const char *script, char **output, char
 #include <dlfcn.h>
 #include <errno.h>
 #include <limits.h>
+#include <link.h>
 #include <poll.h>
 #include <pthread.h>
 #include <signal.h>
@@ -198,10 +202,44 @@ static void *library_open(const char *path, int global, char *problem, size_t si
 
 static void *library_symbol(void *library, const char *name) { return dlsym(library, name); }
 
-/* The process's global symbols if they include an initialised Python's. */
+/* Whether `object` (a loaded library's file name) itself defines Py_IsInitialized, not through a
+ * library it depends on: then it is a libpython. */
+static int defines_python(const char *object) {
+    void *library = dlopen(object, RTLD_NOLOAD | RTLD_NOW);
+    if (library == NULL) return 0;
+    Dl_info where;
+    void *symbol = dlsym(library, "Py_IsInitialized");
+    int defines = symbol != NULL && dladdr(symbol, &where) && where.dli_fname != NULL &&
+                  strcmp(where.dli_fname, object) == 0;
+    dlclose(library);
+    return defines;
+}
+
+/* A Python already in this process, initialised or not, however libpython is linked; NULL if none.
+ * (Not RTLD_DEFAULT: on glibc that is NULL, which read as "none" and started a second Python.)
+ *  - The global scope (dlopen(NULL)): a libpython linked into the executable and exporting its
+ *    symbols (Debian's and Ubuntu's /usr/bin/python3), or a shared libpython loaded RTLD_GLOBAL.
+ *  - Otherwise each loaded object in turn: a shared libpython loaded RTLD_LOCAL (a host that
+ *    embeds Python) is re-opened RTLD_GLOBAL, so pythonfmu-export.so, which does not link
+ *    libpython, resolves its Python symbols there. */
 static void *loaded_python(void) {
-    int (*initialized)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "Py_IsInitialized");
-    return initialized != NULL && initialized() ? RTLD_DEFAULT : NULL;
+    void *global = dlopen(NULL, RTLD_NOW);
+    if (global == NULL) return NULL;
+    if (dlsym(global, "Py_IsInitialized") != NULL) return global;
+    struct link_map *object = NULL;
+    if (dlinfo(global, RTLD_DI_LINKMAP, &object) != 0) return NULL;
+    for (; object != NULL; object = object->l_next)
+        if (object->l_name != NULL && *object->l_name && defines_python(object->l_name))
+            return dlopen(object->l_name, RTLD_NOLOAD | RTLD_NOW | RTLD_GLOBAL);
+    return NULL;
+}
+
+/* Whether the file `path` is the libpython `python` (from loaded_python) already in this process. */
+static int is_loaded_python(void *python, const char *path) {
+    void *library = dlopen(path, RTLD_NOLOAD | RTLD_NOW);
+    int same = library != NULL && dlsym(library, "Py_IsInitialized") == dlsym(python, "Py_IsInitialized");
+    if (library != NULL) dlclose(library);
+    return same;
 }
 
 static int library_path(char *path, size_t size) {
