@@ -22,7 +22,9 @@ NAMES = sorted(path.stem for path in FMU_SOURCES.glob("*.py") if not path.stem.s
 BEFORE = 12
 """Steps run before the state is saved."""
 AFTER = 16
-"""Steps replayed from the saved state (together with `BEFORE`: the default experiment)."""
+"""Steps replayed from the saved state."""
+MAX_STEPS = 30
+"""At most this many default steps per step of the test."""
 
 
 class Run:
@@ -36,7 +38,8 @@ class Run:
         self.inputs = [(v.valueReference, float(v.start or 0.0)) for v in variables if v.causality == "input"]
         self.outputs = [v.valueReference for v in variables if v.causality == "output" and v.type == "Real"]
         experiment = description.defaultExperiment
-        self.h = float(experiment.stopTime) / (BEFORE + AFTER)  # the experiment's span, so delays elapse
+        span = min(float(experiment.stopTime), MAX_STEPS * (BEFORE + AFTER) * float(experiment.stepSize))
+        self.h = span / (BEFORE + AFTER)  # the default experiment's span (dead times elapse), bounded in cost
         self.t = 0.0
         self.slave.instantiate()
         self.slave.setupExperiment(startTime=0.0)
