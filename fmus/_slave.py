@@ -37,6 +37,7 @@ import copy
 import io
 import math
 import pickle
+import sys
 from abc import abstractmethod
 from collections.abc import Callable
 from contextlib import AbstractContextManager
@@ -160,6 +161,17 @@ class StateUnpickler(pickle.Unpickler):
         raise pickle.UnpicklingError(f"a serialised FMU state of {self._slave_module} may not refer to {module}.{name}")
 
 
+def _forget_repeated_resources(resources: str | None) -> None:
+    """Drop the repeats of ``resources`` from ``sys.path``: pythonfmu 0.7.0's wrapper inserts the
+    FMU's resource folder at the front on every fmi2Instantiate, so a host that instantiates
+    again and again (a sweep, Simulink per run) would grow sys.path by one entry each time and
+    slow every later import.  The first occurrence stays."""
+    if resources is None:
+        return
+    first = sys.path.index(resources) if resources in sys.path else -1
+    sys.path[:] = [entry for index, entry in enumerate(sys.path) if entry != resources or index == first]
+
+
 class GreyfmuSlave(Fmi2Slave):
     """Base of the greyfmu slaves (see the module docstring)."""
 
@@ -172,6 +184,7 @@ class GreyfmuSlave(Fmi2Slave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        _forget_repeated_resources(self.resources)
         self._declarations = frozenset(self.__dict__) | DECLARATIONS
         """The attributes that are not FMU state: pythonfmu's (variables, log queue, names) and
         `DECLARATIONS`; everything else, set later, is (`fmu_state_attributes`)."""
