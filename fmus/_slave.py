@@ -11,6 +11,10 @@ communication step).  This base class
 - refuses non-finite inputs and outputs in ``do_step``: it logs a message naming the
   variable and returns an error status instead of passing NaN on,
 - forwards greyfmu's warnings raised in ``build``, ``advance`` and a retune to the FMU log,
+- gets, sets and serialises the FMU state (FMI 2.0 §2.1.8, fmi2GetFMUstate ... fmi2DeSerializeFMUstate):
+  the whole instance but its declarations (see `GreyfmuSlave.fmu_state_attributes`), deep-copied,
+  so a restored instance replays bit for bit: parameters, inputs, time, the greyfmu objects with
+  their history buffers and random generators; serialised with pickle through `StateUnpickler`;
 - answers ``fmi2Get*``/``fmi2Set*`` through accessors compiled once per list of value
   references (see `CompiledAccessors`), instead of pythonfmu's generic per-variable lookup;
 - declares a mode parameter whose start is an ``IntEnum`` member as an FMI Integer whose range
@@ -29,7 +33,11 @@ The descriptions do not say it: hosts, cosim's plots among them, label a signal 
 
 from __future__ import annotations
 
+import copy
+import io
 import math
+import pickle
+import sys
 from abc import abstractmethod
 from collections.abc import Callable
 from contextlib import AbstractContextManager
@@ -98,6 +106,11 @@ def _type_attributes(unit: str | None, minimum: float | None, maximum: float | N
     return {key: str(value) for key, value in attributes.items() if value is not None}
 
 
+DECLARATIONS = frozenset({"_declarations", "_input_names", "_attributes", "_outputs", "choices",
+                          "_get_real", "_get_integer", "_get_boolean", "_get_string",
+                          "_set_real", "_set_integer", "_set_boolean", "_set_string"})
+"""`GreyfmuSlave`'s attributes that declare the variables (fixed after ``__init__``), not FMU state."""
+
 _CONVERSIONS: dict[type[ScalarVariable], type] = {Real: float, Integer: int, Boolean: bool, String: str}
 """The Python type each FMI type is returned as, as pythonfmu's generic ``Fmi2Slave.get_*`` converts."""
 
@@ -120,6 +133,45 @@ class CompiledAccessors(dict):
         return accessor
 
 
+STATE_FORMAT = b"greyfmu-fmu-state-1\n"
+"""The first bytes of a serialised FMU state (`GreyfmuSlave._fmu_state_to_bytes`)."""
+
+STATE_MODULES = frozenset({"greyfmu", "numpy", "_slave", "collections", "enum", "copyreg", "_codecs"})
+"""The top-level modules whose names a serialised state may refer to (`StateUnpickler`)."""
+
+STATE_BUILTINS = frozenset({"complex", "set", "frozenset", "slice", "range", "bytearray", "object", "getattr"})
+"""The builtins a serialised state may refer to (pickle's reducers of our state use these)."""
+
+
+class StateUnpickler(pickle.Unpickler):
+    """Unpickles a serialised FMU state, refusing any global outside `STATE_MODULES`/`STATE_BUILTINS`.
+
+    The bytes come from the host (fmi2DeSerializeFMUstate); a plain ``pickle.loads`` would call
+    whatever they name (``os.system``).  Our states only name greyfmu's, numpy's and the slave
+    modules' classes, the slave's own module (`STATE_MODULES` gets it per call) and a few builtins."""
+
+    def __init__(self, data: bytes, slave_module: str) -> None:
+        super().__init__(io.BytesIO(data))
+        self._slave_module = slave_module
+
+    def find_class(self, module: str, name: str) -> Any:
+        root = module.split(".")[0]
+        if root in STATE_MODULES or module == self._slave_module or (module == "builtins" and name in STATE_BUILTINS):
+            return super().find_class(module, name)
+        raise pickle.UnpicklingError(f"a serialised FMU state of {self._slave_module} may not refer to {module}.{name}")
+
+
+def _forget_repeated_resources(resources: str | None) -> None:
+    """Drop the repeats of ``resources`` from ``sys.path``: pythonfmu 0.7.0's wrapper inserts the
+    FMU's resource folder at the front on every fmi2Instantiate, so a host that instantiates
+    again and again (a sweep, Simulink per run) would grow sys.path by one entry each time and
+    slow every later import.  The first occurrence stays."""
+    if resources is None:
+        return
+    first = sys.path.index(resources) if resources in sys.path else -1
+    sys.path[:] = [entry for index, entry in enumerate(sys.path) if entry != resources or index == first]
+
+
 class GreyfmuSlave(Fmi2Slave):
     """Base of the greyfmu slaves (see the module docstring)."""
 
@@ -132,6 +184,10 @@ class GreyfmuSlave(Fmi2Slave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        _forget_repeated_resources(self.resources)
+        self._declarations = frozenset(self.__dict__) | DECLARATIONS
+        """The attributes that are not FMU state: pythonfmu's (variables, log queue, names) and
+        `DECLARATIONS`; everything else, set later, is (`fmu_state_attributes`)."""
         self.experiment_start = 0.0
         self.current_time = 0.0
         self._input_names: list[str] = []
@@ -399,6 +455,45 @@ class GreyfmuSlave(Fmi2Slave):
                 set_value(value)
 
         return write
+
+    # FMU state (FMI 2.0 §2.1.8).  pythonfmu 0.7.0's C++ wrapper keeps the object `_get_fmu_state`
+    # returns as the fmi2FMUstate, passes it back to `_set_fmu_state`, and calls the class's
+    # `_fmu_state_to_bytes`/`_fmu_state_from_bytes` to serialise it.
+
+    def fmu_state_attributes(self) -> dict[str, Any]:
+        """The instance's state: every attribute but the declarations (``_declarations``)."""
+        return {name: value for name, value in self.__dict__.items() if name not in self._declarations}
+
+    def _get_fmu_state(self) -> dict[str, Any]:
+        """A deep copy of the state, tagged with the model's name (fmi2GetFMUstate)."""
+        return {"model": type(self).__name__, "attributes": copy.deepcopy(self.fmu_state_attributes())}
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        """Restore ``state`` (fmi2SetFMUstate): a deep copy of it, so it can be restored again.
+        A state of another model is refused (ValueError, which pythonfmu reports as fmi2Fatal)."""
+        model = state.get("model") if isinstance(state, dict) else None
+        if model != type(self).__name__:
+            raise ValueError(f"{self.instance_name}: fmi2SetFMUstate got a state of {model!r}, not of {type(self).__name__}")
+        for name in set(self.fmu_state_attributes()) - set(state["attributes"]):
+            delattr(self, name)
+        self.__dict__.update(copy.deepcopy(state["attributes"]))
+
+    @classmethod
+    def _fmu_state_to_bytes(cls, state: dict[str, Any]) -> bytes:
+        """`STATE_FORMAT` then the pickled state (fmi2SerializeFMUstate)."""
+        return STATE_FORMAT + pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+
+    @classmethod
+    def _fmu_state_from_bytes(cls, data: bytes) -> dict[str, Any]:
+        """The state `_fmu_state_to_bytes` wrote (fmi2DeSerializeFMUstate), unpickled by `StateUnpickler`;
+        ValueError if the bytes are not one."""
+        if not data.startswith(STATE_FORMAT):
+            raise ValueError(f"{cls.__name__}: fmi2DeSerializeFMUstate got {len(data)} bytes that are not a "
+                             f"serialised greyfmu FMU state (they do not start with {STATE_FORMAT!r})")
+        state = StateUnpickler(data[len(STATE_FORMAT):], cls.__module__).load()
+        if not isinstance(state, dict) or state.get("model") != cls.__name__:
+            raise ValueError(f"{cls.__name__}: fmi2DeSerializeFMUstate got a state of another model")
+        return state
 
     def _claim(self, name: str) -> None:
         if hasattr(self, name):

@@ -172,6 +172,8 @@ def _build_one(script: Path, fmu: Path) -> None:
             dest=Path(temp) / "fmu",
             project_files=[staged_package, SLAVE_BASE],
             needsExecutionTool="false",
+            canGetAndSetFMUstate="true",  # fmus/_slave.py: the whole instance, deep-copied
+            canSerializeFMUstate="true",  # pickled, read back by _slave.StateUnpickler
         )
         script_class = slave_class(script)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic

@@ -21,7 +21,8 @@
  *      the call only, Windows finds the home from the DLL), given the candidate's sys.path
  *      (venv site-packages included) and sys.executable; the GIL is then released.
  *   3. The same greyfmu_target.py runs inside the process (Python version >= 3.10 and the
- *      requirements), then pythonfmu-export.so is loaded and every fmi2 function forwards to it.
+ *      requirements; once per process, see CHECK_ONCE), then pythonfmu-export.so is loaded and
+ *      every fmi2 function forwards to it.
  *
  * Where no usable Python is found, fmi2Instantiate logs one message naming what is missing and
  * how to fix it, and returns NULL.  Python is never finalised (numpy and scipy cannot be
@@ -408,6 +409,30 @@ static int load_pythonfmu(const char *root, char *problem, size_t size) {
     return 1;
 }
 
+/* Runs resources/greyfmu_target.py (its path is __file__) inside the process and leaves its
+ * `problem`, at most once per process for the same script and requirements: a passed check is
+ * remembered in sys.modules["greyfmu_target_checks"] (this library's statics die when a host
+ * such as fmpy unloads it after each instance), so a re-instantiation does not compile the
+ * script again.  The key is the two files' text, so another FMU or another version of one is
+ * checked anew; a pass stays valid, as the modules it imported stay in sys.modules. */
+static const char CHECK_ONCE[] =
+    "import os, sys\n"
+    "checks = sys.modules.get('greyfmu_target_checks')\n"
+    "if checks is None:\n"
+    "    checks = sys.modules['greyfmu_target_checks'] = type(sys)('greyfmu_target_checks')\n"
+    "    checks.passed = set()\n"
+    "with open(__file__, 'rb') as script:\n"
+    "    source = script.read()\n"
+    "with open(os.path.join(os.path.dirname(__file__), 'greyfmu_requirements.txt'), 'rb') as listing:\n"
+    "    key = (source, listing.read())\n"
+    "problem = ''\n"
+    "if key not in checks.passed:\n"
+    "    namespace = {'__name__': 'greyfmu_target', '__file__': __file__, '__builtins__': __builtins__}\n"
+    "    exec(compile(source, __file__, 'exec'), namespace)\n"
+    "    problem = namespace['problem']\n"
+    "    if not problem:\n"
+    "        checks.passed.add(key)\n";
+
 static int ensure_loaded(char *problem, size_t size) {
     if (pythonfmu_library != NULL) return 1;
     char root[PATH_MAX];
@@ -419,14 +444,8 @@ static int ensure_loaded(char *problem, size_t size) {
     if (!ensure_python(root, &api, problem, size)) return 0;
     char script[PATH_MAX + 64];
     snprintf(script, sizeof script, "%s%cresources%cgreyfmu_target.py", root, SEPARATOR, SEPARATOR);
-    char *code = read_file(script);
-    if (code == NULL) {
-        append(problem, size, "cannot read %s", script);
-        return 0;
-    }
     char answer[4096];
-    run_in_process(&api, code, script, "problem", answer, sizeof answer);
-    free(code);
+    run_in_process(&api, CHECK_ONCE, script, "problem", answer, sizeof answer);
     if (answer[0] != '\0') {
         append(problem, size, "%s", answer);
         return 0;

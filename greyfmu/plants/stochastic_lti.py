@@ -45,8 +45,23 @@ class StochasticLTI:
         self.noise_clock = SampleClock(noise_period, t0)
         self.seed = seed
         self.x0 = np.zeros(n) if x0 is None else np.asarray(x0, dtype=float)
-        self._exponentials = lru_cache(maxsize=256)(lambda delta: integral_expm(self.A, delta))
+        self._exponentials = self._exponential_cache()
         self.reset()
+
+    def _exponential_cache(self):
+        """``integral_expm(A, δ)`` per step piece δ, cached (the pieces repeat from step to step)."""
+        return lru_cache(maxsize=256)(lambda delta: integral_expm(self.A, delta))
+
+    def __getstate__(self) -> dict:
+        """The state without the cache, which holds a closure (a copied or restored FMU state:
+        fmus/_slave.py); `__setstate__` starts an empty one."""
+        state = self.__dict__.copy()
+        del state["_exponentials"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._exponentials = self._exponential_cache()
 
     def reset(self) -> None:
         """Back to x0 at t0 with empty input histories and the noise sequence from its start."""
