@@ -12,6 +12,11 @@ the other installs find everything present and the test costs seconds, not a 700
 With ``COSIM_README=fresh`` nothing is prepared: the commands make a new ``.venv`` from the
 ``python3`` on PATH outside this environment and install from the registry, as on a new
 machine (about a minute here, with the registry's files cached).
+
+Every test runs twice (issue 25): with ``python3`` the interpreter running the tests, and with
+``python3`` Debian's ``/usr/bin/python3`` (which links libpython statically), its prepared
+``.venv`` seeing the packages of the cached venv of tests/pythons.py; skipped where there is no
+such Python.
 """
 from __future__ import annotations
 
@@ -21,10 +26,11 @@ import re
 import shutil
 import subprocess
 import sys
-import sysconfig
 from pathlib import Path
 
 import pytest
+
+from pythons import DEBIAN_PYTHON
 
 ROOT = Path(__file__).resolve().parents[1]
 SECTIONS = ("## Two commands", "## Your first hour")
@@ -56,25 +62,37 @@ def _copy_repository(dest: Path) -> None:
         shutil.copytree(ROOT / "build" / "fmus", dest / "build" / "fmus")
 
 
-def _reuse_this_environment(clone: Path) -> None:
-    """A .venv whose site-packages see this environment's packages (site.addsitedir via .pth)."""
-    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(clone / ".venv")], check=True)
-    purelib = Path(sysconfig.get_paths()["purelib"])
-    target = clone / ".venv" / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages"
-    (target / "zz_reuse_test_environment.pth").write_text(f"{purelib}\n")
+def _purelib(python: str) -> str:
+    return subprocess.run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                          capture_output=True, text=True, check=True).stdout.strip()
 
 
-@pytest.fixture(scope="module")
-def newcomer(tmp_path_factory):
+def _reuse_environment(clone: Path, python: str) -> None:
+    """A .venv whose site-packages see the packages of ``python``'s environment (site.addsitedir via .pth)."""
+    subprocess.run([python, "-m", "venv", "--without-pip", str(clone / ".venv")], check=True)
+    target = Path(_purelib(str(clone / ".venv" / "bin" / "python")))
+    (target / "zz_reuse_test_environment.pth").write_text(f"{_purelib(python)}\n")
+
+
+@pytest.fixture(scope="module", params=["default", "debian"])
+def newcomer(request, tmp_path_factory):
     """The README's commands run in a copy of the repository; returns (clone, output)."""
     commands = readme_commands((ROOT / "README.md").read_text())
     clone = tmp_path_factory.mktemp("clone")
     _copy_repository(clone)
     bin_dir = str(Path(sys.executable).parent)
     path = [p for p in os.environ["PATH"].split(os.pathsep) if p != bin_dir]
+    if request.param == "debian":       # python3 is Debian's, found first on PATH
+        environment = request.getfixturevalue("debian_python")
+        shim = tmp_path_factory.mktemp("debian-python3")
+        (shim / "python3").symlink_to(DEBIAN_PYTHON)
+        bin_dir = str(shim)
+    else:
+        environment = Path(sys.executable)
     if not FRESH:
-        _reuse_this_environment(clone)
-        path.insert(0, bin_dir)          # python3 is this environment's, as a user's would be theirs
+        _reuse_environment(clone, str(environment))
+    if request.param == "debian" or not FRESH:
+        path.insert(0, bin_dir)          # python3 is the chosen one, as a user's would be theirs
     env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTEST_ADDOPTS")}
     env.update(PATH=os.pathsep.join(path), MPLBACKEND="Agg", PIP_DISABLE_PIP_VERSION_CHECK="1")
     script = "set -euo pipefail\n" + "\n".join(commands) + "\n"
@@ -134,3 +152,10 @@ def test_the_regression_test_writes_then_checks_its_reference(newcomer):
     clone, output = newcomer
     assert (clone / "tests" / "references" / "test_my_loop.csv").is_file()
     assert len(re.findall(r"^1 passed", output, re.M)) == 2
+
+
+def test_the_venv_is_made_from_the_python3_on_path(newcomer, request):
+    """The Debian variant really runs Debian's interpreter: the venv's python is /usr/bin/python3."""
+    clone, _ = newcomer
+    chosen = DEBIAN_PYTHON if request.node.callspec.params["newcomer"] == "debian" else Path(sys.executable)
+    assert (clone / ".venv" / "bin" / "python").resolve() == chosen.resolve()
