@@ -136,28 +136,42 @@ class CompiledAccessors(dict):
 STATE_FORMAT = b"greyfmu-fmu-state-1\n"
 """The first bytes of a serialised FMU state (`GreyfmuSlave._fmu_state_to_bytes`)."""
 
-STATE_MODULES = frozenset({"greyfmu", "numpy", "_slave", "collections", "enum", "copyreg", "_codecs"})
-"""The top-level modules whose names a serialised state may refer to (`StateUnpickler`)."""
+STATE_CLASS_MODULES = ("greyfmu", "_slave")
+"""Packages and modules whose classes (classes only) a serialised state may name, with the slave's own module."""
 
-STATE_BUILTINS = frozenset({"complex", "set", "frozenset", "slice", "range", "bytearray", "object", "getattr"})
-"""The builtins a serialised state may refer to (pickle's reducers of our state use these)."""
+STATE_GLOBALS = frozenset(
+    [("builtins", name) for name in ("complex", "set", "frozenset", "slice", "range", "bytearray")]
+    + [("collections", "deque"), ("collections", "OrderedDict"), ("numpy", "dtype"), ("numpy", "ndarray")]
+    + [(f"numpy.{core}.{module}", name) for core in ("core", "_core")
+       for module, name in (("multiarray", "_reconstruct"), ("multiarray", "scalar"), ("numeric", "_frombuffer"))]
+    + [("numpy.random._pickle", name) for name in ("__generator_ctor", "__bit_generator_ctor", "__randomstate_ctor")]
+    + [(f"numpy.random.{module}", name) for module, name in (
+        ("_pcg64", "PCG64"), ("_pcg64", "PCG64DXSM"), ("_mt19937", "MT19937"), ("_philox", "Philox"),
+        ("_sfc64", "SFC64"), ("mtrand", "RandomState"), ("bit_generator", "SeedSequence"),
+        ("bit_generator", "__pyx_unpickle_SeedSequence"))])
+"""The other globals a serialised state may name: what pickle writes for our states' builtins,
+deques, numpy arrays, scalars and random generators (numpy 1.x's ``numpy.core`` and 2.x's ``numpy._core``)."""
 
 
 class StateUnpickler(pickle.Unpickler):
-    """Unpickles a serialised FMU state, refusing any global outside `STATE_MODULES`/`STATE_BUILTINS`.
+    """Unpickles a serialised FMU state, refusing any global but `STATE_GLOBALS` and the classes of
+    `STATE_CLASS_MODULES` and of the slave's module.
 
     The bytes come from the host (fmi2DeSerializeFMUstate); a plain ``pickle.loads`` would call
-    whatever they name (``os.system``).  Our states only name greyfmu's, numpy's and the slave
-    modules' classes, the slave's own module (`STATE_MODULES` gets it per call) and a few builtins."""
+    whatever they name (``os.system``).  Classes are safe to name: unpickling creates instances
+    with ``__new__`` and sets their attributes."""
 
     def __init__(self, data: bytes, slave_module: str) -> None:
         super().__init__(io.BytesIO(data))
         self._slave_module = slave_module
 
     def find_class(self, module: str, name: str) -> Any:
-        root = module.split(".")[0]
-        if root in STATE_MODULES or module == self._slave_module or (module == "builtins" and name in STATE_BUILTINS):
+        if (module, name) in STATE_GLOBALS:
             return super().find_class(module, name)
+        if module.split(".")[0] in STATE_CLASS_MODULES or module == self._slave_module:
+            found = super().find_class(module, name)
+            if isinstance(found, type):
+                return found
         raise pickle.UnpicklingError(f"a serialised FMU state of {self._slave_module} may not refer to {module}.{name}")
 
 

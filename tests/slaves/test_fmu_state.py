@@ -8,11 +8,14 @@ Each FMU declares canGetAndSetFMUstate and canSerializeFMUstate "true" only beca
 from __future__ import annotations
 
 import math
+import os
+import pickle
 import shutil
 from pathlib import Path
 
 import pytest
 from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 from fmpy.model_description import ModelDescription
 
@@ -135,3 +138,28 @@ def test_serialised_state_replays_in_this_and_a_fresh_instance(unzipped, name: s
     finally:
         run.close()
         fresh.close()
+
+
+class _Creates:
+    """Pickles as a call of os.mkdir(path): what a hostile serialised state could make pickle.loads do."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def __reduce__(self):
+        return os.mkdir, (str(self.path),)
+
+
+@pytest.mark.parametrize("payload", ["hostile", "foreign"])
+def test_deserialising_refuses_bytes_that_are_not_our_state(unzipped, tmp_path: Path, payload: str) -> None:
+    """A pickle naming os.mkdir is refused without being called; bytes without our header are refused."""
+    description, folder = unzipped("PID")
+    run = Run(description, folder, "refusing")
+    made = tmp_path / "made-by-the-state"
+    header = b"greyfmu-fmu-state-1\n" if payload == "hostile" else b"not a state"
+    try:
+        with pytest.raises(FMICallException, match="fmi2DeSerializeFMUstate"):
+            run.slave.deSerializeFMUstate(header + pickle.dumps({"model": "PID", "attributes": _Creates(made)}))
+    finally:
+        run.slave.freeInstance()
+    assert not made.exists()
