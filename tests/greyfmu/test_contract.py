@@ -108,7 +108,7 @@ DEVIATIONS: dict[tuple[str, str], str] = {
 
 NOT_COMPONENTS: dict[str, str] = {
     # greyfmu.control: options, designs, schedules, models and estimators the controllers use
-    "ControlLaw": "option enum", "DerivativeOn": "option enum", "IntegralMode": "option enum",
+    "ControlLaw": "option enum", "DerivativeOn": "option enum", "IntegralMode": "option enum", "PIForm": "option enum",
     "Interpolation": "option enum", "HorizonWarning": "warning category", "ScheduleError": "exception",
     "SOPDTDesign": "off-line design data (paper §2)", "DigitalPIDesign": "off-line design data (Zhou et al. §2-§3)",
     "Gains": "data (Kc, Ti, Td)", "OperatingPoint": "schedule table row / plant operating point (data)",

@@ -33,7 +33,10 @@ WINE = shutil.which("wine64") or "/usr/lib/wine/wine64"
 MINGW = shutil.which("x86_64-w64-mingw32-gcc")
 OBJDUMP = shutil.which("x86_64-w64-mingw32-objdump")
 CACHE = Path(__file__).resolve().parents[2] / "build" / "wine"
-PREFIX = CACHE / "prefix"
+PREFIX = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "greyfmu" / "wine-prefix"
+"""The Wine prefix, outside the source tree: its dosdevices/z: links to /, so a tree walk of the
+repository (setuptools' egg_info when pip installs the project, copytree) would follow it into
+the whole file system and never end."""
 PACKAGES = ["numpy==2.1.3", "scipy==1.18.1"]
 
 
