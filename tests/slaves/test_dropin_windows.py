@@ -111,6 +111,7 @@ def windows_python(wine) -> Path:
         if not home.is_dir():
             install_windows_python(home)
         if not (PREFIX / "system.reg").is_file():
+            PREFIX.parent.mkdir(parents=True, exist_ok=True)
             subprocess.run([wine, "wineboot", "--init"], env=environment(WINEPREFIX=str(PREFIX), WINEDEBUG="-all"),
                            capture_output=True, timeout=600, check=True)
     return home / "python.exe"
