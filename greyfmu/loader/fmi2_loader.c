@@ -84,6 +84,8 @@ enum { PY_FILE_INPUT = 257 };
 
 static Lock load_lock = LOCK_INITIALIZER;
 static void *pythonfmu_library;
+static PythonApi python_api;       /* the Python pythonfmu's library runs on, once loaded */
+static char resources[PATH_MAX + 16]; /* this FMU's resources folder, found from this binary */
 static int live_instances;
 static int exit_handler_registered;
 
@@ -450,7 +452,86 @@ static int ensure_loaded(char *problem, size_t size) {
         append(problem, size, "%s", answer);
         return 0;
     }
-    return load_pythonfmu(root, problem, size);
+    if (!load_pythonfmu(root, problem, size)) return 0;
+    python_api = api;
+    snprintf(resources, sizeof resources, "%s%cresources", root, SEPARATOR);
+    return 1;
+}
+
+/* Gives back the reference pythonfmu 0.7.0's fmi2Instantiate takes from the process at each call
+ * (PySlaveInstance.cpp): findClass releases the slave module's __dict__, a borrowed reference (PyModule_GetDict),
+ *     once per instantiation that got as far as importing the module: after as many
+ *     instantiations as the dict has holders, the dict is freed while its module still uses it
+ *     and the next garbage collection crashes the host (a pytest run of 1,400 tests: segfault
+ *     "Garbage-collecting" in DigitalPI).  One reference per instantiation is kept in
+ *     sys.modules["greyfmu_target_checks"].released (8 bytes each); where the module was
+ *     imported but the dict not released (a failure in between), one dict stays alive forever,
+ *     which it does anyway as its module is in sys.modules.
+ * Runs after every forwarded fmi2Instantiate, whether it returned an instance or not. */
+static const char BALANCE_PYTHONFMU[] =
+    "import os, sys\n"
+    "checks = sys.modules.get('greyfmu_target_checks')\n"
+    "if checks is None:\n"
+    "    checks = sys.modules['greyfmu_target_checks'] = type(sys)('greyfmu_target_checks')\n"
+    "    checks.passed = set()\n"
+    "if not hasattr(checks, 'released'):\n"
+    "    checks.released = []\n"
+    "with open(os.path.join(os.path.dirname(__file__), 'slavemodule.txt'), encoding='utf-8') as listing:\n"
+    "    module = sys.modules.get(listing.readline().strip())\n"
+    "if module is not None:\n"
+    "    checks.released.append(module.__dict__)\n";
+
+static void balance_pythonfmu(void) {
+    char script[PATH_MAX + 64], ignored[256];
+    snprintf(script, sizeof script, "%s%cgreyfmu_balance", resources, SEPARATOR);
+    run_in_process(&python_api, BALANCE_PYTHONFMU, script, NULL, ignored, sizeof ignored);
+}
+
+/* ---- instances pythonfmu has given up on ----
+ * pythonfmu 0.7.0 answers a Python exception in any call with fmi2Fatal after releasing the
+ * instance's Python objects (PySlaveInstance.cpp: handle_py_exception calls cleanPyObject), and
+ * releases them again when the instance is freed (~PySlaveInstance calls cleanPyObject, whose
+ * pointers were never cleared): objects still in use are freed, or freed twice, and a later
+ * garbage collection crashes the host (a pytest run after the FMU-state refusal tests: segfault
+ * "Garbage-collecting").  The loader remembers each instance that answered fmi2Fatal: nothing
+ * more is forwarded to it (fmi2Error), and fmi2FreeInstance forgets it without forwarding (its
+ * C++ object, a few hundred bytes, stays allocated; its Python objects were released once). */
+static fmi2Component *lost_instances;
+static size_t lost_count, lost_capacity;
+
+static int is_lost(fmi2Component c) {
+    int found = 0;
+    lock(&load_lock);
+    for (size_t i = 0; i < lost_count && !found; i++) found = lost_instances[i] == c;
+    unlock(&load_lock);
+    return found;
+}
+
+static void remember_lost(fmi2Component c) {
+    lock(&load_lock);
+    if (lost_count == lost_capacity) {
+        size_t capacity = lost_capacity ? 2 * lost_capacity : 8;
+        fmi2Component *grown = realloc(lost_instances, capacity * sizeof *grown);
+        if (grown != NULL) {
+            lost_instances = grown;
+            lost_capacity = capacity;
+        }
+    }
+    if (lost_count < lost_capacity) lost_instances[lost_count++] = c;
+    unlock(&load_lock);
+}
+
+/* Whether `c` was lost; if so it is forgotten (its fmi2FreeInstance). */
+static int forget_lost(fmi2Component c) {
+    int found = 0;
+    lock(&load_lock);
+    for (size_t i = 0; i < lost_count && !found; i++)
+        if (lost_instances[i] == c) {
+            lost_instances[i] = lost_instances[--lost_count];
+            found = 1;
+        }
+    unlock(&load_lock);
+    return found;
 }
 
 /* ---- the exported FMI 2.0 functions ---- */
@@ -479,6 +560,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     fmi2Component component =
         ((Instantiate)real_fmi2Instantiate)(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, visible,
                                             loggingOn);
+    balance_pythonfmu();
     if (component != NULL) {
         lock(&load_lock);
         live_instances++;
@@ -489,7 +571,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
 
 EXPORT void fmi2FreeInstance(fmi2Component c) {
     if (real_fmi2FreeInstance == NULL || c == NULL) return;
-    ((void (*)(fmi2Component))real_fmi2FreeInstance)(c);
+    if (!forget_lost(c)) ((void (*)(fmi2Component))real_fmi2FreeInstance)(c);
     lock(&load_lock);
     if (--live_instances == 0) release_pythonfmu_state();
     unlock(&load_lock);
@@ -497,8 +579,10 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
 
 #define FORWARD(ret, name, params, args)                                                                           \
     EXPORT ret name params {                                                                                       \
-        if (real_##name == NULL) return fmi2Error;                                                                 \
-        return ((ret(*) params)real_##name) args;                                                                  \
+        if (real_##name == NULL || is_lost(c)) return fmi2Error;                                                   \
+        ret status = ((ret(*) params)real_##name) args;                                                            \
+        if (status == fmi2Fatal) remember_lost(c);                                                                 \
+        return status;                                                                                             \
     }
 
 FORWARD(fmi2Status, fmi2SetDebugLogging, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]),
