@@ -101,8 +101,9 @@ def _connect(address: str):
         return Client(address, timeout=10)
     except OSError as e:
         raise SetupError(f"cannot reach the Dask scheduler ({e}).", element="--scheduler",
-                         hint="Start one with 'dask scheduler --host 127.0.0.1' and workers with 'dask worker "
-                              "ADDRESS' (TLS across machines: see the README), or use --scheduler local:N.") from None
+                         hint="Start one with TLS as the README's \"Whom a cluster obeys\" shows ('dask scheduler' "
+                              "and 'dask worker' with --tls-ca-file, --tls-cert, --tls-key), or use --scheduler "
+                              "local:N.") from None
     except TypeError as e:   # tls:// without a certificate in Dask's configuration
         raise SetupError(f"cannot talk TLS to the Dask scheduler ({e}).", element="--scheduler",
                          hint="Give Dask the cluster's CA and a client certificate and key: "
