@@ -11,7 +11,7 @@ this sweep (`sweep_security`, kept in memory and handed to the worker processes 
 no other process of this machine, whichever its user, can connect to its scheduler, workers or
 nannies and have them run its code.  A scheduler given by address is reached with the user's
 own Dask security configuration (``distributed.comm.tls.*``), and `warn_if_open` says when
-it is neither TLS nor on this machine.
+it is neither TLS nor on loopback.
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from ..errors import SetupError
-from .dispatch import Task, distributed, failed_row
+from .dispatch import Task, distributed, failed_row, is_cluster
 from .shipping import Package, deliver, execute_shipped, forget_package, parameter_set_bytes, publish_package
 
 #: tries of a run after its first that raised (a lost worker is rescheduled by the scheduler itself)
@@ -104,7 +104,10 @@ def _connect(address: str):
                          hint="Start one with TLS as the README's \"Whom a cluster obeys\" shows ('dask scheduler' "
                               "and 'dask worker' with --tls-ca-file, --tls-cert, --tls-key), or use --scheduler "
                               "local:N.") from None
-    except TypeError as e:   # tls:// without a certificate in Dask's configuration
+    except TypeError as e:
+        if "TLS" not in str(e):
+            raise
+        # tls:// without a certificate in Dask's configuration
         raise SetupError(f"cannot talk TLS to the Dask scheduler ({e}).", element="--scheduler",
                          hint="Give Dask the cluster's CA and a client certificate and key: "
                               "distributed.comm.tls.ca-file, .client.cert and .client.key in its "
@@ -112,16 +115,35 @@ def _connect(address: str):
                               "and ..._CLIENT__KEY.") from None
 
 
+def check_scheduler(executor) -> None:
+    """Refuse a ``local:N`` without a count, or a scheduler address Dask cannot read, before any run."""
+    if isinstance(executor, str) and is_cluster(executor):
+        if executor.startswith("local:"):
+            local_workers(executor)
+        else:
+            _scheme_and_host(executor)
+
+
+def _scheme_and_host(address: str) -> tuple[str, str]:
+    """The protocol and host of a scheduler address, as Dask reads it (``HOST:PORT`` is tcp)."""
+    distributed()
+    from distributed.comm import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        return scheme, parse_host_port(location)[0] if location else ""
+    except ValueError as e:
+        raise SetupError(f"'{address}' is not a Dask scheduler address ({e}): give tls://HOST:PORT, "
+                         "tcp://HOST:PORT or local:N.", element="--scheduler") from None
+
+
 def is_open(address: str) -> bool:
     """Whether the scheduler at ``address`` is one anybody who can reach it may use: not TLS (so
     not authenticated by certificate) and not on this machine's loopback (a host name counts
     as loopback only when every address it resolves to is)."""
-    from distributed.comm import parse_address, parse_host_port
-
-    scheme, location = parse_address(address)
+    scheme, host = _scheme_and_host(address)
     if scheme in ("tls", "wss", "inproc"):
         return False
-    host = parse_host_port(location)[0] if location else ""
     try:
         return not ipaddress.ip_address(host).is_loopback
     except ValueError:

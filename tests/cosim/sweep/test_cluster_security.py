@@ -152,9 +152,9 @@ def _outside_address() -> str | None:
 
 def _scheduler(folder: Path, host: str) -> tuple[subprocess.Popen, str]:
     file = folder / "scheduler.json"
-    process = subprocess.Popen([DASK, "scheduler", "--host", host, "--port", "0", "--no-dashboard",
-                                "--scheduler-file", str(file)], stdout=subprocess.DEVNULL,
-                               stderr=(folder / "scheduler.log").open("w"))
+    with (folder / "scheduler.log").open("w") as log:
+        process = subprocess.Popen([DASK, "scheduler", "--host", host, "--port", "0", "--no-dashboard",
+                                    "--scheduler-file", str(file)], stdout=subprocess.DEVNULL, stderr=log)
     end = time.monotonic() + 60
     while time.monotonic() < end:
         if file.is_file() and json.loads(file.read_text() or "{}").get("address"):
@@ -170,8 +170,9 @@ def test_a_sweep_on_an_open_scheduler_warns_once_naming_it(tmp_path, capsys, whe
     if host is None:
         pytest.skip("this machine has no address other than loopback")
     scheduler, address = _scheduler(tmp_path, host)
-    worker = subprocess.Popen([DASK, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard"],
-                              stdout=subprocess.DEVNULL, stderr=(tmp_path / "worker.log").open("w"))
+    with (tmp_path / "worker.log").open("w") as log:
+        worker = subprocess.Popen([DASK, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard"],
+                                  stdout=subprocess.DEVNULL, stderr=log)
     try:
         status = main(["sweep", "ssp/pid_fopdt", "--set", "controller.Kc=8", "--stop", "1",
                        "--scheduler", address, "--output", str(tmp_path / "out"), "--quiet"])
