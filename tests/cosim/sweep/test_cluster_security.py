@@ -21,8 +21,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import cloudpickle
-import psutil
 import pytest
 
 from cosim.cli import main
@@ -31,6 +29,8 @@ from cosim.sweep.cluster import is_open, local_cluster
 distributed = pytest.importorskip("distributed")
 pytest.importorskip("cryptography")
 
+import cloudpickle  # noqa: E402 -- with Dask, as psutil
+import psutil  # noqa: E402
 from distributed.protocol.pickle import dumps  # noqa: E402
 
 # the functions the "foreign" clients send are pickled whole (the workers need not import this module)
