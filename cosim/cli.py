@@ -467,10 +467,13 @@ def _sweep(args) -> int:
         raise SetupError(f"--workers {args.workers}: give at least 1.", element="--workers")
     output = Path(args.output or Path("results") / f"{result_stem(Path(args.path).stem, args.param_set)}_sweep")
     try:
-        result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
-                       parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
-                       step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
-                       executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", RuntimeWarning)   # cosim's own warnings, one line each, as they come
+            warnings.showwarning = _print_warning
+            result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
+                           parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
+                           step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
+                           executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
     except KeyboardInterrupt:
         table = output / "sweep.csv"
         kept = len(read_table(output / "sweep.parquet")) if table.is_file() else 0
@@ -484,6 +487,11 @@ def _sweep(args) -> int:
           f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}, results in "
           f"{output / 'runs'}")
     return 1 if result.failed else 0
+
+
+def _print_warning(message, *_) -> None:
+    """``warnings.showwarning`` for the sweep: the message alone, on one line of stderr."""
+    print(f"cosim: warning: {message}", file=sys.stderr)
 
 
 def _print_undefined_metrics(rows, metrics: list[str]) -> None:

@@ -35,7 +35,7 @@ from typing import Any
 
 from ..safeio import max_unpacked_bytes
 from ..simulation import prepare
-from .cluster import dispatch_cluster, local_workers
+from .cluster import check_scheduler, dispatch_cluster
 from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
 from .figure import summary_figure
 from .shipping import package_of
@@ -87,8 +87,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
     """
     output = Path(output)
     scenario = Path(scenario)
-    if isinstance(executor, str) and executor.startswith("local:"):
-        local_workers(executor)
+    check_scheduler(executor)
     metric_list = [parse_metric(m) for m in metrics]
     parameter_sets = [Path(p).resolve() for p in parameter_sets]
     prepared = prepare(scenario, start_time=start_time, stop_time=stop_time, step_size=step_size,
