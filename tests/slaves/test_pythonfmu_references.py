@@ -15,8 +15,11 @@ from __future__ import annotations
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
+
+from greyfmu.build import build_fmus
 
 COUNT = textwrap.dedent(
     """
@@ -93,3 +96,45 @@ def test_an_instance_lost_to_a_python_exception_is_never_released_twice(built_fm
     assert len(answers) == 120
     assert set(answers[0::2]) <= {"3", "4"}, "a state that is not a pickle was accepted"
     assert set(answers[1::2]) == {"3"}, "a call after the instance was lost was not refused with fmi2Error"
+
+
+LOSE_FMI3 = textwrap.dedent(
+    """
+    import gc, sys
+    from fmpy import extract, read_model_description
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi3 import FMU3Slave
+
+    fmu = sys.argv[1]
+    description = read_model_description(fmu)
+    folder = extract(fmu)
+    for _ in range(60):
+        slave = FMU3Slave(guid=description.guid, unzipDirectory=folder,
+                          modelIdentifier=description.coSimulation.modelIdentifier, instanceName="x")
+        slave.instantiate()
+        for call in (lambda: slave.getFloat64([987654]), slave.getFMUState,
+                     lambda: slave.setFMUState(slave.deserializeFMUState(b"not a state"))):
+            try:
+                call()
+                print("ok")
+            except FMICallException as refused:
+                print(refused.status)
+        slave.freeInstance()
+        gc.collect()
+    """
+)
+
+
+def test_an_fmi3_instance_survives_calls_that_raise(tmp_path: Path) -> None:
+    """pythonfmu3 0.3.4 has the same double release, without our loader in between: PID3 gives
+    the references back from Python (fmus/fmi3/_slave3.py).  60 instances in one process, each
+    asked for an unknown value reference and for an FMU state it declares it has not (segfault on
+    the first instance before the fix): each call refused (fmi3Fatal, the only error pythonfmu3
+    returns for these calls), and the process ends normally."""
+    (fmu,) = build_fmus(["PID3"], out_dir=tmp_path)
+    run = subprocess.run([sys.executable, "-c", LOSE_FMI3, str(fmu)], capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
+    answers = [line for line in run.stdout.splitlines() if line in ("ok", "3", "4")]
+    assert answers == ["4"] * 180
+    assert "canGetAndSetFMUState is false" in run.stdout + run.stderr
