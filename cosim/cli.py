@@ -191,7 +191,7 @@ def _run(args) -> int:
                        algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
                        loops=args.loops)
     try:
-        name = prepared.plan.name or Path(args.path).stem
+        name = prepared.plan.name or Path(args.path).resolve().stem
         output = Path(args.output) if args.output else _default_result(prepared.plan, name, args.param_set)
         own = scenario_files(prepared.plan)
         check_output(output, own, what="result file", option="--output", suffixes=RESULT_SUFFIXES,
@@ -478,7 +478,7 @@ def _sweep(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise SetupError(f"--workers {args.workers}: give at least 1.", element="--workers")
     output = Path(args.output) if args.output else \
-        Path("results") / f"{result_stem(Path(args.path).stem, args.param_set, what=SCENARIO_NAME)}_sweep"
+        Path("results") / f"{result_stem(Path(args.path).resolve().stem, args.param_set, what=SCENARIO_NAME)}_sweep"
     try:
         result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
                        parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,

@@ -63,8 +63,9 @@ def result_stem(scenario: str, parameter_sets: Iterable[str | Path], *, what: st
     """``scenario__set1__set2``: the default result name, so runs of different parameter sets
     (cases) never overwrite each other.  ``scenario`` (described by ``what``, ``file`` and
     ``element`` in an error) and each set's stem must be file names (`cosim.safeio.file_name`)."""
-    parts = [file_name(scenario, what=what, file=file, element=element)]
-    parts += [file_name(Path(p).stem, what="the parameter set name", file=str(p), element="--param-set")
+    hint = "Give the result's name with --output."
+    parts = [file_name(scenario, what=what, file=file, element=element, hint=hint)]
+    parts += [file_name(Path(p).stem, what="the parameter set name", file=str(p), element="--param-set", hint=hint)
               for p in parameter_sets]
     return "__".join(parts)
 

@@ -339,7 +339,8 @@ WINDOWS_DEVICES = frozenset({"CON", "PRN", "AUX", "NUL", *(f"COM{i}" for i in ra
 MAX_NAME_BYTES = 200
 
 
-def file_name(name: str, *, what: str, file: str | None = None, element: str | None = None) -> str:
+def file_name(name: str, *, what: str, file: str | None = None, element: str | None = None,
+              hint: str | None = None) -> str:
     """``name`` if it is a plain file name, portable to Windows, macOS and Linux; else a
     `SetupError` naming ``what`` (e.g. "the system name"), ``file`` and ``element``.
 
@@ -353,7 +354,7 @@ def file_name(name: str, *, what: str, file: str | None = None, element: str | N
     problem = _name_problem(name)
     if problem is not None:
         raise SetupError(f"{what} {name!r} cannot be a file name: {problem}. Results are written under a "
-                         "name, never a path.", file=file, element=element)
+                         "name, never a path.", file=file, element=element, hint=hint)
     return name
 
 
