@@ -25,7 +25,6 @@ result appears under its name only when it is complete.
 from __future__ import annotations
 
 import errno
-import fcntl
 import os
 import re
 import shutil
@@ -444,6 +443,8 @@ class OutputLock:
 def lock_output(output: str | Path, *, option: str = "--output") -> OutputLock:
     """Take ``<output>.lock`` (making the folder), or a `SetupError` naming the output, the
     process holding it and ``option`` when another process writes the same output."""
+    import fcntl   # POSIX (as the supervisor's fork is); imported here so reading SSP files needs none
+
     output = Path(output)
     path = lock_path(output)
     try:
@@ -462,8 +463,12 @@ def lock_output(output: str | Path, *, option: str = "--output") -> OutputLock:
             if _same_file(fd, path):   # not deleted by a holder releasing it since we opened it
                 break
             os.close(fd)
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+        except OSError:
+            os.close(fd)
+            raise
     except OSError as e:
         raise SetupError(f"cannot take the lock {path} ({e.strerror or e}).", element=option) from None
     return OutputLock(path, fd)
