@@ -120,7 +120,8 @@ class ParquetSink(_FileSink):
 
     Parquet's footer (schema, row-group index, metadata) is written by `close`, which the
     master calls after a failed run too, so the rows flushed before a failure stay readable;
-    a process killed mid-run leaves no footer and no readable rows, where a CSV keeps them.
+    a process killed mid-run leaves a ``.part`` with no footer and no readable rows, where a
+    CSV's ``.part`` keeps them (the journal has them either way).
     """
 
     def __init__(self, path: str | Path):

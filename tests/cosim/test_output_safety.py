@@ -157,6 +157,17 @@ def test_a_second_writer_of_an_output_is_refused_naming_the_holder(scenario, tmp
     assert not lock_path(out).exists() and not partial_path(out).exists()
 
 
+def test_the_python_api_takes_the_same_lock(scenario, tmp_path):
+    from cosim.simulation import simulate
+
+    out = tmp_path / "api.csv"
+    with lock_output(out), pytest.raises(SetupError) as e:
+        simulate(scenario, stop_time=1.0, output=out)
+    assert f"output: {out} is being written by process {os.getpid()}" in str(e.value) and not out.exists()
+    assert len(simulate(scenario, stop_time=1.0, output=out)) == 11 and len(read(out)) == 11
+    assert not lock_path(out).exists() and not partial_path(out).exists()
+
+
 def test_a_run_killed_mid_way_leaves_the_earlier_result_and_blocks_no_one(scenario, tmp_path, capsys):
     """Two real `cosim run` processes on one output: the second is refused naming the first's pid;
     the earlier good CSV stays whole while the first writes and after it is killed (SIGKILL to
