@@ -143,6 +143,25 @@ def test_a_regression_reference_is_a_file_in_the_references_folder(pytester):
     assert not list(pytester.path.parent.parent.rglob("escaped.csv"))
 
 
+def test_a_journal_s_header_decides_neither_where_the_result_goes_nor_what_is_removed(tmp_path):
+    """`recover` writes beside the journal and removes only FMU extraction folders, whatever the
+    header says (it named the result file and the folders to delete)."""
+    from cosim.journal import Journal, journal_path, recover
+
+    keep = tmp_path / "precious"
+    keep.mkdir()
+    (keep / "file").write_text("mine")
+    out = tmp_path / "runs" / "r.csv"
+    out.parent.mkdir()
+    journal = Journal(journal_path(out), {"output": str(tmp_path / "elsewhere.csv"), "names": ["time", "y"],
+                                          "permutation": [0, 1], "temporary": [str(keep)]}, 2, 4)
+    journal.window()[0] = (0.0, 1.5)
+    journal.count[0] = 1
+    assert recover(journal_path(out)) == (out, 1)
+    assert list(read(out)["y"]) == [1.5] and not (tmp_path / "elsewhere.csv").exists()
+    assert (keep / "file").read_text() == "mine"
+
+
 # --------------------------------------------------------------------------- one writer per output
 
 def test_a_second_writer_of_an_output_is_refused_naming_the_holder(scenario, tmp_path, capsys):
