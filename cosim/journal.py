@@ -21,7 +21,6 @@ import json
 import mmap
 import os
 import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -128,10 +127,12 @@ def result_of(journal: Path) -> Path:
     it says must not decide where a result is written."""
     if not journal.name.endswith(SUFFIX) or journal.name == SUFFIX:
         raise ValueError(f"{journal}: a journal's name ends in {SUFFIX} after its result's name")
+    journal = journal.resolve()
     return journal.with_name(journal.name[:-len(SUFFIX)])
 
 
 def _extraction_folder(folder: Path) -> bool:
-    """True for an FMU extraction folder of `cosim.instances.Unzipped` (``$TMPDIR/cosim-fmu-*``):
-    the only folders a recovery removes, whatever the header names."""
-    return folder.parent == Path(tempfile.gettempdir()) and folder.name.startswith(UNZIP_PREFIX)
+    """True for a folder named as the FMU extraction folders of `cosim.instances.Unzipped` are
+    (``cosim-fmu-<pid>-...``, in the crashed process's ``$TMPDIR``): the only folders a recovery
+    removes, whatever the header names."""
+    return folder.name.startswith(UNZIP_PREFIX) and folder.is_dir() and not folder.is_symlink()

@@ -157,7 +157,7 @@ def test_a_journal_s_header_decides_neither_where_the_result_goes_nor_what_is_re
                                           "permutation": [0, 1], "temporary": [str(keep)]}, 2, 4)
     journal.window()[0] = (0.0, 1.5)
     journal.count[0] = 1
-    assert recover(journal_path(out)) == (out, 1)
+    assert recover(journal_path(out)) == (out.resolve(), 1)
     assert list(read(out)["y"]) == [1.5] and not (tmp_path / "elsewhere.csv").exists()
     assert (keep / "file").read_text() == "mine"
 
