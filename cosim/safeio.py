@@ -358,6 +358,8 @@ def file_name(name: str, *, what: str, file: str | None = None, element: str | N
 
 
 def _name_problem(name: str) -> str | None:
+    if not isinstance(name, str):   # a worker's reply can hold anything
+        return f"it is a {type(name).__name__}, not text"
     if not name:
         return "it is empty"
     if name in (".", ".."):

@@ -12,6 +12,12 @@ it runs the Cartesian product of those lists (times the seeds, when given) and w
 - ``OUTPUT/sweep.png`` (when metrics are asked for): each metric against each swept parameter,
   seeds and the other parameters as spread (`.figure`).
 
+The sweep holds the locks of its two tables (``OUTPUT/sweep.csv.lock`` and
+``OUTPUT/sweep.parquet.lock``, `cosim.safeio.lock_output`) while it runs, so a second sweep
+or a `cosim run` writing either table is refused; every file is written as ``<name>.part``
+and renamed into place.  ``OUTPUT`` must be a folder (or not exist yet) and must not hold a
+run's results named ``sweep.*`` (`cosim.outputs.check_sweep_folder`).
+
 The run id is a hash of everything that decides the result: the scenario's files, every
 FMU's GUID and file contents, the parameter sets, the swept values, the seed and the time
 grid.  A rerun skips every run whose id has a finished row (completed or discarded) and

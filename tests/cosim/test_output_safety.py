@@ -71,6 +71,11 @@ def test_a_name_that_is_not_a_plain_file_name_is_refused(name):
     assert "cannot be a file name" in str(e.value)
 
 
+def test_a_name_that_is_not_text_is_refused():
+    with pytest.raises(SetupError, match="it is a bytes, not text"):
+        file_name(b"x.csv", what="the file a worker returned")
+
+
 @pytest.mark.parametrize("name", ["pid_fopdt", "..a", "a..b", "x.y.csv", "console", "Überschwinger", "x" * 200])
 def test_plain_file_names_pass(name):
     assert file_name(name, what="the system name") == name
