@@ -6,6 +6,11 @@ disk, and the recorder's memory is one chunk whatever the run's length.  Sinks:
 `CsvSink` (a CSV readable by ``fmpy.util.read_csv``) and `ParquetSink`, each
 with a JSON metadata file beside it (`file_sink` picks one by the file's
 suffix), and `MemorySink` (for the Python API).
+
+A file sink writes to ``<name>.part`` beside the result (`cosim.safeio.partial_path`) and
+renames it onto the result when it closes, then writes the JSON the same way: a reader sees
+the previous result or the new one, never half of one, and a process killed mid-run leaves
+the previous result as it was (`cosim.journal` keeps that run's rows).
 """
 from __future__ import annotations
 
@@ -18,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OutputError, SetupError
+from .safeio import partial_path, write_atomic
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
@@ -32,6 +38,14 @@ class _FileSink:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.meta_path = self.path.with_suffix(".json")
+        #: the file written until `close` renames it onto `path`
+        self.part = partial_path(self.path)
+
+    def publish(self, metadata_text: str | None) -> None:
+        """Put the finished file in place, then its metadata JSON if any (each in one rename)."""
+        os.replace(self.part, self.path)
+        if metadata_text is not None:
+            write_atomic(self.meta_path, metadata_text)
 
     @staticmethod
     def metadata_text(metadata: dict) -> str:
@@ -69,7 +83,7 @@ class CsvSink(_FileSink):
         import pyarrow as pa
 
         check_csv_names(names, self.path)
-        self._file = pa.OSFile(str(self.path), "wb")
+        self._file = pa.OSFile(str(self.part), "wb")
         self._file.write((",".join(f'"{n}"' for n in names) + "\n").encode())
         self._file.flush()
         self._names = names
@@ -84,7 +98,7 @@ class CsvSink(_FileSink):
             pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
             self._file.flush()
         except OSError:  # a full disk: drop the partly written chunk, so every line left is whole
-            os.truncate(self.path, end)
+            os.truncate(self.part, end)
             raise
 
     def finish(self) -> None:
@@ -95,7 +109,7 @@ class CsvSink(_FileSink):
 
     def close(self, metadata: dict) -> None:
         self.finish()
-        self.meta_path.write_text(self.metadata_text(metadata))
+        self.publish(self.metadata_text(metadata))
 
 
 class ParquetSink(_FileSink):
@@ -106,7 +120,8 @@ class ParquetSink(_FileSink):
 
     Parquet's footer (schema, row-group index, metadata) is written by `close`, which the
     master calls after a failed run too, so the rows flushed before a failure stay readable;
-    a process killed mid-run leaves no footer and no readable rows, where a CSV keeps them.
+    a process killed mid-run leaves a ``.part`` with no footer and no readable rows, where a
+    CSV's ``.part`` keeps them (the journal has them either way).
     """
 
     def __init__(self, path: str | Path):
@@ -121,7 +136,7 @@ class ParquetSink(_FileSink):
         self._schema = pa.schema([(name, pa.float64()) for name in names])
         # no dictionary encoding: sampled signals rarely repeat values, and trying it costs
         # 4x the write time (Snappy compression still shrinks constant columns)
-        self._writer = pq.ParquetWriter(self.path, self._schema, use_dictionary=False)
+        self._writer = pq.ParquetWriter(self.part, self._schema, use_dictionary=False)
 
     def write(self, rows: np.ndarray) -> None:
         import pyarrow as pa
@@ -140,7 +155,7 @@ class ParquetSink(_FileSink):
     def close(self, metadata: dict) -> None:
         text = self.metadata_text(metadata)
         self.finish(text)
-        self.meta_path.write_text(text)
+        self.publish(text)
 
 
 class MemorySink:

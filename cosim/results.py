@@ -48,7 +48,7 @@ def _read_csv(path: str | Path) -> np.ndarray:
 def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = None) -> Path:
     """Write ``time`` and the named fields (default: all) as `cosim.observers.file_sink` writes
     a run (CSV, or Parquet for a ``.parquet`` name: every float64 reads back bit for bit),
-    without the metadata JSON a run writes beside it."""
+    without the metadata JSON a run writes beside it; the file is replaced in one rename."""
     from .observers import file_sink
 
     path = Path(path)
@@ -58,4 +58,5 @@ def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = No
     if len(result):
         sink.write(np.column_stack([result[n] for n in columns]))
     sink.finish()
+    sink.publish(None)
     return path

@@ -11,6 +11,7 @@ from __future__ import annotations
 import fnmatch
 import warnings
 from collections.abc import Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -26,6 +27,7 @@ from .journal import Journal, journal_path
 from .observers import MemorySink, Recorder, file_sink
 from .plan import build_plan
 from .resources import locate_fmus
+from .safeio import lock_output
 from .loops import LoopSettings
 from .structure import LoopMode, Plan, RecordedOutput
 
@@ -119,7 +121,9 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     its path relative to the root system, ``loop.controller.u``), plus one per
     output connector of the root system, under its own name.  With ``output`` the samples are
     also written to that CSV (or Parquet file, by its suffix) as the run goes
-    (metadata in ``<output>.json``).
+    (metadata in ``<output>.json``): to ``<output>.part``, renamed onto ``output`` when the run
+    ends, and under ``<output>.lock`` (`cosim.safeio.lock_output`), so another process writing
+    the same output meanwhile is a `SetupError` naming it.
     A failed run raises `RunError` with the samples so far in ``error.result``
     (and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
     collected to explain a failure ("errors", "all" or "off"; see `cosim.instances.fmi2.FMI2Instance.instantiate`).
@@ -135,9 +139,10 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
                        use_providers=use_providers, loops=loops)
     try:
-        result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
-                               loop_settings=loop_settings, isolate=isolate,
-                               call_timeout=call_timeout, kernel=kernel, threads=threads)
+        with lock_output(output, option="output") if output is not None else nullcontext():
+            result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
+                                   loop_settings=loop_settings, isolate=isolate,
+                                   call_timeout=call_timeout, kernel=kernel, threads=threads)
     finally:
         prepared.close()
     if metadata["status"] == "discarded":

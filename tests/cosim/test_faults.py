@@ -77,7 +77,8 @@ def test_a_crash_in_a_parquet_run_is_recovered_too(tmp_path, faulty):
 
 def _wait_for_rows(csv: Path, proc: subprocess.Popen) -> None:
     deadline = time.monotonic() + 60
-    while not (csv.exists() and csv.stat().st_size > 200):  # the header and a flushed row or more
+    part = csv.with_name(csv.name + ".part")  # written there until the run ends (cosim.safeio.atomic_path)
+    while not (part.exists() and part.stat().st_size > 200):  # the header and a flushed row or more
         assert proc.poll() is None and time.monotonic() < deadline
         time.sleep(0.1)
 
