@@ -168,3 +168,85 @@ def test_a_journal_left_by_a_crashed_api_run_is_recovered(tmp_path, faulty):
     meta = json.loads(out.with_suffix(".json").read_text())
     assert meta["status"] == "crashed" and meta["message"] == "found after the run"
     assert not list(tmp_path.glob("cosim-fmu-*"))  # the crashed process's extraction folder too
+
+
+def _wait_for_journal_rows(journal: Path, rows: int, proc: subprocess.Popen) -> None:
+    """Until the run's journal holds ``rows`` rows (the CSV gets them only at a flush)."""
+    from cosim.journal import read_journal
+
+    deadline = time.monotonic() + 60
+    while True:
+        assert proc.poll() is None and time.monotonic() < deadline
+        try:
+            if len(read_journal(journal)[1]) >= rows:
+                return
+        except (OSError, ValueError):
+            pass
+        time.sleep(0.05)
+
+
+@pytest.mark.parametrize("second", [True, False], ids=["second-sigint", "grace"])
+def test_sigint_abandons_a_hung_fmu_call_and_keeps_the_rows(tmp_path, faulty, second):
+    """Issue 26: an FMU hung in fmi2DoStep; SIGINT asks the run to stop, and a second SIGINT (or
+    `INTERRUPT_GRACE` s without the run gone) abandons the call: every completed row and the
+    JSON are written, exit 130."""
+    from cosim.supervisor import INTERRUPT_GRACE
+
+    folder = _scenario(tmp_path, faulty, 4, fault_time=3.0, stop=25.0)
+    csv = tmp_path / "out.csv"
+    proc = _cosim(tmp_path, "run", str(folder), "-q", "-o", str(csv))
+    _wait_for_journal_rows(tmp_path / "out.csv.journal", 7, proc)  # t = 0 .. 3, then the hang
+    proc.send_signal(signal.SIGINT)
+    if second:
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGINT)
+    asked = time.monotonic()
+    out, err = proc.communicate(timeout=30)
+    took = time.monotonic() - asked
+    assert proc.returncode == 130, err
+    assert took < (2.0 if second else INTERRUPT_GRACE + 3.0)
+    assert "Traceback" not in err and "stopped by SIGINT" in err and "7 rows recovered" in err
+    assert ("a second SIGINT abandoned it" if second else f"abandoned {INTERRUPT_GRACE:g} s after the SIGINT") in err
+    assert list(read(csv)["time"]) == pytest.approx([0, 0.5, 1, 1.5, 2, 2.5, 3])
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    assert meta["status"] == "interrupted" and meta["last_time"] == 3.0 and meta["samples"] == 7
+    assert not csv.with_name("out.csv.journal").exists()
+    assert _leftovers(tmp_path) == []
+
+
+def _children(pid: int) -> list[int]:
+    return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+
+
+def _gone(pid: int) -> bool:
+    """Ended (a zombie waiting for init to reap it counts as ended)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("fault, status_rows", [(5, None), (4, 7)], ids=["stepping", "hung"])
+def test_the_run_dies_with_its_killed_parent(tmp_path, faulty, fault, status_rows):
+    """Issue 26: ``kill -9`` of the supervising parent ends its child too (``PR_SET_PDEATHSIG``
+    and the pipe watch): a stepping child stops at its next communication point and writes its
+    files, a hung one writes the journal's rows and ends ``INTERRUPT_GRACE`` s later."""
+    from cosim.supervisor import INTERRUPT_GRACE
+
+    folder = _scenario(tmp_path, faulty, fault, fault_time=3.0 if fault == 4 else 0.0, stop=1000.0,
+                       step=0.5 if fault == 4 else 0.1, delay=0.01)
+    csv = tmp_path / "out.csv"
+    proc = _cosim(tmp_path, "run", str(folder), "-q", "-o", str(csv))
+    _wait_for_journal_rows(tmp_path / "out.csv.journal", 7, proc)
+    child, = _children(proc.pid)
+    proc.kill()
+    proc.wait(timeout=10)
+    deadline = time.monotonic() + INTERRUPT_GRACE + 5.0
+    while not _gone(child):
+        assert time.monotonic() < deadline, "the child outlived its parent"
+        time.sleep(0.1)
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    assert meta["status"] == "interrupted"
+    res = read(csv)
+    assert len(res) == (status_rows or round(meta["last_time"] / 0.1) + 1) > 0
