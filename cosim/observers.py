@@ -9,8 +9,11 @@ suffix), and `MemorySink` (for the Python API).
 """
 from __future__ import annotations
 
+import errno
+import functools
 import json
 import os
+import re
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -23,6 +26,29 @@ from .errors import OutputError, SetupError
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
     """The sink for a result file: Parquet for a ``.parquet`` suffix, else CSV."""
     return ParquetSink(path) if Path(path).suffix.lower() == ".parquet" else CsvSink(path)
+
+
+def describe_os_error(e: OSError) -> str:
+    """What went wrong writing a file, for a message: "the disk is full" for ENOSPC (and EDQUOT)."""
+    if e.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"the disk is full ({os.strerror(e.errno)})"
+    return e.strerror or str(e)
+
+
+def _naming_the_file(method):
+    """A sink method whose `OSError` names the sink's file: Arrow's errors name none, and give
+    the errno only in their text ("... Detail: [errno 28] No space left on device")."""
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except OSError as e:
+            if e.filename is not None:
+                raise
+            found = re.search(r"\[errno (\d+)\]", str(e))
+            code = e.errno or (int(found.group(1)) if found else None)
+            raise OSError(code, os.strerror(code) if code else str(e), str(self.path)) from e
+    return wrapper
 
 
 class _FileSink:
@@ -65,6 +91,7 @@ class CsvSink(_FileSink):
         self._file = None
         self._names: list[str] = []
 
+    @_naming_the_file
     def open(self, names: list[str]) -> None:
         import pyarrow as pa
 
@@ -74,6 +101,7 @@ class CsvSink(_FileSink):
         self._file.flush()
         self._names = names
 
+    @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
         import pyarrow as pa
         import pyarrow.csv as pcsv
@@ -87,6 +115,7 @@ class CsvSink(_FileSink):
             os.truncate(self.path, end)
             raise
 
+    @_naming_the_file
     def finish(self) -> None:
         """Close the file (no metadata)."""
         if self._file is not None:
@@ -114,6 +143,7 @@ class ParquetSink(_FileSink):
         self._writer = None
         self._schema = None
 
+    @_naming_the_file
     def open(self, names: list[str]) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
@@ -123,12 +153,14 @@ class ParquetSink(_FileSink):
         # 4x the write time (Snappy compression still shrinks constant columns)
         self._writer = pq.ParquetWriter(self.path, self._schema, use_dictionary=False)
 
+    @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
         import pyarrow as pa
 
         columns = np.ascontiguousarray(rows.T)
         self._writer.write_table(pa.Table.from_arrays(list(columns), schema=self._schema))
 
+    @_naming_the_file
     def finish(self, metadata_text: str | None = None) -> None:
         """Write the footer (with the run metadata, if any) and close the file."""
         if self._writer is not None:
@@ -214,7 +246,7 @@ class Recorder:
         except OSError as e:
             if self.journal is not None:
                 self.journal.close()
-            raise OutputError(f"the results cannot be written: {e.strerror or e}.", file=e.filename) from None
+            raise OutputError(f"the results cannot be written: {describe_os_error(e)}.", file=e.filename) from None
         self._count = self.journal.count if self.journal is not None else np.zeros(1, dtype=np.int64)
         self.rows = 0      # rows filled in the buffer
         self._written = 0  # rows of the buffer already handed to the sinks
@@ -267,7 +299,7 @@ class Recorder:
                 self.rows = self._written = 0
         except OSError as e:
             self.broken = e
-            raise OutputError(f"writing the results failed after {self.samples} rows: {e.strerror or e}; "
+            raise OutputError(f"writing the results failed after {self.samples} rows: {describe_os_error(e)}; "
                               "the rows written before are kept.",
                               file=e.filename) from None
         self._flush_at = time.monotonic() + self.flush_seconds
@@ -280,7 +312,7 @@ class Recorder:
             for sink in self.sinks:
                 sink.close(metadata)
         except OSError as e:
-            raise OutputError(f"closing the results failed: {e.strerror or e}.", file=e.filename) from None
+            raise OutputError(f"closing the results failed: {describe_os_error(e)}.", file=e.filename) from None
         finally:
             if self.journal is not None:
                 self.buffer = None
