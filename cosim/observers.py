@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import OutputError, SetupError
+from .errors import OutOfMemory, OutputError, SetupError
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
@@ -32,7 +32,16 @@ def describe_os_error(e: OSError) -> str:
     """What went wrong writing a file, for a message: "the disk is full" for ENOSPC (and EDQUOT)."""
     if e.errno in (errno.ENOSPC, errno.EDQUOT):
         return f"the disk is full ({os.strerror(e.errno)})"
+    if e.errno == errno.ENOMEM:
+        return f"the process ran out of memory ({os.strerror(e.errno)})"
     return e.strerror or str(e)
+
+
+def _write_error(text: str, e: OSError) -> OutputError:
+    """The `OutputError` (`OutOfMemory` for ENOMEM: a mapping of the journal could not be made)
+    of ``e``, ``text`` then what went wrong."""
+    kind = OutOfMemory if e.errno == errno.ENOMEM else OutputError
+    return kind(text.format(describe_os_error(e)), file=e.filename)
 
 
 def _naming_the_file(method):
@@ -246,7 +255,7 @@ class Recorder:
         except OSError as e:
             if self.journal is not None:
                 self.journal.close()
-            raise OutputError(f"the results cannot be written: {describe_os_error(e)}.", file=e.filename) from None
+            raise _write_error("the results cannot be written: {}.", e) from None
         self._count = self.journal.count if self.journal is not None else np.zeros(1, dtype=np.int64)
         self.rows = 0      # rows filled in the buffer
         self._written = 0  # rows of the buffer already handed to the sinks
@@ -299,9 +308,8 @@ class Recorder:
                 self.rows = self._written = 0
         except OSError as e:
             self.broken = e
-            raise OutputError(f"writing the results failed after {self.samples} rows: {describe_os_error(e)}; "
-                              "the rows written before are kept.",
-                              file=e.filename) from None
+            raise _write_error(f"writing the results failed after {self.samples} rows: {{}}; the rows written "
+                               "before are kept.", e) from None
         self._flush_at = time.monotonic() + self.flush_seconds
 
     def close(self, metadata: dict) -> None:
@@ -312,7 +320,7 @@ class Recorder:
             for sink in self.sinks:
                 sink.close(metadata)
         except OSError as e:
-            raise OutputError(f"closing the results failed: {describe_os_error(e)}.", file=e.filename) from None
+            raise _write_error("closing the results failed: {}.", e) from None
         finally:
             if self.journal is not None:
                 self.buffer = None

@@ -75,6 +75,9 @@ def _child(child: Callable[[], int], out_w: int, err_w: int, parent: int, alive_
         code = child()
     except KeyboardInterrupt:  # SIGINT before the run's own handler was installed
         code = 130
+    except MemoryError:  # outside the run (which reports its own, naming the result file): a plot, a report
+        print("cosim: the run failed: the process ran out of memory (its address space: see ulimit -v).",
+              file=sys.stderr)
     except BaseException:
         import traceback
         traceback.print_exc()

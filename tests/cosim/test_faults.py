@@ -250,3 +250,25 @@ def test_the_run_dies_with_its_killed_parent(tmp_path, faulty, fault, status_row
     assert meta["status"] == "interrupted"
     res = read(csv)
     assert len(res) == (status_rows or round(meta["last_time"] / 0.1) + 1) > 0
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
+def test_running_out_of_memory_is_one_message_naming_the_result(tmp_path, faulty):
+    """Issue 26: the address space exhausted mid-run (the FMU limits it at t = 1 as ``ulimit -v``
+    would; the master's in-memory copy of the samples then outgrows it): one message saying
+    memory ran out and naming the result file, exit 1, every recorded row in the CSV."""
+    import re
+
+    folder = _scenario(tmp_path, faulty, 6, fault_time=1.0, stop=1e6, step=0.1)
+    csv = tmp_path / "out.csv"
+    proc = _cosim(tmp_path, "run", str(folder), "-q", "-o", str(csv))
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 1 and "Traceback" not in err and "Error" not in err, err
+    found = re.fullmatch(rf"cosim: the run failed: {re.escape(str(csv))}: the process ran out of memory \(its "
+                         r"address space: see ulimit -v\) at t = (\S+); the (\d+) rows recorded before are kept\.\n", err)
+    assert found, err
+    res = read(csv)
+    assert len(res) == int(found.group(2)) > 10 and res["time"][-1] == pytest.approx(float(found.group(1)))
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    assert meta["status"] == "failed" and "ran out of memory" in meta["message"]
+    assert not csv.with_name("out.csv.journal").exists()
