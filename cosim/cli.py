@@ -184,7 +184,6 @@ def result_stem(scenario: str, parameter_sets: list[str]) -> str:
 def _run(args) -> int:
     from .instances import Unzipped
     from .journal import journal_path
-    from .observers import check_csv_names
     from .outputs import RESULT_SUFFIXES, check_output, plot_suffixes, scenario_files
     from .simulation import isolation_of, prepare
     from .supervisor import supervise
@@ -201,8 +200,6 @@ def _run(args) -> int:
         own = scenario_files(prepared.plan)
         check_output(output, own, what="result file", option="--output", suffixes=RESULT_SUFFIXES,
                      companions=[output.with_suffix(".json"), journal_path(output)])
-        if output.suffix.lower() == ".csv":
-            check_csv_names(prepared.plan.columns + [o.name for o in prepared.plan.system_outputs.values()], output)
         if args.plot is not None:
             check_output(Path(args.plot or output.with_suffix(".png")), own, what="plot", option="--plot",
                          suffixes=plot_suffixes())

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import OutOfMemory, OutputError, SetupError
+from .errors import OutOfMemory, OutputError
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
@@ -73,22 +73,17 @@ class _FileSink:
         return json.dumps(metadata, indent=2, default=str) + "\n"
 
 
-def check_csv_names(names: Sequence[str], file: str | Path) -> None:
-    """Refuse column names a result CSV cannot carry so that ``fmpy.util.read_csv`` reads
-    them back: a comma, a double quote, a line break or another control character (a
-    Parquet result holds any name)."""
-    for name in names:
-        bad = sorted({c for c in name if c in ',"' or ord(c) < 32 or ord(c) == 127})
-        if bad:
-            raise SetupError(f"the signal name {name!r} holds {', '.join(repr(c) for c in bad)}, which a result "
-                             "CSV cannot carry (fmpy.util.read_csv splits at commas and lines); rename the "
-                             "component or connector, or write Parquet (-o NAME.parquet).", file=str(file))
+def csv_header(names: Sequence[str]) -> str:
+    """The header line of a result CSV: each name quoted as RFC 4180 quotes a field (its ``"``
+    doubled), so a name may hold commas, quotes and line breaks; `cosim.results.read` reads
+    every such header, ``fmpy.util.read_csv`` those whose names hold none of the three."""
+    return ",".join('"' + n.replace('"', '""') + '"' for n in names) + "\n"
 
 
 class CsvSink(_FileSink):
     """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it.
 
-    A quoted header, then one line per sample, formatted by Arrow's C++ CSV writer: each
+    A quoted header (`csv_header`), then one line per sample, formatted by Arrow's C++ CSV writer: each
     float64 in the shortest decimal form that reads back to the same bits (``-0``, ``inf``,
     ``nan`` included), which ``fmpy.util.read_csv`` reads.  Formatting a chunk in C++ (without
     the GIL) instead of ``np.savetxt``'s Python loop over rows keeps the writer's share of a
@@ -104,9 +99,8 @@ class CsvSink(_FileSink):
     def open(self, names: list[str]) -> None:
         import pyarrow as pa
 
-        check_csv_names(names, self.path)
         self._file = pa.OSFile(str(self.path), "wb")
-        self._file.write((",".join(f'"{n}"' for n in names) + "\n").encode())
+        self._file.write(csv_header(names).encode())
         self._file.flush()
         self._names = names
 
