@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import sys
 import time as _time
 import warnings
 from dataclasses import dataclass, replace
@@ -96,6 +97,10 @@ class Grid:
                              f"{max(abs(self.start), abs(self.stop)):g} s ({RESOLUTION_STEPS} x {resolution:g} s, "
                              "the spacing of doubles there): communication times would repeat or drift.",
                              element="step size")
+        if not math.isfinite(self.stop - self.start):
+            raise SetupError(f"the stop time {self.stop:g} is {self.stop - self.start} s after the start time "
+                             f"{self.start:g}: the span overflows a double (at most {sys.float_info.max:g} s).",
+                             element="stop time", hint="Choose a stop time nearer the start.")
         steps = (self.stop - self.start) / self.step
         if not steps <= MAX_STEPS:
             raise SetupError(f"{self.stop:g} - {self.start:g} s in steps of {self.step:g} s is {steps:.3g} "

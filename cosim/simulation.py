@@ -84,8 +84,11 @@ def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: floa
         raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
     try:
         grid = Grid(start, stop, step)
-    except SetupError as e:  # name the SSD the times came from
-        raise SetupError(e.detail, file=file, element=e.element, hint=e.hint) from None
+    except SetupError as e:  # name the SSD the times came from, and where the stop time is given
+        element = e.element
+        if element == "stop time":
+            element = "--stop" if stop_time is not None else "ssd:DefaultExperiment stopTime"
+        raise SetupError(e.detail, file=file, element=element, hint=e.hint) from None
     return Prepared(plan, grid, algo, source)
 
 
