@@ -231,7 +231,8 @@ def _parent(pid: int, pipes: dict, journal: Path, timeout: float | None) -> int:
 def _conclude(watch: _Watch, status: int, journal: Path) -> int:
     """The exit status of the command once the child has ended, after recovering its journal
     when it did not finish its result files."""
-    stopped = watch.killed in ("grace", "second")
+    # killed when an FMU call did not return (not a child that had just ended by itself)
+    stopped = watch.killed in ("grace", "second") and os.WIFSIGNALED(status)
     code = 128 + watch.signum if stopped else 1
     if not journal.exists():  # finished, or ended before recording began
         if stopped:
@@ -241,7 +242,7 @@ def _conclude(watch: _Watch, status: int, journal: Path) -> int:
             return code
         code = os.waitstatus_to_exitcode(status)
         return code if code >= 0 else 128 - code
-    if watch.killed is not None:
+    if stopped or watch.killed == "timeout":
         how, state = watch.outcome()
     elif os.WIFSIGNALED(status):
         how, state = f"the process was killed by {signal.Signals(os.WTERMSIG(status)).name}", "crashed"
