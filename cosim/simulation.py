@@ -207,7 +207,10 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
                 detail = closing.detail if isinstance(closing, OutputError) else "out of memory"
                 error.detail += f" The metadata JSON could not be written either ({detail})"
                 error.args = (error._compose(),)
-        error.result = memory.array() if recorder is not None else None
+        try:
+            error.result = memory.array() if recorder is not None else None
+        except MemoryError:  # no memory left to join the samples: they are in the result file, if any
+            error.result = None
         if error is e:
             raise
         raise error from None
@@ -224,14 +227,17 @@ def _out_of_memory(e: BaseException, output: str | Path | None, execution: Execu
                    memory: MemorySink) -> BaseException:
     """The error a run ends with: ``e``, or when the process ran out of memory (a `MemoryError`,
     or a journal mapping refused, `OutOfMemory`: the address space exhausted, ``ulimit -v``) an
-    `OutOfMemory` naming the result file.  The samples kept in memory are dropped first (the
-    result file has them), so that closing the results has memory to work with."""
+    `OutOfMemory` naming the result file.  With a result file, the samples kept in memory are
+    dropped first (the file has them; the error's ``result`` is then empty), so that closing
+    the results has memory to work with."""
     if not isinstance(e, (MemoryError, OutOfMemory)):
         return e
-    memory.chunks.clear()
+    if output is not None:
+        memory.chunks.clear()
     rows = recorder.samples if recorder is not None else 0
     return OutOfMemory(f"the process ran out of memory (its address space: see ulimit -v) at t = "
-                       f"{execution.last_time:g}; the {rows} rows recorded before are kept.",
+                       f"{execution.last_time:g}; the {rows} rows recorded before are kept"
+                       + ("." if output is not None else " in the error's result, if memory allows."),
                        file=str(output) if output is not None else None)
 
 
