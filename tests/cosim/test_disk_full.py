@@ -17,8 +17,8 @@ from ssdgen import ssd_text, write_system
 
 @pytest.fixture
 def system(tmp_path, built_fmus) -> Path:
-    text = ssd_text("pair", {"step": ("Step.fmu", {"y": "output"}), "gain": ("Gain.fmu", {"u": "input", "y": "output"})},
-                    [("step", "y", "gain", "u")], stop=2.0, step=0.5)
+    components = {"step": ("Step.fmu", {"y": "output"}), "gain": ("Gain.fmu", {"u": "input", "y": "output"})}
+    text = ssd_text("pair", components, [("step", "y", "gain", "u")], stop=2.0, step=0.5)
     return write_system(tmp_path / "pair", {"Step.fmu": built_fmus["Step"], "Gain.fmu": built_fmus["Gain"]}, text)
 
 

@@ -262,7 +262,8 @@ def test_running_out_of_memory_is_one_message_naming_the_result(tmp_path, faulty
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 1 and "Traceback" not in err and "Error" not in err, err
     found = re.fullmatch(rf"cosim: the run failed: {re.escape(str(csv))}: the process ran out of memory \(its "
-                         r"address space: see ulimit -v\) at t = (\S+); the (\d+) rows recorded before are kept\.\n", err)
+                         r"address space: see ulimit -v\) at t = (\S+); the (\d+) rows recorded before are "
+                         r"kept\.\n", err)
     assert found, err
     res = read(csv)
     assert len(res) == int(found.group(2)) > 10 and res["time"][-1] == pytest.approx(float(found.group(1)))
