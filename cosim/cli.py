@@ -178,7 +178,6 @@ def _fail(e: CosimError, debug: bool) -> int:
 def _run(args) -> int:
     from .instances import Unzipped
     from .journal import journal_path
-    from .observers import check_csv_names
     from .outputs import RESULT_SUFFIXES, check_not_in_sweep, check_output, plot_suffixes, scenario_files
     from .safeio import lock_output, lock_path, partial_path
     from .simulation import isolation_of, prepare
@@ -198,8 +197,6 @@ def _run(args) -> int:
                      companions=[output.with_suffix(".json"), journal_path(output), partial_path(output),
                                  lock_path(output)])
         check_not_in_sweep(output)
-        if output.suffix.lower() == ".csv":
-            check_csv_names(prepared.plan.columns + [o.name for o in prepared.plan.system_outputs.values()], output)
         if args.plot is not None:
             check_output(Path(args.plot or output.with_suffix(".png")), own, what="plot", option="--plot",
                          suffixes=plot_suffixes())

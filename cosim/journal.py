@@ -49,9 +49,12 @@ class Journal:
         self.columns, self.chunk_rows = columns, chunk_rows
         self._file = open(self.path, "w+b")
         head = MAGIC + np.array([0, columns, self.offset, len(text)], dtype="<i8").tobytes() + text
-        self._file.write(head)
-        self._file.flush()
-        os.posix_fallocate(self._file.fileno(), 0, self.offset)
+        try:
+            self._file.write(head)
+            self._file.flush()
+        except OSError as e:
+            raise self._named(e) from None
+        self._reserve(0, self.offset)
         self._head = mmap.mmap(self._file.fileno(), _HEADER)
         #: the row counter in the mapped header (the recorder stores the rows done after each row)
         self.count = np.frombuffer(self._head, dtype="<i8", count=1, offset=8)
@@ -61,11 +64,21 @@ class Journal:
         """The next block of rows, reserved on disk (OSError ENOSPC if the disk is full)."""
         nbytes = self.chunk_rows * self.columns * 8
         start = self.offset + self._windows * nbytes
-        os.posix_fallocate(self._file.fileno(), start, nbytes)
+        self._reserve(start, nbytes)
         self._windows += 1
         # a plain ndarray on the mapping (np.memmap's Python-level indexing would cost ~20 % of a step)
         window = mmap.mmap(self._file.fileno(), nbytes, offset=start)
         return np.frombuffer(window, dtype="<f8").reshape(self.chunk_rows, self.columns)
+
+    def _reserve(self, start: int, nbytes: int) -> None:
+        try:
+            os.posix_fallocate(self._file.fileno(), start, nbytes)
+        except OSError as e:
+            raise self._named(e) from None
+
+    def _named(self, e: OSError) -> OSError:
+        """``e`` naming the journal (the message says which file could not grow)."""
+        return OSError(e.errno, e.strerror, str(self.path))
 
     def close(self) -> None:
         """Delete the journal (the result files are complete); the mappings go with their

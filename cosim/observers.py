@@ -14,21 +14,56 @@ the previous result as it was (`cosim.journal` keeps that run's rows).
 """
 from __future__ import annotations
 
+import errno
+import functools
 import json
 import os
+import re
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from .errors import OutputError, SetupError
+from .errors import OutOfMemory, OutputError
 from .safeio import partial_path, write_atomic
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
     """The sink for a result file: Parquet for a ``.parquet`` suffix, else CSV."""
     return ParquetSink(path) if Path(path).suffix.lower() == ".parquet" else CsvSink(path)
+
+
+def describe_os_error(e: OSError) -> str:
+    """What went wrong writing a file, for a message: "the disk is full" for ENOSPC (and EDQUOT)."""
+    if e.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"the disk is full ({os.strerror(e.errno)})"
+    if e.errno == errno.ENOMEM:
+        return f"the process ran out of memory ({os.strerror(e.errno)})"
+    return e.strerror or str(e)
+
+
+def _write_error(text: str, e: OSError) -> OutputError:
+    """The `OutputError` (`OutOfMemory` for ENOMEM: a mapping of the journal could not be made)
+    of ``e``, ``text`` then what went wrong."""
+    kind = OutOfMemory if e.errno == errno.ENOMEM else OutputError
+    return kind(text.format(describe_os_error(e)), file=e.filename)
+
+
+def _naming_the_file(method):
+    """A sink method whose `OSError` names the sink's file: Arrow's errors name none, and give
+    the errno only in their text ("... Detail: [errno 28] No space left on device")."""
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except OSError as e:
+            if e.filename is not None:
+                raise
+            found = re.search(r"\[errno (\d+)\]", str(e))
+            code = e.errno or (int(found.group(1)) if found else None)
+            raise OSError(code, os.strerror(code) if code else str(e), str(self.path)) from e
+    return wrapper
 
 
 class _FileSink:
@@ -52,22 +87,17 @@ class _FileSink:
         return json.dumps(metadata, indent=2, default=str) + "\n"
 
 
-def check_csv_names(names: Sequence[str], file: str | Path) -> None:
-    """Refuse column names a result CSV cannot carry so that ``fmpy.util.read_csv`` reads
-    them back: a comma, a double quote, a line break or another control character (a
-    Parquet result holds any name)."""
-    for name in names:
-        bad = sorted({c for c in name if c in ',"' or ord(c) < 32 or ord(c) == 127})
-        if bad:
-            raise SetupError(f"the signal name {name!r} holds {', '.join(repr(c) for c in bad)}, which a result "
-                             "CSV cannot carry (fmpy.util.read_csv splits at commas and lines); rename the "
-                             "component or connector, or write Parquet (-o NAME.parquet).", file=str(file))
+def csv_header(names: Sequence[str]) -> str:
+    """The header line of a result CSV: each name quoted as RFC 4180 quotes a field (its ``"``
+    doubled), so a name may hold commas, quotes and line breaks; `cosim.results.read` reads
+    every such header, ``fmpy.util.read_csv`` those whose names hold none of the three."""
+    return ",".join('"' + n.replace('"', '""') + '"' for n in names) + "\n"
 
 
 class CsvSink(_FileSink):
     """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it.
 
-    A quoted header, then one line per sample, formatted by Arrow's C++ CSV writer: each
+    A quoted header (`csv_header`), then one line per sample, formatted by Arrow's C++ CSV writer: each
     float64 in the shortest decimal form that reads back to the same bits (``-0``, ``inf``,
     ``nan`` included), which ``fmpy.util.read_csv`` reads.  Formatting a chunk in C++ (without
     the GIL) instead of ``np.savetxt``'s Python loop over rows keeps the writer's share of a
@@ -79,15 +109,16 @@ class CsvSink(_FileSink):
         self._file = None
         self._names: list[str] = []
 
+    @_naming_the_file
     def open(self, names: list[str]) -> None:
         import pyarrow as pa
 
-        check_csv_names(names, self.path)
         self._file = pa.OSFile(str(self.part), "wb")
-        self._file.write((",".join(f'"{n}"' for n in names) + "\n").encode())
+        self._file.write(csv_header(names).encode())
         self._file.flush()
         self._names = names
 
+    @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
         import pyarrow as pa
         import pyarrow.csv as pcsv
@@ -101,6 +132,7 @@ class CsvSink(_FileSink):
             os.truncate(self.part, end)
             raise
 
+    @_naming_the_file
     def finish(self) -> None:
         """Close the file (no metadata)."""
         if self._file is not None:
@@ -129,6 +161,7 @@ class ParquetSink(_FileSink):
         self._writer = None
         self._schema = None
 
+    @_naming_the_file
     def open(self, names: list[str]) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
@@ -138,12 +171,14 @@ class ParquetSink(_FileSink):
         # 4x the write time (Snappy compression still shrinks constant columns)
         self._writer = pq.ParquetWriter(self.part, self._schema, use_dictionary=False)
 
+    @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
         import pyarrow as pa
 
         columns = np.ascontiguousarray(rows.T)
         self._writer.write_table(pa.Table.from_arrays(list(columns), schema=self._schema))
 
+    @_naming_the_file
     def finish(self, metadata_text: str | None = None) -> None:
         """Write the footer (with the run metadata, if any) and close the file."""
         if self._writer is not None:
@@ -229,7 +264,7 @@ class Recorder:
         except OSError as e:
             if self.journal is not None:
                 self.journal.close()
-            raise OutputError(f"the results cannot be written: {e.strerror or e}.", file=e.filename) from None
+            raise _write_error("the results cannot be written: {}.", e) from None
         self._count = self.journal.count if self.journal is not None else np.zeros(1, dtype=np.int64)
         self.rows = 0      # rows filled in the buffer
         self._written = 0  # rows of the buffer already handed to the sinks
@@ -282,9 +317,8 @@ class Recorder:
                 self.rows = self._written = 0
         except OSError as e:
             self.broken = e
-            raise OutputError(f"writing the results failed after {self.samples} rows: {e.strerror or e}; "
-                              "the rows written before are kept.",
-                              file=e.filename) from None
+            raise _write_error(f"writing the results failed after {self.samples} rows: {{}}; the rows written "
+                               "before are kept.", e) from None
         self._flush_at = time.monotonic() + self.flush_seconds
 
     def close(self, metadata: dict) -> None:
@@ -295,7 +329,7 @@ class Recorder:
             for sink in self.sinks:
                 sink.close(metadata)
         except OSError as e:
-            raise OutputError(f"closing the results failed: {e.strerror or e}.", file=e.filename) from None
+            raise _write_error("closing the results failed: {}.", e) from None
         finally:
             if self.journal is not None:
                 self.buffer = None
