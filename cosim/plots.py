@@ -149,12 +149,18 @@ def figure(result: np.ndarray, panels: Sequence[Sequence[str]], *, scenario: str
 
 def plot(result: np.ndarray, panels: Sequence[Sequence[str]], path: str | Path, *, scenario: str,
          metadata: Mapping | None = None) -> Path:
-    """`figure` written as a PNG."""
+    """`figure` written as an image (format from the suffix), through ``<path>.part`` and one
+    rename (`cosim.safeio.atomic_path`): a reader never sees half a plot."""
     import matplotlib.pyplot as plt
+
+    from .safeio import atomic_path
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig = figure(result, panels, scenario=scenario, metadata=metadata)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        with atomic_path(path) as part:
+            fig.savefig(part, dpi=110, format=path.suffix[1:] or "png")
+    finally:
+        plt.close(fig)
     return path

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 import pytest
 
 from cosim.cli import main
@@ -34,3 +36,18 @@ def test_plot_and_report_show_dollar_signs_literally(tmp_path, built_fmus, capsy
 
 def test_plain_escapes_every_dollar():
     assert plain("a $b$ c $") == r"a \$b\$ c \$" and plain("no math") == "no math"
+
+
+def test_a_plot_that_cannot_be_finished_leaves_the_earlier_one(tmp_path):
+    """The image goes through ``<plot>.part`` and one rename: a save that fails half way (here
+    the ``.part`` name is taken by a folder) raises and leaves the earlier plot as it was."""
+    from cosim.plots import plot
+
+    result = np.array([(0.0, 1.0), (1.0, 2.0)], dtype=[("time", float), ("gain.y", float)])
+    path = plot(result, [["gain.y"]], tmp_path / "r.png", scenario="s")
+    before = path.read_bytes()
+    assert before.startswith(b"\x89PNG") and not (tmp_path / "r.png.part").exists()
+    (tmp_path / "r.png.part").mkdir()
+    with pytest.raises(OSError):
+        plot(result[:1], [["gain.y"]], path, scenario="changed")
+    assert path.read_bytes() == before
