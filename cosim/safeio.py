@@ -220,7 +220,8 @@ def extract_archive(path: Path, dest: Path, limit: int | None = None, required: 
     ``limit`` is the most bytes the archive may expand to (see `max_unpacked_bytes`);
     ``required`` names a member the archive must hold at its root.  The FMUs among the
     members are archives too, opened and extracted by fmpy later: their directories are
-    checked here the same way (`check_archive`), naming them ``archive.ssp!member.fmu``.
+    checked here the same way (`check_archive`), naming them ``archive.ssp!member.fmu``; a
+    member that is no zip archive is left to the component that uses it.
     """
     limit, source = max_unpacked_bytes(limit)
     with _open(path, str(path)) as archive:
@@ -234,8 +235,11 @@ def extract_archive(path: Path, dest: Path, limit: int | None = None, required: 
         for info in infos:
             total = _extract_member(archive, info, path, dest, total, limit, source)
     for info in infos:
-        if info.filename.lower().endswith(".fmu") and not info.is_dir():
-            check_archive(_target(dest, info.filename), limit, display=f"{path}!{info.filename}")
+        fmu = _target(dest, info.filename)
+        # one that is no zip archive at all (empty, truncated) is refused by the component that
+        # uses it, naming both (cosim.loadable.check_fmu_file); an unused one is never opened
+        if info.filename.lower().endswith(".fmu") and not info.is_dir() and zipfile.is_zipfile(fmu):
+            check_archive(fmu, limit, display=f"{path}!{info.filename}")
 
 
 def check_archive(path: Path, limit: int | None = None, display: str | None = None) -> None:

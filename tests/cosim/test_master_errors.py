@@ -325,3 +325,21 @@ def test_an_unusable_fmu_file_names_its_component(tmp_path, fmus, capsys, fault)
     assert f"SystemStructure.ssd, ssd:Component 'src' (line " in err and f"its FMU {named} is not a usable FMU " \
            "archive" in err and "not a zip archive" in err, err
     assert ("0 bytes" in err) == (fault == "empty") and ("the SSD itself" in err) == (fault == "the SSD")
+
+
+@pytest.mark.parametrize("fault", ["empty", "truncated"])
+def test_an_unusable_fmu_in_an_ssp_archive_names_its_component(tmp_path, fmus, capsys, fault):
+    """Issue 26: inside an .ssp archive, a zero-byte or truncated FMU was refused while the
+    archive was unpacked, naming 'archive.ssp!resources/x.fmu' but not the component."""
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    fmu = folder / "resources" / "ramp.fmu"
+    fmu.write_bytes(b"" if fault == "empty" else fmu.read_bytes()[:3000])
+    archive = tmp_path / "system.ssp"
+    with zipfile.ZipFile(archive, "w") as packed:
+        for member in sorted(folder.rglob("*")):
+            if member.is_file():
+                packed.write(member, member.relative_to(folder).as_posix())
+    err = _cli_error(capsys, "validate", str(archive))
+    assert f"{archive}!SystemStructure.ssd, ssd:Component 'src' (line " in err and "resources/ramp.fmu is not a " \
+           "usable FMU archive" in err and "not a zip archive" in err, err
+    assert ("0 bytes" in err) == (fault == "empty")
