@@ -20,16 +20,16 @@ start value of each solve is the solution at the previous communication point.
 Newton (``method="newton"``, the default): a loop whose sweeps do not contract fast enough
 to converge in about as many sweeps as a Newton solve costs (three sweeps decide: the last
 residual ratio predicts the rest; after a point that needed Newton, one sweep decides), or
-whose sweeps diverge, is solved instead as
-g(y) − y = 0 by MINPACK's hybrd (Powell's hybrid Newton method, ``scipy.optimize.root``
-with ``method="hybr"``; the Jacobian by finite differences, one sweep per loop output,
-then Broyden updates), from the best sweep so far, as OMSimulator solves loops by Newton.
-It ends at the first point it tries that passes the same test as the sweeps (one sweep at
-it changes no loop output by more than the tolerance), so the buffers hold that sweep; if
-none does, the fixed point goes on from hybrd's answer for the sweeps left (the fallback).  Loops that converge in a few sweeps (the declared
-loops of FMUs that omit ``dependencies``) never reach Newton, so their results are those of
-the fixed point bit for bit.  Newton needs Real loop outputs only; with an Integer or
-Boolean one the fixed point runs alone.
+whose sweeps diverge, is solved instead as g(y) − y = 0 by MINPACK's hybrd (Powell's hybrid
+Newton method, ``scipy.optimize.root`` with ``method="hybr"``; the Jacobian by finite
+differences, one sweep per loop output, then Broyden updates), from the best sweep so far,
+as OMSimulator solves loops by Newton.  It ends at the first point it tries that passes the
+same test as the sweeps (one sweep at it changes no loop output by more than the
+tolerance), so the buffers hold that sweep; if none does, the fixed point goes on from
+hybrd's answer for the sweeps left (the fallback).  Loops that converge in a few sweeps
+(the declared loops of FMUs that omit ``dependencies``) never reach Newton, so their
+results are those of the fixed point bit for bit.  Newton needs Real loop outputs only;
+with an Integer or Boolean one the fixed point runs alone.
 
 A NaN or infinity in a loop output is not a convergence failure: the run stops naming the
 component and variable that produced it first in the sweep (its inputs were finite), and t.
@@ -212,7 +212,7 @@ class LoopSolver:
                 current = np.where(self._relaxed_mask(), x + s.relaxation * (current - x), current)
                 self._write(current)
             x = current
-        self._fail(residual, why)
+        raise self._not_converged(residual, why)
 
     def _relaxed_mask(self) -> np.ndarray:
         return np.concatenate([np.full(len(w.positions), w.relax) for w in self.watched])
@@ -256,12 +256,12 @@ class LoopSolver:
         self.residual_max = max(self.residual_max, residual)
         return self._sweeps, residual
 
-    def _fail(self, residual: float, why: str):
+    def _not_converged(self, residual: float, why: str) -> RunError:
         s = self.settings
         t = self._t
         loops = "; ".join(loop.describe() for loop in self.loops)
         newton = f" {why};" if why else ""
-        raise RunError(f"the algebraic loop did not converge at t = {t:g}: after {self._sweeps} iterations the "
+        return RunError(f"the algebraic loop did not converge at t = {t:g}: after {self._sweeps} iterations the "
                        f"loop outputs still change by {residual:.3g} times the tolerance (rtol {s.rtol:g}, atol "
                        f"{s.atol:g}, relaxation {s.relaxation:g});{newton} loop: {loops}.", time=t,
                        component=", ".join(c for loop in self.loops for c in loop.components),
