@@ -11,7 +11,8 @@ compiled here (tests/cfmus.py) with true direct feedthrough:
   step) and a stiff damper-spring
   (F = -k x - c v); the loop gain c dt / m = 20 makes every sweep 20 times larger;
 * a block that returns NaN from finite inputs inside the iteration: named, not reported as
-  a convergence failure.
+  a convergence failure; one that returns NaN only outside its domain, which the diverging
+  sweeps reach: Newton takes over from the best sweep and solves the loop.
 """
 from __future__ import annotations
 
@@ -58,6 +59,11 @@ MODELS = {
              "static void start(S *s) { }\n"
              "static void calculate(S *s) { s->r[1] = 0.5 * s->r[0] + 100.0 * s->time; }\n"
              "static int step(S *s, double t, double h) { return 0; }\n"),
+    "Steep": ([("u", 0, "input", 0.0), ("y", 1, "output", None)], {"y": ["u"]},
+              "#include <math.h>\n"
+              "static void start(S *s) { }\n"
+              "static void calculate(S *s) { s->r[1] = fabs(s->r[0]) > 50.0 ? NAN : -30.0 * s->r[0] + 1.0; }\n"
+              "static int step(S *s, double t, double h) { return 0; }\n"),
 }
 
 
@@ -161,3 +167,20 @@ def test_cli_runs_the_nested_loop_with_either_method(tmp_path, fmus, capsys):
     assert "did not converge at t = 0: after 100 iterations" in capsys.readouterr().err
     assert main(["run", str(folder), "-o", str(tmp_path / "g.csv"), "-q", "--loop-method", "fixed-point",
                  "--loop-iterations", "1000"]) == 0
+
+
+STEEP_LOOP = {"p": ("Steep.fmu", {"u": "input", "y": "output"}), "r": ("Ramp.fmu", {"u": "input", "y": "output"})}
+STEEP_WIRES = [("p", "y", "r", "u"), ("r", "y", "p", "u")]
+
+
+def test_sweeps_that_diverge_out_of_an_fmus_domain_are_taken_over_by_newton(tmp_path, fmus):
+    """p.y = −30 r.y + 1 (NaN for |r.y| > 50), r.y = 0.5 p.y + 100 t: the sweeps grow 15-fold and
+    leave p's domain within a few, from the first solve (t = 0, inputs at 0); the answer
+    p.y = (1 − 3000 t) / 16 is inside it."""
+    folder = _system(tmp_path, fmus, STEEP_LOOP, STEEP_WIRES, stop=0.1, step=0.01)
+    with pytest.raises(RunError, match=r"component 'p': output 'y' is nan at t = 0 \(in iteration [2-9]"):
+        cosim.simulate(folder, loop_settings=LoopSettings(method="fixed-point"))
+    out = tmp_path / "o.csv"
+    ours = cosim.simulate(folder, output=out)
+    np.testing.assert_allclose(ours["p.y"], (1 - 3000 * ours["time"]) / 16, rtol=1e-9, atol=1e-12)
+    assert _meta(out)["newton_solves"] >= len(ours) - 1
