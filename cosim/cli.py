@@ -62,6 +62,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--loop-iterations", type=int, default=100, help="iterations before a loop fails (100)")
     run.add_argument("--relaxation", type=float, default=1.0, help="relaxation factor in (0, 1] (1: plain "
                                                                     "fixed point)")
+    run.add_argument("--loop-method", choices=["newton", "fixed-point"], default="newton",
+                     help="loop solver: fixed-point sweeps, Newton's method where they are slow or diverge "
+                          "(newton, default), or the sweeps alone (fixed-point)")
     run.add_argument("--kernel", choices=["auto", "native", "python"], default="auto",
                      help="stepping loop: the compiled one where it can run, else the Python one (auto, "
                           "default; the metadata says which and why), the compiled one or an error (native), "
@@ -245,7 +248,8 @@ def _execute(args, prepared, name: str, output: Path) -> int:
     panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
               else default_panels(signal_info(plan), outputs + inputs))
     settings = LoopSettings(rtol=args.loop_tolerance[0], atol=args.loop_tolerance[1],
-                            max_iterations=args.loop_iterations, relaxation=args.relaxation)
+                            max_iterations=args.loop_iterations, relaxation=args.relaxation,
+                            method=args.loop_method)
     grid = prepared.grid
     print(f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
           f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "

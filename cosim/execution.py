@@ -315,11 +315,14 @@ class Execution:
 
     def _loop_solver(self, settings: LoopSettings) -> LoopSolver:
         """`cosim.loops.LoopSolver` over the exchange's output buffers: the loop outputs of each type."""
-        loop_outputs = {f"{c}.{v}" for loop in self.plan.algebraic_loops for c, v in loop.outputs}
-        watched = [Watched(ty.Y, np.array([i for i, n in enumerate(ty.out_names) if n in loop_outputs],
-                                          dtype=np.intp), ty.type_name == "Real")
-                   for ty in self.typed if not ty.strings]
-        return LoopSolver(self.plan.algebraic_loops, watched, settings)
+        loop_outputs = {f"{c}.{v}": (c, v) for loop in self.plan.algebraic_loops for c, v in loop.outputs}
+        watched = []
+        for ty in self.typed:
+            if not ty.strings:
+                positions = [i for i, n in enumerate(ty.out_names) if n in loop_outputs]
+                watched.append(Watched(ty.Y, np.array(positions, dtype=np.intp), ty.type_name == "Real",
+                                       [loop_outputs[ty.out_names[i]] for i in positions]))
+        return LoopSolver(self.plan.algebraic_loops, watched, settings, self.plan.feedthrough_sequence)
 
     # ----------------------------------------------------------------- set-up
 

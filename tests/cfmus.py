@@ -24,7 +24,7 @@ import subprocess
 import zipfile
 from pathlib import Path
 
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 COMMON = r"""
@@ -48,6 +48,8 @@ FMI3_OTHER_TYPES = "".join(
 
 FMI2 = COMMON + r"""
 typedef unsigned int VR;
+typedef struct { int newDiscreteStatesNeeded, terminateSimulation, nominalsOfContinuousStatesChanged,
+                 valuesOfContinuousStatesChanged, nextEventTimeDefined; double nextEventTime; } EventInfo;
 const char *fmi2GetTypesPlatform(void) { return "default"; }
 const char *fmi2GetVersion(void) { return "2.0"; }
 static void start(S *s);
@@ -148,10 +150,40 @@ int fmi3GetNominalsOfContinuousStates(void *c, double x[], size_t nx) {
     for (size_t k = 0; k < nx; k++) x[k] = 1.0; return 0; }
 int fmi3CompletedIntegratorStep(void *c, bool noPrior, bool *enterEventMode, bool *terminate) {
     *enterEventMode = false; *terminate = false; return 0; }
+#ifndef CUSTOM_UPDATE
 int fmi3UpdateDiscreteStates(void *c, bool *needUpdate, bool *terminate, bool *nominalsChanged, bool *valuesChanged,
         bool *nextDefined, double *next) {
     event((S *)c); *needUpdate = false; *terminate = false; *nominalsChanged = false; *valuesChanged = true;
     *nextDefined = false; *next = 0.0; return 0; }
+#endif
+"""
+
+#: FMI 2.0 Model Exchange (``model_exchange=True``), the same body functions as `FMI3_ME`; a body
+#: that ``#define``s ``CUSTOM_UPDATE`` writes its own fmi2NewDiscreteStates (fmi3UpdateDiscreteStates
+#: for FMI 3.0), e.g. one that bends the standard.
+FMI2_ME = r"""
+static void derivatives(S *s, double dx[]);
+static void indicators(S *s, double z[]);
+static void event(S *s);
+int fmi2EnterEventMode(void *c) { return 0; }
+int fmi2EnterContinuousTimeMode(void *c) { return 0; }
+int fmi2SetTime(void *c, double t) { ((S *)c)->time = t; return 0; }
+int fmi2SetContinuousStates(void *c, const double x[], size_t nx) {
+    S *s = c; for (size_t k = 0; k < nx; k++) s->r[k] = x[k]; return 0; }
+int fmi2GetContinuousStates(void *c, double x[], size_t nx) {
+    S *s = c; for (size_t k = 0; k < nx; k++) x[k] = s->r[k]; return 0; }
+int fmi2GetDerivatives(void *c, double dx[], size_t nx) { derivatives((S *)c, dx); return 0; }
+int fmi2GetEventIndicators(void *c, double z[], size_t nz) { indicators((S *)c, z); return 0; }
+int fmi2GetNominalsOfContinuousStates(void *c, double x[], size_t nx) {
+    for (size_t k = 0; k < nx; k++) x[k] = 1.0; return 0; }
+int fmi2CompletedIntegratorStep(void *c, int noPrior, int *enterEventMode, int *terminate) {
+    *enterEventMode = 0; *terminate = 0; return 0; }
+#ifndef CUSTOM_UPDATE
+int fmi2NewDiscreteStates(void *c, EventInfo *info) {
+    event((S *)c); info->newDiscreteStatesNeeded = 0; info->terminateSimulation = 0;
+    info->nominalsOfContinuousStatesChanged = 0; info->valuesOfContinuousStatesChanged = 1;
+    info->nextEventTimeDefined = 0; info->nextEventTime = 0.0; return 0; }
+#endif
 """
 
 PLATFORM = {"2.0": "linux64", "3.0": "x86_64-linux"}
@@ -187,10 +219,11 @@ def fmi2_description(name: str, variables: list[tuple[str, int, str, float | Non
 def build_c_fmu(dest: Path, identifier: str, model_description: str, body: str, fmi: str = "2.0",
                 model_exchange: bool = False) -> Path:
     """Compile ``body`` (see the module docstring) into ``dest/<identifier>.fmu`` with
-    ``model_description`` as its modelDescription.xml; ``model_exchange``: FMI 3.0 only."""
-    prelude, apis = (FMI2, [FMU2Slave]) if fmi == "2.0" else (FMI3, [FMU3Slave, FMU3Model])
+    ``model_description`` as its modelDescription.xml; ``model_exchange``: the Model Exchange
+    functions too (`FMI2_ME`, `FMI3_ME`)."""
+    prelude, apis = (FMI2, [FMU2Slave, FMU2Model]) if fmi == "2.0" else (FMI3, [FMU3Slave, FMU3Model])
     prefix = "fmi2" if fmi == "2.0" else "fmi3"
-    source = prelude + body + (FMI3_ME if model_exchange else "")
+    source = prelude + body + ((FMI2_ME if fmi == "2.0" else FMI3_ME) if model_exchange else "")
     defined = set(re.findall(rf"\b({prefix}\w+)\s*\(", source))
     names = sorted({name for api in apis for name in dir(api) if name.startswith(prefix)} - defined)
     stubs = "".join(f"int {name}() {{ return 3; }}\n" for name in names)

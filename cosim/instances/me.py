@@ -45,6 +45,10 @@ from .fmi3 import FMI3Instance
 FMI_OK, FMI_DISCARD, FMI_ERROR = 0, 2, 3
 #: Events handled within one communication step before the FMU is declared to chatter.
 MAX_EVENTS_PER_STEP = 1000
+#: fmi2NewDiscreteStates / fmi3UpdateDiscreteStates calls in one Event Mode before the FMU is
+#: declared not to converge (FMI 2.0 §3.2.4's loop has no bound; a model that needs more
+#: super-dense iterations than this at one time instant is stuck).
+MAX_DISCRETE_ITERATIONS = 1000
 
 
 class _NoInput:
@@ -83,6 +87,7 @@ class Integrated:
         self._next_event: float | None = None
         self._callback_failure: tuple[int, str] | None = None
         self._events = {"input": 0, "time": 0, "state": 0, "step": 0}
+        self._event_time = 0.0  # the time of the Event Mode under way, for `_not_converging`
 
     @property
     def events(self) -> dict[str, int]:
@@ -95,6 +100,7 @@ class Integrated:
         §3.2.3 and §3.2.4's loop, FMI 3.0 §3.2), so outputs reflect the initial state; start the
         solver."""
         self.slave.exitInitializationMode()
+        self._event_time = self._start
         if self._discrete_iteration():
             raise RuntimeError("the FMU requested termination during its initial event iteration")
         self.slave.enterContinuousTimeMode()
@@ -185,6 +191,7 @@ class Integrated:
         solver restart from the FMU's states (FMI 2.0 §3.2.2).  True if the FMU asks to stop."""
         for kind in kinds:
             self._events[kind] += 1
+        self._event_time = time
         self.slave.enterEventMode()
         if self._discrete_iteration():
             return True
@@ -198,6 +205,12 @@ class Integrated:
         self.messages.append(f"[{STATUS.get(status, status)}] {function} failed while integrating near "
                              f"t = {time:g}")
         return status
+
+    def _not_converging(self, function: str, flag: str) -> RuntimeError:
+        """The error for a discrete-state iteration that keeps asking for more."""
+        return RuntimeError(f"component '{self.name}': {function} still sets {flag} after "
+                            f"{MAX_DISCRETE_ITERATIONS} iterations at t = {self._event_time:g} "
+                            "(the event iteration does not converge)")
 
     def _terminated(self, time: float) -> int:
         self.messages.append(f"[Discard] the FMU requested terminateSimulation at t = {time:g}")
@@ -222,17 +235,20 @@ class MEInstance(Integrated, FMI2Instance):
         self.slave.setupExperiment(tolerance=self.settings.rtol, startTime=start, stopTime=stop)
 
     def _discrete_iteration(self) -> bool:
-        """fmi2NewDiscreteStates until no new discrete states are needed; keeps the next time
-        event.  True if the FMU asks to terminate."""
-        info = fmi2EventInfo()
-        info.newDiscreteStatesNeeded = 1
-        while info.newDiscreteStatesNeeded != fmi2False:
+        """fmi2NewDiscreteStates until no new discrete states are needed, at most
+        `MAX_DISCRETE_ITERATIONS` times; keeps the next time event.  True if the FMU asks to
+        terminate.  Each call gets a fresh zeroed fmi2EventInfo, as fmpy's ``newDiscreteStates``
+        does: an FMU that only ever sets newDiscreteStatesNeeded (never writes fmi2False) then
+        ends the iteration instead of hanging it."""
+        for _ in range(MAX_DISCRETE_ITERATIONS):
+            info = fmi2EventInfo()
             self.slave.fmi2NewDiscreteStates(self.component, ctypes.byref(info))
             if info.terminateSimulation != fmi2False:
                 return True
-        self._next_event = info.nextEventTime if info.nextEventTimeDefined != fmi2False else None
-        return False
-
+            if info.newDiscreteStatesNeeded == fmi2False:
+                self._next_event = info.nextEventTime if info.nextEventTimeDefined != fmi2False else None
+                return False
+        raise self._not_converging("fmi2NewDiscreteStates", "newDiscreteStatesNeeded")
 
     def _read_inputs(self) -> bytes:
         """The inputs as set by the execution (fmi2GetReal on every input), to detect a jump."""
@@ -264,15 +280,16 @@ class ME3Instance(Integrated, FMI3Instance):
         self.slave.enterInitializationMode(tolerance=self.settings.rtol, startTime=self._start, stopTime=self._stop)
 
     def _discrete_iteration(self) -> bool:
-        """fmi3UpdateDiscreteStates until no update is needed; keeps the next time event.
-        True if the FMU asks to terminate."""
-        needed = True
-        while needed:
+        """fmi3UpdateDiscreteStates until no update is needed, at most `MAX_DISCRETE_ITERATIONS`
+        times; keeps the next time event.  True if the FMU asks to terminate."""
+        for _ in range(MAX_DISCRETE_ITERATIONS):  # fmpy passes fresh zeroed flags on every call
             needed, terminate, _, _, next_defined, next_time = self.slave.updateDiscreteStates()
             if terminate:
                 return True
-        self._next_event = next_time if next_defined else None
-        return False
+            if not needed:
+                self._next_event = next_time if next_defined else None
+                return False
+        raise self._not_converging("fmi3UpdateDiscreteStates", "discreteStatesNeedUpdate")
 
     def _read_inputs(self) -> bytes:
         if not self._n_inputs:

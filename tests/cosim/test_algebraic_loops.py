@@ -143,29 +143,39 @@ def _affine_loop(tmp_path, cfmus, a1: float, a2: float, b1: float = 1.0, b2: flo
     return write_system(tmp_path / f"affine{a1}_{a2}", {"Affine.fmu": cfmus["Affine_true"]}, text)
 
 
-def test_a_true_loop_converges_to_its_solution(tmp_path, cfmus):
-    """y_p = 0.5 y_q + 1, y_q = 0.8 y_p + 2: y_p = 2/0.6, y_q = 0.8 y_p + 2; contraction 0.4 per sweep."""
+@pytest.mark.parametrize("method", ["fixed-point", "newton"])
+def test_a_true_loop_converges_to_its_solution(tmp_path, cfmus, method):
+    """y_p = 0.5 y_q + 1, y_q = 0.8 y_p + 2: y_p = 2/0.6, y_q = 0.8 y_p + 2; contraction 0.4 per
+    sweep: some 25 sweeps, where Newton (after three sweeps judge the contraction too slow) needs
+    a Jacobian (two sweeps) and a step or two."""
     out = tmp_path / "o.csv"
-    res = cosim.simulate(_affine_loop(tmp_path, cfmus, 0.5, 0.8), output=out)
+    res = cosim.simulate(_affine_loop(tmp_path, cfmus, 0.5, 0.8), output=out,
+                         loop_settings=LoopSettings(method=method))
     np.testing.assert_allclose(res["p.y"], 2.0 / 0.6, rtol=1e-9)
     np.testing.assert_allclose(res["q.y"], 0.8 * 2.0 / 0.6 + 2.0, rtol=1e-9)
     meta = json.loads(out.with_suffix(".json").read_text())["algebraic_loops"]
     assert meta["loops"] == ["p.y (output) -> q.u (input) -> q.y (output) -> p.u (input) -> p.y (output)"] \
         or meta["loops"] == ["q.y (output) -> p.u (input) -> p.y (output) -> q.u (input) -> q.y (output)"]
-    assert 15 <= meta["iterations_max"] <= 40     # 0.4^k below 1e-10 relative
-    assert meta["iterations_total"] > meta["solves"]
+    assert meta["iterations_total"] > meta["solves"] and meta["fallbacks"] == 0
+    if method == "fixed-point":
+        assert 15 <= meta["iterations_max"] <= 40     # 0.4^k below 1e-10 relative
+        assert meta["newton_solves"] == 0
+    else:
+        assert meta["iterations_max"] <= 10 and meta["newton_solves"] == 1   # later solves start at the answer
 
 
-def test_a_diverging_loop_fails_clearly_and_relaxation_makes_it_converge(tmp_path, cfmus):
-    """a1 a2 = -2: the plain fixed point diverges; with ω = 0.3 it contracts by |1 + 0.3 (-2 - 1)| = 0.1."""
+def test_a_diverging_loop_fails_clearly_and_relaxation_or_newton_makes_it_converge(tmp_path, cfmus):
+    """a1 a2 = -2: the plain fixed point diverges; with ω = 0.3 it contracts by |1 + 0.3 (-2 - 1)| = 0.1;
+    Newton (the default) takes over once three sweeps show the divergence."""
     folder = _affine_loop(tmp_path, cfmus, 2.0, -1.0)
     with pytest.raises(RunError, match=r"algebraic loop did not converge at t = 0: after \d+ iterations") as e:
-        cosim.simulate(folder)
+        cosim.simulate(folder, loop_settings=LoopSettings(method="fixed-point"))
     assert "p.y (output)" in str(e.value) and "--relaxation" in str(e.value)
-    res = cosim.simulate(folder, loop_settings=LoopSettings(relaxation=0.3))
     y_p = (2.0 * 2.0 + 1.0) / (1.0 - 2.0 * -1.0)
-    np.testing.assert_allclose(res["p.y"], y_p, rtol=1e-9)
-    np.testing.assert_allclose(res["q.y"], -y_p + 2.0, rtol=1e-9)
+    for settings in (LoopSettings(method="fixed-point", relaxation=0.3), LoopSettings()):
+        res = cosim.simulate(folder, loop_settings=settings)
+        np.testing.assert_allclose(res["p.y"], y_p, rtol=1e-9)
+        np.testing.assert_allclose(res["q.y"], -y_p + 2.0, rtol=1e-9)
 
 
 def test_cli_names_the_loop_and_runs_it_both_ways(tmp_path, cfmus, capsys):

@@ -53,8 +53,9 @@ def test_gauss_seidel_is_a_different_but_consistent_coupling(mass_spring, gemseo
 
 
 def test_add_wired_into_a_loop_is_an_algebraic_loop(tmp_path, gemseo):
-    """y_a = y_b + 1, y_b = y_a + 0 has no solution: the loop iteration (cosim.loops) fails at
-    initialisation, naming every variable on the loop (before issue 21 it was refused unrun)."""
+    """y_a = y_b + 1, y_b = y_a + 0 has no solution: the loop iteration (cosim.loops: the sweeps,
+    Newton, the sweeps again) fails at initialisation, naming every variable on the loop (before
+    issue 21 it was refused unrun)."""
     comps = {"a": ("add.fmu", {"u1": "input", "u2": "input", "y": "output"}),
              "b": ("add.fmu", {"u1": "input", "u2": "input", "y": "output"})}
     folder = write_system(tmp_path / "loop", {"add.fmu": gemseo / "add.fmu"},
@@ -64,6 +65,7 @@ def test_add_wired_into_a_loop_is_an_algebraic_loop(tmp_path, gemseo):
         cosim.simulate(folder)
     text = str(err.value)
     assert "algebraic loop did not converge at t = 0" in text
+    assert "Newton's method did not pass the sweep test" in text     # tried, then the fixed point
     for name in ("a.y", "b.u1", "b.y", "a.u1"):
         assert name in text
 
