@@ -45,6 +45,15 @@ class ParameterValue:
     unit: str | None = None
     #: the ``ssv:Units`` of the parameter set that holds the value (SSP 1.0 ParameterSet)
     units: dict[str, Unit] = field(default_factory=dict, repr=False)
+    #: the ``ssm:MappingEntry`` that renamed (and perhaps transformed) the value, for messages ("" if none)
+    mapping: str = ""
+    #: a mapping's ``ssc:LinearTransformation`` (factor, offset) still to apply after converting ``unit``
+    #: to the variable's unit (SSP 1.0 MappingEntry: units first, then the transformation); None: none left
+    linear: tuple[float, float] | None = None
+
+    def element(self) -> str:
+        """Where the value comes from, for messages: its ``ssv:Parameter`` and the mapping entry, if any."""
+        return f"ssv:Parameter (line {self.line})" + (f", mapped by {self.mapping}" if self.mapping else "")
 
 
 @dataclass

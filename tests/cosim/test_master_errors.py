@@ -204,7 +204,7 @@ def test_unsupported_features_are_refused_at_any_depth(tmp_path, fmus, capsys):
                                 '<ssd:SignalDictionaryReference name="bus" dictionary="signals"/>'
                                 '</ssd:Elements></ssd:System></ssd:Elements>'))
     err = _cli_error(capsys, "validate", str(folder))
-    assert "signal dictionaries are not supported" in err and "SignalDictionaryReference (line" in err
+    assert "signal dictionaries are not supported" in err and "ssd:SignalDictionaryReference 'bus' (line" in err
 
 
 def test_fmu_failing_mid_run_keeps_results(tmp_path, fmus, capsys):
