@@ -148,11 +148,19 @@ def validate_schema(tree: etree._ElementTree | etree._Element, schema_file: str,
         _schemas[schema_file] = etree.XMLSchema(file=str(xsd))
     schema = _schemas[schema_file]
     if not schema.validate(tree):
-        errors = [f"line {err.line}: {err.message.rstrip('.')}" for err in list(schema.error_log)[:5]]
+        errors = [f"line {err.line}: {_prefixed(err.message.rstrip('.'))}" for err in list(schema.error_log)[:5]]
         what = ("uses SSP 2.0 content this master cannot run (checked as SSP 1.0 with the FMI 3.0 data "
                 "types read as Real and Integer, against the SSP 1.0 schema " if ssp2
                 else "does not conform to the SSP 1.0 schema (")
         raise SetupError(what + f"{schema_file}): " + "; ".join(errors) + ".", file=display)
+
+
+def _prefixed(message: str) -> str:
+    """A schema message with ``{http://ssp-standard.org/SSP1/SystemStructureDescription}Connector``
+    written as ``ssd:Connector``, as the standard names elements."""
+    for prefix, uri in NS.items():
+        message = message.replace(f"{{{uri}}}", f"{prefix}:")
+    return message
 
 
 def as_ssp1(root: etree._Element) -> bool:

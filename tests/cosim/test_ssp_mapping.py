@@ -288,7 +288,7 @@ def test_ssp2_features_that_cannot_run_are_refused_by_element(tmp_path, fmus):
         ssp.load(folder)
     message = str(err.value)
     assert "SSP 2.0 content this master cannot run" in message and "structuralParameter" in message
-    assert "line 2" in message and "SystemStructure.ssd" in message
+    assert "line 2: Element 'ssd:Connector', attribute 'kind'" in message and "SystemStructure.ssd" in message
 
 
 # --------------------------------------------------------------------------- signal dictionaries
