@@ -2,9 +2,10 @@
 
 The reader is strict.  It checks well-formedness (with line and column), the
 SSP 1.0 XML schema (the XSDs shipped with fmpy), and refuses, with a message,
-every SSP feature this master does not implement (signal dictionaries, non-FMU
-components, Boolean/Integer/Enumeration mapping transformations on connections)
-instead of ignoring it.  SSP 2.0 documents (`as_ssp1`) are read as SSP 1.0 with the
+every SSP feature this master does not implement (non-FMU components,
+Boolean/Integer/Enumeration mapping transformations on connections) instead of
+ignoring it.  Signal dictionaries and their references are read into the raw
+systems and wired by `cosim.flatten`.  SSP 2.0 documents (`as_ssp1`) are read as SSP 1.0 with the
 FMI 3.0 data types; what else 2.0 adds is refused by element and line.  Parameter
 mappings (``.ssm`` files and inline ``ssm:ParameterMapping``) rename and transform
 a binding's values as they are read (`cosim.mapping`): after this module a mapped
@@ -43,6 +44,8 @@ from .structure import (
     RawStructure,
     RawSystem,
     ScenarioFiles,
+    SignalDictionary,
+    SignalReference,
     SolverOptions,
     SystemStructure,
 )
@@ -69,6 +72,7 @@ SOLVER_NS = "urn:greyfmu:ssp:solver:1.0"
 FMU_MIME = "application/x-fmu-sharedlibrary"
 PARAMETER_SET_MIME = "application/x-ssp-parameter-set"
 PARAMETER_MAPPING_MIME = "application/x-ssp-parameter-mapping"
+SIGNAL_DICTIONARY_MIME = "application/x-ssp-signal-dictionary"
 #: the root elements of the SSP file formats, each with a ``version`` attribute
 VERSIONED_ROOTS = {(NS["ssd"], "SystemStructureDescription"), (NS["ssv"], "ParameterSet"),
                    (NS["ssm"], "ParameterMapping"), (NS["ssb"], "SignalDictionary")}
@@ -217,15 +221,9 @@ def _read_ssd(path: Path, display: str | None = None) -> RawStructure:
 
 
 def _refuse_unsupported(root: etree._Element, display: str) -> None:
-    """Refuse, by element, name and line, what the master cannot run: signal dictionaries (the
-    master has no bus signals to wire them to) and mapping transformations on connections (the
-    master routes Real values through affine maps only)."""
-    dictionaries = ("signal dictionaries are not supported (the master connects connectors one by one; "
-                    "write the signals as connectors and connections)")
+    """Refuse, by element and line, what the master cannot run: mapping transformations on
+    connections (the master routes values through affine maps only)."""
     refused = [
-        (".//ssd:Elements/ssd:SignalDictionaryReference", dictionaries),
-        (".//ssd:System/ssd:SignalDictionaries/ssd:SignalDictionary", dictionaries),
-        (".//ssd:System/ssd:SignalDictionaries", dictionaries),
         (".//ssd:Connection/ssc:BooleanMappingTransformation",
          "Boolean mapping transformations on connections are not supported"),
         (".//ssd:Connection/ssc:IntegerMappingTransformation",
@@ -236,10 +234,8 @@ def _refuse_unsupported(root: etree._Element, display: str) -> None:
     for xpath, why in refused:
         found = root.find(xpath, NS)
         if found is not None:
-            name = found.get("name")
             raise SetupError(why + ".", file=display,
-                             element=f"ssd:{etree.QName(found).localname}" + (f" '{name}'" if name else "")
-                             + f" (line {found.sourceline})")
+                             element=f"ssc:{etree.QName(found).localname} (line {found.sourceline})")
 
 
 def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSystem:
@@ -264,16 +260,70 @@ def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSys
             continue
         local = etree.QName(el).localname
         element_name = el.get("name")
-        if element_name in raw.components or element_name in raw.systems:
+        if element_name in raw.components or element_name in raw.systems or element_name in raw.references:
             raise SetupError(f"two elements of system '{name}' are named '{element_name}'.", file=display,
                              element=f"ssd:{local} (line {el.sourceline})")
+        if local == "SignalDictionaryReference":
+            raw.references[element_name] = _read_reference(el, display)
+            continue
         if local == "System":
             raw.systems[element_name] = _read_system(el, base_dir, display)
         else:
             raw.components[element_name] = _read_component(el, base_dir, display)
         raw.elements.append(element_name)
+    for d in system.iterfind("ssd:SignalDictionaries/ssd:SignalDictionary", NS):
+        dictionary = _read_dictionary(d, base_dir, display)
+        if dictionary.name in raw.dictionaries:
+            raise SetupError(f"two signal dictionaries of system '{name}' are named '{dictionary.name}'.",
+                             file=display, element=f"ssd:SignalDictionary (line {d.sourceline})")
+        raw.dictionaries[dictionary.name] = dictionary
     raw.connections = [_read_connection(c, display) for c in system.iterfind("ssd:Connections/ssd:Connection", NS)]
     return raw
+
+
+def _read_reference(el: etree._Element, display: str) -> SignalReference:
+    name = el.get("name")
+    ref = SignalReference(name, el.get("dictionary"), el.sourceline, {})
+    for c in el.iterfind("ssd:Connectors/ssd:Connector", NS):
+        conn = _read_connector(c)
+        if conn.name in ref.connectors:
+            raise SetupError(f"connector '{conn.name}' is declared twice.", file=display,
+                             element=f"ssd:SignalDictionaryReference '{name}' (line {el.sourceline})")
+        ref.connectors[conn.name] = conn
+    return ref
+
+
+def _read_dictionary(el: etree._Element, base_dir: Path, display: str) -> SignalDictionary:
+    """An ``ssd:SignalDictionary``: its entries from the ``.ssb`` source or the inline ``ssb:SignalDictionary``."""
+    name = el.get("name")
+    where = f"ssd:SignalDictionary '{name}' (line {el.sourceline})"
+    dtype = el.get("type", SIGNAL_DICTIONARY_MIME)
+    if dtype != SIGNAL_DICTIONARY_MIME:
+        raise SetupError(f"signal dictionary type '{dtype}' is not supported (only {SIGNAL_DICTIONARY_MIME}).",
+                         file=display, element=where)
+    source = el.get("source")
+    if source is not None:
+        path = _source_file(source, base_dir, display, where, "signal dictionary")
+        file, tree = str(path), parse_xml(path)
+        root = tree.getroot()
+        if etree.QName(root).namespace != NS["ssb"] or etree.QName(root).localname != "SignalDictionary":
+            raise SetupError(f"the root element is not an SSP ssb:SignalDictionary (found {root.tag}).",
+                             file=file, element=f"line {root.sourceline}")
+        validate_schema(tree, "SystemStructureSignalDictionary.xsd", file, ssp2=as_ssp1(root))
+    else:
+        file, root = display, el.find("ssb:SignalDictionary", NS)
+        if root is None:
+            raise SetupError("a signal dictionary needs a source (.ssb) or an inline ssb:SignalDictionary.",
+                             file=display, element=where)
+        validate_schema(root, "SystemStructureSignalDictionary.xsd", display, ssp2=as_ssp1(root))
+    entries: dict[str, Connector] = {}
+    for entry in root.iterfind("ssb:DictionaryEntry", NS):
+        conn = replace(_read_connector(entry), kind="signal")
+        if conn.name in entries:
+            raise SetupError(f"dictionary entry '{conn.name}' is declared twice.", file=file,
+                             element=f"ssb:DictionaryEntry (line {entry.sourceline})", variable=conn.name)
+        entries[conn.name] = conn
+    return SignalDictionary(name, el.sourceline, file, entries)
 
 
 def _read_component(el: etree._Element, base_dir: Path, display: str) -> Component:

@@ -293,11 +293,60 @@ def test_ssp2_features_that_cannot_run_are_refused_by_element(tmp_path, fmus):
 
 # --------------------------------------------------------------------------- signal dictionaries
 
-def test_signal_dictionary_is_refused_by_name(tmp_path, fmus, capsys):
-    text = ssd().replace('</ssd:Connections>', '</ssd:Connections><ssd:SignalDictionaries><ssd:SignalDictionary '
-                         'name="bus" source="bus.ssb"/></ssd:SignalDictionaries>')
-    folder = _system(tmp_path, fmus, text)
+SSB_NS = ('xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" '
+          'xmlns:ssb="http://ssp-standard.org/SSP1/SystemStructureSignalDictionary"')
+ENTRIES = '<ssb:DictionaryEntry name="sig"><ssc:Real/></ssb:DictionaryEntry>'
+
+
+def bus_ssd(dictionary: str, inner: bool = False, writer: str = "sig", extra_link: str = "") -> str:
+    """src.y -> reference 'w' (entry sig) ... reference 'r' (entry sig) -> g.u; the dictionary 'bus'
+    declared at the root, the components and references at the root or (``inner``) in 'sub'."""
+    refs = ('<ssd:SignalDictionaryReference name="w" dictionary="bus"><ssd:Connectors><ssd:Connector '
+            f'name="{writer}" kind="input"><ssc:Real/></ssd:Connector></ssd:Connectors></ssd:SignalDictionaryReference>'
+            '<ssd:SignalDictionaryReference name="r" dictionary="bus"/>')
+    text = ssd(inner=inner).replace('<ssd:Connection startElement="src" startConnector="y" endElement="g" '
+                                    'endConnector="u"/>',
+                                    f'<ssd:Connection startElement="src" startConnector="y" endElement="w" '
+                                    f'endConnector="{writer}"/><ssd:Connection startElement="r" startConnector="sig" '
+                                    f'endElement="g" endConnector="u"/>{extra_link}')
+    text = text.replace('<ssd:Component name="src"', refs + '<ssd:Component name="src"')
+    dictionaries = f"<ssd:SignalDictionaries>{dictionary}</ssd:SignalDictionaries>"
+    marker = "</ssd:System></ssd:Elements>" if inner else "</ssd:Connections>"
+    return text.replace(marker, marker + dictionaries, 1)
+
+
+def test_signal_dictionary_inline_carries_a_signal(tmp_path, fmus):
+    """SSP 1.0 §5.3.3: the Step writes entry 'sig' through reference 'w', the Gain reads it through 'r'."""
+    inline = f'<ssd:SignalDictionary name="bus"><ssb:SignalDictionary {SSB_NS} version="1.0">{ENTRIES}' \
+             '</ssb:SignalDictionary></ssd:SignalDictionary>'
+    folder = _system(tmp_path, fmus, bus_ssd(inline))
+    assert _gain_output(folder) == pytest.approx(3.0)
+    assert main(["validate", str(folder)]) == 0
+
+
+def test_signal_dictionary_from_ssb_found_in_an_enclosing_system(tmp_path, fmus):
+    """References inside subsystem 'sub' find the dictionary of the root (lookup outwards); the
+    dictionary is an .ssb file in SSP 2.0 form."""
+    folder = _system(tmp_path, fmus, bus_ssd('<ssd:SignalDictionary name="bus" source="bus.ssb"/>', inner=True),
+                     bus__ssb=f'<ssb:SignalDictionary {SSB_NS} version="2.0">'
+                              '<ssb:DictionaryEntry name="sig"><ssc:Float64/></ssb:DictionaryEntry>'
+                              '</ssb:SignalDictionary>')
+    assert float(cosim.simulate(folder)["sub.g.y"][-1]) == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda t: t.replace('dictionary="bus"/>', 'dictionary="bsu"/>'),
+     "ssd:SignalDictionaryReference 'r' (line 2) in the root system 'root': no signal dictionary 'bsu'"),
+    (lambda t: t.replace('startElement="r" startConnector="sig"', 'startElement="r" startConnector="sgi"'),
+     "signal dictionary 'bus' has no entry 'sgi'"),
+    (lambda t: t.replace("</ssd:Connections>", '<ssd:Connection startElement="g" startConnector="y" endElement="w" '
+                         'endConnector="sig"/></ssd:Connections>'),
+     "system connector 'bus.sig' is driven by two connections"),
+])
+def test_signal_dictionary_errors_name_the_element(tmp_path, fmus, capsys, change, message):
+    inline = f'<ssd:SignalDictionary name="bus"><ssb:SignalDictionary {SSB_NS} version="1.0">{ENTRIES}' \
+             '</ssb:SignalDictionary></ssd:SignalDictionary>'
+    folder = _system(tmp_path, fmus, change(bus_ssd(inline)))
     assert main(["validate", str(folder)]) == 2
     err = capsys.readouterr().err
-    assert "SystemStructure.ssd" in err and "ssd:SignalDictionary 'bus' (line" in err
-    assert "signal dictionaries are not supported" in err
+    assert "SystemStructure.ssd" in err and message in err and "Traceback" not in err
