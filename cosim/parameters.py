@@ -153,7 +153,7 @@ def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue
                          "only parameters and inputs (non-constant) can be given values.",
                          file=p.file, element=where, variable=var_name)
     value = _coerce(p, var, where)
-    origin = f"{p.file}:{p.line}"
+    origin = f"{p.file}:{p.line}" + (f", mapped by {p.mapping}" if p.mapping else "")
     if exchange_type(var) == "Real" and p.unit is not None and unit_of(var) not in (None, p.unit):
         value = _convert_value(p, var, comp, value, where, units)
         origin += f", given as {p.value:g} {p.unit}"

@@ -104,6 +104,10 @@ def test_ssm_file_renames_the_parameter_set(tmp_path, fmus):
         gain__ssm=ssm('<ssm:MappingEntry source="Gain_Factor" target="k"/>'))
     assert _gain_output(folder) == pytest.approx(3 * 2.5)
     assert main(["validate", str(folder)]) == 0
+    prepared = cosim.prepare(folder)
+    origin = {s.variable.name: s.origin for s in prepared.plan.start_values if s.component == "g"}["k"]
+    prepared.close()
+    assert "gain.ssv:2, mapped by ssm:MappingEntry 'Gain_Factor' -> 'k'" in origin and "gain.ssm, line 2" in origin
 
 
 def test_unmapped_names_are_not_applied(tmp_path, fmus):
@@ -332,6 +336,20 @@ def test_signal_dictionary_from_ssb_found_in_an_enclosing_system(tmp_path, fmus)
                               '<ssb:DictionaryEntry name="sig"><ssc:Float64/></ssb:DictionaryEntry>'
                               '</ssb:SignalDictionary>')
     assert float(cosim.simulate(folder)["sub.g.y"][-1]) == pytest.approx(3.0)
+    packed = tmp_path / "bus.ssp"
+    assert main(["pack", str(folder), "-o", str(packed)]) == 0
+    assert "bus.ssb" in zipfile.ZipFile(packed).namelist()
+    assert float(cosim.simulate(packed)["sub.g.y"][-1]) == pytest.approx(3.0)
+
+
+def test_signal_dictionary_reader_with_a_linear_transformation(tmp_path, fmus):
+    """The connection from the dictionary to the reader keeps its LinearTransformation (composed
+    along the chain src -> bus.sig -> g)."""
+    inline = f'<ssd:SignalDictionary name="bus"><ssb:SignalDictionary {SSB_NS} version="1.0">{ENTRIES}' \
+             '</ssb:SignalDictionary></ssd:SignalDictionary>'
+    text = bus_ssd(inline).replace('endElement="g" endConnector="u"/>', 'endElement="g" endConnector="u">'
+                                   '<ssc:LinearTransformation factor="2" offset="1"/></ssd:Connection>')
+    assert _gain_output(_system(tmp_path, fmus, text)) == pytest.approx(2 * 3.0 + 1)
 
 
 @pytest.mark.parametrize("change, message", [
