@@ -86,7 +86,8 @@ def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], u
             given = (p.linear[0] * given[0], p.linear[0] * given[1] + p.linear[1])
     factor, offset = hops_map(structure, units, hops, (unit, scope, given, f"system connector '{p.name}'"),
                                (comp, var), where)
-    return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset, unit=None)
+    return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset, unit=None,
+                   linear=None)
 
 
 def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits,

@@ -176,6 +176,27 @@ def test_linear_transformation_follows_the_unit_conversion(tmp_path, fmus):
     assert start(' suppressUnitConversion="true"') == pytest.approx(2 * 500 + 0.25)
 
 
+def test_mapped_value_with_a_unit_for_a_system_connector(tmp_path, fmus):
+    """A mapped value given in ms for the root's undriven input connector 'r' (unit s) feeding g.u:
+    converted to the connector's unit first, then the LinearTransformation (SSP 1.0 MappingEntry)."""
+    units = '<ssd:Units><ssc:Unit name="s"><ssc:BaseUnit s="1"/></ssc:Unit>' \
+            '<ssc:Unit name="ms"><ssc:BaseUnit s="1" factor="0.001"/></ssc:Unit></ssd:Units>'
+    mapping = ('<ssd:ParameterMapping><ssm:ParameterMapping version="1.0"><ssm:MappingEntry source="delay" '
+               'target="r"><ssc:LinearTransformation factor="2" offset="0.25"/></ssm:MappingEntry>'
+               '</ssm:ParameterMapping></ssd:ParameterMapping>')
+    pset = ('<ssv:ParameterSet version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="delay">'
+            '<ssv:Real value="500" unit="ms"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>')
+    text = ssd(system_bindings='<ssd:Connectors><ssd:Connector name="r" kind="input"><ssc:Real unit="s"/>'
+                               '</ssd:Connector></ssd:Connectors>' + binding(mapping=mapping, inline=pset))
+    text = text.replace('startElement="src" startConnector="y"', 'startConnector="r"')
+    text = text.replace("<ssd:DefaultExperiment", units + "<ssd:DefaultExperiment")
+    assert _gain_output(_system(tmp_path, fmus, text)) == pytest.approx(2 * 0.5 + 0.25)
+    unitless = _system(tmp_path / "unitless", fmus, text.replace('<ssc:Real unit="s"/>', "<ssc:Real/>"))
+    with pytest.raises(SetupError, match="system connector 'r' declares no unit") as err:
+        cosim.simulate(unitless)
+    assert "mapped by ssm:MappingEntry 'delay' -> 'r'" in str(err.value)
+
+
 def test_integer_mapping_transformation_reaches_the_fmu(tmp_path, fmus):
     """An ssv:Integer through an ssc:IntegerMappingTransformation (table, unmapped values kept) to the
     Gain's Real k (an Integer value is accepted for a Real variable)."""
