@@ -36,8 +36,8 @@ System connectors are handled explicitly, never dropped:
   is accepted and has no effect either (an `OpenConnector` without sinks).
 
 Signal dictionaries (SSP 1.0 SignalDictionary, SignalDictionaryReference): each entry of a
-dictionary is a connector of the system that declares it, named ``dictionary.entry``, without
-a kind; a connection to a reference's connector is a connection to that entry of the dictionary
+dictionary is a connector of kind ``signal`` of the system that declares it, named
+``dictionary.entry``; a connection to a reference's connector is a connection to that entry of the dictionary
 the reference names (looked up from the reference's system outwards), so one writer feeds any
 number of readers through the same chain resolution, and two writers are refused.
 
@@ -231,7 +231,8 @@ class _Walker:
         owner, dictionary = self._dictionary_of(ref, label)
         element = f"ssd:SignalDictionaryReference '{ref.name}' (line {ref.line}) in {label}"
         if connector not in dictionary.entries:
-            raise SetupError(f"signal dictionary '{ref.dictionary}' has no entry '{connector}'.", file=self.file,
+            raise SetupError(f"signal dictionary '{ref.dictionary}' (entries in {dictionary.file}) has no entry "
+                             f"'{connector}'.", file=self.file,
                              element=f"{where}, {element}", variable=connector,
                              hint=did_you_mean(connector, dictionary.entries))
         conn = ref.connectors.get(connector)

@@ -160,7 +160,7 @@ def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue
         origin += f", given as {p.value:g} {p.unit}"
     if p.linear is not None:  # a mapping's LinearTransformation, after the unit conversion (SSP 1.0 MappingEntry)
         value = p.linear[0] * value + p.linear[1]
-        origin += f", then {p.linear[0]:g}*x{p.linear[1]:+g} by {p.mapping}"
+        origin += f", then {p.linear[0]:g}*x{p.linear[1]:+g}"
     if exchange_type(var) in ("Real", "Integer"):
         _check_number(value, var, desc, p, where)
         lo = float(var.min) if var.min is not None else None

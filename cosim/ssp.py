@@ -5,9 +5,9 @@ SSP 1.0 XML schema (the XSDs shipped with fmpy), and refuses, with a message,
 every SSP feature this master does not implement (non-FMU components,
 Boolean/Integer/Enumeration mapping transformations on connections) instead of
 ignoring it.  Signal dictionaries and their references are read into the raw
-systems and wired by `cosim.flatten`.  SSP 2.0 documents (`as_ssp1`) are read as SSP 1.0 with the
-FMI 3.0 data types; what else 2.0 adds is refused by element and line.  Parameter
-mappings (``.ssm`` files and inline ``ssm:ParameterMapping``) rename and transform
+systems and wired by `cosim.flatten`.  SSP 2.0 documents (`as_ssp1`) are read as
+SSP 1.0 with the FMI 3.0 data types; what else 2.0 adds is refused by element and
+line.  Parameter mappings (``.ssm`` files and inline ``ssm:ParameterMapping``) rename and transform
 a binding's values as they are read (`cosim.mapping`): after this module a mapped
 value is a value like any other, but for a LinearTransformation that waits for the
 unit conversion in `cosim.parameters`.  Nested systems and system-level
@@ -316,6 +316,11 @@ def _read_dictionary(el: etree._Element, base_dir: Path, display: str) -> Signal
             raise SetupError("a signal dictionary needs a source (.ssb) or an inline ssb:SignalDictionary.",
                              file=display, element=where)
         validate_schema(root, "SystemStructureSignalDictionary.xsd", display, ssp2=as_ssp1(root))
+    units = root.find("ssb:Units", NS)
+    if units is not None and any(isinstance(u.tag, str) for u in units):
+        raise SetupError("units declared in a signal dictionary are not supported; declare them in the SSD's "
+                         "ssd:Units (the master converts dictionary signals with the SSD's units).", file=file,
+                         element=f"ssb:Units (line {units.sourceline})")
     entries: dict[str, Connector] = {}
     for entry in root.iterfind("ssb:DictionaryEntry", NS):
         conn = replace(_read_connector(entry), kind="signal")

@@ -377,7 +377,10 @@ def test_signal_dictionary_reader_with_a_linear_transformation(tmp_path, fmus):
     (lambda t: t.replace('dictionary="bus"/>', 'dictionary="bsu"/>'),
      "ssd:SignalDictionaryReference 'r' (line 2) in the root system 'root': no signal dictionary 'bsu'"),
     (lambda t: t.replace('startElement="r" startConnector="sig"', 'startElement="r" startConnector="sgi"'),
-     "signal dictionary 'bus' has no entry 'sgi'"),
+     "has no entry 'sgi'"),
+    (lambda t: t.replace("</ssb:SignalDictionary>", '<ssb:Units><ssc:Unit name="m"><ssc:BaseUnit m="1"/></ssc:Unit>'
+                         '</ssb:Units></ssb:SignalDictionary>'),
+     "ssb:Units (line 2): units declared in a signal dictionary are not supported"),
     (lambda t: t.replace("</ssd:Connections>", '<ssd:Connection startElement="g" startConnector="y" endElement="w" '
                          'endConnector="sig"/></ssd:Connections>'),
      "system connector 'bus.sig' is driven by two connections"),
