@@ -5,7 +5,9 @@ A ParameterBinding with a ``ssd:ParameterMapping`` applies only the mapped value
 names they are mapped to; values that no ``ssm:MappingEntry`` names are not applied (SSP 1.0
 §5.2.3 ParameterBindings).  A binding's ``prefix`` is prepended to the names in the parameter
 source before the mapping is processed, so an entry's ``source`` names the prefixed name.  One
-source may be mapped to several targets; two entries must not map to the same target.
+source may be mapped to several targets; two entries must not map to the same target.  An entry
+with an empty ``source`` (the templates OMSimulator writes: a target awaiting its source) maps
+nothing.
 
 Transformations (SSP 1.0 §4.5.2, Transformation Choice): ``ssc:LinearTransformation``
 ``target = factor * source + offset`` on Real values, after the unit conversion (or instead of it

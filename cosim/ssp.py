@@ -501,6 +501,8 @@ def _read_mapping_entries(mapping: etree._Element, display: str) -> list[Mapping
     entries: list[MappingEntry] = []
     targets: dict[str, int] = {}
     for e in mapping.iterfind("ssm:MappingEntry", NS):
+        if e.get("source") == "":  # OMSimulator's mapping templates: a target awaiting its source maps nothing
+            continue
         target = e.get("target")
         if target in targets:
             raise SetupError(f"two mapping entries map to '{target}' (lines {targets[target]} and {e.sourceline}); "
