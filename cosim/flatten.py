@@ -35,6 +35,12 @@ System connectors are handled explicitly, never dropped:
   have no effect, like an unconnected connector of a component; a value for one
   is accepted and has no effect either (an `OpenConnector` without sinks).
 
+Signal dictionaries (SSP 1.0 SignalDictionary, SignalDictionaryReference): each entry of a
+dictionary is a connector of kind ``signal`` of the system that declares it, named
+``dictionary.entry``; a connection to a reference's connector is a connection to that entry of the dictionary
+the reference names (looked up from the reference's system outwards), so one writer feeds any
+number of readers through the same chain resolution, and two writers are refused.
+
 ParameterBindings of a nested system name variables relative to it and are
 prefixed with its path; SSP 1.0 (ParameterBindings) gives bindings at a higher
 level precedence, so the flattened list puts the deepest systems first (later
@@ -55,6 +61,8 @@ from .structure import (
     ParameterValue,
     RawStructure,
     RawSystem,
+    SignalDictionary,
+    SignalReference,
     SystemNode,
     SystemOutput,
     SystemStructure,
@@ -115,10 +123,25 @@ class _Walker:
         self.system_connectors: dict[Node, Connector] = {}
         self.component_kinds: dict[Node, str] = {}
         self.parameters: list[tuple[int, list[ParameterValue]]] = []
+        #: the systems enclosing the one being walked, innermost last (signal dictionary lookup)
+        self.scopes: list[tuple[str, RawSystem]] = []
 
     def walk(self, system: RawSystem, path: str, depth: int) -> SystemNode:
+        self.scopes.append((path, system))
+        try:
+            return self._walk(system, path, depth)
+        finally:
+            self.scopes.pop()
+
+    def _walk(self, system: RawSystem, path: str, depth: int) -> SystemNode:
         prefix = f"{path}." if path else ""
         label = f"system '{path}'" if path else f"the root system '{system.name}'"
+        for dictionary in system.dictionaries.values():
+            for entry, conn in dictionary.entries.items():
+                self.system_connectors[("s", path, f"{dictionary.name}.{entry}")] = replace(
+                    conn, name=f"{dictionary.name}.{entry}")
+        for ref in system.references.values():
+            self._dictionary_of(ref, label)
         for name, conn in system.connectors.items():
             if conn.kind == "inout":
                 raise SetupError("system connectors of kind 'inout' are not supported: SSP 1.0 gives them no "
@@ -156,7 +179,12 @@ class _Walker:
                                           c.suppress_unit_conversion, c.line))
             return
         (a, a_sends), (b, b_sends) = ends
-        # an undirected component end takes the direction the system end gives it
+        if a_sends is None and b_sends is None:
+            raise SetupError(f"the direction of the connection between {node_name(a)} and {node_name(b)} cannot be "
+                             "told: declare the component's connector (input or output), or give the signal "
+                             "dictionary reference's connector the kind input or output.", file=self.file,
+                             element=where)
+        # an undirected end (component or signal dictionary reference) takes the direction the other gives it
         a_sends = (not b_sends) if a_sends is None else a_sends
         b_sends = (not a_sends) if b_sends is None else b_sends
         if a_sends == b_sends:
@@ -182,6 +210,8 @@ class _Walker:
         if element in system.components:
             conn = system.components[element].connectors.get(connector)
             return ("c", prefix + element, connector), (_SENDS_AS_ELEMENT.get(conn.kind) if conn else None)
+        if element in system.references:
+            return self._signal(system.references[element], connector, label, where)
         if element in system.systems:
             sub = system.systems[element]
             conn = sub.connectors.get(connector)
@@ -191,7 +221,31 @@ class _Walker:
             return ("s", prefix + element, connector), self._sends(conn, _SENDS_AS_ELEMENT,
                                                                    f"system '{prefix + element}'", where)
         raise SetupError(f"unknown component '{element}' in {label}.", file=self.file, element=where,
-                         hint=did_you_mean(element, list(system.components) + list(system.systems)))
+                         hint=did_you_mean(element, [*system.components, *system.systems, *system.references]))
+
+    def _signal(self, ref: SignalReference, connector: str, label: str, where: str) -> tuple[Node, bool | None]:
+        """A connector of a signal dictionary reference: the dictionary entry it names, a node of
+        the system that declares the dictionary (looked up from the reference's system outwards,
+        SSP 1.0 SignalDictionaryReference).  Its kind, as a component's, says whether the reference
+        reads the signal (output) or writes it (input); inout or none: the other end decides."""
+        owner, dictionary = self._dictionary_of(ref, label)
+        element = f"ssd:SignalDictionaryReference '{ref.name}' (line {ref.line}) in {label}"
+        if connector not in dictionary.entries:
+            raise SetupError(f"signal dictionary '{ref.dictionary}' (entries in {dictionary.file}) has no entry "
+                             f"'{connector}'.", file=self.file,
+                             element=f"{where}, {element}", variable=connector,
+                             hint=did_you_mean(connector, dictionary.entries))
+        conn = ref.connectors.get(connector)
+        return ("s", owner, f"{ref.dictionary}.{connector}"), (_SENDS_AS_ELEMENT.get(conn.kind) if conn else None)
+
+    def _dictionary_of(self, ref: SignalReference, label: str) -> tuple[str, SignalDictionary]:
+        """The path of the system declaring the dictionary ``ref`` names, and the dictionary."""
+        for path, system in reversed(self.scopes):
+            if ref.dictionary in system.dictionaries:
+                return path, system.dictionaries[ref.dictionary]
+        raise SetupError(f"no signal dictionary '{ref.dictionary}' in this system or an enclosing one.",
+                         file=self.file, element=f"ssd:SignalDictionaryReference '{ref.name}' (line {ref.line}) "
+                         f"in {label}")
 
     def _sends(self, conn: Connector, table: dict[str, bool], owner: str, where: str) -> bool:
         if conn.kind not in table:

@@ -1,7 +1,7 @@
 """Pack a validated scenario into a standard SSP archive.
 
 The archive holds ``SystemStructure.ssd`` as written but for one attribute, every
-``.ssv`` beside it (subfolders included) and each component's FMU at the path its
+``.ssv``, ``.ssm`` and ``.ssb`` beside it (subfolders included) and each component's FMU at the path its
 ``source`` names (``resources/<Name>.fmu``), so other SSP tools (libcosim, fmpy.ssp,
 OMSimulator) load it as it is.
 
@@ -38,8 +38,8 @@ def typed_ssd(ssd: Path, display: str) -> bytes:
 def pack(plan: Plan, output: Path) -> Path:
     files = plan.files
     members: dict[str, Path] = {}
-    for ssv in sorted(files.base_dir.rglob("*.ssv")):
-        members[ssv.relative_to(files.base_dir).as_posix()] = ssv
+    for resource in sorted(r for pattern in ("*.ssv", "*.ssm", "*.ssb") for r in files.base_dir.rglob(pattern)):
+        members[resource.relative_to(files.base_dir).as_posix()] = resource
     for name, comp in plan.components.items():
         member = PurePosixPath(comp.source).as_posix()
         if ":" in member.split("/")[0]:

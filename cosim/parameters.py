@@ -55,6 +55,14 @@ def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], u
              f"'{open_connector.path}'")
     var = fmus[comp].variable(conn, where, p.file)
     numeric = p.type in ("Real", "Integer")
+    if p.linear is not None and (exchange_type(var) != "Real" or not open_connector.unit):
+        if exchange_type(var) == "Real":
+            raise SetupError(f"the value is given in '{p.unit}' and mapped with a LinearTransformation, which SSP 1.0 "
+                             "applies after converting it to its target's unit; system connector "
+                             f"'{open_connector.path}' declares no unit.", file=p.file, element=p.element(),
+                             variable=p.name, hint="Declare the connector's unit, or add "
+                             "suppressUnitConversion=\"true\" to the mapping entry.")
+        p = replace(p, value=p.linear[0] * float(p.value) + p.linear[1], linear=None)
     if exchange_type(var) != "Real" or not numeric:
         factor, offset = transformations(hops)
         if (factor, offset) == IDENTITY:
@@ -62,7 +70,7 @@ def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], u
         if not numeric:
             raise SetupError(f"a {p.type} value cannot go through the LinearTransformation on the way "
                              f"from system connector '{p.name}' to {comp}.{conn}.", file=p.file,
-                             element=f"ssv:Parameter (line {p.line})", variable=p.name)
+                             element=p.element(), variable=p.name)
         return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset)
     kw = {"file": p.file, "element": where, "variable": open_connector.path}
     unit, scope = p.unit, units.for_value(comp, p.units, file=p.file, element=where)
@@ -74,9 +82,12 @@ def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], u
                            f"'{open_connector.unit}': ", "Give the value in a unit of the connector's dimension.",
                            **kw)
         unit, scope = open_connector.unit, own
+        if p.linear is not None:  # the mapping's LinearTransformation, in the connector's unit
+            given = (p.linear[0] * given[0], p.linear[0] * given[1] + p.linear[1])
     factor, offset = hops_map(structure, units, hops, (unit, scope, given, f"system connector '{p.name}'"),
                                (comp, var), where)
-    return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset, unit=None)
+    return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset, unit=None,
+                   linear=None)
 
 
 def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits,
@@ -93,7 +104,7 @@ def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescri
     for p in values:
         if p.name in driven:
             raise SetupError(f"'{p.name}' is a system connector driven by a connection; it cannot also be "
-                             "given a value.", file=p.file, element=f"ssv:Parameter (line {p.line})",
+                             "given a value.", file=p.file, element=p.element(),
                              variable=p.name)
         target = open_connectors.get(p.name)
         if target is None:
@@ -128,23 +139,28 @@ def split_system_name(components: Collection[str], p: ParameterValue) -> tuple[s
         if p.name.startswith(comp + "."):
             return comp, p.name[len(comp) + 1:]
     raise SetupError(f"system-level parameter '{p.name}' does not start with a component name "
-                     "('component.variable').", file=p.file, element=f"ssv:Parameter (line {p.line})",
+                     "('component.variable').", file=p.file, element=p.element(),
                      variable=p.name, hint=did_you_mean(p.name.rpartition(".")[0], components))
 
 
 def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue, desc: FMUDescription,
                      units: SystemUnits) -> None:
-    where = f"ssv:Parameter '{p.name}' (line {p.line}) for component '{comp}'"
+    where = f"ssv:Parameter '{p.name}' (line {p.line}) for component '{comp}'" + (
+        f", mapped by {p.mapping}" if p.mapping else "")
     var = desc.variable(var_name, where, p.file)
+    p = _pending_linear(p, var)
     if var.causality not in SETTABLE_CAUSALITIES or var.variability == "constant":
         raise SetupError(f"'{var_name}' has causality '{var.causality}' and variability '{var.variability}'; "
                          "only parameters and inputs (non-constant) can be given values.",
                          file=p.file, element=where, variable=var_name)
     value = _coerce(p, var, where)
-    origin = f"{p.file}:{p.line}"
+    origin = f"{p.file}:{p.line}" + (f", mapped by {p.mapping}" if p.mapping else "")
     if exchange_type(var) == "Real" and p.unit is not None and unit_of(var) not in (None, p.unit):
         value = _convert_value(p, var, comp, value, where, units)
         origin += f", given as {p.value:g} {p.unit}"
+    if p.linear is not None:  # a mapping's LinearTransformation, after the unit conversion (SSP 1.0 MappingEntry)
+        value = p.linear[0] * value + p.linear[1]
+        origin += f", then {p.linear[0]:g}*x{p.linear[1]:+g}"
     if exchange_type(var) in ("Real", "Integer"):
         _check_number(value, var, desc, p, where)
         lo = float(var.min) if var.min is not None else None
@@ -153,6 +169,15 @@ def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue
             raise SetupError(f"value {value} is outside the variable's range [{var.min}, {var.max}] "
                              f"declared by {desc.path.name}.", file=p.file, element=where, variable=var_name)
     resolved[(comp, var_name)] = StartValue(comp, var, value, origin)
+
+
+def _pending_linear(p: ParameterValue, var: ModelVariable) -> ParameterValue:
+    """``p`` with its mapping's LinearTransformation applied now where no unit conversion comes
+    first (the variable is not Real, or has no unit or the value's own): the transformation then
+    acts on the value as given, and the value is coerced to the variable's type afterwards."""
+    if p.linear is None or (exchange_type(var) == "Real" and unit_of(var) not in (None, p.unit)):
+        return p
+    return replace(p, value=p.linear[0] * float(p.value) + p.linear[1], linear=None)
 
 
 def _check_number(value: float | int, var: ModelVariable, desc: FMUDescription, p: ParameterValue,

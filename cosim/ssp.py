@@ -1,10 +1,16 @@
-"""Read an SSP 1.0 system structure: a folder, a bare ``.ssd`` or an ``.ssp`` archive.
+"""Read an SSP 1.0 or 2.0 system structure: a folder, a bare ``.ssd`` or an ``.ssp`` archive.
 
 The reader is strict.  It checks well-formedness (with line and column), the
 SSP 1.0 XML schema (the XSDs shipped with fmpy), and refuses, with a message,
-every SSP feature this master does not implement (parameter mappings, signal
-dictionaries, non-FMU components, Boolean/Integer/Enumeration mapping
-transformations) instead of ignoring it.  Nested systems and system-level
+every SSP feature this master does not implement (non-FMU components,
+Boolean/Integer/Enumeration mapping transformations on connections) instead of
+ignoring it.  Signal dictionaries and their references are read into the raw
+systems and wired by `cosim.flatten`.  SSP 2.0 documents (`as_ssp1`) are read as
+SSP 1.0 with the FMI 3.0 data types; what else 2.0 adds is refused by element and
+line.  Parameter mappings (``.ssm`` files and inline ``ssm:ParameterMapping``) rename and transform
+a binding's values as they are read (`cosim.mapping`): after this module a mapped
+value is a value like any other, but for a LinearTransformation that waits for the
+unit conversion in `cosim.parameters`.  Nested systems and system-level
 connectors are read here (`read`: XML → `cosim.structure.RawStructure`) and
 flattened by `cosim.flatten` into components named by their path (``loop.ctrl``)
 and direct connections; `load` is the two in a row.
@@ -27,6 +33,7 @@ from lxml import etree
 
 from .errors import SetupError
 from .flatten import flatten
+from .mapping import MappingEntry, apply_mapping
 from .safeio import extract_archive, is_file, parse_xml, temporary_folder
 from .structure import (
     Component,
@@ -37,6 +44,8 @@ from .structure import (
     RawStructure,
     RawSystem,
     ScenarioFiles,
+    SignalDictionary,
+    SignalReference,
     SolverOptions,
     SystemStructure,
 )
@@ -61,6 +70,16 @@ SOLVER_ANNOTATION = "org.greyfmu.solver"
 SOLVER_NS = "urn:greyfmu:ssp:solver:1.0"
 
 FMU_MIME = "application/x-fmu-sharedlibrary"
+PARAMETER_SET_MIME = "application/x-ssp-parameter-set"
+PARAMETER_MAPPING_MIME = "application/x-ssp-parameter-mapping"
+SIGNAL_DICTIONARY_MIME = "application/x-ssp-signal-dictionary"
+#: the root elements of the SSP file formats, each with a ``version`` attribute
+VERSIONED_ROOTS = {(NS["ssd"], "SystemStructureDescription"), (NS["ssv"], "ParameterSet"),
+                   (NS["ssm"], "ParameterMapping"), (NS["ssb"], "SignalDictionary")}
+#: the FMI 3.0 data types SSP 2.0 adds, as the SSP 1.0 type the master reads them as: a Float64
+#: variable of an FMI 3.0 FMU already takes an ssv:Real, an Int32 one an ssv:Integer (cosim.description)
+SSP2_TYPES = {"Float64": "Real", "Float32": "Real", **{f"{u}Int{n}": "Integer" for u in ("", "U")
+                                                      for n in (8, 16, 32, 64)}}
 VALUE_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration", "Binary")
 SSD_NAME = "SystemStructure.ssd"
 
@@ -122,17 +141,56 @@ def _read_archive(path: Path, max_unpacked_bytes: int | None = None) -> RawStruc
 _schemas: dict[str, etree.XMLSchema] = {}
 
 
-def validate_schema(tree: etree._ElementTree | etree._Element, schema_file: str, display: str) -> None:
-    """Validate against an SSP 1.0 XSD; the first errors are reported with their lines."""
+def validate_schema(tree: etree._ElementTree | etree._Element, schema_file: str, display: str,
+                    ssp2: bool = False) -> None:
+    """Validate against an SSP 1.0 XSD; the first errors are reported with their lines.  An SSP 2.0
+    document is validated as `as_ssp1` reads it: what SSP 2.0 adds beyond its new data types fails
+    here, named by element and line."""
     if schema_file not in _schemas:
         import fmpy.ssp
         xsd = Path(fmpy.ssp.__file__).parent / "schema" / schema_file
         _schemas[schema_file] = etree.XMLSchema(file=str(xsd))
     schema = _schemas[schema_file]
     if not schema.validate(tree):
-        errors = [f"line {err.line}: {err.message.rstrip('.')}" for err in list(schema.error_log)[:5]]
-        raise SetupError("does not conform to the SSP 1.0 schema ("
-                         f"{schema_file}): " + "; ".join(errors) + ".", file=display)
+        errors = [f"line {err.line}: {_prefixed(err.message.rstrip('.'))}" for err in list(schema.error_log)[:5]]
+        what = ("uses SSP 2.0 content this master cannot run (checked as SSP 1.0 with the FMI 3.0 data "
+                "types read as Real and Integer, against the SSP 1.0 schema " if ssp2
+                else "does not conform to the SSP 1.0 schema (")
+        raise SetupError(what + f"{schema_file}): " + "; ".join(errors) + ".", file=display)
+
+
+def _prefixed(message: str) -> str:
+    """A schema message with ``{http://ssp-standard.org/SSP1/SystemStructureDescription}Connector``
+    written as ``ssd:Connector``, as the standard names elements."""
+    for prefix, uri in NS.items():
+        message = message.replace(f"{{{uri}}}", f"{prefix}:")
+    return message
+
+
+def as_ssp1(root: etree._Element) -> bool:
+    """Read an SSP 2.0 document (or an SSP 2.0 part of a 1.0 one, such as an inline ParameterSet)
+    as SSP 1.0, in place, and say whether it was 2.0.  SSP 2.0 keeps the SSP 1.0 namespaces
+    (http://ssp-standard.org/SSP1/...) and marks a file's root with ``version="2.0"``; its FMI 3.0
+    data types (Float64, Int32, ...) become Real and Integer.  What else 2.0 adds (clocks, arrays,
+    new connector kinds, components without a source, MetaData) stays, and `validate_schema`
+    refuses it by element and line.  Versioned roots inside ``root`` (inline parameter sets and
+    mappings) are left to their own call."""
+    ssp2 = root.get("version", "").startswith("2.")
+    if not ssp2:
+        return False
+    root.set("version", "1.0")
+    stack = list(root)
+    while stack:
+        el = stack.pop()
+        if not isinstance(el.tag, str):
+            continue
+        q = etree.QName(el)
+        if (q.namespace, q.localname) in VERSIONED_ROOTS:
+            continue
+        if q.namespace in NS.values() and q.localname in SSP2_TYPES:
+            el.tag = etree.QName(q.namespace, SSP2_TYPES[q.localname]).text
+        stack.extend(el)
+    return True
 
 
 # --------------------------------------------------------------------------- SSD
@@ -142,9 +200,9 @@ def _read_ssd(path: Path, display: str | None = None) -> RawStructure:
     tree = parse_xml(path, display)
     root = tree.getroot()
     if etree.QName(root).namespace != NS["ssd"] or etree.QName(root).localname != "SystemStructureDescription":
-        raise SetupError("the root element is not an SSP 1.0 ssd:SystemStructureDescription "
+        raise SetupError("the root element is not an SSP ssd:SystemStructureDescription "
                          f"(found {root.tag}).", file=display, element=f"line {root.sourceline}")
-    validate_schema(tree, "SystemStructureDescription.xsd", display)
+    validate_schema(tree, "SystemStructureDescription.xsd", display, ssp2=as_ssp1(root))
     _refuse_unsupported(root, display)
 
     system = root.find("ssd:System", NS)
@@ -163,19 +221,21 @@ def _read_ssd(path: Path, display: str | None = None) -> RawStructure:
 
 
 def _refuse_unsupported(root: etree._Element, display: str) -> None:
+    """Refuse, by element and line, what the master cannot run: mapping transformations on
+    connections (the master routes values through affine maps only)."""
     refused = [
-        (".//ssd:Elements/ssd:SignalDictionaryReference", "signal dictionaries are not supported"),
-        (".//ssd:System/ssd:SignalDictionaries", "signal dictionaries are not supported"),
-        (".//ssd:ParameterMapping", "parameter mappings (.ssm) are not supported; rename the parameters in the .ssv"),
-        (".//ssc:BooleanMappingTransformation", "Boolean mapping transformations are not supported"),
-        (".//ssc:IntegerMappingTransformation", "Integer mapping transformations are not supported"),
-        (".//ssc:EnumerationMappingTransformation", "Enumeration mapping transformations are not supported"),
+        (".//ssd:Connection/ssc:BooleanMappingTransformation",
+         "Boolean mapping transformations on connections are not supported"),
+        (".//ssd:Connection/ssc:IntegerMappingTransformation",
+         "Integer mapping transformations on connections are not supported"),
+        (".//ssd:Connection/ssc:EnumerationMappingTransformation",
+         "Enumeration mapping transformations on connections are not supported"),
     ]
     for xpath, why in refused:
         found = root.find(xpath, NS)
         if found is not None:
             raise SetupError(why + ".", file=display,
-                             element=f"{etree.QName(found).localname} (line {found.sourceline})")
+                             element=f"ssc:{etree.QName(found).localname} (line {found.sourceline})")
 
 
 def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSystem:
@@ -200,16 +260,75 @@ def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSys
             continue
         local = etree.QName(el).localname
         element_name = el.get("name")
-        if element_name in raw.components or element_name in raw.systems:
+        if element_name in raw.components or element_name in raw.systems or element_name in raw.references:
             raise SetupError(f"two elements of system '{name}' are named '{element_name}'.", file=display,
                              element=f"ssd:{local} (line {el.sourceline})")
+        if local == "SignalDictionaryReference":
+            raw.references[element_name] = _read_reference(el, display)
+            continue
         if local == "System":
             raw.systems[element_name] = _read_system(el, base_dir, display)
         else:
             raw.components[element_name] = _read_component(el, base_dir, display)
         raw.elements.append(element_name)
+    for d in system.iterfind("ssd:SignalDictionaries/ssd:SignalDictionary", NS):
+        dictionary = _read_dictionary(d, base_dir, display)
+        if dictionary.name in raw.dictionaries:
+            raise SetupError(f"two signal dictionaries of system '{name}' are named '{dictionary.name}'.",
+                             file=display, element=f"ssd:SignalDictionary (line {d.sourceline})")
+        raw.dictionaries[dictionary.name] = dictionary
     raw.connections = [_read_connection(c, display) for c in system.iterfind("ssd:Connections/ssd:Connection", NS)]
     return raw
+
+
+def _read_reference(el: etree._Element, display: str) -> SignalReference:
+    name = el.get("name")
+    ref = SignalReference(name, el.get("dictionary"), el.sourceline, {})
+    for c in el.iterfind("ssd:Connectors/ssd:Connector", NS):
+        conn = _read_connector(c)
+        if conn.name in ref.connectors:
+            raise SetupError(f"connector '{conn.name}' is declared twice.", file=display,
+                             element=f"ssd:SignalDictionaryReference '{name}' (line {el.sourceline})")
+        ref.connectors[conn.name] = conn
+    return ref
+
+
+def _read_dictionary(el: etree._Element, base_dir: Path, display: str) -> SignalDictionary:
+    """An ``ssd:SignalDictionary``: its entries from the ``.ssb`` source or the inline ``ssb:SignalDictionary``."""
+    name = el.get("name")
+    where = f"ssd:SignalDictionary '{name}' (line {el.sourceline})"
+    dtype = el.get("type", SIGNAL_DICTIONARY_MIME)
+    if dtype != SIGNAL_DICTIONARY_MIME:
+        raise SetupError(f"signal dictionary type '{dtype}' is not supported (only {SIGNAL_DICTIONARY_MIME}).",
+                         file=display, element=where)
+    source = el.get("source")
+    if source is not None:
+        path = _source_file(source, base_dir, display, where, "signal dictionary")
+        file, tree = str(path), parse_xml(path)
+        root = tree.getroot()
+        if etree.QName(root).namespace != NS["ssb"] or etree.QName(root).localname != "SignalDictionary":
+            raise SetupError(f"the root element is not an SSP ssb:SignalDictionary (found {root.tag}).",
+                             file=file, element=f"line {root.sourceline}")
+        validate_schema(tree, "SystemStructureSignalDictionary.xsd", file, ssp2=as_ssp1(root))
+    else:
+        file, root = display, el.find("ssb:SignalDictionary", NS)
+        if root is None:
+            raise SetupError("a signal dictionary needs a source (.ssb) or an inline ssb:SignalDictionary.",
+                             file=display, element=where)
+        validate_schema(root, "SystemStructureSignalDictionary.xsd", display, ssp2=as_ssp1(root))
+    units = root.find("ssb:Units", NS)
+    if units is not None and any(isinstance(u.tag, str) for u in units):
+        raise SetupError("units declared in a signal dictionary are not supported; declare them in the SSD's "
+                         "ssd:Units (the master converts dictionary signals with the SSD's units).", file=file,
+                         element=f"ssb:Units (line {units.sourceline})")
+    entries: dict[str, Connector] = {}
+    for entry in root.iterfind("ssb:DictionaryEntry", NS):
+        conn = replace(_read_connector(entry), kind="signal")
+        if conn.name in entries:
+            raise SetupError(f"dictionary entry '{conn.name}' is declared twice.", file=file,
+                             element=f"ssb:DictionaryEntry (line {entry.sourceline})", variable=conn.name)
+        entries[conn.name] = conn
+    return SignalDictionary(name, el.sourceline, file, entries)
 
 
 def _read_component(el: etree._Element, base_dir: Path, display: str) -> Component:
@@ -297,44 +416,136 @@ def _read_bindings(owner: etree._Element, base_dir: Path, display: str) -> list[
     values: list[ParameterValue] = []
     for binding in owner.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         where = f"ssd:ParameterBinding (line {binding.sourceline})"
-        btype = binding.get("type", "application/x-ssp-parameter-set")
-        if btype != "application/x-ssp-parameter-set":
+        btype = binding.get("type", PARAMETER_SET_MIME)
+        if btype != PARAMETER_SET_MIME:
             raise SetupError(f"parameter binding type '{btype}' is not supported.", file=display, element=where)
-        if binding.get("sourceBase", "SSD") != "SSD":
-            raise SetupError("sourceBase='component' is not supported; give the .ssv relative to the SSD.",
-                             file=display, element=where)
+        _check_source_base(binding, display, where, ".ssv")
         prefix = binding.get("prefix", "")
         source = binding.get("source")
         if source is not None:
-            try:
-                ssv = resolve_uri(source, base_dir)
-            except SetupError as e:
-                raise SetupError(e.detail, file=display, element=where) from None
-            if not is_file(ssv):
-                raise SetupError(f"parameter set '{source}' not found (looked at {ssv}).", file=display,
-                                 element=where)
-            parsed = read_ssv(ssv)
+            parsed = read_ssv(_source_file(source, base_dir, display, where, "parameter set"))
         else:
             inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
             if inline is None:
                 raise SetupError("a parameter binding needs a source or inline ssd:ParameterValues.",
                                  file=display, element=where)
             # the SSD schema lets ssd:ParameterValues hold anything: check the inline set as an .ssv is
-            validate_schema(inline, "SystemStructureParameterValues.xsd", display)
+            validate_schema(inline, "SystemStructureParameterValues.xsd", display, ssp2=as_ssp1(inline))
             parsed = _read_parameter_set(inline, display)
-        values.extend(replace(p, name=prefix + p.name) for p in parsed)
+        # SSP 1.0 ParameterBinding prefix: prepended to the names of the source before any mapping
+        named = [replace(p, name=prefix + p.name) for p in parsed]
+        mapping = binding.find("ssd:ParameterMapping", NS)
+        values.extend(named if mapping is None else apply_mapping(named, _read_mapping(mapping, base_dir, display)))
     return values
 
 
+def _check_source_base(el: etree._Element, display: str, where: str, kind: str) -> None:
+    if el.get("sourceBase", "SSD") != "SSD":
+        raise SetupError(f"sourceBase='component' is not supported; give the {kind} relative to the SSD.",
+                         file=display, element=where)
+
+
+def _source_file(source: str, base_dir: Path, display: str, where: str, what: str) -> Path:
+    """The file a ``source`` URI names, resolved and confined as every SSP resource (`resolve_uri`)."""
+    try:
+        path = resolve_uri(source, base_dir)
+    except SetupError as e:
+        raise SetupError(e.detail, file=display, element=where) from None
+    if not is_file(path):
+        raise SetupError(f"{what} '{source}' not found (looked at {path}).", file=display, element=where)
+    return path
+
+
+def _read_mapping(el: etree._Element, base_dir: Path, display: str) -> list[MappingEntry]:
+    """The entries of an ``ssd:ParameterMapping``: from its ``.ssm`` source or inline."""
+    where = f"ssd:ParameterMapping (line {el.sourceline})"
+    mtype = el.get("type", PARAMETER_MAPPING_MIME)
+    if mtype != PARAMETER_MAPPING_MIME:
+        raise SetupError(f"parameter mapping type '{mtype}' is not supported (only {PARAMETER_MAPPING_MIME}).",
+                         file=display, element=where)
+    _check_source_base(el, display, where, ".ssm")
+    source = el.get("source")
+    children = [c for c in el if isinstance(c.tag, str)]
+    if source is not None:
+        if children:
+            raise SetupError("a parameter mapping with a source must be empty (SSP 1.0 ParameterMapping).",
+                             file=display, element=where)
+        return read_ssm(_source_file(source, base_dir, display, where, "parameter mapping"))
+    inline = el.find("ssm:ParameterMapping", NS)
+    if inline is None or len(children) != 1:
+        raise SetupError("a parameter mapping needs a source (.ssm) or one inline ssm:ParameterMapping.",
+                         file=display, element=where)
+    validate_schema(inline, "SystemStructureParameterMapping.xsd", display, ssp2=as_ssp1(inline))
+    return _read_mapping_entries(inline, display)
+
+
+def read_ssm(path: str | Path) -> list[MappingEntry]:
+    """Read an ``.ssm`` parameter mapping file (SystemStructureParameterMapping.xsd)."""
+    path = Path(path)
+    tree = parse_xml(path)
+    root = tree.getroot()
+    if etree.QName(root).namespace != NS["ssm"] or etree.QName(root).localname != "ParameterMapping":
+        raise SetupError(f"the root element is not an SSP ssm:ParameterMapping (found {root.tag}).",
+                         file=str(path), element=f"line {root.sourceline}")
+    validate_schema(tree, "SystemStructureParameterMapping.xsd", str(path), ssp2=as_ssp1(root))
+    return _read_mapping_entries(root, str(path))
+
+
+#: the transformations of a mapping entry (SSP 1.0 GTransformationChoice) and how a MapEntry value reads
+_TABLES = {"BooleanMappingTransformation": ("Boolean", lambda text: text.strip() in ("true", "1")),
+           "IntegerMappingTransformation": ("Integer", int),
+           "EnumerationMappingTransformation": ("Enumeration", str)}
+
+
+def _read_mapping_entries(mapping: etree._Element, display: str) -> list[MappingEntry]:
+    entries: list[MappingEntry] = []
+    targets: dict[str, int] = {}
+    for e in mapping.iterfind("ssm:MappingEntry", NS):
+        if e.get("source") == "":  # OMSimulator's mapping templates: a target awaiting its source maps nothing
+            continue
+        target = e.get("target")
+        if target in targets:
+            raise SetupError(f"two mapping entries map to '{target}' (lines {targets[target]} and {e.sourceline}); "
+                             "SSP 1.0 forbids mapping several parameters to one name.", file=display,
+                             element=f"ssm:MappingEntry (line {e.sourceline})", variable=target)
+        targets[target] = e.sourceline
+        entry = MappingEntry(e.get("source"), target, e.get("suppressUnitConversion", "false") in ("true", "1"),
+                             display, e.sourceline)
+        linear = e.find("ssc:LinearTransformation", NS)
+        if linear is not None:
+            entry = replace(entry, kind="Linear", factor=_float_attr(linear, "factor", display, default=1.0),
+                            offset=_float_attr(linear, "offset", display, default=0.0))
+        for local, (kind, parse) in _TABLES.items():
+            table_el = e.find(f"ssc:{local}", NS)
+            if table_el is not None:
+                entry = replace(entry, kind=kind, table=_read_table(table_el, parse, display))
+        entries.append(entry)
+    return entries
+
+
+def _read_table(el: etree._Element, parse, display: str) -> dict:
+    """The ``ssc:MapEntry`` source → target table of a mapping transformation; a source given twice
+    is refused (SSP 1.0: entries MUST be unambiguous)."""
+    table: dict = {}
+    for entry in el.iterfind("ssc:MapEntry", NS):
+        source, target = parse(entry.get("source")), parse(entry.get("target"))
+        if source in table:
+            raise SetupError(f"source value '{entry.get('source')}' is mapped twice; SSP 1.0 mapping "
+                             "transformations must be unambiguous.", file=display,
+                             element=f"ssc:MapEntry (line {entry.sourceline})")
+        table[source] = target
+    return table
+
+
 def read_ssv(path: str | Path) -> list[ParameterValue]:
-    """Read an ``.ssv`` parameter set file (SystemStructureParameterValues.xsd)."""
+    """Read an ``.ssv`` parameter set file (SystemStructureParameterValues.xsd), SSP 1.0 or 2.0 (`as_ssp1`)."""
     path = Path(path)
     tree = parse_xml(path)
     root = tree.getroot()
     if etree.QName(root).namespace != NS["ssv"] or etree.QName(root).localname != "ParameterSet":
-        raise SetupError(f"the root element is not an SSP 1.0 ssv:ParameterSet (found {root.tag}).",
+        raise SetupError(f"the root element is not an SSP ssv:ParameterSet (found {root.tag}).",
                          file=str(path), element=f"line {root.sourceline}")
-    validate_schema(tree, "SystemStructureParameterValues.xsd", str(path))
+    validate_schema(tree, "SystemStructureParameterValues.xsd", str(path), ssp2=as_ssp1(root))
     return _read_parameter_set(root, str(path))
 
 

@@ -45,6 +45,15 @@ class ParameterValue:
     unit: str | None = None
     #: the ``ssv:Units`` of the parameter set that holds the value (SSP 1.0 ParameterSet)
     units: dict[str, Unit] = field(default_factory=dict, repr=False)
+    #: the ``ssm:MappingEntry`` that renamed (and perhaps transformed) the value, for messages ("" if none)
+    mapping: str = ""
+    #: a mapping's ``ssc:LinearTransformation`` (factor, offset) still to apply after converting ``unit``
+    #: to the variable's unit (SSP 1.0 MappingEntry: units first, then the transformation); None: none left
+    linear: tuple[float, float] | None = None
+
+    def element(self) -> str:
+        """Where the value comes from, for messages: its ``ssv:Parameter`` and the mapping entry, if any."""
+        return f"ssv:Parameter (line {self.line})" + (f", mapped by {self.mapping}" if self.mapping else "")
 
 
 @dataclass
@@ -122,6 +131,31 @@ class RawSystem:
     parameters: list[ParameterValue]
     #: names of the components and systems in document order
     elements: list[str] = field(default_factory=list)
+    #: the ``ssd:SignalDictionaries`` of this system, by name
+    dictionaries: dict[str, SignalDictionary] = field(default_factory=dict)
+    #: the ``ssd:SignalDictionaryReference`` elements of this system, by name
+    references: dict[str, SignalReference] = field(default_factory=dict)
+
+
+@dataclass
+class SignalDictionary:
+    """One ``ssd:SignalDictionary``: named signals (``ssb:DictionaryEntry``), each a connector of
+    kind ``signal`` owned by the system that declares the dictionary (`cosim.flatten`)."""
+    name: str
+    line: int
+    #: the file that declares the entries (the .ssb, or the SSD for an inline dictionary)
+    file: str
+    entries: dict[str, Connector]
+
+
+@dataclass
+class SignalReference:
+    """One ``ssd:SignalDictionaryReference``: an element whose connectors are the entries of the
+    dictionary it names, looked up in its system and then in the enclosing ones."""
+    name: str
+    dictionary: str
+    line: int
+    connectors: dict[str, Connector]
 
 
 @dataclass

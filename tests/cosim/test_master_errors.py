@@ -201,10 +201,10 @@ def test_unsupported_features_are_refused_at_any_depth(tmp_path, fmus, capsys):
     assert main(["validate", str(folder)]) == 0
     capsys.readouterr()
     ssd.write_text(flat.replace("</ssd:Elements>", '<ssd:System name="inner"><ssd:Elements>'
-                                '<ssd:SignalDictionaryReference name="bus" dictionary="signals"/>'
+                                '<ssd:Component name="m" source="m.mo" type="text/x-modelica"/>'
                                 '</ssd:Elements></ssd:System></ssd:Elements>'))
     err = _cli_error(capsys, "validate", str(folder))
-    assert "signal dictionaries are not supported" in err and "SignalDictionaryReference (line" in err
+    assert "component type 'text/x-modelica' is not supported" in err and "ssd:Component 'm' (line" in err
 
 
 def test_fmu_failing_mid_run_keeps_results(tmp_path, fmus, capsys):

@@ -1,0 +1,85 @@
+"""SSP 1.0 parameter mappings (SystemStructureParameterMapping, ``.ssm``): rename and transform
+the values of a parameter set before they are applied.
+
+A ParameterBinding with a ``ssd:ParameterMapping`` applies only the mapped values, under the
+names they are mapped to; values that no ``ssm:MappingEntry`` names are not applied (SSP 1.0
+§5.2.3 ParameterBindings).  A binding's ``prefix`` is prepended to the names in the parameter
+source before the mapping is processed, so an entry's ``source`` names the prefixed name.  One
+source may be mapped to several targets; two entries must not map to the same target.  An entry
+with an empty ``source`` (the templates OMSimulator writes: a target awaiting its source) maps
+nothing.
+
+Transformations (SSP 1.0 §4.5.2, Transformation Choice): ``ssc:LinearTransformation``
+``target = factor * source + offset`` on Real values, after the unit conversion (or instead of it
+with ``suppressUnitConversion="true"``): a value given in a unit keeps the transformation in
+`cosim.structure.ParameterValue.linear` until `cosim.parameters` has converted it to the
+variable's unit.  The Boolean, Integer and Enumeration mapping transformations are tables; a value
+that no ``ssc:MapEntry`` names is kept unchanged.  A transformation on a value of another type is
+refused, naming the entry.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+from .errors import SetupError, did_you_mean
+from .structure import ParameterValue
+
+#: the ssv value type each transformation applies to
+APPLIES_TO = {"Linear": "Real", "Boolean": "Boolean", "Integer": "Integer", "Enumeration": "Enumeration"}
+
+
+@dataclass(frozen=True)
+class MappingEntry:
+    """One ``ssm:MappingEntry``: ``source`` → ``target``, with an optional transformation."""
+    source: str
+    target: str
+    suppress_unit_conversion: bool
+    file: str
+    line: int
+    #: "Linear", "Boolean", "Integer", "Enumeration" (the ssc:...Transformation) or None
+    kind: str | None = None
+    factor: float = 1.0
+    offset: float = 0.0
+    #: the ssc:MapEntry table of a Boolean, Integer or Enumeration mapping transformation
+    table: dict = field(default_factory=dict)
+
+    def where(self) -> str:
+        return f"ssm:MappingEntry '{self.source}' -> '{self.target}' ({self.file}, line {self.line})"
+
+
+def apply_mapping(values: list[ParameterValue], entries: list[MappingEntry]) -> list[ParameterValue]:
+    """The values the entries map, renamed and transformed, in the order of the entries.
+
+    An entry naming a value the parameter set does not hold is refused: it would silently
+    apply nothing."""
+    by_name = {p.name: p for p in values}  # later wins, as between the values of one set
+    out = []
+    for entry in entries:
+        p = by_name.get(entry.source)
+        if p is None:
+            raise SetupError(f"the mapping entry's source '{entry.source}' is not a parameter of the parameter "
+                             "set it maps.", file=entry.file, element=f"ssm:MappingEntry (line {entry.line})",
+                             variable=entry.source, hint=did_you_mean(entry.source, by_name))
+        out.append(_mapped(p, entry))
+    return out
+
+
+def transformation_element(kind: str) -> str:
+    """The element of a transformation kind: ``ssc:LinearTransformation``, ``ssc:BooleanMappingTransformation``..."""
+    return "ssc:LinearTransformation" if kind == "Linear" else f"ssc:{kind}MappingTransformation"
+
+
+def _mapped(p: ParameterValue, entry: MappingEntry) -> ParameterValue:
+    mapped = replace(p, name=entry.target, mapping=entry.where(),
+                     unit=None if entry.suppress_unit_conversion else p.unit)
+    if entry.kind is None:
+        return mapped
+    if p.type != APPLIES_TO[entry.kind]:
+        raise SetupError(f"{transformation_element(entry.kind)} applies to ssv:{APPLIES_TO[entry.kind]} values; "
+                         f"'{entry.source}' is an ssv:{p.type} ({p.file}, line {p.line}).",
+                         file=entry.file, element=f"ssm:MappingEntry (line {entry.line})", variable=entry.source)
+    if entry.kind != "Linear":
+        return replace(mapped, value=entry.table.get(p.value, p.value))
+    if mapped.unit is None:
+        return replace(mapped, value=entry.factor * float(p.value) + entry.offset)
+    return replace(mapped, linear=(entry.factor, entry.offset))
