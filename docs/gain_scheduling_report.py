@@ -42,6 +42,10 @@ MODE_STUDIES = {
         "step_down": ("step_down",),
         "reversed: τ falls in y, step_up": ("step_up", "tau_falling"),
         "reversed: τ falls in y, step_down": ("step_down", "tau_falling"),
+        "T(y) rises in y (τ = 4 s), step_up": ("step_up", "t_rising"),
+        "T(y) rises in y (τ = 4 s), step_down": ("step_down", "t_rising"),
+        "T(y) falls in y (τ = 4 s), step_up": ("step_up", "t_falling"),
+        "T(y) falls in y (τ = 4 s), step_down": ("step_down", "t_falling"),
     }, 600.0),
 }
 """Per study: title, variants (label: parameter sets, each combined with one integral mode), stop time.

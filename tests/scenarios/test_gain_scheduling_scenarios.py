@@ -134,6 +134,21 @@ def test_sim_2_2_reversed_dead_time_modes_2_11_2_12_overshoot(direction, large):
     assert bool(m[2]["overshoot"] > 100.0) is large
 
 
+def test_sim_2_2_similar_for_time_constant_not_reproduced_the_direction_flips():
+    """Sim. 2.2: "The similar responses can be observed for the variation of process time constant T(y)."  Sim. 2.2's
+    τ(y) put on T (t_rising.ssv: T 4 → 20 s as y rises, τ = 4 s; t_falling.ssv: mirrored), ITAE gains on T(y).
+    NOT REPRODUCED: the responses are the mirror image of Sim. 2.2's.  Kc ∝ T^0.947 grows with T where it fell with
+    τ (τ^-0.947), so rescaling the integral output overshoots when T rises: step 0.5 → 4, (2.10) 9.5 %, (2.11)
+    41.6 %, (2.12) 69.4 %; when T falls (2.10) overshoots most (42.9 % against 23.0 / 18.1 %).  No mode is
+    over-damped in either direction (rise times 8.5-14.5 s)."""
+    rising = {k: setpoint_metrics("gs_sim2_2", "step_up", f"mode{k}", "t_rising", stop_time=600.0) for k in (1, 2, 3)}
+    falling = {k: setpoint_metrics("gs_sim2_2", "step_up", f"mode{k}", "t_falling", stop_time=600.0) for k in (1, 2, 3)}
+    assert min(rising[2]["overshoot"], rising[3]["overshoot"]) > 3 * rising[1]["overshoot"]  # τ: 0 % against 52 %
+    assert max(rising[2]["rise_time"], rising[3]["rise_time"]) < rising[1]["rise_time"]  # not over-damped
+    assert falling[1]["overshoot"] > falling[2]["overshoot"] > falling[3]["overshoot"]  # τ falling: (2.11) 269 %
+    assert falling[2]["overshoot"] < 30.0
+
+
 # --- Simulations 2.3-2.5 (Figures 2.4, 2.6, 2.8, 2.11, 2.13): ITAE vs MFGS vs FGS1 vs FGS2 ----------------------
 
 
