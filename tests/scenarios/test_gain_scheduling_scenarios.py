@@ -31,6 +31,14 @@ def setpoint_metrics(simulation: str, *sets: str, stop_time: float = 400.0) -> d
     return step_metrics(result["time"], result["plant.y"], result["setpoint.y"], t0=10.0)
 
 
+def load_iae(simulation: str, *sets: str, start: float, end: float) -> float:
+    """IAE of y against the set-point over [start, end] (the load steps of Sims. 2.3-2.5 come at 400 and 800 s)."""
+    result = run(simulation, *sets, stop_time=1200.0)
+    t, e = result["time"], result["setpoint.y"] - result["plant.y"]
+    window = (t >= start) & (t <= end)
+    return float(np.sum(np.abs(e[window])) * 0.1)
+
+
 @pytest.mark.parametrize("name", ["GainScheduledPID", "ScheduledFOPDT"])
 def test_fmus_validate_and_declare_units(built_fmus, name):
     assert validate_fmu(str(built_fmus[name])) == []
@@ -163,13 +171,8 @@ def test_sim_2_3_gain_varies_mfgs_overshoots_less_than_fgs(case):
 def test_sim_2_3_disturbance_rejection_is_not_worse_with_fgs_here():
     """Figure 2.4(b),(c) say FGS1/FGS2 reject the ±d steps worse than MFGS.  Here (d = 0.5 at y = 4) the larger
     FGS gain rejects them with a smaller IAE and peak: we record this (CASE 1) rather than tune towards it."""
-    results = {law: run("gs_sim2_3", "case1", law, stop_time=1200.0) for law in ("mfgs", "fgs1")}
-    iae = {}
-    for law, result in results.items():
-        t, e = result["time"], result["setpoint.y"] - result["plant.y"]
-        for start in (400.0, 800.0):
-            window = (t >= start) & (t <= start + 400.0)
-            iae[law, start] = float(np.sum(np.abs(e[window])) * 0.1)
+    iae = {(law, start): load_iae("gs_sim2_3", "case1", law, start=start, end=start + 400.0)
+           for law in ("mfgs", "fgs1") for start in (400.0, 800.0)}
     for start in (400.0, 800.0):
         assert iae["fgs1", start] < iae["mfgs", start]
 
@@ -182,6 +185,19 @@ def test_sim_2_4_time_constant_varies_fgs_settle_faster_than_mfgs(case):
     assert m["fgs2"]["settling_time"] < m["mfgs"]["settling_time"]
     assert m["mfgs"]["overshoot"] < min(m["fgs1"]["overshoot"], m["fgs2"]["overshoot"])
     assert m["mfgs"]["rise_time"] > max(m["fgs1"]["rise_time"], m["fgs2"]["rise_time"])
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_4_fgs_reject_the_load_better_than_mfgs(case):
+    """Sim. 2.4 and §2.3.4 (2): FGS1 and FGS2 achieve "slightly better disturbance rejection than MFGS, since Kc(y) in
+    MFGS is too small".  REPRODUCED in direction in every case and for both load steps: IAE of +d (400-800 s) MFGS /
+    FGS1 / FGS2 7.20 / 4.87 / 4.79 (CASE 1), 6.31 / 4.22 / 4.10 (CASE 2), 6.65 / 4.47 / 4.37 (CASE 3); the margin,
+    a third of MFGS's IAE, is more than "slightly"."""
+    for start in (400.0, 800.0):
+        iae = {law: load_iae("gs_sim2_4", f"case{case}", law, start=start, end=start + 400.0)
+               for law in ("mfgs", "fgs1", "fgs2")}
+        assert max(iae["fgs1"], iae["fgs2"]) < 0.75 * iae["mfgs"]
+        assert min(iae["fgs1"], iae["fgs2"]) > 0.6 * iae["mfgs"]
 
 
 @pytest.mark.parametrize("case", CASES)
