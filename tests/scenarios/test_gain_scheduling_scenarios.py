@@ -18,6 +18,7 @@ from cosim.metrics import step_metrics
 
 SSP = Path(__file__).resolve().parents[2] / "ssp"
 CASES = (1, 2, 3)
+LAWS = ("itae", "mfgs", "fgs1", "fgs2")
 
 
 @lru_cache(maxsize=None)
@@ -29,6 +30,15 @@ def run(simulation: str, *sets: str, stop_time: float) -> np.ndarray:
 def setpoint_metrics(simulation: str, *sets: str, stop_time: float = 400.0) -> dict[str, float]:
     result = run(simulation, *sets, stop_time=stop_time)
     return step_metrics(result["time"], result["plant.y"], result["setpoint.y"], t0=10.0)
+
+
+def direction_metrics(simulation: str, case: int, mirrored: bool, down: bool) -> dict[str, dict[str, float]]:
+    """Set-point metrics of every law for a case of Sims. 2.3-2.5 in one of the four directions the text discusses:
+    the parameter rising with y or `mirrored` (p(7.76 - y), table swapped), set-point 1 → 4 or `down` 4 → 1."""
+    sets = [f"mirrored_case{case}" if mirrored else f"case{case}"]
+    if down:
+        sets.append("down" if simulation != "gs_sim2_3" else f"{'mirrored_' if mirrored else ''}down_case{case}")
+    return {law: setpoint_metrics(simulation, *sets, law) for law in LAWS}
 
 
 def load_iae(simulation: str, *sets: str, start: float, end: float) -> float:
@@ -236,6 +246,84 @@ def test_sim_2_5_mfgs_load_rejection_is_not_the_best_here():
         t, e = result["time"], result["setpoint.y"] - result["plant.y"]
         iae[law] = float(np.sum(np.abs(e[t >= 400.0])) * 0.1)
     assert iae["fgs2"] < 0.7 * iae["mfgs"]
+
+
+# --- The reversed directions of Sims. 2.3-2.5 (the paragraphs after each CASE 3): down_*/mirrored_* parameter sets ---
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_3_gain_falling_with_y_mfgs_best_and_the_laws_closer(case):
+    """Sim. 2.3, "the case in which the process gain decreases as y decreases" (set-point 4 → 1): MFGS again the best
+    for set-point tracking and the laws "have much less difference".  REPRODUCED on the overshoot: MFGS 15.1 / 8.5 /
+    1.8 % against FGS 26.6 / 25.5 / 24.3 % (CASES 1-3); the gap 11-23 points against 43-49 on the step 1 → 4."""
+    up, down = (direction_metrics("gs_sim2_3", case, mirrored=False, down=d) for d in (False, True))
+    assert down["mfgs"]["overshoot"] < down["fgs1"]["overshoot"] - 10.0
+    gap = {name: m["fgs1"]["overshoot"] - m["mfgs"]["overshoot"] for name, m in (("up", up), ("down", down))}
+    assert gap["down"] < 0.6 * gap["up"]
+
+
+@pytest.mark.parametrize("down", [False, True], ids=["y_rises", "y_falls"])
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_3_gain_rising_as_y_falls_fgs_not_more_damped(case, down):
+    """Sim. 2.3, "the case in which the process gain increases as the process output y decreases" (mirrored_case*,
+    step 4 → 1) and "the cases when y increases the process gain decreases" (step 1 → 4): "the set-point step
+    responses for FGS1 and FGS2 will be more, or much more, damped than MFGS".  NOT REPRODUCED: FGS's too high gain
+    overshoots more and rises faster, as in the forward cases (y falls: FGS 26.6 / 25.5 / 23.7 % and rise 10-16 s
+    against MFGS 14.3 / 8.6 / 3.7 % and 30-54 s; y rises: 86.3 / 57.0 / 37.4 % against 31.4 / 8.7 / 0.1 %)."""
+    m = direction_metrics("gs_sim2_3", case, mirrored=True, down=down)
+    assert m["fgs1"]["IAE"] == pytest.approx(m["fgs2"]["IAE"], rel=1e-9)  # Ti, Td equal at both points
+    assert m["fgs1"]["overshoot"] > m["mfgs"]["overshoot"] + 10.0
+    assert m["fgs1"]["rise_time"] < 0.5 * m["mfgs"]["rise_time"]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_4_time_constant_rising_as_y_falls_fgs1_best_but_not_closer(case):
+    """Sim. 2.4, "the case in which the process time constant increases as the process output y decreases" (step
+    4 → 1): "the control quality of FGS1 for the setpoint tracking ... the best"; the laws "have much less
+    difference".  FGS1 best REPRODUCED (smallest IAE of the scheduled laws: 48.0 / 40.1 / 43.4 against MFGS 55.1 /
+    47.9 / 50.9); "much less difference" NOT: MFGS's IAE exceeds FGS1's by 7.1-7.8 against 3.9-4.6 on the step 1 → 4."""
+    up, down = (direction_metrics("gs_sim2_4", case, mirrored=False, down=d) for d in (False, True))
+    assert down["fgs1"]["IAE"] < min(down["mfgs"]["IAE"], down["fgs2"]["IAE"])
+    gap = {name: m["mfgs"]["IAE"] - m["fgs1"]["IAE"] for name, m in (("up", up), ("down", down))}
+    assert gap["down"] > gap["up"] > 0
+
+
+@pytest.mark.parametrize("down", [False, True], ids=["y_rises", "y_falls"])
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_4_time_constant_falling_as_y_falls_mfgs_more_damped_fgs1_better(case, down):
+    """Sim. 2.4, "the process time constant decreases as the process output y decreases" (mirrored_case*, step 4 → 1)
+    and "increases as y increases" (step 1 → 4): MFGS's gain too small, "the setpoint step response for MFGS will be
+    more, or much more, damped than ITAE.  Comparatively FGS1 and FGS2 are better."  REPRODUCED for MFGS and FGS1:
+    MFGS rises in 13.5-21.0 s against ITAE's 8.7-14.8 s with less overshoot; FGS1's IAE is below MFGS's in all six
+    (y falls: 49.8 / 38.7 / 43.0 against 53.2 / 42.0 / 46.1); FGS2's is not (53.6 / 42.3 / 46.7 when y falls)."""
+    m = direction_metrics("gs_sim2_4", case, mirrored=True, down=down)
+    assert m["mfgs"]["rise_time"] > 1.3 * m["itae"]["rise_time"]
+    assert m["mfgs"]["overshoot"] < m["itae"]["overshoot"]
+    assert m["fgs1"]["IAE"] < m["mfgs"]["IAE"]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_5_dead_time_falling_with_y_overshoot_order_holds_laws_not_closer(case):
+    """Sim. 2.5, "the case in which the process time delay decreases as the process output y decreases" (step 4 → 1):
+    MFGS "the best again", the laws with "much less difference".  The overshoot order holds (MFGS 2.7 / 2.3 / 2.3 %,
+    FGS2 11.2 / 8.5 / 8.9 %, FGS1 52.3 / 34.6 / 39.8 %) but FGS1 still overshoots 30-50 points more than MFGS (54, 37,
+    51 up) and FGS2 has the smaller IAE (71.1 / 62.6 / 64.6 against 91.9 / 88.2 / 89.2): NOT REPRODUCED as stated."""
+    m = direction_metrics("gs_sim2_5", case, mirrored=False, down=True)
+    assert m["mfgs"]["overshoot"] < m["fgs2"]["overshoot"] < m["fgs1"]["overshoot"]
+    assert m["fgs1"]["overshoot"] > m["mfgs"]["overshoot"] + 30.0
+    assert m["fgs2"]["IAE"] < m["mfgs"]["IAE"]
+
+
+@pytest.mark.parametrize("down", [False, True], ids=["y_rises", "y_falls"])
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_5_dead_time_rising_as_y_falls_fgs_overshoot_more(case, down):
+    """Sim. 2.5, "the process time delay increases as the process output y decreases" (mirrored_case*, step 4 → 1) and
+    "decreases as y increases" (step 1 → 4): "the setpoint step responses for FGS1 and FGS2 will be more, or much
+    more, over-shot than MFGS".  REPRODUCED: y falls MFGS 17.8 / 14.6 / 15.9 %, FGS2 33.3 / 27.0 / 29.0 %, FGS1 87.9 /
+    67.5 / 75.5 %; y rises 46.4 / 38.5 / 41.7, 84.0 / 70.3 / 75.3, 126.9 / 108.3 / 115.8 % (ITAE overshoots 19-53 %
+    there too: the loop starts at τ ≈ 20 s)."""
+    m = direction_metrics("gs_sim2_5", case, mirrored=True, down=down)
+    assert m["mfgs"]["overshoot"] + 10.0 < m["fgs2"]["overshoot"] < m["fgs1"]["overshoot"] - 20.0
 
 
 @pytest.mark.parametrize("simulation", ["gs_sim2_3", "gs_sim2_4", "gs_sim2_5"])
