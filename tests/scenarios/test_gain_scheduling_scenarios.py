@@ -326,6 +326,27 @@ def test_sim_2_5_dead_time_rising_as_y_falls_fgs_overshoot_more(case, down):
     assert m["mfgs"]["overshoot"] + 10.0 < m["fgs2"]["overshoot"] < m["fgs1"]["overshoot"] - 20.0
 
 
+@pytest.mark.parametrize("schedule, stable_modes", [("SystemStructure.ssd", (1, 3)), ("scheduled_on_y.ssd", (1,))])
+def test_ch5_large_disturbance_mode_2_10_is_not_the_one_that_goes_unstable(schedule, stable_modes):
+    """Ch. 5, conclusion 1 (and §2.3.2, 1): with the set-point as scheduling variable, (2.10) "is more likely to become
+    unstable than PID with the integral mode (2.11) or (2.12), since it reduces to PID with fixed controller parameters
+    for disturbances" (ssp/gs_ch5_large_disturbance: Sim. 2.1's process and gains, r = 1, load step d = 6).
+    NOT REPRODUCED.  Scheduled on the set-point every mode IS the same fixed PID and rejects d (y peaks at 1.94,
+    last 150 s within 0.002).  Scheduled on y, (2.10) settles (peak 2.52) and (2.11) = (2.12) oscillate without end
+    (last 150 s peak-to-peak 3.1): rescaling the integral output, which holds -d, by Kc(y) closes a second loop
+    through the schedule.  Larger d (10) does not make the fixed PID unstable either (peak 2.64)."""
+    folder = SSP / "gs_ch5_large_disturbance"
+    tails = {}
+    for mode in (1, 3):
+        result = cosim.simulate(folder / schedule, parameter_sets=[folder / f"mode{mode}.ssv"])
+        tail = result["time"] > 450.0
+        tails[mode] = float(np.ptp(result["plant.y"][tail]))
+    for mode, spread in tails.items():
+        assert (spread < 0.1) is (mode in stable_modes)
+    if schedule == "scheduled_on_y.ssd":
+        assert tails[3] > 1.0
+
+
 @pytest.mark.parametrize("simulation", ["gs_sim2_3", "gs_sim2_4", "gs_sim2_5"])
 @pytest.mark.parametrize("case", CASES)
 def test_threshold_switching_is_worse_than_mfgs_at_intermediate_points(simulation, case):
