@@ -251,6 +251,20 @@ def test_sim_4_3_case_1_pulse_rejection_equal_not_a_third():
     assert not np.any(grey["fuel_grey.mode"] == 2)
 
 
+def test_sim_4_3_case_1_electric_power_error_alike_at_the_thesis_settings():
+    """Sim. 4.3 CASE 1: "Errors for both throttle pressure and ELECTRIC POWER under the control of the gray predictive
+    PI are about 1:3 less than under the control of PI".  The power error: peak |N_d - E| 0.033 MW with either
+    controller (ratio 1.015: the grey PI predicts in no sample): NOT REPRODUCED at the thesis's settings.  With the
+    predictor active (|a| > 0, 98 %) the ratio is 0.63 (pressure 0.67): "a third less" holds, "a third of" (0.33)
+    in neither."""
+    def peak_power_error(r: np.ndarray) -> float:
+        return float(np.max(np.abs(r["demand.y"] - r["plant.E"])))
+    pi = run("sim43_case1", "pi", 700.0, 0.1)
+    grey, active = run("sim43_case1", "grey", 700.0, 0.1), run("sim43_case1", "grey", 700.0, 0.1, form="always")
+    assert 0.9 < peak_power_error(grey) / peak_power_error(pi) < 1.1 and predicting(grey) == 0.0
+    assert 0.55 < peak_power_error(active) / peak_power_error(pi) < 0.7 and predicting(active) > 0.9
+
+
 @pytest.mark.parametrize("case, active_ratio", [(2, (0.55, 0.75)), (3, (0.6, 0.8))])
 def test_sim_4_3_cases_2_3_first_pulse_alike(case, active_ratio):
     """Sim. 4.3 CASE 2 (400 s period): "still much better" with the grey PI; CASE 3 (13 % pulse): "almost the same".
