@@ -216,8 +216,9 @@ def test_sim_4_2_cases_6_10_falling_ramps_thesis_pi_settles(case):
     """Sim. 4.2 CASE 6 (76 → 58 MW at 25 MW/min) is among "Case 5 to Case 8 ... the BTG system under PI control becomes
     unstable"; CASE 10 (50 MW/min) shows the grey PI "more stable than PI".  NOT REPRODUCED: the thesis's ISA PI (no
     anti-windup, no limits) settles in both, at the thesis's seed (last 300 s |e_P| 0.25 / 0.25) and in 20 of 20 seeds
-    (median 0.19, max 0.30 in each; the grey |a| PI alike); the printed parallel PI too (0.21 / 0.31).  On a falling
-    load the fuel valve closes without reaching its limit for long, so the integral does not wind up."""
+    (median 0.19, max 0.30 in each; the grey |a| PI alike); the printed parallel PI too (0.21 / 0.31).  The PI's
+    command leaves the valve's 0-100 % once (below 0 for 103 / 117 s, never above 100) and recovers; in CASE 5
+    (101 → 76 MW) it sits below 0 for 673 s and above 100 for 430 s and limit-cycles."""
     stable = sum(settled(run(f"sim42_case{case}", "pi", 1500.0, form="thesis", seed=seed)) for seed in SEEDS)
     assert stable == PI_STABLE_FALLING[case]
 
