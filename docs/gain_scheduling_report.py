@@ -42,6 +42,10 @@ MODE_STUDIES = {
         "step_down": ("step_down",),
         "reversed: τ falls in y, step_up": ("step_up", "tau_falling"),
         "reversed: τ falls in y, step_down": ("step_down", "tau_falling"),
+        "T(y) rises in y (τ = 4 s), step_up": ("step_up", "t_rising"),
+        "T(y) rises in y (τ = 4 s), step_down": ("step_down", "t_rising"),
+        "T(y) falls in y (τ = 4 s), step_up": ("step_up", "t_falling"),
+        "T(y) falls in y (τ = 4 s), step_down": ("step_down", "t_falling"),
     }, 600.0),
 }
 """Per study: title, variants (label: parameter sets, each combined with one integral mode), stop time.
@@ -122,6 +126,31 @@ def derivative_forms(folder: str, title: str) -> list[str]:
     return lines + [""]
 
 
+DIRECTIONS = {"1 → 4": (False, False), "4 → 1": (False, True), "mirrored, 1 → 4": (True, False),
+              "mirrored, 4 → 1": (True, True)}
+"""The four directions of the paragraphs after each CASE 3: (mirrored p(7.76 - y), set-point step down)."""
+
+
+def direction_sets(folder: str, case: int, mirrored: bool, down: bool) -> list[str]:
+    sets = [f"mirrored_case{case}" if mirrored else f"case{case}"]
+    if down:
+        sets.append("down" if folder != "gs_sim2_3" else f"{'mirrored_' if mirrored else ''}down_case{case}")
+    return sets
+
+
+def directions(folder: str, title: str) -> list[str]:
+    """Set-point responses in the four directions (down_*.ssv, mirrored_*.ssv)."""
+    lines = [f"## {title.split(' (')[0]}: the reversed directions (set-point steps, metrics over 10–400 s)", "",
+             "| case | direction | controller | IAE | overshoot % | settling s | rise s |", "|---|---|---|---|---|---|---|"]
+    for case in (1, 2, 3):
+        for label, (mirrored, down) in DIRECTIONS.items():
+            for law in CONTROLLERS:
+                m = setpoint_response(folder, *direction_sets(folder, case, mirrored, down), law)
+                lines.append(f"| {case} | {label} | {law.upper()} | {fmt(m['IAE'])} | {fmt(m['overshoot'])} | "
+                             f"{fmt(m['settling_time'])} | {fmt(m['rise_time'])} |")
+    return lines + [""]
+
+
 def setpoint_response(folder: str, *sets: str) -> dict[str, float]:
     result = simulate(folder, *sets, stop_time=400.0)
     return step_metrics(result["time"], result["plant.y"], result["setpoint.y"], t0=10.0)
@@ -135,6 +164,8 @@ def main() -> None:
         lines += mode_study(folder, title, variants, stop)
     for folder, title in COMPARISONS.items():
         lines += comparison(folder, title)
+    for folder, title in COMPARISONS.items():
+        lines += directions(folder, title)
     lines += derivative_forms("gs_sim2_4", "Simulation 2.4")
     TABLES.write_text("\n".join(lines))
     print(f"wrote {TABLES} and {FIGURES}/gs_*.png")

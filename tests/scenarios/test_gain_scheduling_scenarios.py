@@ -18,6 +18,7 @@ from cosim.metrics import step_metrics
 
 SSP = Path(__file__).resolve().parents[2] / "ssp"
 CASES = (1, 2, 3)
+LAWS = ("itae", "mfgs", "fgs1", "fgs2")
 
 
 @lru_cache(maxsize=None)
@@ -29,6 +30,23 @@ def run(simulation: str, *sets: str, stop_time: float) -> np.ndarray:
 def setpoint_metrics(simulation: str, *sets: str, stop_time: float = 400.0) -> dict[str, float]:
     result = run(simulation, *sets, stop_time=stop_time)
     return step_metrics(result["time"], result["plant.y"], result["setpoint.y"], t0=10.0)
+
+
+def direction_metrics(simulation: str, case: int, mirrored: bool, down: bool) -> dict[str, dict[str, float]]:
+    """Set-point metrics of every law for a case of Sims. 2.3-2.5 in one of the four directions the text discusses:
+    the parameter rising with y or `mirrored` (p(7.76 - y), table swapped), set-point 1 → 4 or `down` 4 → 1."""
+    sets = [f"mirrored_case{case}" if mirrored else f"case{case}"]
+    if down:
+        sets.append("down" if simulation != "gs_sim2_3" else f"{'mirrored_' if mirrored else ''}down_case{case}")
+    return {law: setpoint_metrics(simulation, *sets, law) for law in LAWS}
+
+
+def load_iae(simulation: str, *sets: str, start: float, end: float) -> float:
+    """IAE of y against the set-point over [start, end] (the load steps of Sims. 2.3-2.5 come at 400 and 800 s)."""
+    result = run(simulation, *sets, stop_time=1200.0)
+    t, e = result["time"], result["setpoint.y"] - result["plant.y"]
+    window = (t >= start) & (t <= end)
+    return float(np.sum(np.abs(e[window])) * 0.1)
 
 
 @pytest.mark.parametrize("name", ["GainScheduledPID", "ScheduledFOPDT"])
@@ -134,6 +152,21 @@ def test_sim_2_2_reversed_dead_time_modes_2_11_2_12_overshoot(direction, large):
     assert bool(m[2]["overshoot"] > 100.0) is large
 
 
+def test_sim_2_2_similar_for_time_constant_not_reproduced_the_direction_flips():
+    """Sim. 2.2: "The similar responses can be observed for the variation of process time constant T(y)."  Sim. 2.2's
+    τ(y) put on T (t_rising.ssv: T 4 → 20 s as y rises, τ = 4 s; t_falling.ssv: mirrored), ITAE gains on T(y).
+    NOT REPRODUCED: the responses are the mirror image of Sim. 2.2's.  Kc ∝ T^0.947 grows with T where it fell with
+    τ (τ^-0.947), so rescaling the integral output overshoots when T rises: step 0.5 → 4, (2.10) 9.5 %, (2.11)
+    41.6 %, (2.12) 69.4 %; when T falls (2.10) overshoots most (42.9 % against 23.0 / 18.1 %).  No mode is
+    over-damped in either direction (rise times 8.5-14.5 s)."""
+    rising = {k: setpoint_metrics("gs_sim2_2", "step_up", f"mode{k}", "t_rising", stop_time=600.0) for k in (1, 2, 3)}
+    falling = {k: setpoint_metrics("gs_sim2_2", "step_up", f"mode{k}", "t_falling", stop_time=600.0) for k in (1, 2, 3)}
+    assert min(rising[2]["overshoot"], rising[3]["overshoot"]) > 3 * rising[1]["overshoot"]  # τ: 0 % against 52 %
+    assert max(rising[2]["rise_time"], rising[3]["rise_time"]) < rising[1]["rise_time"]  # not over-damped
+    assert falling[1]["overshoot"] > falling[2]["overshoot"] > falling[3]["overshoot"]  # τ falling: (2.11) 269 %
+    assert falling[2]["overshoot"] < 30.0
+
+
 # --- Simulations 2.3-2.5 (Figures 2.4, 2.6, 2.8, 2.11, 2.13): ITAE vs MFGS vs FGS1 vs FGS2 ----------------------
 
 
@@ -148,13 +181,8 @@ def test_sim_2_3_gain_varies_mfgs_overshoots_less_than_fgs(case):
 def test_sim_2_3_disturbance_rejection_is_not_worse_with_fgs_here():
     """Figure 2.4(b),(c) say FGS1/FGS2 reject the ±d steps worse than MFGS.  Here (d = 0.5 at y = 4) the larger
     FGS gain rejects them with a smaller IAE and peak: we record this (CASE 1) rather than tune towards it."""
-    results = {law: run("gs_sim2_3", "case1", law, stop_time=1200.0) for law in ("mfgs", "fgs1")}
-    iae = {}
-    for law, result in results.items():
-        t, e = result["time"], result["setpoint.y"] - result["plant.y"]
-        for start in (400.0, 800.0):
-            window = (t >= start) & (t <= start + 400.0)
-            iae[law, start] = float(np.sum(np.abs(e[window])) * 0.1)
+    iae = {(law, start): load_iae("gs_sim2_3", "case1", law, start=start, end=start + 400.0)
+           for law in ("mfgs", "fgs1") for start in (400.0, 800.0)}
     for start in (400.0, 800.0):
         assert iae["fgs1", start] < iae["mfgs", start]
 
@@ -167,6 +195,19 @@ def test_sim_2_4_time_constant_varies_fgs_settle_faster_than_mfgs(case):
     assert m["fgs2"]["settling_time"] < m["mfgs"]["settling_time"]
     assert m["mfgs"]["overshoot"] < min(m["fgs1"]["overshoot"], m["fgs2"]["overshoot"])
     assert m["mfgs"]["rise_time"] > max(m["fgs1"]["rise_time"], m["fgs2"]["rise_time"])
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_4_fgs_reject_the_load_better_than_mfgs(case):
+    """Sim. 2.4 and §2.3.4 (2): FGS1 and FGS2 achieve "slightly better disturbance rejection than MFGS, since Kc(y) in
+    MFGS is too small".  REPRODUCED in direction in every case and for both load steps: IAE of +d (400-800 s) MFGS /
+    FGS1 / FGS2 7.20 / 4.87 / 4.79 (CASE 1), 6.31 / 4.22 / 4.10 (CASE 2), 6.65 / 4.47 / 4.37 (CASE 3); the margin,
+    a third of MFGS's IAE, is more than "slightly"."""
+    for start in (400.0, 800.0):
+        iae = {law: load_iae("gs_sim2_4", f"case{case}", law, start=start, end=start + 400.0)
+               for law in ("mfgs", "fgs1", "fgs2")}
+        assert max(iae["fgs1"], iae["fgs2"]) < 0.75 * iae["mfgs"]
+        assert min(iae["fgs1"], iae["fgs2"]) > 0.6 * iae["mfgs"]
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -205,6 +246,105 @@ def test_sim_2_5_mfgs_load_rejection_is_not_the_best_here():
         t, e = result["time"], result["setpoint.y"] - result["plant.y"]
         iae[law] = float(np.sum(np.abs(e[t >= 400.0])) * 0.1)
     assert iae["fgs2"] < 0.7 * iae["mfgs"]
+
+
+# --- The reversed directions of Sims. 2.3-2.5 (the paragraphs after each CASE 3): down_*/mirrored_* parameter sets ---
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_3_gain_falling_with_y_mfgs_best_and_the_laws_closer(case):
+    """Sim. 2.3, "the case in which the process gain decreases as y decreases" (set-point 4 → 1): MFGS again the best
+    for set-point tracking and the laws "have much less difference".  REPRODUCED on the overshoot: MFGS 15.1 / 8.5 /
+    1.8 % against FGS 26.6 / 25.5 / 24.3 % (CASES 1-3); the gap 11-23 points against 43-49 on the step 1 → 4."""
+    up, down = (direction_metrics("gs_sim2_3", case, mirrored=False, down=d) for d in (False, True))
+    assert down["mfgs"]["overshoot"] < down["fgs1"]["overshoot"] - 10.0
+    gap = {name: m["fgs1"]["overshoot"] - m["mfgs"]["overshoot"] for name, m in (("up", up), ("down", down))}
+    assert gap["down"] < 0.6 * gap["up"]
+
+
+@pytest.mark.parametrize("down", [False, True], ids=["y_rises", "y_falls"])
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_3_gain_rising_as_y_falls_fgs_not_more_damped(case, down):
+    """Sim. 2.3, "the case in which the process gain increases as the process output y decreases" (mirrored_case*,
+    step 4 → 1) and "the cases when y increases the process gain decreases" (step 1 → 4): "the set-point step
+    responses for FGS1 and FGS2 will be more, or much more, damped than MFGS".  NOT REPRODUCED: FGS's too high gain
+    overshoots more and rises faster, as in the forward cases (y falls: FGS 26.6 / 25.5 / 23.7 % and rise 10-16 s
+    against MFGS 14.3 / 8.6 / 3.7 % and 30-54 s; y rises: 86.3 / 57.0 / 37.4 % against 31.4 / 8.7 / 0.1 %)."""
+    m = direction_metrics("gs_sim2_3", case, mirrored=True, down=down)
+    assert m["fgs1"]["IAE"] == pytest.approx(m["fgs2"]["IAE"], rel=1e-9)  # Ti, Td equal at both points
+    assert m["fgs1"]["overshoot"] > m["mfgs"]["overshoot"] + 10.0
+    assert m["fgs1"]["rise_time"] < 0.5 * m["mfgs"]["rise_time"]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_4_time_constant_rising_as_y_falls_fgs1_best_but_not_closer(case):
+    """Sim. 2.4, "the case in which the process time constant increases as the process output y decreases" (step
+    4 → 1): "the control quality of FGS1 for the setpoint tracking ... the best"; the laws "have much less
+    difference".  FGS1 best REPRODUCED (smallest IAE of the scheduled laws: 48.0 / 40.1 / 43.4 against MFGS 55.1 /
+    47.9 / 50.9); "much less difference" NOT: MFGS's IAE exceeds FGS1's by 7.1-7.8 against 3.9-4.6 on the step 1 → 4."""
+    up, down = (direction_metrics("gs_sim2_4", case, mirrored=False, down=d) for d in (False, True))
+    assert down["fgs1"]["IAE"] < min(down["mfgs"]["IAE"], down["fgs2"]["IAE"])
+    gap = {name: m["mfgs"]["IAE"] - m["fgs1"]["IAE"] for name, m in (("up", up), ("down", down))}
+    assert gap["down"] > gap["up"] > 0
+
+
+@pytest.mark.parametrize("down", [False, True], ids=["y_rises", "y_falls"])
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_4_time_constant_falling_as_y_falls_mfgs_more_damped_fgs1_better(case, down):
+    """Sim. 2.4, "the process time constant decreases as the process output y decreases" (mirrored_case*, step 4 → 1)
+    and "increases as y increases" (step 1 → 4): MFGS's gain too small, "the setpoint step response for MFGS will be
+    more, or much more, damped than ITAE.  Comparatively FGS1 and FGS2 are better."  REPRODUCED for MFGS and FGS1:
+    MFGS rises in 13.5-21.0 s against ITAE's 8.7-14.8 s with less overshoot; FGS1's IAE is below MFGS's in all six
+    (y falls: 49.8 / 38.7 / 43.0 against 53.2 / 42.0 / 46.1); FGS2's is not (53.6 / 42.3 / 46.7 when y falls)."""
+    m = direction_metrics("gs_sim2_4", case, mirrored=True, down=down)
+    assert m["mfgs"]["rise_time"] > 1.3 * m["itae"]["rise_time"]
+    assert m["mfgs"]["overshoot"] < m["itae"]["overshoot"]
+    assert m["fgs1"]["IAE"] < m["mfgs"]["IAE"]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_5_dead_time_falling_with_y_overshoot_order_holds_laws_not_closer(case):
+    """Sim. 2.5, "the case in which the process time delay decreases as the process output y decreases" (step 4 → 1):
+    MFGS "the best again", the laws with "much less difference".  The overshoot order holds (MFGS 2.7 / 2.3 / 2.3 %,
+    FGS2 11.2 / 8.5 / 8.9 %, FGS1 52.3 / 34.6 / 39.8 %) but FGS1 still overshoots 30-50 points more than MFGS (54, 37,
+    51 up) and FGS2 has the smaller IAE (71.1 / 62.6 / 64.6 against 91.9 / 88.2 / 89.2): NOT REPRODUCED as stated."""
+    m = direction_metrics("gs_sim2_5", case, mirrored=False, down=True)
+    assert m["mfgs"]["overshoot"] < m["fgs2"]["overshoot"] < m["fgs1"]["overshoot"]
+    assert m["fgs1"]["overshoot"] > m["mfgs"]["overshoot"] + 30.0
+    assert m["fgs2"]["IAE"] < m["mfgs"]["IAE"]
+
+
+@pytest.mark.parametrize("down", [False, True], ids=["y_rises", "y_falls"])
+@pytest.mark.parametrize("case", CASES)
+def test_sim_2_5_dead_time_rising_as_y_falls_fgs_overshoot_more(case, down):
+    """Sim. 2.5, "the process time delay increases as the process output y decreases" (mirrored_case*, step 4 → 1) and
+    "decreases as y increases" (step 1 → 4): "the setpoint step responses for FGS1 and FGS2 will be more, or much
+    more, over-shot than MFGS".  REPRODUCED: y falls MFGS 17.8 / 14.6 / 15.9 %, FGS2 33.3 / 27.0 / 29.0 %, FGS1 87.9 /
+    67.5 / 75.5 %; y rises 46.4 / 38.5 / 41.7, 84.0 / 70.3 / 75.3, 126.9 / 108.3 / 115.8 % (ITAE overshoots 19-53 %
+    there too: the loop starts at τ ≈ 20 s)."""
+    m = direction_metrics("gs_sim2_5", case, mirrored=True, down=down)
+    assert m["mfgs"]["overshoot"] + 10.0 < m["fgs2"]["overshoot"] < m["fgs1"]["overshoot"] - 20.0
+
+
+@pytest.mark.parametrize("schedule, stable_modes", [("SystemStructure.ssd", (1, 3)), ("scheduled_on_y.ssd", (1,))])
+def test_ch5_large_disturbance_mode_2_10_is_not_the_one_that_goes_unstable(schedule, stable_modes):
+    """Ch. 5, conclusion 1 (and §2.3.2, 1): with the set-point as scheduling variable, (2.10) "is more likely to become
+    unstable than PID with the integral mode (2.11) or (2.12), since it reduces to PID with fixed controller parameters
+    for disturbances" (ssp/gs_ch5_large_disturbance: Sim. 2.1's process and gains, r = 1, load step d = 6).
+    NOT REPRODUCED.  Scheduled on the set-point every mode IS the same fixed PID and rejects d (y peaks at 1.94,
+    last 150 s within 0.002).  Scheduled on y, (2.10) settles (peak 2.52) and (2.11) = (2.12) oscillate without end
+    (last 150 s peak-to-peak 3.1): rescaling the integral output, which holds -d, by Kc(y) closes a second loop
+    through the schedule.  Larger d (10) does not make the fixed PID unstable either (peak 2.64)."""
+    folder = SSP / "gs_ch5_large_disturbance"
+    tails = {}
+    for mode in (1, 3):
+        result = cosim.simulate(folder / schedule, parameter_sets=[folder / f"mode{mode}.ssv"])
+        tail = result["time"] > 450.0
+        tails[mode] = float(np.ptp(result["plant.y"][tail]))
+    for mode, spread in tails.items():
+        assert (spread < 0.1) is (mode in stable_modes)
+    if schedule == "scheduled_on_y.ssd":
+        assert tails[3] > 1.0
 
 
 @pytest.mark.parametrize("simulation", ["gs_sim2_3", "gs_sim2_4", "gs_sim2_5"])
