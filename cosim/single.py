@@ -1,0 +1,158 @@
+"""Runs as ``fmpy simulate`` words them: one FMU without an SSD, start values and an input table.
+
+`fmu_structure` builds a one-component system in memory from an FMU (`cosim run X.fmu`): the
+component is named after the FMU's model identifier, every input and output is a connector,
+the default experiment of its modelDescription.xml gives the start and stop time and the step
+(a missing step is fmpy's automatic interval, ``fmpy.util.auto_interval``); what follows is the
+path of an SSD (`cosim.plan.build_plan` and on), so results are named ``<model>.<variable>``.
+
+`prepare_run` prepares a run of an FMU or an SSP system with what the command line adds:
+``--start NAME=VALUE`` values (applied last, after the parameter sets, checked as parameter
+sets are), ``--input-file`` (`cosim.inputs`), ``--output-interval`` (fmpy's name for the
+communication step of a Co-Simulation run) and ``--fmi-type`` (the interface of an FMU that has
+both).  For a single FMU a name is the variable's own (``u``, ``inertia1.phi``), as fmpy's; for
+a system it is ``component.variable``.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+from fmpy.util import auto_interval
+
+from . import ssp
+from .description import describe, exchange_type
+from .errors import SetupError
+from .flatten import flatten
+from .inputs import bind_table, read_input_table
+from .parameters import split_system_name
+from .plan import build_plan
+from .resources import locate_fmus
+from .simulation import Prepared, resolve_grid
+from .structure import (
+    Component,
+    Connector,
+    Experiment,
+    ParameterValue,
+    Plan,
+    RawStructure,
+    RawSystem,
+    ScenarioFiles,
+    SystemStructure,
+)
+
+#: --fmi-type values (fmpy's) and the SSP Component implementation each chooses
+FMI_TYPES = {"CoSimulation": "CoSimulation", "ModelExchange": "ModelExchange"}
+#: where --start values come from, in messages and the run metadata's parameter origins
+START_SOURCE = "--start"
+
+
+def is_fmu(path: str | Path) -> bool:
+    return Path(path).suffix.lower() == ".fmu"
+
+
+def fmu_structure(path: str | Path, fmi_type: str | None = None) -> SystemStructure:
+    """A one-component system of the FMU at ``path``, flattened as an SSD's would be."""
+    fmu = Path(path)
+    if not fmu.is_file():
+        raise SetupError("no such FMU file.", file=str(fmu), element="cosim run X.fmu")
+    implementation = FMI_TYPES[fmi_type] if fmi_type else "any"
+    desc = describe(fmu, "the FMU given", str(fmu), implementation)
+    md = desc.md
+    interface = md.coSimulation if desc.kind.endswith("cs") else md.modelExchange
+    name = interface.modelIdentifier
+    connectors = {v.name: Connector(v.name, v.causality, None, None, 0) for v in md.modelVariables
+                  if v.causality in ("input", "output") and exchange_type(v) is not None and not v.dimensions}
+    component = Component(name, fmu.name, 0, connectors, implementation=implementation)
+    e = md.defaultExperiment
+    start = float(e.startTime) if e is not None and e.startTime is not None else None
+    stop = float(e.stopTime) if e is not None and e.stopTime is not None else None
+    step = float(e.stepSize) if e is not None and e.stepSize is not None else None
+    root = RawSystem(name, 0, {}, {name: component}, {}, [], [], [name])
+    raw = RawStructure(name=name, files=ScenarioFiles(fmu, fmu.parent, None), display=str(fmu), root=root,
+                       experiment=Experiment(start, stop, step, "modelDescription.xml DefaultExperiment stepSize"
+                                             if step is not None else None, None), units={})
+    return flatten(raw)
+
+
+def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_file: str | Path | None = None,
+                fmi_type: str | None = None, output_interval: float | None = None,
+                start_time: float | None = None, stop_time: float | None = None, step_size: float | None = None,
+                algorithm: str | None = None, parameter_sets: Sequence[str | Path] = (),
+                fmu_dirs: Sequence[str | Path] = (), loops: str = "iterate") -> Prepared:
+    """Read and check everything a run needs (`cosim.simulation.prepare`, plus the options of
+    this module); nothing is instantiated."""
+    if fmi_type is not None and fmi_type not in FMI_TYPES:
+        raise SetupError(f"unknown FMI type '{fmi_type}'; choose {' or '.join(FMI_TYPES)}.", element="--fmi-type")
+    if output_interval is not None and step_size is not None and output_interval != step_size:
+        raise SetupError(f"--output-interval {output_interval:g} and --step {step_size:g} differ; both are the "
+                         "communication step, at which results are recorded: give one.", element="--output-interval")
+    single = is_fmu(path)
+    if single:
+        structure = fmu_structure(path, fmi_type)
+        fmu_paths = {name: Path(path) for name in structure.components}
+    else:
+        if fmi_type is not None:
+            raise SetupError("--fmi-type chooses the interface of a single FMU; in a system each ssd:Component's "
+                             "implementation attribute does.", file=str(path), element="--fmi-type")
+        structure = ssp.load(path)
+    try:
+        if not single:
+            fmu_paths = locate_fmus(structure, [Path(d) for d in fmu_dirs])
+        extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
+        plan = build_plan(structure, fmu_paths, extra, loops)
+        component = next(iter(plan.components)) if single else None
+        if start_values:
+            starts = [_start_value(text, plan, component) for text in start_values]
+            plan = build_plan(structure, fmu_paths, extra + starts, loops)
+        if input_file is not None:
+            plan.input_table = bind_table(read_input_table(input_file), plan, component)
+        step = step_size if step_size is not None else output_interval
+        if step is None and single and plan.experiment.step_size is None:
+            experiment = plan.experiment
+            start = start_time if start_time is not None else (experiment.start_time or 0.0)
+            stop = stop_time if stop_time is not None else _default_stop(plan, start)
+            step = float(auto_interval(stop - start)) if stop > start else None
+        if stop_time is None and single and plan.experiment.stop_time is None:
+            stop_time = _default_stop(plan, start_time if start_time is not None else
+                                      (plan.experiment.start_time or 0.0))
+        prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step,
+                                algorithm=algorithm)
+        source = prepared.step_source if step is None else \
+            ("--output-interval" if step_size is None and output_interval is not None else
+             "fmpy's automatic interval" if step_size is None else "command line")
+        return replace(prepared, step_source=source, parameter_sets=tuple(str(p) for p in parameter_sets))
+    except BaseException:
+        structure.close()
+        raise
+
+
+def _default_stop(plan: Plan, start: float) -> float:
+    """An FMU without a stop time runs for 1 s, as fmpy does."""
+    return start + 1.0
+
+
+def _start_value(text: str, plan: Plan, single: str | None) -> ParameterValue:
+    """``NAME=VALUE`` as a parameter value of the variable's type, named ``component.variable``;
+    the plan's checks (causality, range, unit) are `cosim.plan.build_plan`'s for parameter sets."""
+    from .sweep.values import typed_values
+
+    name, sep, raw = text.partition("=")
+    name = name.strip()
+    if not sep or not name or not raw.strip():
+        raise SetupError(f"'{text}' is not NAME=VALUE (e.g. " + ("k=2" if single else "controller.Kc=2") + ").",
+                         element=START_SOURCE)
+    if single is not None:
+        desc = plan.fmus[single]
+        var_name = name if name in desc.variables or not name.startswith(single + ".") else name[len(single) + 1:]
+        var = desc.variable(var_name, f"{START_SOURCE} {name}", START_SOURCE)
+        full = f"{single}.{var_name}"
+    elif name in plan.structure.open_connectors:  # a value for an undriven system connector
+        return ParameterValue(name, "Real", typed_values(raw.strip(), "Real", name, START_SOURCE)[0], START_SOURCE, 0)
+    else:
+        comp, var_name = split_system_name(plan.components, ParameterValue(name, "Real", 0.0, START_SOURCE, 0))
+        var = plan.fmus[comp].variable(var_name, f"{START_SOURCE} {name}", START_SOURCE)
+        full = name
+    kind = exchange_type(var) or var.type
+    return ParameterValue(full, kind, typed_values(raw.strip(), kind, name, START_SOURCE)[0], START_SOURCE, 0)
