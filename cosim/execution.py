@@ -498,9 +498,8 @@ class Execution:
 
     def _exchange(self, t: float) -> None:
         """Read outputs, settle direct feedthrough in dependency order, route, set inputs (an
-        input table's values at ``t`` among them)."""
-        if self._feed is not None:
-            self._feed(t)
+        input table's values at ``t`` among them: set after the outputs at ``t`` are read, as fmpy
+        sets them, `cosim.inputs`)."""
         for fn, c, vr, n, ptr, comp in self._all_get:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
@@ -511,6 +510,8 @@ class Execution:
             self.loop_solver.solve(t, self._settle)
         for ty in self.typed:
             ty.route(t)
+        if self._feed is not None:
+            self._feed(t)
         for fn, c, vr, n, ptr, comp in self._all_set:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:

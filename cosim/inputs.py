@@ -4,8 +4,11 @@ The file is fmpy's format: a header row whose first column is ``time``, then one
 input, one row per sample, times non-decreasing.  A time written on two rows is an event: the
 first row is the value just before it, the last the value from then on.  The table is one more
 source of the system: at every communication point (and during initialisation) it sets the
-inputs it names, after the connections are routed and before they are set, so nothing else of
-the run changes (`InputFeed`, called by `cosim.execution.Execution`).
+inputs it names, after the outputs are read and the connections routed, with the inputs the
+connections set, so nothing else of the run changes (`InputFeed`, called by
+`cosim.execution.Execution`).  As in fmpy's results, the outputs recorded at t are those
+before the table's values at t are set: an output with direct feedthrough from a table-driven
+input shows that input's value of the communication point before.
 
 Values follow FMI and fmpy (``fmpy.simulation.Input``):
 
@@ -25,7 +28,7 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from math import isclose
 from pathlib import Path
 
@@ -131,6 +134,13 @@ class Target:
         return not (self.variable.type in REAL_TYPES and self.variable.variability not in ("discrete", "tunable"))
 
 
+def with_table(plan: Plan, bound: BoundTable) -> Plan:
+    """The plan with ``bound`` feeding its inputs: a component the table drives has its inputs
+    set at every exchange (not only in the settling, `cosim.structure.Plan.set_in_settling_only`)."""
+    driven = {t.component for t in bound.targets}
+    return replace(plan, input_table=bound, set_in_settling_only=plan.set_in_settling_only - driven)
+
+
 @dataclass(frozen=True)
 class BoundTable:
     """An input table checked against a plan: which input each column drives."""
@@ -188,7 +198,7 @@ def _check_values(table: InputTable, column: int, var: ModelVariable, where: dic
         return
     if len(bad):
         row = int(bad[0])
-        raise SetupError(f"{values[row]:.17g} at line {table.lines[row]}; {var.name} is {what}.",
+        raise SetupError(f"{values[row]:.17g}: {var.name} is {what}.",
                          **(where | {"element": f"line {table.lines[row]}, column '{table.names[column]}'"}))
 
 

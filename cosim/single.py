@@ -25,7 +25,7 @@ from . import ssp
 from .description import describe, exchange_type
 from .errors import SetupError
 from .flatten import flatten
-from .inputs import bind_table, read_input_table
+from .inputs import bind_table, read_input_table, with_table
 from .parameters import split_system_name
 from .plan import build_plan
 from .resources import locate_fmus
@@ -45,7 +45,7 @@ from .structure import (
 #: --fmi-type values (fmpy's) and the SSP Component implementation each chooses
 FMI_TYPES = {"CoSimulation": "CoSimulation", "ModelExchange": "ModelExchange"}
 #: where --start values come from, in messages and the run metadata's parameter origins
-START_SOURCE = "--start"
+START_SOURCE = "--start-value"
 
 
 def is_fmu(path: str | Path) -> bool:
@@ -107,7 +107,7 @@ def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_fil
             starts = [_start_value(text, plan, component) for text in start_values]
             plan = build_plan(structure, fmu_paths, extra + starts, loops)
         if input_file is not None:
-            plan.input_table = bind_table(read_input_table(input_file), plan, component)
+            plan = with_table(plan, bind_table(read_input_table(input_file), plan, component))
         step = step_size if step_size is not None else output_interval
         if step is None and single and plan.experiment.step_size is None:
             experiment = plan.experiment
@@ -146,13 +146,17 @@ def _start_value(text: str, plan: Plan, single: str | None) -> ParameterValue:
     if single is not None:
         desc = plan.fmus[single]
         var_name = name if name in desc.variables or not name.startswith(single + ".") else name[len(single) + 1:]
-        var = desc.variable(var_name, f"{START_SOURCE} {name}", START_SOURCE)
+        var = desc.variable(var_name, f"component '{single}'", f"{START_SOURCE} {text}")
         full = f"{single}.{var_name}"
     elif name in plan.structure.open_connectors:  # a value for an undriven system connector
         return ParameterValue(name, "Real", typed_values(raw.strip(), "Real", name, START_SOURCE)[0], START_SOURCE, 0)
     else:
         comp, var_name = split_system_name(plan.components, ParameterValue(name, "Real", 0.0, START_SOURCE, 0))
-        var = plan.fmus[comp].variable(var_name, f"{START_SOURCE} {name}", START_SOURCE)
+        var = plan.fmus[comp].variable(var_name, f"component '{comp}'", f"{START_SOURCE} {text}")
         full = name
     kind = exchange_type(var) or var.type
-    return ParameterValue(full, kind, typed_values(raw.strip(), kind, name, START_SOURCE)[0], START_SOURCE, 0)
+    values = typed_values(raw.strip(), kind, name, START_SOURCE)
+    if len(values) != 1:
+        raise SetupError(f"'{raw.strip()}' is {len(values)} values; a start value is one.", element=START_SOURCE,
+                         variable=name)
+    return ParameterValue(full, kind, values[0], START_SOURCE, 0)

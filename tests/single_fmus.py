@@ -15,7 +15,7 @@ VARIABLES = [("u", 0, "input", "continuous", "Real", "0"), ("d", 1, "input", "di
              ("yd", 4, "output", "discrete", "Real", None), ("gain", 5, "parameter", "fixed", "Real", "2")]
 
 
-def description(guid: str = "{5f1e0c3a-3030-4000-8000-000000000030}", both: bool = False) -> str:
+def description(guid: str = "{5f1e0c3a-3030-4000-8000-000000000030}", variable_step: bool = True) -> str:
     rows, outputs = [], []
     for i, (name, vr, causality, variability, kind, start) in enumerate(VARIABLES, 1):
         initial = ' initial="exact"' if causality == "parameter" else ""
@@ -24,10 +24,9 @@ def description(guid: str = "{5f1e0c3a-3030-4000-8000-000000000030}", both: bool
                     f'variability="{variability}"{initial}><{kind}{attr}/></ScalarVariable>')
         if causality == "output":
             outputs.append(f'<Unknown index="{i}" dependencies="{"1" if name == "y" else ""}"/>')
-    me = '<ModelExchange modelIdentifier="Drive"/>' if both else ""
     return ('<?xml version="1.0" encoding="UTF-8"?>\n'
             f'<fmiModelDescription fmiVersion="2.0" modelName="Drive" guid="{guid}" numberOfEventIndicators="0">'
-            f'<CoSimulation modelIdentifier="Drive" canHandleVariableCommunicationStepSize="true"/>{me}'
+            f'<CoSimulation modelIdentifier="Drive" canHandleVariableCommunicationStepSize="{str(variable_step).lower()}"/>'
             '<DefaultExperiment startTime="0" stopTime="2" stepSize="0.1"/>'
             f'<ModelVariables>{"".join(rows)}</ModelVariables>'
             f'<ModelStructure><Outputs>{"".join(outputs)}</Outputs></ModelStructure></fmiModelDescription>\n')
@@ -43,6 +42,7 @@ static int step(S *s, double t, double h) {
 """
 
 
-def build_drive(dest: Path) -> Path:
-    """``dest/Drive.fmu``."""
-    return build_c_fmu(dest, "Drive", description(), BODY)
+def build_drive(dest: Path, variable_step: bool = True) -> Path:
+    """``dest/Drive.fmu``; ``variable_step``: its canHandleVariableCommunicationStepSize (with it
+    fmpy adds a communication point at every input event between two of the grid's)."""
+    return build_c_fmu(dest, "Drive", description(variable_step=variable_step), BODY)

@@ -1,0 +1,210 @@
+"""`cosim run X.fmu` and the options of fmpy simulate (issue 30, item 1; `cosim.single`,
+`cosim.inputs`): one FMU without an SSD, an input table (fmpy's format and interpolation rules),
+start values, the output interval and the FMI type, checked against ``fmpy.simulate_fmu`` given
+the same FMU, table and values, on a C FMU compiled here (tests/single_fmus.py)."""
+from __future__ import annotations
+
+import json
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy.simulation import Input
+from fmpy.util import read_csv
+
+from cosim.cli import main
+from cosim.inputs import interpolate, read_input_table
+from cosim.results import read
+from single_fmus import build_drive
+from ssdgen import ssd_text, write_system
+
+#: an event row (t = 1 twice: every input jumps), discrete inputs held between samples, a Real
+#: interpolated between samples off the grid (0.25, 1.55); the discrete inputs change on the
+#: grid (at 0.2, 1 and 1.5: fmpy adds a communication point at a change between two, see below)
+TABLE = """time,u,d,k,b
+0,0,0,0,0
+0.2,0.8,0.5,1,1
+0.25,1,0.5,1,1
+1.0,1,2,3,1
+1.0,-1,4,5,0
+1.5,0.75,4,-2,1
+1.55,0.5,4,-2,1
+2,0.5,4,5,1
+"""
+#: discrete inputs changing between communication points (0.25, 1.55)
+OFF_GRID = """time,u,d,k,b
+0,0,0,0,0
+0.25,1,0.5,1,1
+1.0,1,2,3,1
+1.0,-1,4,5,0
+1.55,0.5,4,-2,1
+2,0.5,4,5,1
+"""
+OUTPUTS = ["x", "y", "yk", "yb", "yd"]
+
+
+@pytest.fixture(scope="module")
+def drive(tmp_path_factory):
+    return build_drive(tmp_path_factory.mktemp("drive"))
+
+
+@pytest.fixture
+def table(tmp_path):
+    path = tmp_path / "Drive_in.csv"
+    path.write_text(TABLE)
+    return path
+
+
+def run(tmp_path, *args) -> tuple[int, np.ndarray | None]:
+    out = tmp_path / "out.csv"
+    code = main(["run", *map(str, args), "-o", str(out), "-q"])
+    return code, read(out) if code == 0 else None
+
+
+def assert_same_as_fmpy(ours: np.ndarray, theirs: np.ndarray, component: str = "Drive") -> None:
+    np.testing.assert_array_equal(ours["time"], theirs["time"])
+    for name in OUTPUTS:
+        np.testing.assert_array_equal(ours[f"{component}.{name}"].astype(float), theirs[name].astype(float),
+                                      err_msg=name)
+
+
+def test_an_fmu_with_an_input_table_runs_as_fmpy_runs_it(drive, table, tmp_path):
+    """The default experiment (0..2 s, step 0.1), the table's Reals interpolated, the discrete
+    inputs held, the event row taken from the right: every output bit for bit as fmpy's."""
+    code, ours = run(tmp_path, drive, "--input-file", table)
+    assert code == 0
+    theirs = fmpy.simulate_fmu(str(drive), input=read_csv(str(table)), output_interval=0.1)
+    assert len(ours) == 21 and ours["time"][-1] == 2.0
+    assert_same_as_fmpy(ours, theirs)
+    at = {round(float(t), 6): i for i, t in enumerate(ours["time"])}
+    assert ours["Drive.u"][at[0.1]] == pytest.approx(0.4)          # interpolated between 0 and 0.25
+    assert ours["Drive.k"][at[0.1]] == 0 and ours["Drive.k"][at[0.2]] == 1 and ours["Drive.k"][at[0.9]] == 1
+    assert ours["Drive.u"][at[1.0]] == -1 and ours["Drive.k"][at[1.0]] == 5  # the event's right value
+    assert ours["Drive.k"][at[1.6]] == -2 and ours["Drive.yk"][at[1.7]] == -2
+    meta = json.loads((tmp_path / "out.json").read_text())
+    assert meta["step_size_source"] == "modelDescription.xml DefaultExperiment stepSize"
+    assert "input table" in meta["kernel_reason"]
+
+
+def test_discrete_changes_between_communication_points(tmp_path):
+    """They take effect at the next communication point: as fmpy runs an FMU that cannot vary its
+    step (bit for bit); one that can gets an extra communication point from fmpy, not from cosim."""
+    table = tmp_path / "off.csv"
+    table.write_text(OFF_GRID)
+    fixed, variable = build_drive(tmp_path / "fixed", variable_step=False), build_drive(tmp_path / "variable")
+    code, ours = run(tmp_path, fixed, "--input-file", table)
+    assert code == 0
+    assert_same_as_fmpy(ours, fmpy.simulate_fmu(str(fixed), input=read_csv(str(table)), output_interval=0.1))
+    assert ours["Drive.k"][3] == 1 and ours["Drive.k"][2] == 0   # the change at 0.25 seen at 0.3
+    theirs = fmpy.simulate_fmu(str(variable), input=read_csv(str(table)), output_interval=0.1)
+    assert 0.25 in theirs["time"] and 1.55 in theirs["time"] and len(theirs) == len(ours) + 2
+
+
+def test_start_values_and_output_interval_as_fmpy(drive, table, tmp_path):
+    code, ours = run(tmp_path, drive, "--input-file", table, "--start-value", "gain=3", "--start-value", "k=7",
+                     "--output-interval", "0.05", "--stop-time", "1.5")
+    assert code == 0
+    theirs = fmpy.simulate_fmu(str(drive), input=read_csv(str(table)), output_interval=0.05, stop_time=1.5,
+                               start_values={"gain": 3.0, "k": 7})
+    assert len(ours) == 31
+    assert_same_as_fmpy(ours, theirs)
+    assert ours["Drive.y"][2] == pytest.approx(3 * ours["Drive.u"][1])
+    meta = json.loads((tmp_path / "out.json").read_text())
+    assert meta["parameter_origins"]["Drive.gain"].startswith("--start-value")
+
+
+def test_without_inputs_the_fmu_runs_its_default_experiment_on_the_compiled_kernel(drive, tmp_path):
+    code, ours = run(tmp_path, drive, "--start-value", "u=1")
+    assert code == 0
+    theirs = fmpy.simulate_fmu(str(drive), output_interval=0.1, start_values={"u": 1.0})
+    assert_same_as_fmpy(ours, theirs)
+    assert ours["Drive.x"][-1] == pytest.approx(2.0)
+    meta = json.loads((tmp_path / "out.json").read_text())
+    assert meta["components"]["Drive"]["interface"] == "fmi2-cs" and meta["algorithm"] == "jacobi"
+
+
+def test_an_input_table_drives_a_system_by_component_and_input(drive, tmp_path):
+    """In an SSP system the columns are ``component.input``: src's u from the table, dst's u
+    connected from src's y, dst's k from the table; the same as a run of each FMU alone."""
+    folder = write_system(tmp_path / "sys", {"Drive.fmu": drive}, ssd_text(
+        "pair", {"src": ("Drive.fmu", {"u": "input", "y": "output"}),
+                 "dst": ("Drive.fmu", {"u": "input", "k": "input", "x": "output"})},
+        [("src", "y", "dst", "u")], stop=1.0, step=0.1))
+    (tmp_path / "in.csv").write_text("time,src.u,dst.k\n0,0,1\n0.5,1,1\n0.5,1,3\n1,2,3\n")
+    code, ours = run(tmp_path, folder, "--input-file", tmp_path / "in.csv", "--start-value", "dst.gain=5")
+    assert code == 0
+    assert list(ours["dst.k"]) == [1] * 5 + [3] * 6
+    np.testing.assert_array_equal(ours["dst.u"][1:], ours["src.y"][1:])
+    single = fmpy.simulate_fmu(str(drive), input=read_csv(str(tmp_path / "in.csv")).astype(
+        [("time", float), ("u", float), ("k", float)]), output_interval=0.1, stop_time=1.0)
+    np.testing.assert_array_equal(ours["src.y"], single["y"])
+    # the table's value at t reaches dst through src's y one communication point later, as fmpy records y
+    assert ours["src.y"][3] == 2 * ours["src.u"][2]
+
+    (tmp_path / "bad.csv").write_text("time,dst.u\n0,1\n")
+    assert main(["run", str(folder), "--input-file", str(tmp_path / "bad.csv"), "-o", str(tmp_path / "b.csv"),
+                 "-q"]) == 2
+
+
+@pytest.mark.parametrize("text, words", [
+    ("time,u,speed\n0,1,2\n", ["bad.csv", "column 'speed'", "no input of that name in Drive"]),
+    ("time,u\n0,1\n1,2\n0.5,3\n", ["bad.csv", "line 4, column 'time'", "before the time of the row before"]),
+    ("time,u,k\n0,1,2\n1,x,2\n", ["bad.csv", "line 3, column 'u'", "'x' is not a finite number"]),
+    ("time,u,k\n0,1,2\n1,1,2.5\n", ["bad.csv", "line 3, column 'k'", "Integer input"]),
+    ("time,u,b\n0,1,2\n", ["bad.csv", "line 2, column 'b'", "Boolean input"]),
+    ("t,u\n0,1\n", ["bad.csv", "line 1, column 1", "first column is 't'"]),
+    ("time,u,u\n0,1,1\n", ["bad.csv", "column 'u' is given twice"]),
+    ("time,u\n0,1,2\n", ["bad.csv", "line 2", "3 cells"]),
+    ("time,u\n0,nan\n", ["bad.csv", "'nan' is not a finite number"]),
+])
+def test_a_wrong_input_table_is_refused_naming_file_column_and_line(drive, tmp_path, capsys, text, words):
+    (tmp_path / "bad.csv").write_text(text)
+    assert main(["run", str(drive), "--input-file", str(tmp_path / "bad.csv"), "-o", str(tmp_path / "o.csv"),
+                 "-q"]) == 2
+    err = capsys.readouterr().err
+    assert all(w in err for w in words), err
+    assert "Traceback" not in err and not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--start-value", "gian=3"], ["no variable 'gian'", "gain"]),
+    (["--start-value", "gain=abc"], ["'abc' is not a Real"]),
+    (["--start-value", "k=1.5"], ["--start", "k"]),
+    (["--start-value", "x=1"], ["x"]),
+    (["--start-value", "gain"], ["not NAME=VALUE"]),
+    (["--fmi-type", "ModelExchange"], ["no Model Exchange interface"]),
+    (["--output-interval", "0.1", "--step", "0.2"], ["--output-interval", "give one"]),
+])
+def test_wrong_start_values_and_options_are_refused(drive, tmp_path, capsys, args, words):
+    assert main(["run", str(drive), *args, "-o", str(tmp_path / "o.csv"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert all(w in err for w in words), err
+
+
+def test_validate_and_info_of_an_fmu(drive, capsys):
+    assert main(["validate", str(drive)]) == 0
+    assert "valid — 1 FMUs, 0 connections" in capsys.readouterr().out
+    assert main(["info", str(drive)]) == 0
+    out = capsys.readouterr().out
+    assert "Drive: Drive.fmu" in out and "input  Integer k" in out and "output Real    y" in out
+    assert main(["pack", str(drive), "-o", "x.ssp"]) == 2
+
+
+def test_booleans_may_be_written_true_and_false(tmp_path):
+    (tmp_path / "a.csv").write_text("time,b\n0,true\n1,False\n")
+    (tmp_path / "b.csv").write_text("time,b\n0,1\n1,0\n")
+    a, b = read_input_table(tmp_path / "a.csv"), read_input_table(tmp_path / "b.csv")
+    np.testing.assert_array_equal(a.values, b.values)
+    assert a.lines == [2, 3]
+
+
+def test_interpolation_is_fmpys():
+    """`cosim.inputs.interpolate` against ``fmpy.simulation.Input.interpolate`` at sample times,
+    between them, at the event, before and after the table, left and right."""
+    t = np.array([0.0, 0.25, 1.0, 1.0, 1.55, 2.0])
+    table = np.array([[0.0, 1.0, 1.0, -1.0, 0.5, 0.5], [0.0, 1.0, 3.0, 5.0, -2.0, 5.0]])
+    for time in [-1.0, 0.0, 0.1, 0.25, 0.6, 1.0 - 1e-12, 1.0, 1.0 + 1e-13, 1.2, 1.55, 2.0, 3.0]:
+        for discrete in (False, True):
+            for after in (False, True):
+                expected, _ = Input.interpolate(time, t, table, discrete=discrete, after_event=after)
+                np.testing.assert_array_equal(interpolate(time, t, table, discrete, after), expected)
