@@ -208,3 +208,57 @@ def test_interpolation_is_fmpys():
             for after in (False, True):
                 expected, _ = Input.interpolate(time, t, table, discrete=discrete, after_event=after)
                 np.testing.assert_array_equal(interpolate(time, t, table, discrete, after), expected)
+
+
+LIFT = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="Lift" instantiationToken="{9e0c0000-0000-4000-8000-000000003001}">
+  <ModelExchange modelIdentifier="Lift"/>
+  <CoSimulation modelIdentifier="Lift"/>
+  <DefaultExperiment startTime="0" stopTime="1" stepSize="0.01" tolerance="1e-10"/>
+  <ModelVariables>
+    <Float64 name="time" valueReference="63" causality="independent" variability="continuous"/>
+    <Float64 name="h" valueReference="0" causality="output" variability="continuous" initial="exact" start="1"/>
+    <Float64 name="der(h)" valueReference="8" causality="local" variability="continuous" derivative="0"/>
+    <Float64 name="v" valueReference="1" causality="output" variability="continuous" initial="exact" start="0"/>
+    <Float64 name="der(v)" valueReference="9" causality="local" variability="continuous" derivative="1"/>
+    <Float64 name="lift" valueReference="7" causality="input" variability="continuous" start="0"/>
+  </ModelVariables>
+  <ModelStructure>
+    <Output valueReference="0" dependencies=""/><Output valueReference="1" dependencies=""/>
+    <ContinuousStateDerivative valueReference="8"/><ContinuousStateDerivative valueReference="9"/>
+  </ModelStructure>
+</fmiModelDescription>
+"""
+#: h' = v, v' = lift − 9.81; as Co-Simulation, explicit Euler over the communication step
+LIFT_BODY = """
+#define NX 2
+#define NZ 0
+static void start(S *s) { s->r[0] = 1.0; s->r[1] = 0.0; }
+static void calculate(S *s) { s->r[8] = s->r[1]; s->r[9] = s->r[7] - 9.81; }
+static int step(S *s, double t, double h) { s->r[0] += h * s->r[1]; s->r[1] += h * (s->r[7] - 9.81); return 0; }
+static void derivatives(S *s, double dx[]) { dx[0] = s->r[1]; dx[1] = s->r[7] - 9.81; }
+static void indicators(S *s, double z[]) {}
+static void event(S *s) {}
+"""
+
+
+def test_fmi_type_picks_the_interface_of_an_fmu_that_has_both(tmp_path):
+    """--fmi-type ModelExchange integrates the FMU in the master; a piecewise-constant lift from
+    the table (its jumps on the grid) gives fmpy's ModelExchange result to its solver's tolerance."""
+    from cfmus import build_c_fmu
+
+    fmu = build_c_fmu(tmp_path, "Lift", LIFT, LIFT_BODY, "3.0", model_exchange=True)
+    table = tmp_path / "lift.csv"
+    table.write_text("time,lift\n0,0\n0.5,0\n0.5,20\n1,20\n")
+    code, cs = run(tmp_path, fmu, "--input-file", table)
+    assert code == 0 and json.loads((tmp_path / "out.json").read_text())["components"]["Lift"]["interface"] == "fmi3-cs"
+    code, me = run(tmp_path, fmu, "--input-file", table, "--fmi-type", "ModelExchange")
+    assert code == 0 and json.loads((tmp_path / "out.json").read_text())["components"]["Lift"]["interface"] == "fmi3-me"
+    theirs = fmpy.simulate_fmu(str(fmu), fmi_type="ModelExchange", input=read_csv(str(table)), output_interval=0.01,
+                               relative_tolerance=1e-10)
+    ref = np.interp(me["time"], theirs["time"], theirs["h"])
+    np.testing.assert_allclose(me["Lift.h"], ref, atol=1e-6)
+    exact = np.where(me["time"] <= 0.5, 1 - 9.81 / 2 * me["time"] ** 2,
+                     1 - 9.81 / 8 - 9.81 / 2 * (me["time"] - 0.5) + 10.19 / 2 * (me["time"] - 0.5) ** 2)
+    np.testing.assert_allclose(me["Lift.h"], exact, atol=1e-6)
+    assert abs(cs["Lift.h"][-1] - me["Lift.h"][-1]) > 5e-4     # Euler over 0.01 s steps is not the ODE
