@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from math import isclose
 from pathlib import Path
@@ -37,7 +38,8 @@ from fmpy.model_description import ModelVariable
 
 from .description import exchange_type
 from .errors import SetupError, did_you_mean
-from .structure import Plan
+from .parameters import bind_system_connectors
+from .structure import ParameterValue, Plan, SystemStructure
 
 #: the Real types of FMI 2.0 and 3.0 that may be continuous
 REAL_TYPES = ("Real", "Float64", "Float32")
@@ -119,10 +121,12 @@ def _number(cell: str, file: str, line: int, column: str) -> float:
 
 @dataclass(frozen=True)
 class Target:
-    """The input one column drives."""
+    """The input one column drives, and the values it gets (the column's, through a system
+    connector's transformations and unit conversions where the column names one)."""
     column: int
     component: str
     variable: ModelVariable
+    values: np.ndarray
 
     @property
     def name(self) -> str:
@@ -153,41 +157,78 @@ class BoundTable:
         return InputFeed(self, typed)
 
 
-def bind_table(table: InputTable, plan: Plan, single: str | None = None) -> BoundTable:
-    """Match each column to an input: ``component.input``, or for a single FMU (``single``: its
+def connector_values(table: InputTable, structure: SystemStructure) -> list[ParameterValue]:
+    """A value (the first sample) for each undriven system connector the table names, so the
+    plan takes it as driven (`cosim.parameters.bind_system_connectors`); the table's values
+    replace it from the first exchange on."""
+    return [ParameterValue(name, "Real", float(table.values[i][0]), table.file, table.lines[0])
+            for i, name in enumerate(table.names) if name in structure.open_connectors]
+
+
+def bind_table(table: InputTable, plan: Plan, single: str | None = None,
+               bindings: Sequence[ParameterValue] = ()) -> BoundTable:
+    """Match each column to inputs: ``component.input``, an undriven system connector of a
+    system (each input it feeds, through its transformations: ``bindings`` are the values the
+    plan was built with, `connector_values` among them), or for a single FMU (``single``: its
     component) the variable's own name, as fmpy names it.  A name that is no input, an input a
     connection drives, a String or Binary input, and a value that is not of the input's type
     (an Integer that is not whole, a Boolean that is not 0 or 1) are refused, naming the file,
     column and line."""
     driven = {(r.dst, r.dst_var.name) for r in plan.routes}
     inputs = {f"{c}.{v.name}": (c, v) for c in plan.inputs for v in plan.inputs[c]}
-    targets = []
+    connectors = plan.structure.open_connectors if single is None else {}
+    targets: list[Target] = []
     for column, name in enumerate(table.names):
-        where = dict(file=table.file, element=f"line {table.lines[0] - 1 if table.lines else 1}, column '{name}'",
-                     variable=name)
+        where = dict(file=table.file, element=f"line {table.lines[0] - 1}, column '{name}'", variable=name)
         found = inputs.get(f"{single}.{name}") if single is not None else None
         found = found or inputs.get(name)
-        if found is None:
-            known = [n.partition(".")[2] if single else n for n in inputs]
+        if found is not None:
+            fed = [(found[0], found[1], table.values[column])]
+        elif name in connectors:
+            fed = _through_connector(plan, table, column, bindings)
+        else:
+            known = [n.partition(".")[2] if single else n for n in inputs] + list(connectors)
             raise SetupError("no input of that name" + (f" in {single}" if single else "; name inputs "
-                             "'component.input'") + ".", **where,
+                             "'component.input' or a system input connector") + ".", **where,
                              hint=did_you_mean(name, known) or (f"Inputs: {', '.join(known[:12])}." if known
                                                                 else "The system has no inputs."))
-        comp, var = found
-        if (comp, var.name) in driven:
-            raise SetupError(f"{comp}.{var.name} is driven by a connection; the table cannot drive it too.", **where)
-        if exchange_type(var) not in NUMERIC:
-            raise SetupError(f"{comp}.{var.name} is a {var.type} input; a table drives numeric ones.", **where)
-        _check_values(table, column, var, where)
-        if any(t.component == comp and t.variable.name == var.name for t in targets):
-            raise SetupError(f"{comp}.{var.name} is driven by two columns.", **where)
-        targets.append(Target(column, comp, var))
+        for comp, var, values in fed:
+            if (comp, var.name) in driven:
+                raise SetupError(f"{comp}.{var.name} is driven by a connection; the table cannot drive it too.",
+                                 **where)
+            if exchange_type(var) not in NUMERIC:
+                raise SetupError(f"{comp}.{var.name} is a {var.type} input; a table drives numeric ones.", **where)
+            _check_values(table, column, var, values, where)
+            if any(t.component == comp and t.variable.name == var.name for t in targets):
+                raise SetupError(f"{comp}.{var.name} is driven by two columns.", **where)
+            targets.append(Target(column, comp, var, values))
     return BoundTable(table, targets)
 
 
-def _check_values(table: InputTable, column: int, var: ModelVariable, where: dict) -> None:
+def _through_connector(plan: Plan, table: InputTable, column: int,
+                       bindings: Sequence[ParameterValue]) -> list[tuple[str, ModelVariable, np.ndarray]]:
+    """The inputs an undriven system connector feeds and the column's values as each gets them:
+    the connector's transformations and unit conversions (affine) taken as a value there is
+    (`cosim.parameters.bind_system_connectors`), from the images of 0 and 1."""
+    name = table.names[column]
+    sinks = plan.structure.open_connectors[name].sinks
+    others = [p for p in bindings if p.name != name]
+    images = []
+    for probe in (0.0, 1.0):
+        value = ParameterValue(name, "Real", probe, table.file, table.lines[0])
+        images.append(bind_system_connectors(plan.structure, plan.fmus, plan.unit_scopes,
+                                             others + [value])[-len(sinks):])
+    fed = []
+    for (comp, conn, _), zero, one in zip(sinks, *images):
+        offset = float(zero.value)
+        factor = float(one.value) - offset
+        values = table.values[column] if (factor, offset) == (1.0, 0.0) else factor * table.values[column] + offset
+        fed.append((comp, plan.fmus[comp].variables[conn], values))
+    return fed
+
+
+def _check_values(table: InputTable, column: int, var: ModelVariable, values: np.ndarray, where: dict) -> None:
     kind = exchange_type(var)
-    values = table.values[column]
     if kind == "Integer":
         bad = np.flatnonzero(values != np.round(values))
         what = "an Integer input: values are whole numbers"
@@ -221,7 +262,7 @@ class InputFeed:
                 chosen = [t for t in bound.targets if t.name in index and t.discrete == discrete]
                 if chosen:
                     self.groups.append((ty.U, np.array([index[t.name] for t in chosen], dtype=np.intp),
-                                        table.values[[t.column for t in chosen]], discrete))
+                                        np.stack([t.values for t in chosen]), discrete))
 
     def __call__(self, t: float) -> None:
         after_event = not self.initialising

@@ -25,7 +25,7 @@ from . import ssp
 from .description import describe, exchange_type
 from .errors import SetupError
 from .flatten import flatten
-from .inputs import bind_table, read_input_table, with_table
+from .inputs import bind_table, connector_values, read_input_table, with_table
 from .parameters import split_system_name
 from .plan import build_plan
 from .resources import locate_fmus
@@ -101,13 +101,17 @@ def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_fil
         if not single:
             fmu_paths = locate_fmus(structure, [Path(d) for d in fmu_dirs])
         extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
+        table = read_input_table(input_file) if input_file is not None else None
+        if table is not None and not single:
+            extra += connector_values(table, structure)
         plan = build_plan(structure, fmu_paths, extra, loops)
         component = next(iter(plan.components)) if single else None
         if start_values:
             starts = [_start_value(text, plan, component) for text in start_values]
             plan = build_plan(structure, fmu_paths, extra + starts, loops)
-        if input_file is not None:
-            plan = with_table(plan, bind_table(read_input_table(input_file), plan, component))
+            extra += starts
+        if table is not None:
+            plan = with_table(plan, bind_table(table, plan, component, list(structure.parameters) + extra))
         step = step_size if step_size is not None else output_interval
         if step is None and single and plan.experiment.step_size is None:
             experiment = plan.experiment

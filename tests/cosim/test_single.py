@@ -262,3 +262,38 @@ def test_fmi_type_picks_the_interface_of_an_fmu_that_has_both(tmp_path):
                      1 - 9.81 / 8 - 9.81 / 2 * (me["time"] - 0.5) + 10.19 / 2 * (me["time"] - 0.5) ** 2)
     np.testing.assert_allclose(me["Lift.h"], exact, atol=1e-6)
     assert abs(cs["Lift.h"][-1] - me["Lift.h"][-1]) > 5e-4     # Euler over 0.01 s steps is not the ODE
+
+
+SYSTEM_INPUT = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+  xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" version="1.0" name="driven">
+  <ssd:System name="root">
+    <ssd:Connectors><ssd:Connector name="r" kind="input"><ssc:Real/></ssd:Connector></ssd:Connectors>
+    <ssd:Elements>
+      <ssd:Component name="a" source="resources/Drive.fmu"><ssd:Connectors>
+        <ssd:Connector name="u" kind="input"/><ssd:Connector name="d" kind="input"/></ssd:Connectors></ssd:Component>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startConnector="r" endElement="a" endConnector="u">
+        <ssc:LinearTransformation factor="2" offset="1"/></ssd:Connection>
+      <ssd:Connection startConnector="r" endElement="a" endConnector="d"/>
+    </ssd:Connections>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="1"/>
+</ssd:SystemStructureDescription>
+"""
+
+
+def test_an_input_table_drives_a_system_input_connector(drive, tmp_path, capsys):
+    """A column naming an undriven input connector of the root system drives what it feeds,
+    through each connection's LinearTransformation (a.u = 2 r + 1, a.d = r), each by its own rule."""
+    folder = write_system(tmp_path / "sys", {"Drive.fmu": drive}, SYSTEM_INPUT)
+    (tmp_path / "in.csv").write_text("time,r\n0,0\n1,1\n")
+    code, ours = run(tmp_path, folder, "--input-file", tmp_path / "in.csv", "--step", "0.1")
+    assert code == 0
+    r = np.clip(ours["time"], 0, 1)
+    np.testing.assert_allclose(ours["a.u"], 2 * r + 1, rtol=0, atol=1e-15)
+    assert list(ours["a.d"]) == [0.0] * 10 + [1.0]     # a discrete Real: the sample at 0 held until 1
+    # without the table, the connector has no value: refused, as before
+    assert main(["run", str(folder), "--step", "0.1", "-o", str(tmp_path / "n.csv"), "-q"]) == 2
+    assert "system connector 'r'" in capsys.readouterr().err
