@@ -15,10 +15,12 @@ a system it is ``component.variable``.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from contextlib import nullcontext
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 from fmpy.util import auto_interval
 
 from . import ssp
@@ -164,3 +166,26 @@ def _start_value(text: str, plan: Plan, single: str | None) -> ParameterValue:
         raise SetupError(f"'{raw.strip()}' is {len(values)} values; a start value is one.", element=START_SOURCE,
                          variable=name)
     return ParameterValue(full, kind, values[0], START_SOURCE, 0)
+
+
+def simulate_fmu(path: str | Path, *, start_values: Mapping[str, object] | None = None,
+                 input_file: str | Path | None = None, output: str | Path | None = None,
+                 **options) -> np.ndarray:
+    """Run an FMU (or a system) as `cosim run` does and return the samples, like
+    ``fmpy.simulate_fmu``: ``start_values`` by name (``{"gain": 3}``, the names of
+    ``--start-value``), ``input_file`` an input table (`cosim.inputs`), ``output`` a result file
+    written as the run goes; ``options`` are `prepare_run`'s (``stop_time``, ``output_interval``,
+    ``fmi_type``, ...).  A failed run raises `cosim.errors.RunError` (the samples so far in its
+    ``result``)."""
+    from .safeio import lock_output
+    from .simulation import run
+
+    texts = [f"{name}={str(value).lower() if isinstance(value, bool) else value}"
+             for name, value in (start_values or {}).items()]
+    prepared = prepare_run(path, start_values=texts, input_file=input_file, **options)
+    try:
+        with lock_output(output, option="output") if output is not None else nullcontext():
+            result, _ = run(prepared, output=output)
+    finally:
+        prepared.close()
+    return result

@@ -113,6 +113,16 @@ def test_start_values_and_output_interval_as_fmpy(drive, table, tmp_path):
     assert meta["parameter_origins"]["Drive.gain"].startswith("--start-value")
 
 
+def test_simulate_fmu_in_python_as_fmpy(drive, table):
+    import cosim
+
+    ours = cosim.simulate_fmu(drive, input_file=table, start_values={"gain": 3, "b": True}, stop_time=1.0)
+    theirs = fmpy.simulate_fmu(str(drive), input=read_csv(str(table)), output_interval=0.1, stop_time=1.0,
+                               start_values={"gain": 3.0, "b": True})
+    assert_same_as_fmpy(ours, theirs)
+    assert ours["Drive.y"][-1] == 3 * ours["Drive.u"][-2]
+
+
 def test_without_inputs_the_fmu_runs_its_default_experiment_on_the_compiled_kernel(drive, tmp_path):
     code, ours = run(tmp_path, drive, "--start-value", "u=1")
     assert code == 0
