@@ -307,3 +307,30 @@ def test_an_input_table_drives_a_system_input_connector(drive, tmp_path, capsys)
     # without the table, the connector has no value: refused, as before
     assert main(["run", str(folder), "--step", "0.1", "-o", str(tmp_path / "n.csv"), "-q"]) == 2
     assert "system connector 'r'" in capsys.readouterr().err
+
+
+def test_a_cross_check_case_passes_the_fmi_cross_check_rule(drive, tmp_path):
+    """An FMI cross-check case (FMU, ``_in.csv``, ``_ref.csv``, ``_ref.opt``) run as the cross-check
+    tools run it: ``--input-file``, the ``.opt``'s StopTime and StepSize; the result within the
+    cross-check band of the reference (``fmpy.util.validate_result``: no sample outside it), and
+    outside it when a start value differs."""
+    from fmpy.util import read_ref_opt_file, validate_result, write_csv
+
+    case = tmp_path / "case"
+    case.mkdir()
+    (case / "Drive_in.csv").write_text(TABLE)
+    (case / "Drive_ref.opt").write_text("StartTime,0.0\nStopTime,2.0\nStepSize,0.1\nRelTol,0.0001\n")
+    ref = fmpy.simulate_fmu(str(drive), input=read_csv(str(case / "Drive_in.csv")), output_interval=0.1)
+    write_csv(str(case / "Drive_ref.csv"), ref.astype([(n, float) for n in ref.dtype.names]))  # fmpy reads numbers
+    opts = read_ref_opt_file(str(case / "Drive_ref.opt"))
+    reference = read_csv(str(case / "Drive_ref.csv"))
+
+    def outliers(*extra) -> float:
+        code, ours = run(tmp_path, drive, "--input-file", case / "Drive_in.csv", "--stop", opts["StopTime"],
+                         "--output-interval", opts["StepSize"], *extra)
+        assert code == 0
+        ours.dtype.names = [n.removeprefix("Drive.") for n in ours.dtype.names]
+        return validate_result(ours, reference, stop_time=opts["StopTime"])
+
+    assert outliers() == 0
+    assert outliers("--start-value", "gain=2.5") > 0
