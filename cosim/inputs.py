@@ -187,6 +187,7 @@ def bind_table(table: InputTable, plan: Plan, single: str | None = None,
         elif name in connectors:
             fed = _through_connector(plan, table, column, bindings)
         else:
+            _not_a_connector(plan, name, where)
             known = [n.partition(".")[2] if single else n for n in inputs] + list(connectors)
             raise SetupError("no input of that name" + (f" in {single}" if single else "; name inputs "
                              "'component.input' or a system input connector") + ".", **where,
@@ -203,6 +204,17 @@ def bind_table(table: InputTable, plan: Plan, single: str | None = None,
                 raise SetupError(f"{comp}.{var.name} is driven by two columns.", **where)
             targets.append(Target(column, comp, var, values))
     return BoundTable(table, targets)
+
+
+def _not_a_connector(plan: Plan, name: str, where: dict) -> None:
+    """Refuse a column naming an input of a component's FMU that the SSD does not declare as a
+    connector of that component (the exchange carries connectors only)."""
+    for comp in sorted(plan.components, key=len, reverse=True):
+        var = plan.fmus[comp].variables.get(name[len(comp) + 1:]) if name.startswith(comp + ".") else None
+        if var is not None and var.causality == "input":
+            raise SetupError(f"{var.name} is an input of {plan.fmus[comp].path.name} but no connector of component "
+                             f"'{comp}' in the SSD.", **where,
+                             hint=f'Declare it: <ssd:Connector name="{var.name}" kind="input"/>.')
 
 
 def _through_connector(plan: Plan, table: InputTable, column: int,

@@ -133,9 +133,10 @@ def test_without_inputs_the_fmu_runs_its_default_experiment_on_the_compiled_kern
     assert meta["components"]["Drive"]["interface"] == "fmi2-cs" and meta["algorithm"] == "jacobi"
 
 
-def test_an_input_table_drives_a_system_by_component_and_input(drive, tmp_path):
+def test_an_input_table_drives_a_system_by_component_and_input(drive, tmp_path, capsys):
     """In an SSP system the columns are ``component.input``: src's u from the table, dst's u
-    connected from src's y, dst's k from the table; the same as a run of each FMU alone."""
+    connected from src's y, dst's k from the table; the same as a run of each FMU alone, and
+    with every FMU in a process of its own (--isolate)."""
     folder = write_system(tmp_path / "sys", {"Drive.fmu": drive}, ssd_text(
         "pair", {"src": ("Drive.fmu", {"u": "input", "y": "output"}),
                  "dst": ("Drive.fmu", {"u": "input", "k": "input", "x": "output"})},
@@ -151,9 +152,16 @@ def test_an_input_table_drives_a_system_by_component_and_input(drive, tmp_path):
     # the table's value at t reaches dst through src's y one communication point later, as fmpy records y
     assert ours["src.y"][3] == 2 * ours["src.u"][2]
 
-    (tmp_path / "bad.csv").write_text("time,dst.u\n0,1\n")
-    assert main(["run", str(folder), "--input-file", str(tmp_path / "bad.csv"), "-o", str(tmp_path / "b.csv"),
-                 "-q"]) == 2
+    for column, words in (("dst.u", "driven by a connection"), ("src.k", "no connector of component 'src'"),
+                          ("src.q", "no input of that name")):
+        (tmp_path / "bad.csv").write_text(f"time,{column}\n0,1\n")
+        assert main(["run", str(folder), "--input-file", str(tmp_path / "bad.csv"), "-o", str(tmp_path / "b.csv"),
+                     "-q"]) == 2
+        assert words in capsys.readouterr().err
+
+    code, isolated = run(tmp_path, folder, "--input-file", tmp_path / "in.csv", "--start-value", "dst.gain=5",
+                         "--isolate")
+    assert code == 0 and all(np.array_equal(isolated[n], ours[n]) for n in ours.dtype.names)
 
 
 @pytest.mark.parametrize("text, words", [
