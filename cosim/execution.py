@@ -273,7 +273,7 @@ class Execution:
         self.typed = [_Typed(plan, t, self.order) for t in TYPES
                       if any(exchange_type(v) == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
         #: the input table's values into the input buffers at a time (`cosim.inputs.InputFeed`)
-        self._feed = plan.input_table.feed(self.typed) if plan.input_table is not None else None
+        self._feed = plan.input_table.feed(self.typed, grid) if plan.input_table is not None else None
         self.loop_solver = self._loop_solver(loop_settings or LoopSettings()) \
             if plan.algebraic_loops and plan.loop_mode == "iterate" else None
         if plan.algebraic_loops and plan.loop_mode == "delay":

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import csv
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from math import isclose
@@ -151,10 +152,33 @@ class BoundTable:
     table: InputTable
     targets: list[Target]
 
-    def feed(self, typed: list) -> InputFeed:
+    def feed(self, typed: list, grid=None) -> InputFeed:
         """The callable that sets the table's values into the exchange's input buffers
-        (`cosim.execution._Typed`) at a time."""
+        (`cosim.execution._Typed`) at a time; with the run's ``grid`` (`cosim.execution.Grid`),
+        a `RuntimeWarning` names the table's events that fall between its communication points."""
+        if grid is not None:
+            off = [t for t in self.event_times() if grid.start < t < grid.stop and not _on_grid(t, grid)]
+            if off:
+                shown = ", ".join(f"{t:g}" for t in off[:8]) + (f" and {len(off) - 8} more" if len(off) > 8 else "")
+                warnings.warn(f"{self.table.file}: input events at t = {shown} s fall between communication points "
+                              f"(step {grid.step:g} s); each takes effect at the next one (fmpy adds a communication "
+                              "point there for an FMU that can vary its step).", RuntimeWarning, stacklevel=2)
         return InputFeed(self, typed)
+
+    def event_times(self) -> list[float]:
+        """The table's events as fmpy finds them (``Input.findEvents``): times given twice, and the
+        times a discrete input's value changes."""
+        t = self.table.time
+        events = set(t[np.flatnonzero(np.diff(t) == 0)].tolist())
+        for target in self.targets:
+            if target.discrete:
+                events.update(t[np.flatnonzero(np.diff(target.values)) + 1].tolist())
+        return sorted(events)
+
+
+def _on_grid(t: float, grid) -> bool:
+    k = round((t - grid.start) / grid.step)
+    return isclose(t, grid.time(k), rel_tol=1e-9, abs_tol=1e-12 * max(1.0, abs(t)))
 
 
 def connector_values(table: InputTable, structure: SystemStructure) -> list[ParameterValue]:
