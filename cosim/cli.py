@@ -267,11 +267,12 @@ def _execute(args, prepared, name: str, output: Path) -> int:
     from .loops import LoopSettings
     from .plots import default_panels, plot
     from .simulation import run, select, signal_info
+    from .single import plotted
 
     plan = prepared.plan
     outputs, inputs = plan.recorded()
     panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
-              else default_panels(signal_info(plan), outputs + inputs))
+              else default_panels(signal_info(plan), plotted(plan, outputs + inputs)))
     settings = LoopSettings(rtol=args.loop_tolerance[0], atol=args.loop_tolerance[1],
                             max_iterations=args.loop_iterations, relaxation=args.relaxation,
                             method=args.loop_method)

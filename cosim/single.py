@@ -4,7 +4,10 @@
 component is named after the FMU's model identifier, every input and output is a connector,
 the default experiment of its modelDescription.xml gives the start and stop time and the step
 (a missing step is fmpy's automatic interval, ``fmpy.util.auto_interval``); what follows is the
-path of an SSD (`cosim.plan.build_plan` and on), so results are named ``<model>.<variable>``.
+path of an SSD (`cosim.plan.build_plan` and on), so results are named ``<model>.<variable>``;
+each output is also an output connector of the system named as the variable, so it is recorded
+again under the name fmpy gives its column (``y`` besides ``Drive.y``), and a result compares
+with an fmpy result or a cross-check reference by name (`cosim compare ref.csv result.csv`).
 
 `prepare_run` prepares a run of an FMU or an SSP system with what the command line adds:
 ``--start NAME=VALUE`` values (applied last, after the parameter sets, checked as parameter
@@ -34,6 +37,7 @@ from .resources import locate_fmus
 from .simulation import Prepared, resolve_grid
 from .structure import (
     Component,
+    Connection,
     Connector,
     Experiment,
     ParameterValue,
@@ -71,11 +75,22 @@ def fmu_structure(path: str | Path, fmi_type: str | None = None) -> SystemStruct
     start = float(e.startTime) if e is not None and e.startTime is not None else None
     stop = float(e.stopTime) if e is not None and e.stopTime is not None else None
     step = float(e.stepSize) if e is not None and e.stepSize is not None else None
-    root = RawSystem(name, 0, {}, {name: component}, {}, [], [], [name])
+    outputs = [c for c in connectors.values() if c.kind == "output"]
+    aliases = {c.name: Connector(c.name, "output", None, None, 0) for c in outputs}
+    wires = [Connection(name, c.name, None, c.name, 1.0, 0.0, False, False, 0) for c in outputs]
+    root = RawSystem(name, 0, aliases, {name: component}, {}, wires, [], [name])
     raw = RawStructure(name=name, files=ScenarioFiles(fmu, fmu.parent, None), display=str(fmu), root=root,
                        experiment=Experiment(start, stop, step, "modelDescription.xml DefaultExperiment stepSize"
                                              if step is not None else None, None), units={})
     return flatten(raw)
+
+
+def plotted(plan: Plan, names: list[str]) -> list[str]:
+    """The signals a default plot shows: for a single FMU its connectors once (not again under
+    the output aliases that `fmu_structure` adds), for a system all."""
+    if not is_fmu(plan.files.ssd_file):
+        return names
+    return [n for n in names if n not in plan.system_outputs]
 
 
 def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_file: str | Path | None = None,
