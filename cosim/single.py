@@ -129,29 +129,31 @@ def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_fil
             extra += starts
         if table is not None:
             plan = with_table(plan, bind_table(table, plan, component, list(structure.parameters) + extra))
-        step = step_size if step_size is not None else output_interval
-        if step is None and single and plan.experiment.step_size is None:
-            experiment = plan.experiment
-            start = start_time if start_time is not None else (experiment.start_time or 0.0)
-            stop = stop_time if stop_time is not None else _default_stop(plan, start)
-            step = float(auto_interval(stop - start)) if stop > start else None
-        if stop_time is None and single and plan.experiment.stop_time is None:
-            stop_time = _default_stop(plan, start_time if start_time is not None else
-                                      (plan.experiment.start_time or 0.0))
+        step, source = (step_size, "command line") if step_size is not None else \
+            (output_interval, "--output-interval") if output_interval is not None else (None, None)
+        if single:
+            stop_time, step, source = _fmu_defaults(plan, start_time, stop_time, step, source)
         prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step,
                                 algorithm=algorithm)
-        source = prepared.step_source if step is None else \
-            ("--output-interval" if step_size is None and output_interval is not None else
-             "fmpy's automatic interval" if step_size is None else "command line")
-        return replace(prepared, step_source=source, parameter_sets=tuple(str(p) for p in parameter_sets))
+        return replace(prepared, step_source=source or prepared.step_source,
+                       parameter_sets=tuple(str(p) for p in parameter_sets))
     except BaseException:
         structure.close()
         raise
 
 
-def _default_stop(plan: Plan, start: float) -> float:
-    """An FMU without a stop time runs for 1 s, as fmpy does."""
-    return start + 1.0
+def _fmu_defaults(plan: Plan, start_time: float | None, stop_time: float | None, step: float | None,
+                  source: str | None) -> tuple[float | None, float | None, str | None]:
+    """What fmpy takes for an FMU whose DefaultExperiment gives no stop time (start + 1 s) or
+    no step (``fmpy.util.auto_interval`` of the span): the stop time, step and its source."""
+    experiment = plan.experiment
+    start = start_time if start_time is not None else (experiment.start_time or 0.0)
+    if stop_time is None and experiment.stop_time is None:
+        stop_time = start + 1.0
+    stop = stop_time if stop_time is not None else experiment.stop_time
+    if step is None and experiment.step_size is None and stop > start:
+        return stop_time, float(auto_interval(stop - start)), "fmpy's automatic interval"
+    return stop_time, step, source
 
 
 def _start_value(text: str, plan: Plan, single: str | None) -> ParameterValue:

@@ -15,7 +15,8 @@ VARIABLES = [("u", 0, "input", "continuous", "Real", "0"), ("d", 1, "input", "di
              ("yd", 4, "output", "discrete", "Real", None), ("gain", 5, "parameter", "fixed", "Real", "2")]
 
 
-def description(guid: str = "{5f1e0c3a-3030-4000-8000-000000000030}", variable_step: bool = True) -> str:
+def description(guid: str = "{5f1e0c3a-3030-4000-8000-000000000030}", variable_step: bool = True,
+                experiment: bool = True) -> str:
     rows, outputs = [], []
     for i, (name, vr, causality, variability, kind, start) in enumerate(VARIABLES, 1):
         initial = ' initial="exact"' if causality == "parameter" else ""
@@ -26,9 +27,10 @@ def description(guid: str = "{5f1e0c3a-3030-4000-8000-000000000030}", variable_s
             outputs.append(f'<Unknown index="{i}" dependencies="{"1" if name == "y" else ""}"/>')
     return ('<?xml version="1.0" encoding="UTF-8"?>\n'
             f'<fmiModelDescription fmiVersion="2.0" modelName="Drive" guid="{guid}" numberOfEventIndicators="0">'
-            f'<CoSimulation modelIdentifier="Drive" canHandleVariableCommunicationStepSize="{str(variable_step).lower()}"/>'
-            '<DefaultExperiment startTime="0" stopTime="2" stepSize="0.1"/>'
-            f'<ModelVariables>{"".join(rows)}</ModelVariables>'
+            '<CoSimulation modelIdentifier="Drive" '
+            f'canHandleVariableCommunicationStepSize="{str(variable_step).lower()}"/>'
+            + ('<DefaultExperiment startTime="0" stopTime="2" stepSize="0.1"/>' if experiment else '')
+            + f'<ModelVariables>{"".join(rows)}</ModelVariables>'
             f'<ModelStructure><Outputs>{"".join(outputs)}</Outputs></ModelStructure></fmiModelDescription>\n')
 
 
@@ -42,7 +44,8 @@ static int step(S *s, double t, double h) {
 """
 
 
-def build_drive(dest: Path, variable_step: bool = True) -> Path:
+def build_drive(dest: Path, variable_step: bool = True, experiment: bool = True) -> Path:
     """``dest/Drive.fmu``; ``variable_step``: its canHandleVariableCommunicationStepSize (with it
-    fmpy adds a communication point at every input event between two of the grid's)."""
-    return build_c_fmu(dest, "Drive", description(variable_step=variable_step), BODY)
+    fmpy adds a communication point at every input event between two of the grid's); ``experiment``:
+    a DefaultExperiment (0..2 s, step 0.1 s) or none."""
+    return build_c_fmu(dest, "Drive", description(variable_step=variable_step, experiment=experiment), BODY)

@@ -137,6 +137,16 @@ def test_without_inputs_the_fmu_runs_its_default_experiment_on_the_compiled_kern
     assert meta["components"]["Drive"]["interface"] == "fmi2-cs" and meta["algorithm"] == "jacobi"
 
 
+def test_without_a_default_experiment_the_grid_is_fmpys(tmp_path):
+    """No DefaultExperiment: 1 s from 0 on fmpy's automatic interval (2 ms), as fmpy runs it."""
+    fmu = build_drive(tmp_path, experiment=False)
+    code, ours = run(tmp_path, fmu, "--start-value", "u=1")
+    assert code == 0
+    assert len(ours) == 501 and ours["time"][-1] == 1.0
+    assert_same_as_fmpy(ours, fmpy.simulate_fmu(str(fmu), start_values={"u": 1.0}))
+    assert json.loads((tmp_path / "out.json").read_text())["step_size_source"] == "fmpy's automatic interval"
+
+
 def test_an_input_table_drives_a_system_by_component_and_input(drive, tmp_path, capsys):
     """In an SSP system the columns are ``component.input``: src's u from the table, dst's u
     connected from src's y, dst's k from the table; the same as a run of each FMU alone, and
