@@ -31,6 +31,7 @@ from .description import describe, exchange_type
 from .errors import SetupError
 from .flatten import flatten
 from .inputs import bind_table, connector_values, read_input_table, with_table
+from .loadable import check_fmu_file, check_library
 from .parameters import split_system_name
 from .plan import build_plan
 from .resources import locate_fmus
@@ -64,7 +65,10 @@ def fmu_structure(path: str | Path, fmi_type: str | None = None) -> SystemStruct
     if not fmu.is_file():
         raise SetupError("no such FMU file.", file=str(fmu), element="cosim run X.fmu")
     implementation = FMI_TYPES[fmi_type] if fmi_type else "any"
-    desc = describe(fmu, "the FMU given", str(fmu), implementation)
+    where = "the FMU given"
+    check_fmu_file(fmu, file=str(fmu), where=where)   # what build_plan checks, named as the user gave it
+    desc = describe(fmu, where, str(fmu), implementation)
+    check_library(desc.path, desc.md, desc.kind, file=str(fmu), where=where)
     md = desc.md
     interface = md.coSimulation if desc.kind.endswith("cs") else md.modelExchange
     name = interface.modelIdentifier

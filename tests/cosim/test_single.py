@@ -213,6 +213,21 @@ def test_wrong_start_values_and_options_are_refused(drive, tmp_path, capsys, arg
     assert all(w in err for w in words), err
 
 
+def test_an_fmu_that_cannot_run_is_refused_naming_it(drive, tmp_path, capsys):
+    import zipfile
+
+    broken = tmp_path / "NoBinary.fmu"
+    with zipfile.ZipFile(drive) as source, zipfile.ZipFile(broken, "w") as target:
+        for member in source.namelist():
+            if not member.startswith("binaries/"):
+                target.writestr(member, source.read(member))
+    assert main(["validate", str(broken)]) == 2
+    err = capsys.readouterr().err
+    assert f"{broken}, the FMU given: NoBinary.fmu has no binary for this platform" in err, err
+    assert main(["run", str(tmp_path / "Missing.fmu"), "-q"]) == 2
+    assert "Missing.fmu" in capsys.readouterr().err
+
+
 def test_validate_and_info_of_an_fmu(drive, capsys):
     assert main(["validate", str(drive)]) == 0
     assert "valid — 1 FMUs, 0 connections" in capsys.readouterr().out
