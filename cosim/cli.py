@@ -329,13 +329,14 @@ def _prepare_with_placeholder_grid(args):
     """validate/info/pack need no grid, but check the SSD's: a stop time and step size the SSD
     does not give are placeholders (a stop 1 s after the start, a step of 1 s)."""
     from .simulation import resolve_grid, validate
-    from .single import is_fmu, prepare_run
+    from .single import check_fmi_type, is_fmu, prepare_run
 
     if is_fmu(args.path):
         if args.command == "pack":
             raise SetupError("cosim pack packs an SSP scenario; an FMU alone has no SSD to pack.",
                              file=args.path, element="cosim pack")
         return prepare_run(args.path, fmi_type=args.fmi_type)
+    check_fmi_type(args.path, getattr(args, "fmi_type", None))
     plan = validate(args.path, fmu_dirs=args.fmu_dir)
     experiment = plan.experiment
     try:

@@ -97,6 +97,17 @@ def plotted(plan: Plan, names: list[str]) -> list[str]:
     return [n for n in names if n not in plan.system_outputs]
 
 
+def check_fmi_type(path: str | Path, fmi_type: str | None) -> None:
+    """Refuse an unknown ``--fmi-type``, and one given for a system (its SSD chooses)."""
+    if fmi_type is None:
+        return
+    if fmi_type not in FMI_TYPES:
+        raise SetupError(f"unknown FMI type '{fmi_type}'; choose {' or '.join(FMI_TYPES)}.", element="--fmi-type")
+    if not is_fmu(path):
+        raise SetupError("--fmi-type chooses the interface of a single FMU; in a system each ssd:Component's "
+                         "implementation attribute does.", file=str(path), element="--fmi-type")
+
+
 def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_file: str | Path | None = None,
                 fmi_type: str | None = None, output_interval: float | None = None,
                 start_time: float | None = None, stop_time: float | None = None, step_size: float | None = None,
@@ -104,8 +115,7 @@ def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_fil
                 fmu_dirs: Sequence[str | Path] = (), loops: str = "iterate") -> Prepared:
     """Read and check everything a run needs (`cosim.simulation.prepare`, plus the options of
     this module); nothing is instantiated."""
-    if fmi_type is not None and fmi_type not in FMI_TYPES:
-        raise SetupError(f"unknown FMI type '{fmi_type}'; choose {' or '.join(FMI_TYPES)}.", element="--fmi-type")
+    check_fmi_type(path, fmi_type)
     if output_interval is not None and step_size is not None and output_interval != step_size:
         raise SetupError(f"--output-interval {output_interval:g} and --step {step_size:g} differ; both are the "
                          "communication step, at which results are recorded: give one.", element="--output-interval")
@@ -114,9 +124,6 @@ def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_fil
         structure = fmu_structure(path, fmi_type)
         fmu_paths = {name: Path(path) for name in structure.components}
     else:
-        if fmi_type is not None:
-            raise SetupError("--fmi-type chooses the interface of a single FMU; in a system each ssd:Component's "
-                             "implementation attribute does.", file=str(path), element="--fmi-type")
         structure = ssp.load(path)
     try:
         if not single:

@@ -335,6 +335,8 @@ def test_an_input_table_drives_a_system_input_connector(drive, tmp_path, capsys)
     """A column naming an undriven input connector of the root system drives what it feeds,
     through each connection's LinearTransformation (a.u = 2 r + 1, a.d = r), each by its own rule."""
     folder = write_system(tmp_path / "sys", {"Drive.fmu": drive}, SYSTEM_INPUT)
+    assert main(["info", str(folder), "--fmi-type", "CoSimulation"]) == 2   # a system's SSD chooses
+    assert "implementation attribute" in capsys.readouterr().err
     (tmp_path / "in.csv").write_text("time,r\n0,0\n1,1\n")
     code, ours = run(tmp_path, folder, "--input-file", tmp_path / "in.csv", "--step", "0.1")
     assert code == 0
