@@ -159,6 +159,8 @@ def test_an_input_table_drives_a_system_by_component_and_input(drive, tmp_path, 
     code, ours = run(tmp_path, folder, "--input-file", tmp_path / "in.csv", "--start-value", "dst.gain=5")
     assert code == 0
     assert list(ours["dst.k"]) == [1] * 5 + [3] * 6
+    meta = json.loads((tmp_path / "out.json").read_text())
+    assert meta["parameters"]["dst.gain"] == 5.0 and meta["parameter_origins"]["dst.gain"].startswith("--start-value")
     np.testing.assert_array_equal(ours["dst.u"][1:], ours["src.y"][1:])
     single = fmpy.simulate_fmu(str(drive), input=read_csv(str(tmp_path / "in.csv")).astype(
         [("time", float), ("u", float), ("k", float)]), output_interval=0.1, stop_time=1.0)
