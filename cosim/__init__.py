@@ -3,12 +3,13 @@
     >>> import cosim
     >>> result = cosim.simulate("ssp/pid_fopdt", stop_time=100, step_size=0.1)
     >>> result["plant.y"][-1]
+    >>> cosim.simulate_fmu("Drive.fmu", input_file="Drive_in.csv", start_values={"gain": 3})["Drive.y"]
 
 The master runs any FMU (it never imports the packages that built them).
 """
 from .errors import CosimError, RunError, SetupError
 
-__all__ = ["simulate", "prepare", "CosimError", "SetupError", "RunError"]
+__all__ = ["simulate", "simulate_fmu", "prepare", "CosimError", "SetupError", "RunError"]
 
 
 def __getattr__(name: str):
@@ -18,4 +19,7 @@ def __getattr__(name: str):
     if name in ("simulate", "prepare"):
         from . import simulation
         return getattr(simulation, name)
+    if name == "simulate_fmu":
+        from . import single
+        return single.simulate_fmu
     raise AttributeError(f"module 'cosim' has no attribute {name!r}")

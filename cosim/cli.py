@@ -23,7 +23,8 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp):
-        sp.add_argument("path", help="scenario folder (SystemStructure.ssd), .ssd file or .ssp archive")
+        sp.add_argument("path", help="scenario folder (SystemStructure.ssd), .ssd file or .ssp archive "
+                                     "(run, validate, info: or one .fmu)")
         sp.add_argument("--fmu-dir", action="append", default=[], metavar="DIR",
                         help="folder to look in for FMUs the scenario does not carry (repeatable)")
         sp.add_argument("--max-unpacked", metavar="SIZE", help="most an .ssp archive may expand to, e.g. 4G "
@@ -32,9 +33,13 @@ def _parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run a system and write CSV results (and a plot)")
     common(run)
-    run.add_argument("--start", type=float, help="start time [s] (default: DefaultExperiment or 0)")
-    run.add_argument("--stop", type=float, help="stop time [s] (default: DefaultExperiment)")
-    run.add_argument("--step", type=float, help="communication step [s] (default: SSD annotation)")
+    run.add_argument("--start", "--start-time", type=float, dest="start",
+                     help="start time [s] (default: DefaultExperiment or 0)")
+    run.add_argument("--stop", "--stop-time", type=float, dest="stop",
+                     help="stop time [s] (default: DefaultExperiment; an FMU without one: start + 1)")
+    run.add_argument("--step", type=float, help="communication step [s] (default: SSD annotation; an FMU's "
+                                                "DefaultExperiment stepSize, else fmpy's automatic interval)")
+    single_options(run)
     run.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="default: jacobi")
     run.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                      help="parameter set applied last, names 'component.variable' (repeatable)")
@@ -84,9 +89,11 @@ def _parser() -> argparse.ArgumentParser:
 
     validate = sub.add_parser("validate", help="check a system without running it")
     common(validate)
+    validate.add_argument("--fmi-type", choices=["CoSimulation", "ModelExchange"], help=FMI_TYPE_HELP)
 
     info = sub.add_parser("info", help="list components, connections and parameters")
     common(info)
+    info.add_argument("--fmi-type", choices=["CoSimulation", "ModelExchange"], help=FMI_TYPE_HELP)
 
     metrics = sub.add_parser("metrics", help="IAE, ISE, ITAE, overshoot, rise and settling time of a result")
     metrics.add_argument("result", help="result CSV or Parquet file written by cosim run")
@@ -151,6 +158,22 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+FMI_TYPE_HELP = "the interface of an FMU that has both (default: CoSimulation); a single .fmu only"
+
+
+def single_options(run: argparse.ArgumentParser) -> None:
+    """The options of `cosim.single` and `cosim.inputs`, with fmpy simulate's names."""
+    run.add_argument("--start-value", "--start-values", action="append", default=[], metavar="NAME=VALUE",
+                     dest="start_values", help="start value of a parameter or input, applied after the parameter "
+                     "sets: the variable's name for a single FMU, 'component.variable' in a system (repeatable)")
+    run.add_argument("--input-file", metavar="CSV", help="input table: a 'time' column, then one column per input "
+                     "(names as for --start-value); Reals interpolated linearly, discrete inputs held, a repeated "
+                     "time is an event (fmpy's format and rules)")
+    run.add_argument("--output-interval", type=float, metavar="SECONDS",
+                     help="communication step, at which results are recorded (fmpy's name for --step)")
+    run.add_argument("--fmi-type", choices=["CoSimulation", "ModelExchange"], help=FMI_TYPE_HELP)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
@@ -183,15 +206,17 @@ def _run(args) -> int:
     from .journal import journal_path
     from .outputs import RESULT_SUFFIXES, check_not_in_sweep, check_output, plot_suffixes, scenario_files
     from .safeio import lock_output, lock_path, partial_path
-    from .simulation import isolation_of, prepare
+    from .simulation import isolation_of
+    from .single import prepare_run
     from .supervisor import supervise
 
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         raise SetupError(f"--timeout {args.timeout}: give a positive number of seconds.", element="--timeout")
     isolation_of(args.isolate, args.call_timeout)  # refused before anything is read
-    prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
-                       algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
-                       loops=args.loops)
+    prepared = prepare_run(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
+                           algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
+                           loops=args.loops, start_values=args.start_values, input_file=args.input_file,
+                           output_interval=args.output_interval, fmi_type=args.fmi_type)
     try:
         name = prepared.plan.name or Path(args.path).resolve().stem
         output = Path(args.output) if args.output else _default_result(prepared.plan, name, args.param_set)
@@ -242,11 +267,12 @@ def _execute(args, prepared, name: str, output: Path) -> int:
     from .loops import LoopSettings
     from .plots import default_panels, plot
     from .simulation import run, select, signal_info
+    from .single import plotted
 
     plan = prepared.plan
     outputs, inputs = plan.recorded()
     panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
-              else default_panels(signal_info(plan), outputs + inputs))
+              else default_panels(signal_info(plan), plotted(plan, outputs + inputs)))
     settings = LoopSettings(rtol=args.loop_tolerance[0], atol=args.loop_tolerance[1],
                             max_iterations=args.loop_iterations, relaxation=args.relaxation,
                             method=args.loop_method)
@@ -303,7 +329,14 @@ def _prepare_with_placeholder_grid(args):
     """validate/info/pack need no grid, but check the SSD's: a stop time and step size the SSD
     does not give are placeholders (a stop 1 s after the start, a step of 1 s)."""
     from .simulation import resolve_grid, validate
+    from .single import check_fmi_type, is_fmu, prepare_run
 
+    if is_fmu(args.path):
+        if args.command == "pack":
+            raise SetupError("cosim pack packs an SSP scenario; an FMU alone has no SSD to pack.",
+                             file=args.path, element="cosim pack")
+        return prepare_run(args.path, fmi_type=args.fmi_type)
+    check_fmi_type(args.path, getattr(args, "fmi_type", None))
     plan = validate(args.path, fmu_dirs=args.fmu_dir)
     experiment = plan.experiment
     try:

@@ -272,6 +272,8 @@ class Execution:
         self.order = list(plan.components)
         self.typed = [_Typed(plan, t, self.order) for t in TYPES
                       if any(exchange_type(v) == t for c in self.order for v in plan.outputs[c] + plan.inputs[c])]
+        #: the input table's values into the input buffers at a time (`cosim.inputs.InputFeed`)
+        self._feed = plan.input_table.feed(self.typed, grid) if plan.input_table is not None else None
         self.loop_solver = self._loop_solver(loop_settings or LoopSettings()) \
             if plan.algebraic_loops and plan.loop_mode == "iterate" else None
         if plan.algebraic_loops and plan.loop_mode == "delay":
@@ -301,6 +303,8 @@ class Execution:
         for name in self.order:
             if self.plan.fmus[name].kind not in ("fmi2-cs", "fmi3-cs"):
                 return f"component '{name}' is Model Exchange (integrated by the master)"
+        if self._feed is not None:
+            return "an input table (--input-file) sets inputs (cosim.inputs, in Python)"
         strings = [ty.type_name for ty in self.typed if ty.strings]
         if strings:
             return f"{' and '.join(strings)} connectors (routed by Python)"
@@ -493,7 +497,9 @@ class Execution:
     # ----------------------------------------------------------------- exchange
 
     def _exchange(self, t: float) -> None:
-        """Read outputs, settle direct feedthrough in dependency order, route, set inputs."""
+        """Read outputs, settle direct feedthrough in dependency order, route, set inputs (an
+        input table's values at ``t`` among them: set after the outputs at ``t`` are read, as fmpy
+        sets them, `cosim.inputs`)."""
         for fn, c, vr, n, ptr, comp in self._all_get:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
@@ -504,6 +510,8 @@ class Execution:
             self.loop_solver.solve(t, self._settle)
         for ty in self.typed:
             ty.route(t)
+        if self._feed is not None:
+            self._feed(t)
         for fn, c, vr, n, ptr, comp in self._all_set:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:

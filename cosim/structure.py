@@ -424,6 +424,8 @@ class Plan:
     #: components of the feedthrough sequence whose inputs are final when the settling sets
     #: them: the exchange does not set them again
     set_in_settling_only: set[str] = field(default_factory=set)
+    #: an input table (``--input-file``) feeding inputs by name (`cosim.inputs.BoundTable`), or None
+    input_table: object | None = None
 
     def recorded(self) -> tuple[list[str], list[str]]:
         """The result names of the recorded outputs (the root system's output connectors last)
