@@ -303,7 +303,7 @@ static int references_ok(GuardedInstance *in, const char *function, const fmi2Va
         if (v == NULL) {
             const GuardVariable *other = any_variable(&in->model, vr[i]);
             if (other != NULL)
-                snprintf(why, sizeof why, "vr[%zu] = %u is %s, a %s variable, not a %s one", i, vr[i], other->name,
+                snprintf(why, sizeof why, "vr[%zu] = %u is %s, a %s variable, not of type %s", i, vr[i], other->name,
                          type_name(other->type), type_name(type));
             else
                 snprintf(why, sizeof why, "vr[%zu] = %u is not a value reference of this FMU", i, vr[i]);
@@ -347,14 +347,14 @@ static int decode_path(const char *encoded, char *folder, size_t size, char *pro
         if (byte == '%') {
             int high = hex_value(c[1]), low = high < 0 ? -1 : hex_value(c[2]);
             if (low < 0 || (high == 0 && low == 0)) {
-                append(problem, psize, "'%.3s' is not a valid percent-encoded byte", c);
+                append(problem, psize, "has '%.3s', which is not a valid percent-encoded byte", c);
                 return 0;
             }
             byte = (char)(high * 16 + low);
             c += 2;
         }
         if (length + 1 >= size) {
-            append(problem, psize, "the path is too long");
+            append(problem, psize, "is too long");
             return 0;
         }
         folder[length++] = byte;
