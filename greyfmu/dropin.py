@@ -8,8 +8,9 @@ requirements, `drop_in` returns new entries:
   Where there is no C compiler for a platform (cc; x86_64-w64-mingw32-gcc for win64) the
   pythonfmu library stays the binary, and the build says so once on stderr: that FMU then
   loads only in a host that already runs Python (fmpy, cosim; on Windows, python3.dll on PATH);
-- ``resources/`` gets the loader's target check, the FMU's requirements and the path of the
-  interpreter that built it (the loader's second choice);
+- ``resources/`` gets the loader's target check, the FMU's requirements, the path of the
+  interpreter that built it (the loader's second choice) and ``greyfmu_guard.txt``, what the
+  loader's guard checks every call against (`guard_text`);
 - pythonfmu's package in ``resources/`` becomes its run-time modules only, under the private
   name `RUNTIME_PACKAGE` (`vendor_pythonfmu`), and the slave modules import it by that name.
   A Python host keeps an FMU's ``resources/`` on ``sys.path`` after running it (fmpy does,

@@ -24,6 +24,10 @@
  *      requirements; once per process, see CHECK_ONCE), then pythonfmu-export.so is loaded and
  *      every fmi2 function forwards to it.
  *
+ * Every call passes the guard first (guard.h): the fmi2Component the host gets is the guard's
+ * record of the instance, and a call the FMI 2.0 state machine, the arguments or the FMU's
+ * variables do not allow returns fmi2Error with one log line instead of reaching pythonfmu.
+ *
  * Where no usable Python is found, fmi2Instantiate logs one message naming what is missing and
  * how to fix it, and returns NULL.  Python is never finalised (numpy and scipy cannot be
  * re-initialised in one process).
