@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import re
 import shutil
+import sys
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
@@ -201,3 +202,39 @@ def test_the_slaves_own_messages_reach_the_host_as_data(runs, name):
     assert run.status("format_slave") == str(DISCARD)
     (status, category, message), = run.logs["format_slave"]
     assert status == ERROR and message.startswith("%s%n%s%n: input ") and "is not a finite number" in message
+
+
+COSIM_LOGGER = '''
+import collections, sys
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from cosim.instances.fmi2 import _LOG_TARGETS, _callbacks
+
+fmu = sys.argv[1]
+md = read_model_description(fmu)
+vr = {v.name: v.valueReference for v in md.modelVariables}
+name = "%s%n%s%n"
+_LOG_TARGETS[name] = messages = collections.deque()
+slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(fmu), modelIdentifier="PID", instanceName=name)
+slave.instantiate(callbacks=_callbacks(), loggingOn=True)
+slave.setupExperiment(startTime=0.0)
+slave.enterInitializationMode()
+slave.exitInitializationMode()
+slave.setReal([vr["r"]], [float("nan")])
+try:
+    slave.doStep(0.0, 0.1)
+except Exception as error:
+    print("status", error.status)
+print("messages", list(messages))
+'''
+
+
+def test_cosims_logger_gets_the_slaves_message_as_data(built_fmus, tmp_path):
+    """cosim's FMI 2.0 callbacks (fmpy's native logger proxy formats the printf arguments) get
+    the slave's message naming the instance %s%n%s%n verbatim; in a fresh process, as a
+    message taken for a format would crash it."""
+    completed = subprocess.run([sys.executable, "-c", COSIM_LOGGER, str(built_fmus["PID"])], capture_output=True,
+                               text=True, timeout=120, cwd=tmp_path)
+    assert completed.returncode == 0, completed.stderr
+    assert "status 2" in completed.stdout
+    assert "'[Error] logStatusError: %s%n%s%n: input r = nan at t = 0.0 s is not a finite number'" in completed.stdout
