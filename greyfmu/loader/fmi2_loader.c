@@ -572,10 +572,10 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
     GuardedInstance *in = guarded(c, "fmi2FreeInstance");
     if (in == NULL) return;
     int lost = in->phase == PHASE_FATAL;
-    fmi2Component real = in->real;
+    if (!lost && real_fmi2FreeInstance != NULL) /* first: pythonfmu may log while freeing */
+        ((void (*)(fmi2Component))real_fmi2FreeInstance)(in->real);
     free_guarded(in);
     if (lost || real_fmi2FreeInstance == NULL) return;
-    ((void (*)(fmi2Component))real_fmi2FreeInstance)(real);
     lock(&load_lock);
     if (--live_instances == 0) release_pythonfmu_state();
     unlock(&load_lock);
