@@ -274,6 +274,21 @@ static void argument_cases(void) {
     step_case("step_nan", 0.0, NAN);
     step_case("step_infinite", 0.0, INFINITY);
     step_case("time_nan", NAN, 0.1);
+    CASE("step_not_from_the_last_end") {
+        fmi2Component c = initialised("hostile");
+        fmi.do_step(c, 0.0, 0.1, 1);
+        result(current_case, fmi.do_step(c, 5.0, 0.1, 1));
+        fmi.free_instance(c);
+    }
+    CASE("step_past_stop_time") {
+        fmi2Component c = make("hostile", resources);
+        fmi.setup(c, 0, 0.0, 0.0, 1, 1.0);
+        fmi.enter(c);
+        fmi.exit_init(c);
+        result("step_to_stop_time", fmi.do_step(c, 0.0, 1.0 - 1e-14, 1));
+        result(current_case, fmi.do_step(c, 1.0, 0.5, 1));
+        fmi.free_instance(c);
+    }
     CASE("set_fixed_after_init") {
         if (!has_fixed) {
             printf("result %s skip\n", current_case);

@@ -601,10 +601,16 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
     if (!isfinite(startTime)) REFUSE(in, "fmi2SetupExperiment", "startTime = %g is not finite", startTime);
     if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime))
         REFUSE(in, "fmi2SetupExperiment", "stopTime = %g is not a finite time >= startTime = %g", stopTime, startTime);
-    return settle(in,
-                  CALL(fmi2SetupExperiment, (fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real),
-                       toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime),
-                  0);
+    fmi2Status status =
+        CALL(fmi2SetupExperiment, (fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real),
+             toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
+    if (status <= fmi2Warning) {
+        in->time_known = 1;
+        in->next_time = startTime;
+        in->stop_defined = stopTimeDefined != 0;
+        in->stop_time = stopTime;
+    }
+    return settle(in, status, 0);
 }
 
 EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
@@ -625,7 +631,9 @@ EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
 
 EXPORT fmi2Status fmi2Reset(fmi2Component c) {
     GUARDED(fmi2Reset, PHASES_ANY_BUT_FATAL)
-    return settle(in, ((fmi2Status(*)(fmi2Component))real_fmi2Reset)(in->real), PHASE_INSTANTIATED);
+    fmi2Status status = ((fmi2Status(*)(fmi2Component))real_fmi2Reset)(in->real);
+    if (status <= fmi2Warning) in->time_known = in->stop_defined = 0;
+    return settle(in, status, PHASE_INSTANTIATED);
 }
 
 /* fmi2Get<Type> and fmi2Set<Type>: the state, the arrays, every value reference (and for a set,
@@ -655,6 +663,7 @@ EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
 /* A state restored leaves the error state for the state the instance had before it. */
 static fmi2Status restored(GuardedInstance *in, fmi2Status status) {
     if (status <= fmi2Warning && in->phase == PHASE_ERROR) in->phase = in->phase_before_error;
+    if (status <= fmi2Warning) in->time_known = 0; /* the state's time: the next step says it */
     return settle(in, status, 0);
 }
 
@@ -738,8 +747,20 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
                "steps: the FMU computes every internal sample of a step)",
                h, in->model.max_step);
     if (!isfinite(t + h)) REFUSE(in, "fmi2DoStep", "currentCommunicationPoint + communicationStepSize is not finite");
+    if (in->time_known && !same_time(t, in->next_time))
+        REFUSE(in, "fmi2DoStep",
+               "currentCommunicationPoint = %.17g s, but the instance is at %.17g s (a step starts where the last one "
+               "ended; fmi2SetFMUstate moves the time)",
+               t, in->next_time);
+    if (in->stop_defined && t + h > in->stop_time && !same_time(t + h, in->stop_time))
+        REFUSE(in, "fmi2DoStep", "the step [%.17g, %.17g] s ends after stopTime = %.17g s (fmi2SetupExperiment)", t,
+               t + h, in->stop_time);
     fmi2Status status =
         CALL(fmi2DoStep, (fmi2Component, fmi2Real, fmi2Real, fmi2Boolean), t, h, noSetFMUStatePriorToCurrentPoint);
+    if (status <= fmi2Warning) {
+        in->time_known = 1;
+        in->next_time = t + h;
+    }
     return settle(in, status, status == fmi2Discard ? PHASE_STEP_FAILED : PHASE_STEP_COMPLETE);
 }
 

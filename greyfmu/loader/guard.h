@@ -9,7 +9,8 @@
  * its call against them before forwarding to pythonfmu: the state, NULL pointers (instance,
  * arrays with n > 0, callbacks, logger), value references (unknown, or of another type), which
  * variables may be set in the state (FMI 2.0 §4.2.4 Table, footnotes 1, 3 and 6), step sizes
- * (finite, > 0, at most max_step) and, at instantiation, the GUID, the interface type
+ * (finite, > 0, at most max_step, starting where the last step ended and ending by stopTime, as
+ * the Reference FMUs check) and, at instantiation, the GUID, the interface type
  * (Co-Simulation only) and the resource location (every RFC 8089 form, normalised to the plain
  * folder path pythonfmu uses).  A refused call is not forwarded; it returns fmi2Error after one
  * line through the host's logger naming the function, the argument and the state, and the
@@ -99,7 +100,17 @@ typedef struct {
     fmi2CallbackFunctions host;      /* the host's callbacks, copied */
     fmi2CallbackFunctions forwarded; /* given to pythonfmu: guard_logger, componentEnvironment = this */
     GuardModel model;
+    int time_known;   /* next_time is where the next step starts (unknown after a reset or a restored state) */
+    double next_time;
+    int stop_defined; /* fmi2SetupExperiment's stopTime: no step may end after it */
+    double stop_time;
 } GuardedInstance;
+
+/* Two communication times that are the same time up to rounding. */
+static int same_time(double a, double b) {
+    double scale = fabs(a) > fabs(b) ? fabs(a) : fabs(b);
+    return fabs(a - b) <= 1e-9 * (scale > 1 ? scale : 1);
+}
 
 static const char *type_name(char type) {
     return type == 'R' ? "Real" : type == 'I' ? "Integer" : type == 'B' ? "Boolean" : "String";

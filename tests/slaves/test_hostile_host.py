@@ -65,6 +65,9 @@ REFUSED = {
     "step_nan": (ERROR, "fmi2DoStep: communicationStepSize = nan: a step must be finite and > 0"),
     "step_infinite": (ERROR, "fmi2DoStep: communicationStepSize = inf: a step must be finite and > 0"),
     "time_nan": (ERROR, "fmi2DoStep: currentCommunicationPoint = nan is not finite"),
+    "step_not_from_the_last_end": (ERROR, "fmi2DoStep: currentCommunicationPoint = 5 s, but the instance is at "
+                                          "0.10000000000000001 s (a step starts where the last one ended"),
+    "step_past_stop_time": (ERROR, "fmi2DoStep: the step [1, 1.5] s ends after stopTime = 1 s"),
     "null_status_value": (ERROR, "fmi2GetRealStatus: value (where to write the status) is NULL"),
     "null_fmu_state": (ERROR, "fmi2GetFMUstate: FMUstate (the fmi2FMUstate* to fill) is NULL"),
     "format_guard": (ERROR, "(instance '%s%n%s%n', state instantiated)"),
@@ -178,6 +181,7 @@ def test_the_error_state_allows_get_and_reset_which_starts_over(runs, name):
     assert run.logs["error_state_until_reset"][1][2].endswith("state error)")
     assert run.status("unknown_vr_then_get") == str(OK)  # fmi2Error, not fmi2Fatal: the instance is not lost
     assert run.status("empty_arrays") == str(OK)
+    assert run.status("step_to_stop_time") == str(OK)  # a step ending at stopTime up to rounding is fine
 
 
 @pytest.mark.parametrize("name", fmu_names())
