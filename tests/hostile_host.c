@@ -2,10 +2,10 @@
  * test_hostile_host.py checks (compiled there with the system compiler), each case on a fresh
  * instance, and prints what came back.
  *
- *   hostile_host DIR IDENTIFIER GUID REAL FIXED FIXED_TYPE INPUT
+ *   hostile_host DIR IDENTIFIER GUID REAL FIXED FIXED_TYPE INPUT TUNABLE
  *     DIR/binaries/linux64/IDENTIFIER.so is dlopen'ed; REAL: the value reference of a Real
- *     variable; FIXED, FIXED_TYPE (R, I or B): a fixed parameter, INPUT: a Real input ("-":
- *     none, the cases needing them are skipped).
+ *     variable; FIXED, FIXED_TYPE (R, I or B): a fixed parameter, INPUT: a Real input,
+ *     TUNABLE: a Real tunable parameter ("-": none, the cases needing them are skipped).
  *
  * Output, one line each: "result CASE STATUS" (an fmi2Status number, "instance" or "null" for
  * fmi2Instantiate, "skip") and "log CASE STATUS CATEGORY MESSAGE" for every logger call during
@@ -54,9 +54,9 @@ static struct {
 
 static const char *current_case = "";
 static char resources[4096], guid[256];
-static fmi2ValueReference real_vr, fixed_vr, input_vr;
+static fmi2ValueReference real_vr, fixed_vr, input_vr, tunable_vr;
 static char fixed_type;
-static int has_fixed, has_input;
+static int has_fixed, has_input, has_tunable;
 
 static void logger(void *env, const char *name, fmi2Status status, const char *category, const char *format, ...) {
     (void)env;
@@ -311,6 +311,20 @@ static void argument_cases(void) {
         printf("result set_fixed_unchanged %d\n", before == after && ibefore == iafter);
         fmi.free_instance(c);
     }
+    CASE("set_tunable_after_init") {
+        if (!has_tunable) {
+            printf("result %s skip\n", current_case);
+            continue;
+        }
+        fmi2Component c = initialised("hostile");
+        double before = 0, after = 0, changed;
+        fmi.get_real(c, &tunable_vr, 1, &before);
+        changed = before * 1.5 + 0.25;
+        result(current_case, fmi.set_real(c, &tunable_vr, 1, &changed));
+        fmi.get_real(c, &tunable_vr, 1, &after);
+        printf("result set_tunable_changed %d\n", after == changed);
+        fmi.free_instance(c);
+    }
     CASE("null_status_value") {
         fmi2Component c = initialised("hostile");
         fmi.do_step(c, 0.0, 0.1, 1);
@@ -353,8 +367,8 @@ static void *need(void *library, const char *name) {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 8) {
-        fprintf(stderr, "usage: hostile_host DIR IDENTIFIER GUID REAL FIXED FIXED_TYPE INPUT\n");
+    if (argc != 9) {
+        fprintf(stderr, "usage: hostile_host DIR IDENTIFIER GUID REAL FIXED FIXED_TYPE INPUT TUNABLE\n");
         return 2;
     }
     char binary[4096];
@@ -367,6 +381,8 @@ int main(int argc, char **argv) {
     fixed_type = argv[6][0];
     has_input = strcmp(argv[7], "-") != 0;
     input_vr = (fmi2ValueReference)strtoul(argv[7], NULL, 10);
+    has_tunable = strcmp(argv[8], "-") != 0;
+    tunable_vr = (fmi2ValueReference)strtoul(argv[8], NULL, 10);
     void *library = dlopen(binary, RTLD_NOW | RTLD_LOCAL);
     if (library == NULL) {
         fprintf(stderr, "hostile_host: %s\n", dlerror());

@@ -111,9 +111,10 @@ def run_hostile_host(host: Path, fmu_path: Path, folder: Path) -> HostRun:
     fixed = next((v for v in variables if v.causality == "parameter" and v.variability == "fixed"
                   and v.type in ("Real", "Integer", "Boolean")), None)
     inputs = [v for v in variables if v.type == "Real" and v.causality == "input"]
+    tunable = next((v for v in variables if v.type == "Real" and v.variability == "tunable"), None)
     arguments = [str(host), str(folder), fmu.identifier, fmu.guid, str(real.valueReference),
                  str(fixed.valueReference) if fixed else "-", fixed.type[0] if fixed else "-",
-                 str(inputs[0].valueReference) if inputs else "-"]
+                 str(inputs[0].valueReference) if inputs else "-", str(tunable.valueReference) if tunable else "-"]
     completed = subprocess.run(arguments, capture_output=True, text=True, timeout=300, env=environment())
     assert completed.returncode == 0, f"the host crashed ({completed.returncode}):\n{completed.stdout[-3000:]}\n" \
                                       f"{completed.stderr[-3000:]}"
@@ -194,6 +195,19 @@ def test_a_fixed_parameter_set_after_initialisation_is_refused_and_unchanged(run
     (status, _, message), = run.logs["set_fixed_after_init"]
     assert re.search(rf"vr\[0\] = \d+: {re.escape(run.fixed)} is a fixed parameter: after initialisation only "
                      r"inputs and tunable parameters can be set \(instance 'hostile', state stepComplete\)", message)
+
+
+@pytest.mark.parametrize("name", fmu_names())
+def test_a_tunable_parameter_set_after_initialisation_is_taken(runs, name):
+    run = runs[name]
+    if run.status("set_tunable_after_init") == "skip":
+        return
+    assert (run.status("set_tunable_after_init"), run.status("set_tunable_changed")) == (str(OK), "1")
+    assert "set_tunable_after_init" not in run.logs
+
+
+def test_the_tunable_case_runs_somewhere(runs):
+    assert [name for name, run in runs.items() if run.status("set_tunable_after_init") != "skip"] == ["SOPDTPredictive"]
 
 
 @pytest.mark.parametrize("name", fmu_names())
