@@ -3,7 +3,8 @@
  * instance, and prints what came back.
  *
  *   hostile_host DIR IDENTIFIER GUID REAL FIXED FIXED_TYPE INPUT TUNABLE
- *     DIR/binaries/linux64/IDENTIFIER.so is dlopen'ed; REAL: the value reference of a Real
+ *     DIR/binaries/linux64/IDENTIFIER.so is dlopen'ed (Windows, built with mingw-w64:
+ *     DIR\binaries\win64\IDENTIFIER.dll, LoadLibrary); REAL: the value reference of a Real
  *     variable; FIXED, FIXED_TYPE (R, I or B): a fixed parameter, INPUT: a Real input,
  *     TUNABLE: a Real tunable parameter ("-": none, the cases needing them are skipped).
  *
@@ -12,12 +13,24 @@
  * the case.  The logger formats its arguments as a plain C host does (vsnprintf of the format):
  * an FMU passing a message as the format with %n in it would crash this host.
  */
-#include <dlfcn.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#ifdef _WIN32
+#include <windows.h>
+#define dlopen(path, mode) ((void *)LoadLibraryExA(path, NULL, LOAD_WITH_ALTERED_SEARCH_PATH))
+#define dlsym(library, name) ((void *)GetProcAddress((HMODULE)(library), name))
+#define BINARY "%s\\binaries\\win64\\%s.dll"
+#define RESOURCES "%s\\resources"
+static const char *dlerror(void) { return "LoadLibrary failed"; }
+#else
+#include <dlfcn.h>
+#define BINARY "%s/binaries/linux64/%s.so"
+#define RESOURCES "%s/resources"
+#endif
 
 typedef void *fmi2Component;
 typedef void *fmi2FMUstate;
@@ -54,6 +67,7 @@ static struct {
 
 static const char *current_case = "";
 static char resources[4096], guid[256];
+static char uri_path[4200]; /* resources as a URI path: /C:/... on Windows */
 static fmi2ValueReference real_vr, fixed_vr, input_vr, tunable_vr;
 static char fixed_type;
 static int has_fixed, has_input, has_tunable;
@@ -127,15 +141,15 @@ static void instantiation_cases(void) {
     char uri[8192];
     resource_case("resource_null", NULL);
     resource_case("resource_empty", "");
-    snprintf(uri, sizeof uri, "file:%s", resources);
+    snprintf(uri, sizeof uri, "file:%s", uri_path);
     resource_case("resource_file_one_slash", uri);
-    snprintf(uri, sizeof uri, "file://%s", resources);
+    snprintf(uri, sizeof uri, "file://%s", uri_path);
     resource_case("resource_file_three_slashes", uri);
-    snprintf(uri, sizeof uri, "file://localhost%s", resources);
+    snprintf(uri, sizeof uri, "file://localhost%s", uri_path);
     resource_case("resource_file_localhost", uri);
-    snprintf(uri, sizeof uri, "file://%s/", resources);
+    snprintf(uri, sizeof uri, "file://%s/", uri_path);
     resource_case("resource_trailing_slash", uri);
-    percent_encoded(resources, uri, sizeof uri);
+    percent_encoded(uri_path, uri, sizeof uri);
     resource_case("resource_percent_encoded", uri);
     resource_case("resource_plain_path", resources);
     resource_case("resource_missing", "file:///nonexistent-greyfmu-folder/resources");
@@ -372,8 +386,11 @@ int main(int argc, char **argv) {
         return 2;
     }
     char binary[4096];
-    snprintf(binary, sizeof binary, "%s/binaries/linux64/%s.so", argv[1], argv[2]);
-    snprintf(resources, sizeof resources, "%s/resources", argv[1]);
+    snprintf(binary, sizeof binary, BINARY, argv[1], argv[2]);
+    snprintf(resources, sizeof resources, RESOURCES, argv[1]);
+    snprintf(uri_path, sizeof uri_path, "%s%s", resources[0] == '/' ? "" : "/", resources);
+    for (char *c = uri_path; *c; c++)
+        if (*c == '\\') *c = '/';
     snprintf(guid, sizeof guid, "%s", argv[3]);
     real_vr = (fmi2ValueReference)strtoul(argv[4], NULL, 10);
     has_fixed = strcmp(argv[5], "-") != 0;

@@ -103,19 +103,24 @@ def hostile_host(tmp_path_factory) -> Path:
     return host
 
 
-def run_hostile_host(host: Path, fmu_path: Path, folder: Path) -> HostRun:
+def host_arguments(fmu_path: Path, folder: Path) -> tuple[list[str], str]:
+    """The hostile host's arguments after the folder, for ``fmu_path`` extracted into ``folder``,
+    and the name of the fixed parameter it sets ("" if none)."""
     fmu = unzip(fmu_path, folder)
-    md = read_model_description(str(folder))
-    variables = md.modelVariables
+    variables = read_model_description(str(folder)).modelVariables
     real = next(v for v in variables if v.type == "Real" and v.causality == "output")
     fixed = next((v for v in variables if v.causality == "parameter" and v.variability == "fixed"
                   and v.type in ("Real", "Integer", "Boolean")), None)
     inputs = [v for v in variables if v.type == "Real" and v.causality == "input"]
     tunable = next((v for v in variables if v.type == "Real" and v.variability == "tunable"), None)
-    arguments = [str(host), str(folder), fmu.identifier, fmu.guid, str(real.valueReference),
+    arguments = [fmu.identifier, fmu.guid, str(real.valueReference),
                  str(fixed.valueReference) if fixed else "-", fixed.type[0] if fixed else "-",
                  str(inputs[0].valueReference) if inputs else "-", str(tunable.valueReference) if tunable else "-"]
-    completed = subprocess.run(arguments, capture_output=True, text=True, timeout=300, env=environment())
+    return arguments, fixed.name if fixed else ""
+
+
+def parse_host_output(completed: subprocess.CompletedProcess, fixed: str) -> HostRun:
+    """The results and log lines the host printed (it must have ended by itself)."""
     assert completed.returncode == 0, f"the host crashed ({completed.returncode}):\n{completed.stdout[-3000:]}\n" \
                                       f"{completed.stderr[-3000:]}"
     assert completed.stdout.rstrip().endswith("done")
@@ -127,7 +132,14 @@ def run_hostile_host(host: Path, fmu_path: Path, folder: Path) -> HostRun:
         elif line.startswith("log "):
             _, case, status, category, message = line.split(" ", 4)
             logs.setdefault(case, []).append((int(status), category, message))
-    return HostRun(results, logs, completed.stderr, fixed.name if fixed else "")
+    return HostRun(results, logs, completed.stderr, fixed)
+
+
+def run_hostile_host(host: Path, fmu_path: Path, folder: Path) -> HostRun:
+    arguments, fixed = host_arguments(fmu_path, folder)
+    completed = subprocess.run([str(host), str(folder), *arguments], capture_output=True, text=True, timeout=300,
+                               env=environment())
+    return parse_host_output(completed, fixed)
 
 
 @pytest.fixture(scope="module")
