@@ -547,7 +547,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     int loaded = ensure_loaded(problem, sizeof problem);
     unlock(&load_lock);
     if (!loaded) {
-        guard_say(in, fmi2Error, "fmi2Instantiate", "greyfmu: %s", problem);
+        refuse_instance(functions, instanceName, "greyfmu: %s", problem);
         free_guarded(in);
         return NULL;
     }
