@@ -175,17 +175,11 @@ def _fail(e: CosimError, debug: bool) -> int:
     return 2
 
 
-def result_stem(scenario: str, parameter_sets: list[str]) -> str:
-    """``scenario__set1__set2``: the default result name, so runs of different parameter sets
-    (cases) never overwrite each other."""
-    return "__".join([scenario] + [Path(p).stem for p in parameter_sets])
-
-
 def _run(args) -> int:
     from .instances import Unzipped
     from .journal import journal_path
-    from .observers import check_csv_names
-    from .outputs import RESULT_SUFFIXES, check_output, plot_suffixes, scenario_files
+    from .outputs import RESULT_SUFFIXES, check_not_in_sweep, check_output, plot_suffixes, scenario_files
+    from .safeio import lock_output, lock_path, partial_path
     from .simulation import isolation_of, prepare
     from .supervisor import supervise
 
@@ -196,13 +190,13 @@ def _run(args) -> int:
                        algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
                        loops=args.loops)
     try:
-        name = prepared.plan.name or Path(args.path).stem
-        output = Path(args.output or Path("results") / f"{result_stem(name, args.param_set)}.csv")
+        name = prepared.plan.name or Path(args.path).resolve().stem
+        output = Path(args.output) if args.output else _default_result(prepared.plan, name, args.param_set)
         own = scenario_files(prepared.plan)
         check_output(output, own, what="result file", option="--output", suffixes=RESULT_SUFFIXES,
-                     companions=[output.with_suffix(".json"), journal_path(output)])
-        if output.suffix.lower() == ".csv":
-            check_csv_names(prepared.plan.columns + [o.name for o in prepared.plan.system_outputs.values()], output)
+                     companions=[output.with_suffix(".json"), journal_path(output), partial_path(output),
+                                 lock_path(output)])
+        check_not_in_sweep(output)
         if args.plot is not None:
             check_output(Path(args.plot or output.with_suffix(".png")), own, what="plot", option="--plot",
                          suffixes=plot_suffixes())
@@ -219,9 +213,23 @@ def _run(args) -> int:
             except CosimError as e:
                 return _fail(e, args.debug)
 
-        return supervise(child, journal_path(output), timeout=args.timeout)
+        with lock_output(output):  # one writer per output, through the crash recovery
+            return supervise(child, journal_path(output), timeout=args.timeout)
     finally:
         prepared.close()
+
+
+#: what a default output name taken from the scenario's path is called in an error
+SCENARIO_NAME = "the scenario's name"
+
+
+def _default_result(plan, name: str, parameter_sets: list[str]) -> Path:
+    """``results/<system name>__<set>...csv``, the names checked to be file names."""
+    from .outputs import result_stem
+
+    where = dict(file=plan.files.display, element="ssd:SystemStructureDescription name") if plan.name else \
+        dict(what=SCENARIO_NAME)
+    return Path("results") / f"{result_stem(name, parameter_sets, **where)}.csv"
 
 
 def _execute(args, prepared, name: str, output: Path) -> int:
@@ -457,6 +465,7 @@ def _compare(args) -> int:
 
 
 def _sweep(args) -> int:
+    from .outputs import result_stem
     from .sweep import parse_seeds, parse_set, read_table, sweep
 
     sets = dict(parse_set(text) for text in args.sets)
@@ -465,12 +474,16 @@ def _sweep(args) -> int:
         raise SetupError("nothing to sweep: give --set NAME=V1,V2 and/or --seeds.", element="cosim sweep")
     if args.workers is not None and args.workers < 1:
         raise SetupError(f"--workers {args.workers}: give at least 1.", element="--workers")
-    output = Path(args.output or Path("results") / f"{result_stem(Path(args.path).stem, args.param_set)}_sweep")
+    output = Path(args.output) if args.output else \
+        Path("results") / f"{result_stem(Path(args.path).resolve().stem, args.param_set, what=SCENARIO_NAME)}_sweep"
     try:
-        result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
-                       parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
-                       step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
-                       executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", RuntimeWarning)   # cosim's own warnings, one line each, as they come
+            warnings.showwarning = _print_warning
+            result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
+                           parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
+                           step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
+                           executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
     except KeyboardInterrupt:
         table = output / "sweep.csv"
         kept = len(read_table(output / "sweep.parquet")) if table.is_file() else 0
@@ -484,6 +497,11 @@ def _sweep(args) -> int:
           f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}, results in "
           f"{output / 'runs'}")
     return 1 if result.failed else 0
+
+
+def _print_warning(message, *_) -> None:
+    """``warnings.showwarning`` for the sweep: the message alone, on one line of stderr."""
+    print(f"cosim: warning: {message}", file=sys.stderr)
 
 
 def _print_undefined_metrics(rows, metrics: list[str]) -> None:

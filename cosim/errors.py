@@ -74,6 +74,11 @@ class OutputError(CosimError):
     written before stay readable."""
 
 
+class OutOfMemory(OutputError):
+    """The process ran out of memory during the run (its address space, ``ulimit -v``, or the
+    machine's): the run ends, the rows written before stay readable in the result file."""
+
+
 def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:
     """A hint naming the closest valid names, or None when nothing is close."""
     close = difflib.get_close_matches(name, list(candidates), n=3, cutoff=0.5)

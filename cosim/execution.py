@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import sys
 import time as _time
 import warnings
 from dataclasses import dataclass, replace
@@ -96,6 +97,10 @@ class Grid:
                              f"{max(abs(self.start), abs(self.stop)):g} s ({RESOLUTION_STEPS} x {resolution:g} s, "
                              "the spacing of doubles there): communication times would repeat or drift.",
                              element="step size")
+        if not math.isfinite(self.stop - self.start):
+            raise SetupError(f"the stop time {self.stop:g} is {self.stop - self.start} s after the start time "
+                             f"{self.start:g}: the span overflows a double (at most {sys.float_info.max:g} s).",
+                             element="stop time", hint="Choose a stop time nearer the start.")
         steps = (self.stop - self.start) / self.step
         if not steps <= MAX_STEPS:
             raise SetupError(f"{self.stop:g} - {self.start:g} s in steps of {self.step:g} s is {steps:.3g} "
@@ -141,9 +146,11 @@ class _Typed:
         out_index = {(c, v.name): i for i, (c, v) in enumerate(outs)}
         in_index = {(c, v.name): i for i, (c, v) in enumerate(ins)}
         routes = [r for r in plan.routes if exchange_type(r.src_var) == type_name]
-        self.routes_into: dict[str | None, tuple] = {None: self._routing(routes, out_index, in_index)}
+        #: the routes (`cosim.structure.Route`) of each `routes_into` entry, in its order
+        self.routes_of: dict[str | None, list] = {None: routes}
         for comp in order:  # feedthrough and Gauss–Seidel route into one component at a time
-            self.routes_into[comp] = self._routing([r for r in routes if r.dst == comp], out_index, in_index)
+            self.routes_of[comp] = [r for r in routes if r.dst == comp]
+        self.routes_into = {comp: self._routing(rs, out_index, in_index) for comp, rs in self.routes_of.items()}
         self.ctype = ctype
         self.integer = ctype is ctypes.c_int
 
@@ -166,7 +173,9 @@ class _Typed:
         identity = bool(np.all(factor == 1.0) and np.all(offset == 0.0))
         return src, dst, factor, offset, identity
 
-    def route(self, comp: str | None = None) -> None:
+    def route(self, t: float, comp: str | None = None) -> None:
+        """Route the outputs into the inputs (into ``comp``'s only, if given) at time ``t``; a
+        factor and offset that make a finite value infinite is a `RunError` (`overflow`)."""
         src, dst, factor, offset, identity = self.routes_into[comp]
         if len(src) == 0:
             return
@@ -181,7 +190,27 @@ class _Typed:
         elif identity:
             self.U[dst] = self.Y[src]
         else:
-            self.U[dst] = self.Y[src] * factor + offset
+            with np.errstate(over="ignore"):  # an overflow is an error of its own below, not a warning
+                values = self.Y[src] * factor + offset
+            if not np.isfinite(values).all():
+                overflowed = np.flatnonzero(~np.isfinite(values) & np.isfinite(self.Y[src]))
+                if len(overflowed):
+                    raise self.overflow(comp, int(overflowed[0]), t)
+            self.U[dst] = values
+
+    def overflow(self, comp: str | None, j: int, t: float) -> RunError:
+        """The error of route ``j`` of ``routes_into[comp]`` at ``t``: its factor and offset (the
+        LinearTransformations and unit conversions on the way) took its finite source value past
+        the largest float."""
+        r = self.routes_of[comp][j]
+        src, _, factor, offset, _ = self.routes_into[comp]
+        y = float(self.Y[src[j]])
+        value = y * float(factor[j]) + float(offset[j])
+        label = f"{r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}"
+        return RunError(f"the value {y:.17g} of {r.src}.{r.src_var.name}, times {factor[j]:.17g} plus {offset[j]:.17g} "
+                        f"(the connection's LinearTransformation and unit conversions), overflows to {value} at "
+                        f"t = {t:g}; {r.dst}.{r.dst_var.name} was not given it.", time=t, component=r.dst,
+                        element=f"connection {label}")
 
     def address(self, buf, start: int) -> int:
         return ctypes.addressof(buf) + start * ctypes.sizeof(self.ctype)
@@ -370,13 +399,15 @@ class Execution:
                                             ctypes.addressof(vr), n, ty.address(buf, start), at_step_end=at_step_end))
         return ops
 
-    def _route_operations(self, comp: str | None) -> list:
+    def _route_operations(self, comp: str | None, at_step_end: bool = True) -> list:
         return [native.Operation(native.OP_ROUTE, route=ty.routes_into[comp], integer=ty.integer,
-                                 Y=ty.address(ty.Ybuf, 0), U=ty.address(ty.Ubuf, 0))
+                                 Y=ty.address(ty.Ybuf, 0), U=ty.address(ty.Ubuf, 0), routes_of=(ty, comp),
+                                 at_step_end=at_step_end)
                 for ty in self.typed if len(ty.routes_into[comp][0])]
 
     def _route_into_operations(self, comp: str, functions: dict, at_step_end: bool) -> list:
-        return self._route_operations(comp) + self._call_operations(native.OP_SET, comp, functions[comp], at_step_end)
+        return (self._route_operations(comp, at_step_end)
+                + self._call_operations(native.OP_SET, comp, functions[comp], at_step_end))
 
     def _step_operations(self, functions: dict) -> list:
         """The doSteps of one step (`_loop`, `_gauss_seidel_step`) as kernel operations."""
@@ -469,7 +500,7 @@ class Execution:
         else:
             self.loop_solver.solve(t, self._settle)
         for ty in self.typed:
-            ty.route()
+            ty.route(t)
         for fn, c, vr, n, ptr, comp in self._all_set:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
@@ -483,7 +514,7 @@ class Execution:
 
     def _route_into(self, comp: str, t: float) -> None:
         for ty in self.typed:
-            ty.route(comp)
+            ty.route(t, comp)
         for fn, c, vr, n, ptr in self._set[comp]:
             s = fn(c, vr, n, ptr)
             if s > FMI_WARNING:
@@ -578,6 +609,10 @@ class Execution:
                     self.last_time = time(k)
                     recorder.filled(state.rows_done, state.samples, bool(reason & (native.KERNEL_FULL |
                                                                                   native.KERNEL_FLUSH)))
+                    if reason & native.KERNEL_OVERFLOW:  # a route of step k: as `_Typed.route` raises
+                        op = kernel.operations[state.op]
+                        ty, comp = op.routes_of
+                        raise ty.overflow(comp, state.status, time(k + 1) if op.at_step_end else time(k))
                     if reason & native.KERNEL_STATUS:
                         if self._finish_step(k, kernel.operations[state.op], state.status, steppers, gs):
                             return

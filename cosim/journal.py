@@ -4,8 +4,8 @@ The `cosim.observers.Recorder` fills its rows directly in a memory-mapped window
 ``<output>.journal`` and stores the row count in the file's header after each row, so a
 process that dies (``abort()``, a segfault, ``_exit()``, SIGKILL) loses none of the rows
 it completed: the pages belong to the kernel's page cache the moment they are written.
-`recover` turns a journal left behind into the result file (CSV or Parquet) and its JSON
-with status ``crashed`` (or the status given, e.g. ``timeout``); `cosim.supervisor` does
+`recover` turns a journal left behind into the result file beside it (CSV or Parquet) and
+its JSON with status ``crashed`` (or the status given, e.g. ``timeout``); `cosim.supervisor` does
 that for `cosim run` after its child process ended without finishing.  A run that ends
 normally, fails or is interrupted writes its files itself and deletes the journal.
 
@@ -28,6 +28,8 @@ import numpy as np
 MAGIC = b"COSIMJ01"
 _HEADER = 40
 SUFFIX = ".journal"
+#: the prefix of the FMU extraction folders (`cosim.instances.Unzipped`) a recovery removes
+UNZIP_PREFIX = "cosim-fmu-"
 
 
 def journal_path(output: str | Path) -> Path:
@@ -47,9 +49,12 @@ class Journal:
         self.columns, self.chunk_rows = columns, chunk_rows
         self._file = open(self.path, "w+b")
         head = MAGIC + np.array([0, columns, self.offset, len(text)], dtype="<i8").tobytes() + text
-        self._file.write(head)
-        self._file.flush()
-        os.posix_fallocate(self._file.fileno(), 0, self.offset)
+        try:
+            self._file.write(head)
+            self._file.flush()
+        except OSError as e:
+            raise self._named(e) from None
+        self._reserve(0, self.offset)
         self._head = mmap.mmap(self._file.fileno(), _HEADER)
         #: the row counter in the mapped header (the recorder stores the rows done after each row)
         self.count = np.frombuffer(self._head, dtype="<i8", count=1, offset=8)
@@ -59,11 +64,21 @@ class Journal:
         """The next block of rows, reserved on disk (OSError ENOSPC if the disk is full)."""
         nbytes = self.chunk_rows * self.columns * 8
         start = self.offset + self._windows * nbytes
-        os.posix_fallocate(self._file.fileno(), start, nbytes)
+        self._reserve(start, nbytes)
         self._windows += 1
         # a plain ndarray on the mapping (np.memmap's Python-level indexing would cost ~20 % of a step)
         window = mmap.mmap(self._file.fileno(), nbytes, offset=start)
         return np.frombuffer(window, dtype="<f8").reshape(self.chunk_rows, self.columns)
+
+    def _reserve(self, start: int, nbytes: int) -> None:
+        try:
+            os.posix_fallocate(self._file.fileno(), start, nbytes)
+        except OSError as e:
+            raise self._named(e) from None
+
+    def _named(self, e: OSError) -> OSError:
+        """``e`` naming the journal (the message says which file could not grow)."""
+        return OSError(e.errno, e.strerror, str(self.path))
 
     def close(self) -> None:
         """Delete the journal (the result files are complete); the mappings go with their
@@ -103,7 +118,8 @@ def recover(path: str | Path, status: str = "crashed", message: str = "") -> tup
         offset = np.array([d["offset"] for d in derived])
         rows = np.hstack([rows, rows[:, cols] * factor + offset])
         names = names + [d["name"] for d in derived]
-    sink = file_sink(header["output"])
+    output = result_of(Path(path))
+    sink = file_sink(output)
     sink.open(names)
     if len(rows):
         sink.write(rows)
@@ -113,5 +129,23 @@ def recover(path: str | Path, status: str = "crashed", message: str = "") -> tup
     sink.close(metadata)
     Path(path).unlink()
     for folder in header.get("temporary", []):
-        shutil.rmtree(folder, ignore_errors=True)
-    return Path(header["output"]), len(rows)
+        if _extraction_folder(Path(folder)):
+            shutil.rmtree(folder, ignore_errors=True)
+    return output, len(rows)
+
+
+def result_of(journal: Path) -> Path:
+    """The result file a journal belongs to: beside it, its name without ``.journal``.  The
+    header's own ``output`` is not used: a journal is a file on disk like any other, and what
+    it says must not decide where a result is written."""
+    if not journal.name.endswith(SUFFIX) or journal.name == SUFFIX:
+        raise ValueError(f"{journal}: a journal's name ends in {SUFFIX} after its result's name")
+    journal = journal.resolve()
+    return journal.with_name(journal.name[:-len(SUFFIX)])
+
+
+def _extraction_folder(folder: Path) -> bool:
+    """True for a folder named as the FMU extraction folders of `cosim.instances.Unzipped` are
+    (``cosim-fmu-<pid>-...``, in the crashed process's ``$TMPDIR``): the only folders a recovery
+    removes, whatever the header names."""
+    return folder.name.startswith(UNZIP_PREFIX) and folder.is_dir() and not folder.is_symlink()

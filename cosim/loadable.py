@@ -60,7 +60,13 @@ def check_fmu_file(path: Path, *, file: str, where: str) -> None:
     if key in _passed:
         return
     if not path.is_dir():
-        check_archive(path, display=str(path))
+        try:
+            check_archive(path, display=str(path))
+        except SetupError as e:  # named by the component that refers to it, and the file
+            what = (" (it is empty: 0 bytes)" if path.is_file() and path.stat().st_size == 0 else
+                    " (it is the SSD itself)" if Path(file).resolve() == path.resolve() else "")
+            raise SetupError(f"its FMU {e.file or path} is not a usable FMU archive{what}: {e.detail}", file=file,
+                             element=where, hint=e.hint) from None
     _refuse_entities(path, file, where)
     _passed.add(key)
 

@@ -6,23 +6,64 @@ disk, and the recorder's memory is one chunk whatever the run's length.  Sinks:
 `CsvSink` (a CSV readable by ``fmpy.util.read_csv``) and `ParquetSink`, each
 with a JSON metadata file beside it (`file_sink` picks one by the file's
 suffix), and `MemorySink` (for the Python API).
+
+A file sink writes to ``<name>.part`` beside the result (`cosim.safeio.partial_path`) and
+renames it onto the result when it closes, then writes the JSON the same way: a reader sees
+the previous result or the new one, never half of one, and a process killed mid-run leaves
+the previous result as it was (`cosim.journal` keeps that run's rows).
 """
 from __future__ import annotations
 
+import errno
+import functools
 import json
 import os
+import re
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from .errors import OutputError, SetupError
+from .errors import OutOfMemory, OutputError
+from .safeio import partial_path, write_atomic
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
     """The sink for a result file: Parquet for a ``.parquet`` suffix, else CSV."""
     return ParquetSink(path) if Path(path).suffix.lower() == ".parquet" else CsvSink(path)
+
+
+def describe_os_error(e: OSError) -> str:
+    """What went wrong writing a file, for a message: "the disk is full" for ENOSPC (and EDQUOT)."""
+    if e.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"the disk is full ({os.strerror(e.errno)})"
+    if e.errno == errno.ENOMEM:
+        return f"the process ran out of memory ({os.strerror(e.errno)})"
+    return e.strerror or str(e)
+
+
+def _write_error(text: str, e: OSError) -> OutputError:
+    """The `OutputError` (`OutOfMemory` for ENOMEM: a mapping of the journal could not be made)
+    of ``e``, ``text`` then what went wrong."""
+    kind = OutOfMemory if e.errno == errno.ENOMEM else OutputError
+    return kind(text.format(describe_os_error(e)), file=e.filename)
+
+
+def _naming_the_file(method):
+    """A sink method whose `OSError` names the sink's file: Arrow's errors name none, and give
+    the errno only in their text ("... Detail: [errno 28] No space left on device")."""
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except OSError as e:
+            if e.filename is not None:
+                raise
+            found = re.search(r"\[errno (\d+)\]", str(e))
+            code = e.errno or (int(found.group(1)) if found else None)
+            raise OSError(code, os.strerror(code) if code else str(e), str(self.path)) from e
+    return wrapper
 
 
 class _FileSink:
@@ -32,28 +73,31 @@ class _FileSink:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.meta_path = self.path.with_suffix(".json")
+        #: the file written until `close` renames it onto `path`
+        self.part = partial_path(self.path)
+
+    def publish(self, metadata_text: str | None) -> None:
+        """Put the finished file in place, then its metadata JSON if any (each in one rename)."""
+        os.replace(self.part, self.path)
+        if metadata_text is not None:
+            write_atomic(self.meta_path, metadata_text)
 
     @staticmethod
     def metadata_text(metadata: dict) -> str:
         return json.dumps(metadata, indent=2, default=str) + "\n"
 
 
-def check_csv_names(names: Sequence[str], file: str | Path) -> None:
-    """Refuse column names a result CSV cannot carry so that ``fmpy.util.read_csv`` reads
-    them back: a comma, a double quote, a line break or another control character (a
-    Parquet result holds any name)."""
-    for name in names:
-        bad = sorted({c for c in name if c in ',"' or ord(c) < 32 or ord(c) == 127})
-        if bad:
-            raise SetupError(f"the signal name {name!r} holds {', '.join(repr(c) for c in bad)}, which a result "
-                             "CSV cannot carry (fmpy.util.read_csv splits at commas and lines); rename the "
-                             "component or connector, or write Parquet (-o NAME.parquet).", file=str(file))
+def csv_header(names: Sequence[str]) -> str:
+    """The header line of a result CSV: each name quoted as RFC 4180 quotes a field (its ``"``
+    doubled), so a name may hold commas, quotes and line breaks; `cosim.results.read` reads
+    every such header, ``fmpy.util.read_csv`` those whose names hold none of the three."""
+    return ",".join('"' + n.replace('"', '""') + '"' for n in names) + "\n"
 
 
 class CsvSink(_FileSink):
     """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it.
 
-    A quoted header, then one line per sample, formatted by Arrow's C++ CSV writer: each
+    A quoted header (`csv_header`), then one line per sample, formatted by Arrow's C++ CSV writer: each
     float64 in the shortest decimal form that reads back to the same bits (``-0``, ``inf``,
     ``nan`` included), which ``fmpy.util.read_csv`` reads.  Formatting a chunk in C++ (without
     the GIL) instead of ``np.savetxt``'s Python loop over rows keeps the writer's share of a
@@ -65,15 +109,16 @@ class CsvSink(_FileSink):
         self._file = None
         self._names: list[str] = []
 
+    @_naming_the_file
     def open(self, names: list[str]) -> None:
         import pyarrow as pa
 
-        check_csv_names(names, self.path)
-        self._file = pa.OSFile(str(self.path), "wb")
-        self._file.write((",".join(f'"{n}"' for n in names) + "\n").encode())
+        self._file = pa.OSFile(str(self.part), "wb")
+        self._file.write(csv_header(names).encode())
         self._file.flush()
         self._names = names
 
+    @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
         import pyarrow as pa
         import pyarrow.csv as pcsv
@@ -84,9 +129,10 @@ class CsvSink(_FileSink):
             pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
             self._file.flush()
         except OSError:  # a full disk: drop the partly written chunk, so every line left is whole
-            os.truncate(self.path, end)
+            os.truncate(self.part, end)
             raise
 
+    @_naming_the_file
     def finish(self) -> None:
         """Close the file (no metadata)."""
         if self._file is not None:
@@ -95,7 +141,7 @@ class CsvSink(_FileSink):
 
     def close(self, metadata: dict) -> None:
         self.finish()
-        self.meta_path.write_text(self.metadata_text(metadata))
+        self.publish(self.metadata_text(metadata))
 
 
 class ParquetSink(_FileSink):
@@ -106,7 +152,8 @@ class ParquetSink(_FileSink):
 
     Parquet's footer (schema, row-group index, metadata) is written by `close`, which the
     master calls after a failed run too, so the rows flushed before a failure stay readable;
-    a process killed mid-run leaves no footer and no readable rows, where a CSV keeps them.
+    a process killed mid-run leaves a ``.part`` with no footer and no readable rows, where a
+    CSV's ``.part`` keeps them (the journal has them either way).
     """
 
     def __init__(self, path: str | Path):
@@ -114,6 +161,7 @@ class ParquetSink(_FileSink):
         self._writer = None
         self._schema = None
 
+    @_naming_the_file
     def open(self, names: list[str]) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
@@ -121,14 +169,16 @@ class ParquetSink(_FileSink):
         self._schema = pa.schema([(name, pa.float64()) for name in names])
         # no dictionary encoding: sampled signals rarely repeat values, and trying it costs
         # 4x the write time (Snappy compression still shrinks constant columns)
-        self._writer = pq.ParquetWriter(self.path, self._schema, use_dictionary=False)
+        self._writer = pq.ParquetWriter(self.part, self._schema, use_dictionary=False)
 
+    @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
         import pyarrow as pa
 
         columns = np.ascontiguousarray(rows.T)
         self._writer.write_table(pa.Table.from_arrays(list(columns), schema=self._schema))
 
+    @_naming_the_file
     def finish(self, metadata_text: str | None = None) -> None:
         """Write the footer (with the run metadata, if any) and close the file."""
         if self._writer is not None:
@@ -140,7 +190,7 @@ class ParquetSink(_FileSink):
     def close(self, metadata: dict) -> None:
         text = self.metadata_text(metadata)
         self.finish(text)
-        self.meta_path.write_text(text)
+        self.publish(text)
 
 
 class MemorySink:
@@ -214,7 +264,7 @@ class Recorder:
         except OSError as e:
             if self.journal is not None:
                 self.journal.close()
-            raise OutputError(f"the results cannot be written: {e.strerror or e}.", file=e.filename) from None
+            raise _write_error("the results cannot be written: {}.", e) from None
         self._count = self.journal.count if self.journal is not None else np.zeros(1, dtype=np.int64)
         self.rows = 0      # rows filled in the buffer
         self._written = 0  # rows of the buffer already handed to the sinks
@@ -267,9 +317,8 @@ class Recorder:
                 self.rows = self._written = 0
         except OSError as e:
             self.broken = e
-            raise OutputError(f"writing the results failed after {self.samples} rows: {e.strerror or e}; "
-                              "the rows written before are kept.",
-                              file=e.filename) from None
+            raise _write_error(f"writing the results failed after {self.samples} rows: {{}}; the rows written "
+                               "before are kept.", e) from None
         self._flush_at = time.monotonic() + self.flush_seconds
 
     def close(self, metadata: dict) -> None:
@@ -280,7 +329,7 @@ class Recorder:
             for sink in self.sinks:
                 sink.close(metadata)
         except OSError as e:
-            raise OutputError(f"closing the results failed: {e.strerror or e}.", file=e.filename) from None
+            raise _write_error("closing the results failed: {}.", e) from None
         finally:
             if self.journal is not None:
                 self.buffer = None

@@ -115,9 +115,17 @@ def _ylabel(signals: Sequence[str], units: Mapping[str, str | None]) -> str:
     return ", ".join(f"[{u}]" for u in found) if found else "value (no unit in the FMU)"
 
 
+def plain(text: str) -> str:
+    """``text`` as matplotlib shows it literally: every ``$`` escaped, so a name, description or
+    unit holding ``$…$`` (or a lone ``$``) is never parsed as mathtext, which fails on what is
+    not TeX."""
+    return text.replace("$", r"\$")
+
+
 def figure(result: np.ndarray, panels: Sequence[Sequence[str]], *, scenario: str, metadata: Mapping | None = None):
     """A matplotlib Figure: one subplot per panel, its signals overlaid against time (set-points
-    dashed); labels, units and title from ``metadata`` (a run's JSON) as the module says."""
+    dashed); labels, units and title from ``metadata`` (a run's JSON) as the module says, each
+    shown literally (`plain`)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -129,24 +137,30 @@ def figure(result: np.ndarray, panels: Sequence[Sequence[str]], *, scenario: str
     for ax, names in zip(axes[:, 0], panels):
         for name in names:
             ax.plot(result["time"], result[name], lw=1.3, ls="--" if name in dashed else "-",
-                    label=label(name, metadata))
-        ax.set_ylabel(_ylabel(names, units))
+                    label=plain(label(name, metadata)))
+        ax.set_ylabel(plain(_ylabel(names, units)))
         ax.legend(loc="best", fontsize="small")
         ax.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("time [s]")
-    axes[0, 0].set_title(title(metadata, scenario))
+    axes[0, 0].set_title(plain(title(metadata, scenario)))
     fig.tight_layout()
     return fig
 
 
 def plot(result: np.ndarray, panels: Sequence[Sequence[str]], path: str | Path, *, scenario: str,
          metadata: Mapping | None = None) -> Path:
-    """`figure` written as a PNG."""
+    """`figure` written as an image (format from the suffix), through ``<path>.part`` and one
+    rename (`cosim.safeio.atomic_path`): a reader never sees half a plot."""
     import matplotlib.pyplot as plt
+
+    from .safeio import atomic_path
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig = figure(result, panels, scenario=scenario, metadata=metadata)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        with atomic_path(path) as part:
+            fig.savefig(part, dpi=110, format=path.suffix[1:] or "png")
+    finally:
+        plt.close(fig)
     return path

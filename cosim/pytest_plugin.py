@@ -19,8 +19,10 @@ fmu_dirs=(), signals=None, tolerances=None, rtol=1e-6, atol=1e-9, decimate=None)
 
 - ``scenario``: scenario folder, ``.ssd`` or ``.ssp`` (relative paths are taken from the
   current directory, as ``cosim run`` takes them).
-- ``reference``: the CSV; a relative path is taken in the references folder, which is the
-  ini option ``cosim_references`` (default ``tests/references``) relative to the rootdir.
+- ``reference``: the CSV's file name in the references folder, which is the ini option
+  ``cosim_references`` (default ``tests/references``) relative to the rootdir; a path
+  (``sub/x.csv``, ``../x.csv``, ``/abs/x.csv``) fails the test, so no test writes outside the
+  folder.  References are written in one rename (`cosim.results.write`).
   Default: ``<test name>.csv`` there (parametrised tests: ``test_x[id].csv``, characters
   other than letters, digits, ``_.-[]`` replaced by ``_``).
 - ``stop``, ``step``, ``param_sets``, ``fmu_dirs``: as for ``cosim.simulate``.
@@ -120,8 +122,7 @@ class Regression:
         from .metrics import check_tolerance_keys
         from .simulation import select, simulate
 
-        path = Path(reference) if reference is not None else Path(self.default_name())
-        path = path if path.is_absolute() else references_dir(self.request.config) / path
+        path = references_dir(self.request.config) / self._reference_name(reference)
         if path in self.used:
             _fail(f"cosim regression: {self.request.node.nodeid} uses the reference {path} twice; pass "
                   "reference=... to give each run its own file.")
@@ -145,6 +146,20 @@ class Regression:
         else:
             self._check(sampled, chosen, path, where, tolerances or {}, rtol, atol)
         return result
+
+    def _reference_name(self, reference: str | Path | None) -> str:
+        """The reference's file name in the references folder: ``reference`` must be a file name
+        (`cosim.safeio.file_name`: no folder, no ``..``), so no test writes outside the folder."""
+        from .errors import SetupError
+        from .safeio import file_name
+
+        if reference is None:
+            return self.default_name()
+        try:
+            return file_name(str(reference), what="the reference", element="cosim_regression(reference=...)")
+        except SetupError as e:
+            _fail(f"cosim regression: {self.request.node.nodeid}: {e} Give a file name in the references "
+                  f"folder ({references_dir(self.request.config)}).")
 
     def _write(self, result: np.ndarray, chosen: list[str], path: Path) -> None:
         from .results import write

@@ -22,6 +22,7 @@ import numpy as np
 from .errors import SetupError
 from .metrics import EVENT_METRICS, UNITS, event_metrics, find_events
 from .plots import connections, default_panels, figure, label, setpoints, title
+from .safeio import write_atomic
 
 _DISTURBANCE_INPUT = re.compile(r"d\d*")
 
@@ -142,5 +143,5 @@ def write_report(result_path: str | Path, html_path: str | Path,
     result = read(result_path)
     page = render(result, read_metadata(result_path), source=str(result_path), panels=panels)
     html_path.parent.mkdir(parents=True, exist_ok=True)
-    html_path.write_text(page, encoding="utf-8")
+    write_atomic(html_path, page)
     return html_path

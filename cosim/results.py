@@ -41,14 +41,28 @@ def _read_parquet(path: str | Path) -> np.ndarray:
 
 
 def _read_csv(path: str | Path) -> np.ndarray:
-    from fmpy.util import read_csv
-    return read_csv(str(path))
+    """A CSV as ``fmpy.util.read_csv`` reads it (one float per field, or a space-separated
+    vector of them, the first row giving each column's shape), with its header parsed as RFC
+    4180 says (`cosim.observers.csv_header`: quoted names may hold commas, ``""`` and line breaks)."""
+    import csv
+    import io
+
+    source = io.StringIO(Path(path).read_text(encoding="utf-8"), newline="")
+    names = next(csv.reader(source), None)
+    lines = source.read().splitlines()
+    if names is None or not lines:
+        raise ValueError("no header and row")
+    columns = [(name, np.float64, (n,) if n > 1 else None)
+               for name, n in zip(names, (len(field.split(" ")) for field in lines[0].split(",")))]
+    rows = [tuple(tuple(map(float, field.split(" "))) if " " in field else float(field) for field in line.split(","))
+            for line in lines]
+    return np.array(rows, dtype=np.dtype(columns))
 
 
 def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = None) -> Path:
     """Write ``time`` and the named fields (default: all) as `cosim.observers.file_sink` writes
     a run (CSV, or Parquet for a ``.parquet`` name: every float64 reads back bit for bit),
-    without the metadata JSON a run writes beside it."""
+    without the metadata JSON a run writes beside it; the file is replaced in one rename."""
     from .observers import file_sink
 
     path = Path(path)
@@ -58,4 +72,5 @@ def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = No
     if len(result):
         sink.write(np.column_stack([result[n] for n in columns]))
     sink.finish()
+    sink.publish(None)
     return path

@@ -16,9 +16,15 @@ other files:
   FMUs, which SSP 1.0 archives follow.
 
 Every refusal is a `SetupError` naming the file, the member and the limit.
+
+Files cosim writes are guarded the same way (`file_name`, `lock_output`, `atomic_path`): a
+name taken from untrusted text (an SSD's system name, a worker's reply, a regression
+reference) is a file name, never a path; one process writes an output at a time; and a
+result appears under its name only when it is complete.
 """
 from __future__ import annotations
 
+import errno
 import os
 import re
 import shutil
@@ -30,6 +36,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path, PurePosixPath
+from types import TracebackType
 
 from lxml import etree
 
@@ -213,7 +220,8 @@ def extract_archive(path: Path, dest: Path, limit: int | None = None, required: 
     ``limit`` is the most bytes the archive may expand to (see `max_unpacked_bytes`);
     ``required`` names a member the archive must hold at its root.  The FMUs among the
     members are archives too, opened and extracted by fmpy later: their directories are
-    checked here the same way (`check_archive`), naming them ``archive.ssp!member.fmu``.
+    checked here the same way (`check_archive`), naming them ``archive.ssp!member.fmu``; a
+    member that is no zip archive is left to the component that uses it.
     """
     limit, source = max_unpacked_bytes(limit)
     with _open(path, str(path)) as archive:
@@ -227,8 +235,11 @@ def extract_archive(path: Path, dest: Path, limit: int | None = None, required: 
         for info in infos:
             total = _extract_member(archive, info, path, dest, total, limit, source)
     for info in infos:
-        if info.filename.lower().endswith(".fmu") and not info.is_dir():
-            check_archive(_target(dest, info.filename), limit, display=f"{path}!{info.filename}")
+        fmu = _target(dest, info.filename)
+        # one that is no zip archive at all (empty, truncated) is refused by the component that
+        # uses it, naming both (cosim.loadable.check_fmu_file); an unused one is never opened
+        if info.filename.lower().endswith(".fmu") and not info.is_dir() and zipfile.is_zipfile(fmu):
+            check_archive(fmu, limit, display=f"{path}!{info.filename}")
 
 
 def check_archive(path: Path, limit: int | None = None, display: str | None = None) -> None:
@@ -316,3 +327,168 @@ def _extract_member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path,
         raise SetupError(f"cannot extract archive member '{info.filename}' ({e.strerror or e}).",
                          file=str(path)) from None
     return total + written
+
+
+# --------------------------------------------------------------------------- names of files we write
+
+#: characters no file name may hold: path separators (``/``, and ``\\`` of Windows) and the
+#: other characters Windows refuses in names (``:`` also names drives and alternate streams)
+NAME_FORBIDDEN = frozenset('/\\:<>"|?*')
+#: device names Windows reserves, with any extension (``con.csv`` is the console there)
+WINDOWS_DEVICES = frozenset({"CON", "PRN", "AUX", "NUL", *(f"COM{i}" for i in range(10)),
+                             *(f"LPT{i}" for i in range(10))})
+#: the most bytes a name may have, leaving room under the usual 255 for the suffixes cosim adds
+#: (``.csv.journal``, ``.part``, ``.lock``)
+MAX_NAME_BYTES = 200
+
+
+def file_name(name: str, *, what: str, file: str | None = None, element: str | None = None,
+              hint: str | None = None) -> str:
+    """``name`` if it is a plain file name, portable to Windows, macOS and Linux; else a
+    `SetupError` naming ``what`` (e.g. "the system name"), ``file`` and ``element``.
+
+    A name taken from text cosim does not control (an SSD's system name, a parameter set's
+    name, a file name a sweep worker returns, a regression reference) goes through here
+    before it is joined to a folder, so it can never be a path: refused are the empty name,
+    ``.`` and ``..``, separators (``/``, ``\\``), ``:`` and the other characters Windows
+    forbids, NUL and every control character, Windows device names (``CON``, ``NUL.csv``,
+    ``com1``, ...) and names longer than `MAX_NAME_BYTES` bytes in UTF-8.
+    """
+    problem = _name_problem(name)
+    if problem is not None:
+        raise SetupError(f"{what} {name!r} cannot be a file name: {problem}. Results are written under a "
+                         "name, never a path.", file=file, element=element, hint=hint)
+    return name
+
+
+def _name_problem(name: str) -> str | None:
+    if not isinstance(name, str):   # a worker's reply can hold anything
+        return f"it is a {type(name).__name__}, not text"
+    if not name:
+        return "it is empty"
+    if name in (".", ".."):
+        return "it names a folder"
+    bad = sorted({c for c in name if c in NAME_FORBIDDEN or ord(c) < 32 or ord(c) == 127})
+    if bad:
+        return f"it holds {', '.join(repr(c) for c in bad)}"
+    if name.split(".", 1)[0].rstrip(" ").upper() in WINDOWS_DEVICES:
+        return "it is a device name on Windows"
+    size = len(name.encode("utf-8", "surrogateescape"))
+    if size > MAX_NAME_BYTES:
+        return f"it is {size} bytes long, more than {MAX_NAME_BYTES}"
+    return None
+
+
+# --------------------------------------------------------------------------- writing results
+
+#: suffix of the file a result is written to before it is renamed into place
+PART_SUFFIX = ".part"
+#: suffix of the lock file beside an output (`lock_output`)
+LOCK_SUFFIX = ".lock"
+
+
+def partial_path(path: str | Path) -> Path:
+    """Where ``path`` is written before it is complete: ``<name>.part`` in the same folder (so
+    the rename that puts it in place is atomic)."""
+    path = Path(path)
+    return path.with_name(path.name + PART_SUFFIX)
+
+
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """Yield `partial_path` of ``path`` to write; when the block ends normally it replaces
+    ``path`` in one ``os.replace``, when it raises it is deleted and ``path`` is untouched.
+    A reader sees the old file or the new one, never half of one."""
+    part = partial_path(path)
+    try:
+        yield part
+        os.replace(part, path)
+    except BaseException:
+        part.unlink(missing_ok=True)
+        raise
+
+
+def write_atomic(path: str | Path, data: bytes | str) -> None:
+    """Write ``data`` (text as UTF-8) to ``path`` through `atomic_path`."""
+    with atomic_path(path) as part:
+        part.write_bytes(data.encode("utf-8") if isinstance(data, str) else data)
+
+
+def lock_path(output: str | Path) -> Path:
+    """The lock file of an output: ``<output>.lock`` beside it."""
+    output = Path(output)
+    return output.with_name(output.name + LOCK_SUFFIX)
+
+
+class OutputLock:
+    """An exclusive ``flock`` on an output's lock file, which holds the holder's pid.
+
+    Released by `release` (or leaving the ``with`` block): the file is deleted, then closed.
+    A process that dies releases it with its last descriptor (a forked child keeps it while
+    it lives); a lock file left by a killed process is taken over, never an obstacle.
+    """
+
+    def __init__(self, path: Path, fd: int):
+        self.path = path
+        self._fd: int | None = fd
+
+    def release(self) -> None:
+        if self._fd is not None:
+            self.path.unlink(missing_ok=True)   # while still held: no one can lock the old file meanwhile
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> OutputLock:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        self.release()
+
+
+def lock_output(output: str | Path, *, option: str = "--output") -> OutputLock:
+    """Take ``<output>.lock`` (making the folder), or a `SetupError` naming the output, the
+    process holding it and ``option`` when another process writes the same output."""
+    import fcntl   # POSIX (as the supervisor's fork is); imported here so reading SSP files needs none
+
+    output = Path(output)
+    path = lock_path(output)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        while True:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as e:
+                holder = _holder(fd)
+                os.close(fd)
+                if e.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
+                    raise
+                raise SetupError(f"{output} is being written by {holder} (it holds the lock {path}); "
+                                 "wait for it to end or choose another output.", element=option) from None
+            if _same_file(fd, path):   # not deleted by a holder releasing it since we opened it
+                break
+            os.close(fd)
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+        except OSError:
+            os.close(fd)
+            raise
+    except OSError as e:
+        raise SetupError(f"cannot take the lock {path} ({e.strerror or e}).", element=option) from None
+    return OutputLock(path, fd)
+
+
+def _holder(fd: int) -> str:
+    text = os.pread(fd, 32, 0).decode(errors="replace").strip()
+    return f"process {text}" if text.isdigit() else "another process"
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        now = os.stat(path)
+    except FileNotFoundError:
+        return False
+    held = os.fstat(fd)
+    return (now.st_dev, now.st_ino) == (held.st_dev, held.st_ino)

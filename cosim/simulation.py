@@ -11,13 +11,14 @@ from __future__ import annotations
 import fnmatch
 import warnings
 from collections.abc import Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from . import ssp
-from .errors import ComponentLost, OutputError, RunError, SetupError, did_you_mean
+from .errors import ComponentLost, OutOfMemory, OutputError, RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
 from .instances import Unzipped
 from .instances.isolated import Isolation
@@ -26,6 +27,7 @@ from .journal import Journal, journal_path
 from .observers import MemorySink, Recorder, file_sink
 from .plan import build_plan
 from .resources import locate_fmus
+from .safeio import lock_output
 from .loops import LoopSettings
 from .structure import LoopMode, Plan, RecordedOutput
 
@@ -84,8 +86,11 @@ def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: floa
         raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
     try:
         grid = Grid(start, stop, step)
-    except SetupError as e:  # name the SSD the times came from
-        raise SetupError(e.detail, file=file, element=e.element, hint=e.hint) from None
+    except SetupError as e:  # name the SSD the times came from, and where the stop time is given
+        element = e.element
+        if element == "stop time":
+            element = "--stop" if stop_time is not None else "ssd:DefaultExperiment stopTime"
+        raise SetupError(e.detail, file=file, element=element, hint=e.hint) from None
     return Prepared(plan, grid, algo, source)
 
 
@@ -119,7 +124,9 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     its path relative to the root system, ``loop.controller.u``), plus one per
     output connector of the root system, under its own name.  With ``output`` the samples are
     also written to that CSV (or Parquet file, by its suffix) as the run goes
-    (metadata in ``<output>.json``).
+    (metadata in ``<output>.json``): to ``<output>.part``, renamed onto ``output`` when the run
+    ends, and under ``<output>.lock`` (`cosim.safeio.lock_output`), so another process writing
+    the same output meanwhile is a `SetupError` naming it.
     A failed run raises `RunError` with the samples so far in ``error.result``
     (and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
     collected to explain a failure ("errors", "all" or "off"; see `cosim.instances.fmi2.FMI2Instance.instantiate`).
@@ -135,9 +142,10 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
                        use_providers=use_providers, loops=loops)
     try:
-        result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
-                               loop_settings=loop_settings, isolate=isolate,
-                               call_timeout=call_timeout, kernel=kernel, threads=threads)
+        with lock_output(output, option="output") if output is not None else nullcontext():
+            result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
+                                   loop_settings=loop_settings, isolate=isolate,
+                                   call_timeout=call_timeout, kernel=kernel, threads=threads)
     finally:
         prepared.close()
     if metadata["status"] == "discarded":
@@ -191,18 +199,26 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
                        desc=plan.name or "cosim")
         execution.run(recorder, bar, stop)
     except BaseException as e:
-        execution.status = e.outcome if isinstance(e, ComponentLost) else "failed"
-        execution.message = str(e) if isinstance(e, (RunError, OutputError)) else f"{type(e).__name__}: {e}"
+        error = _out_of_memory(e, output, execution, recorder, memory)
+        execution.status = error.outcome if isinstance(error, ComponentLost) else "failed"
+        execution.message = (str(error) if isinstance(error, (RunError, OutputError))
+                             else f"{type(error).__name__}: {error}")
         if recorder is not None:
             try:
                 recorder.close(_metadata(prepared, execution))
-            except OutputError as closing:  # the disk is full: say so after the error that ended the run
-                if not isinstance(e, OutputError):
+            except (OutputError, MemoryError) as closing:  # the disk is full: said after what ended the run
+                if not isinstance(error, OutputError):
                     raise
-                e.detail += f" The metadata JSON could not be written either ({closing.detail})"
-                e.args = (e._compose(),)
-        e.result = memory.array() if recorder is not None else None
-        raise
+                detail = closing.detail if isinstance(closing, OutputError) else "out of memory"
+                error.detail += f" The metadata JSON could not be written either ({detail})"
+                error.args = (error._compose(),)
+        try:
+            error.result = memory.array() if recorder is not None else None
+        except MemoryError:  # no memory left to join the samples: they are in the result file, if any
+            error.result = None
+        if error is e:
+            raise
+        raise error from None
     finally:
         if bar is not None:
             bar.close()
@@ -210,6 +226,24 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     metadata = _metadata(prepared, execution)
     recorder.close(metadata)
     return memory.array(), metadata
+
+
+def _out_of_memory(e: BaseException, output: str | Path | None, execution: Execution, recorder: Recorder | None,
+                   memory: MemorySink) -> BaseException:
+    """The error a run ends with: ``e``, or when the process ran out of memory (a `MemoryError`,
+    or a journal mapping refused, `OutOfMemory`: the address space exhausted, ``ulimit -v``) an
+    `OutOfMemory` naming the result file.  With a result file, the samples kept in memory are
+    dropped first (the file has them; the error's ``result`` is then empty), so that closing
+    the results has memory to work with."""
+    if not isinstance(e, (MemoryError, OutOfMemory)):
+        return e
+    if output is not None:
+        memory.chunks.clear()
+    rows = recorder.samples if recorder is not None else 0
+    return OutOfMemory(f"the process ran out of memory (its address space: see ulimit -v) at t = "
+                       f"{execution.last_time:g}; the {rows} rows recorded before are kept"
+                       + ("." if output is not None else " in the error's result, if memory allows."),
+                       file=str(output) if output is not None else None)
 
 
 def isolation_of(isolate: bool, call_timeout: float | None) -> Isolation | None:

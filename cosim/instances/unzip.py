@@ -5,6 +5,7 @@ import os
 import tempfile
 from pathlib import Path
 
+from ..journal import UNZIP_PREFIX
 from ..safeio import extract_archive, temporary_folder
 
 
@@ -47,7 +48,7 @@ class Unzipped:
         key = (path, stat.st_size, stat.st_mtime_ns)
         if key not in Unzipped._dirs:
             if Unzipped._tmp is None:
-                Unzipped._tmp = temporary_folder("cosim-fmu-")
+                Unzipped._tmp = temporary_folder(UNZIP_PREFIX)
                 Unzipped._owner = os.getpid()
             target = Path(Unzipped._tmp.name) / str(len(Unzipped._dirs))
             target.mkdir()

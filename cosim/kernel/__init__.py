@@ -24,8 +24,8 @@ import numpy as np
 
 OP_STEP, OP_GET, OP_SET, OP_ROUTE = 0, 1, 2, 3
 #: why `Kernel.run` returned (bits): step k_end reached, buffer full, flush due, stop flag set,
-#: an FMI status for Python to handle
-KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS = 1, 2, 4, 8, 16
+#: an FMI status for Python to handle, a route whose value overflowed (its index in the status)
+KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS, KERNEL_OVERFLOW = 1, 2, 4, 8, 16, 32
 LIBRARY_ENV = "COSIM_KERNEL_LIBRARY"
 
 
@@ -101,7 +101,9 @@ class Operation:
     offset, identity, on the buffers ``Y`` and ``U``).  ``position``: for a doStep, the
     component's place in the stepping order, and ``thread``: with threads, which one makes it
     (0: the caller); ``at_step_end``: a failing get or set is reported at the end of the step
-    (else at its start, as Gauss–Seidel sets the inputs before a doStep).
+    (else at its start, as Gauss–Seidel sets the inputs before a doStep), and so is a route that
+    overflows; ``routes_of``: for a route, what names its routes in an error (the execution's
+    exchange buffers of that type and the component routed into, None for all).
     """
     kind: int
     component: str = ""
@@ -119,6 +121,7 @@ class Operation:
     position: int = -1
     thread: int = 0
     at_step_end: bool = True
+    routes_of: tuple = ()
 
     def what(self) -> str:
         return {OP_STEP: "DoStep", OP_GET: "Get", OP_SET: "Set"}[self.kind]

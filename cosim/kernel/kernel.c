@@ -14,7 +14,9 @@
  *     time.monotonic) has passed: Python hands the rows to the sinks;
  *   - the stop flag is set (a signal: cosim_watch_signals), checked after each recorded row;
  *   - an FMI call returned a status other than OK and Warning, or fmi3DoStep asked to
- *     terminate: Python handles the status and finishes that step with its own code.
+ *     terminate: Python handles the status and finishes that step with its own code;
+ *   - a route's factor and offset turned a finite value into an infinite one (KERNEL_OVERFLOW,
+ *     the route's index in ``status``): Python reports it as the Python loop does.
  * No Python C API: loaded with ctypes, which releases the GIL for the call (pythonfmu FMUs
  * take it themselves in each FMI call). */
 #define _XOPEN_SOURCE 700
@@ -23,12 +25,14 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 enum { OP_STEP = 0, OP_GET = 1, OP_SET = 2, OP_ROUTE = 3 };
-enum { KERNEL_END = 1, KERNEL_FULL = 2, KERNEL_FLUSH = 4, KERNEL_STOP = 8, KERNEL_STATUS = 16 };
+enum { KERNEL_END = 1, KERNEL_FULL = 2, KERNEL_FLUSH = 4, KERNEL_STOP = 8, KERNEL_STATUS = 16,
+       KERNEL_OVERFLOW = 32 };
 
 typedef int (*fmi2DoStep)(void *, double, double, int);
 typedef int (*fmi3DoStep)(void *, double, double, bool, bool *, bool *, bool *, double *);
@@ -103,7 +107,9 @@ static double monotonic(void) {
     return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
 }
 
-static void route(const Op *o) {
+/* Route; -1, or the index of the first route whose factor and offset made a finite value
+ * infinite (the values up to it routed). */
+static long route(const Op *o) {
     size_t n = o->n;
     if (o->integer) {
         const int *Y = o->Y;
@@ -118,11 +124,16 @@ static void route(const Op *o) {
         if (o->identity)
             for (size_t j = 0; j < n; j++) U[o->dst[j]] = Y[o->src[j]];
         else
-            for (size_t j = 0; j < n; j++) U[o->dst[j]] = Y[o->src[j]] * o->factor[j] + o->offset[j];
+            for (size_t j = 0; j < n; j++) {
+                double y = Y[o->src[j]], u = y * o->factor[j] + o->offset[j];
+                if (!isfinite(u) && isfinite(y)) return (long)j;
+                U[o->dst[j]] = u;
+            }
     }
+    return -1;
 }
 
-/* The status of one operation (0 for routes). */
+/* The status of one operation (for a route: -1, or the index of the route that overflowed). */
 static int operate(const Op *o, double t, double h) {
     switch (o->kind) {
     case OP_STEP:
@@ -135,14 +146,15 @@ static int operate(const Op *o, double t, double h) {
             return ((fmi2Exchange)o->fn)(o->instance, o->vr, o->n, o->values);
         return ((fmi3Exchange)o->fn)(o->instance, o->vr, o->n, o->values, o->n);
     default:
-        route(o);
-        return 0;
+        return (int)route(o);
     }
 }
 
 /* Whether the loop stops at operation o after status s: a doStep goes on after OK and Warning
- * unless fmi3DoStep asks to terminate; a get or set after any status up to Warning. */
+ * unless fmi3DoStep asks to terminate; a get or set after any status up to Warning; a route
+ * when one of its values overflowed. */
 static int stops(const Op *o, int s) {
+    if (o->kind == OP_ROUTE) return s >= 0;
     return o->kind == OP_STEP ? (s != 0 && s != 1) || (o->api == 3 && *o->terminate) : s > 1;
 }
 
@@ -169,7 +181,7 @@ int cosim_run(const Program *p, Run *r) {
             if (stops(o, s)) {
                 r->op = i;
                 r->status = s;
-                return KERNEL_STATUS;
+                return o->kind == OP_ROUTE ? KERNEL_OVERFLOW : KERNEL_STATUS;
             }
         }
         double *row = r->rows + r->rows_done * p->columns;

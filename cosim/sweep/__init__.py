@@ -12,6 +12,12 @@ it runs the Cartesian product of those lists (times the seeds, when given) and w
 - ``OUTPUT/sweep.png`` (when metrics are asked for): each metric against each swept parameter,
   seeds and the other parameters as spread (`.figure`).
 
+The sweep holds the locks of its two tables (``OUTPUT/sweep.csv.lock`` and
+``OUTPUT/sweep.parquet.lock``, `cosim.safeio.lock_output`) while it runs, so a second sweep
+or a `cosim run` writing either table is refused; every file is written as ``<name>.part``
+and renamed into place.  ``OUTPUT`` must be a folder (or not exist yet) and must not hold a
+run's results named ``sweep.*`` (`cosim.outputs.check_sweep_folder`).
+
 The run id is a hash of everything that decides the result: the scenario's files, every
 FMU's GUID and file contents, the parameter sets, the swept values, the seed and the time
 grid.  A rerun skips every run whose id has a finished row (completed or discarded) and
@@ -29,13 +35,15 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Mapping, Sequence
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..safeio import max_unpacked_bytes
+from ..outputs import check_sweep_folder
+from ..safeio import lock_output, max_unpacked_bytes
 from ..simulation import prepare
-from .cluster import dispatch_cluster, local_workers
+from .cluster import check_scheduler, dispatch_cluster
 from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
 from .figure import summary_figure
 from .shipping import package_of
@@ -85,10 +93,9 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
     Raises `SetupError` before any run for a bad name, value, seed parameter or metric; a run
     that fails is a row with status "failed" and its message.
     """
-    output = Path(output)
+    output = check_sweep_folder(Path(output))
     scenario = Path(scenario)
-    if isinstance(executor, str) and executor.startswith("local:"):
-        local_workers(executor)
+    check_scheduler(executor)
     metric_list = [parse_metric(m) for m in metrics]
     parameter_sets = [Path(p).resolve() for p in parameter_sets]
     prepared = prepare(scenario, start_time=start_time, stop_time=stop_time, step_size=step_size,
@@ -103,56 +110,59 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
         prepared.close()
     swept_types = {name: types[name] for name in sets}
     schema = schema_of(swept_types, bool(seeds), metric_list)
-    runs_dir = output / "runs"
-    runs_dir.mkdir(parents=True, exist_ok=True)
     csv, parquet = output / "sweep.csv", output / "sweep.parquet"
-    before = {} if force else finished_before(output, runs_dir)
+    runs_dir = output / "runs"
+    with ExitStack() as locks:   # the locks a run writing either table takes: one writer per folder
+        for table in (csv, parquet):
+            locks.enter_context(lock_output(table))
+        runs_dir.mkdir(parents=True, exist_ok=True)
+        before = {} if force else finished_before(output, runs_dir)
 
-    rows: dict[int, dict[str, Any]] = {}          # finished rows by combination index
-    fixed: dict[str, tuple[int, dict[str, Any]]] = {}   # run id -> index, swept values and seed
-    tasks: list[Task] = []
-    for r in runs:
-        fixed[r.run_id] = (r.index, {**r.values, **({"seed": r.seed} if seeds else {})})
-        if r.run_id in before:
-            old = before[r.run_id]
-            missing = [m for m in metric_list if any(c not in old for c in m.columns())]
-            if missing:
-                from ..results import read
-                old = {**old, **run_metrics(read(runs_dir / f"{r.run_id}.csv"), missing)}
-            rows[r.index] = {**old, **fixed[r.run_id][1]}
-            continue
-        ssv = runs_dir / f"{r.run_id}.ssv"
-        write_ssv(ssv, r.parameters, name=f"sweep run {r.run_id}")
-        tasks.append(Task(r.run_id, str(scenario.resolve()),
-                          tuple(str(p) for p in [*parameter_sets, ssv.resolve()]),
-                          tuple(str(Path(d).resolve()) for d in fmu_dirs), grid.start, grid.stop, grid.step,
-                          algo, str((runs_dir / f"{r.run_id}.csv").resolve()), tuple(metric_list),
-                          max_unpacked_bytes()[0]))
-    skipped = len(runs) - len(tasks)
+        rows: dict[int, dict[str, Any]] = {}          # finished rows by combination index
+        fixed: dict[str, tuple[int, dict[str, Any]]] = {}   # run id -> index, swept values and seed
+        tasks: list[Task] = []
+        for r in runs:
+            fixed[r.run_id] = (r.index, {**r.values, **({"seed": r.seed} if seeds else {})})
+            if r.run_id in before:
+                old = before[r.run_id]
+                missing = [m for m in metric_list if any(c not in old for c in m.columns())]
+                if missing:
+                    from ..results import read
+                    old = {**old, **run_metrics(read(runs_dir / f"{r.run_id}.csv"), missing)}
+                rows[r.index] = {**old, **fixed[r.run_id][1]}
+                continue
+            ssv = runs_dir / f"{r.run_id}.ssv"
+            write_ssv(ssv, r.parameters, name=f"sweep run {r.run_id}")
+            tasks.append(Task(r.run_id, str(scenario.resolve()),
+                              tuple(str(p) for p in [*parameter_sets, ssv.resolve()]),
+                              tuple(str(Path(d).resolve()) for d in fmu_dirs), grid.start, grid.stop, grid.step,
+                              algo, str((runs_dir / f"{r.run_id}.csv").resolve()), tuple(metric_list),
+                              max_unpacked_bytes()[0]))
+        skipped = len(runs) - len(tasks)
 
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(runs), initial=skipped, unit="run", desc=f"sweep {scenario.name}", file=sys.stderr)
+        bar = None
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=len(runs), initial=skipped, unit="run", desc=f"sweep {scenario.name}", file=sys.stderr)
 
-    def finished(task: Task, row: dict[str, Any]) -> None:
-        index, values = fixed[task.run_id]
-        rows[index] = {**row, **values}
+        def finished(task: Task, row: dict[str, Any]) -> None:
+            index, values = fixed[task.run_id]
+            rows[index] = {**row, **values}
+            write_table([rows[i] for i in sorted(rows)], schema, csv, parquet)
+            if bar is not None:
+                bar.update()
+
         write_table([rows[i] for i in sorted(rows)], schema, csv, parquet)
-        if bar is not None:
-            bar.update()
-
-    write_table([rows[i] for i in sorted(rows)], schema, csv, parquet)
-    try:
-        if package is not None:
-            dispatch_cluster(tasks, executor, package, finished)
-        else:
-            dispatch(tasks, executor, workers, finished)
-    finally:
-        if bar is not None:
-            bar.close()
-    ordered = [{name: rows[i].get(name) for name in schema.names} for i in sorted(rows)]
-    figure = summary_figure(ordered, list(sets) or (["seed"] if seeds else []),
-                            [c for m in metric_list for c in m.columns()], output / "sweep.png", scenario.name)
-    return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv, parquet=parquet, columns=schema.names,
-                       figure=figure)
+        try:
+            if package is not None:
+                dispatch_cluster(tasks, executor, package, finished)
+            else:
+                dispatch(tasks, executor, workers, finished)
+        finally:
+            if bar is not None:
+                bar.close()
+        ordered = [{name: rows[i].get(name) for name in schema.names} for i in sorted(rows)]
+        figure = summary_figure(ordered, list(sets) or (["seed"] if seeds else []),
+                                [c for m in metric_list for c in m.columns()], output / "sweep.png", scenario.name)
+        return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv, parquet=parquet, columns=schema.names,
+                           figure=figure)

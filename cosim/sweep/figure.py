@@ -9,6 +9,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from ..safeio import atomic_path
+
 
 def summary_figure(rows: Sequence[dict[str, Any]], swept: Sequence[str], metrics: Sequence[str],
                    path: Path, title: str) -> Path | None:
@@ -48,6 +50,7 @@ def summary_figure(rows: Sequence[dict[str, Any]], swept: Sequence[str], metrics
             ax.grid(True, alpha=0.3)
     fig.suptitle(f"{title}: {len(done)} completed runs (median, min-max band, every run)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as part:
+        fig.savefig(part, dpi=110, format=Path(path).suffix[1:])
     plt.close(fig)
     return path

@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from ..pack import pack
-from ..safeio import extract_archive
+from ..errors import SetupError
+from ..safeio import extract_archive, file_name, write_atomic
 from ..simulation import Prepared
 from ..ssp import SSD_NAME
 from .dispatch import Task, execute
@@ -132,9 +133,16 @@ def parameter_set_bytes(task: Task) -> tuple[bytes, ...]:
 
 
 def deliver(task: Task, files: dict[str, bytes]) -> None:
-    """Write a run's result files where a local run would have written them."""
+    """Write a run's result files where a local run would have written them, each replaced in
+    one rename.  The names are the worker's: each must be a file name (`file_name`) of this
+    run (``<run id>.<suffix>``), or nothing is written and the `SetupError` (naming the run and
+    the file) makes the run's row failed."""
     folder = Path(task.csv).parent
+    for name in files:
+        file_name(name, what="the file a worker returned", element=f"sweep run {task.run_id}")
+        if not name.startswith(f"{task.run_id}."):
+            raise SetupError(f"a worker returned the file {name!r}, which is not one of this run's "
+                             f"({task.run_id}.csv, {task.run_id}.json); nothing was written.",
+                             element=f"sweep run {task.run_id}")
     for name, data in files.items():
-        tmp = folder / f"{name}.part"
-        tmp.write_bytes(data)
-        os.replace(tmp, folder / name)
+        write_atomic(folder / name, data)

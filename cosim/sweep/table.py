@@ -2,12 +2,12 @@
 (replaced atomically as runs finish), and read back to skip finished runs."""
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from ..errors import SetupError
+from ..safeio import atomic_path
 from .values import Metric
 
 #: Arrow type of a swept column per FMI variable type
@@ -36,9 +36,8 @@ def write_table(rows: list[dict[str, Any]], schema, csv: Path, parquet: Path) ->
 
     table = pa.Table.from_pylist(rows, schema=schema)
     for path, write in ((parquet, pq.write_table), (csv, pacsv.write_csv)):
-        tmp = path.with_name(path.name + ".tmp")
-        write(table, tmp)
-        os.replace(tmp, path)
+        with atomic_path(path) as part:
+            write(table, part)
 
 
 def read_table(path: str | Path) -> list[dict[str, Any]]:

@@ -17,6 +17,7 @@ from ..description import exchange_type
 from ..errors import SetupError, did_you_mean
 from ..metrics import METRICS
 from ..parameters import check_values, split_system_name
+from ..safeio import write_atomic
 from ..simulation import Prepared
 from ..ssp import NS
 from ..structure import ParameterValue
@@ -248,4 +249,4 @@ def write_ssv(path: Path, parameters: Iterable[ParameterValue], name: str) -> No
         text = str(p.value).lower() if isinstance(p.value, bool) else (repr(p.value) if isinstance(p.value, float)
                                                                           else str(p.value))
         etree.SubElement(element, f"{{{ssv}}}{p.type}", value=text)
-    path.write_bytes(etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True))
+    write_atomic(path, etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True))

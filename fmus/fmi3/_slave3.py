@@ -10,12 +10,21 @@ communication step).  This base class
   of fmi3EnterInitializationMode (FMI 3.0 §2.3.2) and never calls ``setup_experiment``;
 - refuses non-finite inputs and outputs in ``do_step``: it logs a message naming the
   variable and returns an error status instead of passing NaN on;
-- declares the independent variable ``time`` that FMI 3.0 requires (§2.4.7.4).
+- declares the independent variable ``time`` that FMI 3.0 requires (§2.4.7.4);
+- keeps a host alive after a call raised: pythonfmu3 0.3.4 answers an exception with fmi3Fatal
+  after releasing the instance, its class and its log queue (PySlaveInstance.cpp,
+  handle_py_exception calls cleanPyObject) and releases them again when the instance is freed
+  (~PySlaveInstance), which frees objects still in use and crashes the host at a later garbage
+  collection.  Each call pythonfmu3 makes on an instance gives one reference of each back when
+  it raises (`_GIVEN_BACK`), and the class-level FMU-state conversions never raise: the FMUs
+  declare no FMU state (canGetAndSetFMUState="false"), so getting or setting one is refused.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import re
 from abc import abstractmethod
 from collections.abc import Callable
 from contextlib import AbstractContextManager
@@ -29,6 +38,29 @@ from pythonfmu3.variables import Enumeration
 from greyfmu.forwarding import forward_warnings
 
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
+
+
+_GIVEN_BACK: list[object] = []
+"""One reference to the instance, its class and its log queue per call that raised (see the module docstring)."""
+
+_CALLED_BY_PYTHONFMU3 = re.compile(r"(get|set)_[a-z0-9_]+|setup_experiment|enter_initialization_mode|"
+                                   r"exit_initialization_mode|do_step|terminate|_get_fmu_state|_set_fmu_state")
+"""The methods pythonfmu3 0.3.4's C++ wrapper calls on an instance."""
+
+
+def _given_back_when_raising(method: Callable[..., Any]) -> Callable[..., Any]:
+    """``method``, which gives back what pythonfmu3 will release twice when it raises."""
+
+    @functools.wraps(method)
+    def guarded(self: Fmi3Slave, *args: Any) -> Any:
+        try:
+            return method(self, *args)
+        except BaseException:
+            _GIVEN_BACK.extend((self, type(self), self.log_queue))
+            raise
+
+    guarded.given_back_when_raising = True
+    return guarded
 
 
 class ScalarEnumeration(Enumeration):
@@ -46,6 +78,30 @@ class GreyfmuSlave3(Fmi3Slave):
 
     output_dependencies: ClassVar[dict[str, list[str]]]
     """For every output, the inputs it depends on at the same instant (read by ``greyfmu build``)."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Every method pythonfmu3 calls on an instance of ``cls`` gives back its references when it raises."""
+        super().__init_subclass__(**kwargs)
+        for name in filter(_CALLED_BY_PYTHONFMU3.fullmatch, dir(cls)):
+            method = getattr(cls, name)
+            if callable(method) and not getattr(method, "given_back_when_raising", False):
+                setattr(cls, name, _given_back_when_raising(method))
+
+    def _get_fmu_state(self) -> dict[str, Any]:
+        raise NotImplementedError(f"{self.instance_name}: this FMU has no FMU state (canGetAndSetFMUState is false)")
+
+    def _set_fmu_state(self, state: Any) -> None:
+        raise NotImplementedError(f"{self.instance_name}: this FMU has no FMU state (canGetAndSetFMUState is false)")
+
+    @staticmethod
+    def _fmu_state_to_bytes(state: Any) -> bytes:
+        """No state to serialise; called on the class, so it must not raise (see the module docstring)."""
+        return b""
+
+    @staticmethod
+    def _fmu_state_from_bytes(state: bytes) -> None:
+        """No state to restore (``_set_fmu_state`` refuses it); called on the class, so it must not raise."""
+        return None
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

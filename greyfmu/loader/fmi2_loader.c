@@ -88,6 +88,8 @@ enum { PY_FILE_INPUT = 257 };
 
 static Lock load_lock = LOCK_INITIALIZER;
 static void *pythonfmu_library;
+static PythonApi python_api;       /* the Python pythonfmu's library runs on, once loaded */
+static char resources[PATH_MAX + 16]; /* this FMU's resources folder, found from this binary */
 static int live_instances;
 static int exit_handler_registered;
 
@@ -454,7 +456,39 @@ static int ensure_loaded(char *problem, size_t size) {
         append(problem, size, "%s", answer);
         return 0;
     }
-    return load_pythonfmu(root, problem, size);
+    if (!load_pythonfmu(root, problem, size)) return 0;
+    python_api = api;
+    snprintf(resources, sizeof resources, "%s%cresources", root, SEPARATOR);
+    return 1;
+}
+
+/* Gives back the reference pythonfmu 0.7.0's fmi2Instantiate takes from the process at each call
+ * (PySlaveInstance.cpp): findClass releases the slave module's __dict__, a borrowed reference (PyModule_GetDict),
+ *     once per instantiation that got as far as importing the module: after as many
+ *     instantiations as the dict has holders, the dict is freed while its module still uses it
+ *     and the next garbage collection crashes the host (a pytest run of 1,400 tests: segfault
+ *     "Garbage-collecting" in DigitalPI).  One reference per instantiation is kept in
+ *     sys.modules["greyfmu_target_checks"].released (8 bytes each); where the module was
+ *     imported but the dict not released (a failure in between), one dict stays alive forever,
+ *     which it does anyway as its module is in sys.modules.
+ * Runs after every forwarded fmi2Instantiate, whether it returned an instance or not. */
+static const char BALANCE_PYTHONFMU[] =
+    "import os, sys\n"
+    "checks = sys.modules.get('greyfmu_target_checks')\n"
+    "if checks is None:\n"
+    "    checks = sys.modules['greyfmu_target_checks'] = type(sys)('greyfmu_target_checks')\n"
+    "    checks.passed = set()\n"
+    "if not hasattr(checks, 'released'):\n"
+    "    checks.released = []\n"
+    "with open(os.path.join(os.path.dirname(__file__), 'slavemodule.txt'), encoding='utf-8') as listing:\n"
+    "    module = sys.modules.get(listing.readline().strip())\n"
+    "if module is not None:\n"
+    "    checks.released.append(module.__dict__)\n";
+
+static void balance_pythonfmu(void) {
+    char script[PATH_MAX + 64], ignored[256];
+    snprintf(script, sizeof script, "%s%cgreyfmu_balance", resources, SEPARATOR);
+    run_in_process(&python_api, BALANCE_PYTHONFMU, script, NULL, ignored, sizeof ignored);
 }
 
 /* ---- the exported FMI 2.0 functions, behind the guard (guard.h) ---- */
@@ -555,6 +589,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
                                          fmi2Boolean, fmi2Boolean);
     in->real = ((Instantiate)real_fmi2Instantiate)(instanceName, fmuType, fmuGUID, folder, &in->forwarded, visible,
                                                    loggingOn);
+    balance_pythonfmu();
     if (in->real == NULL) {
         free_guarded(in);
         return NULL;
@@ -565,17 +600,23 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     return in;
 }
 
-/* After fmi2Fatal pythonfmu's instance is not freed (freeing it corrupted the interpreter's
- * memory, see cosim.instances.base.end_instance): only the guard's record is. */
+/* Instances pythonfmu has given up on: pythonfmu 0.7.0 answers a Python exception in any call with
+ * fmi2Fatal after releasing the instance's Python objects (PySlaveInstance.cpp: handle_py_exception
+ * calls cleanPyObject), and releases them again when the instance is freed (~PySlaveInstance calls
+ * cleanPyObject, whose pointers were never cleared): objects still in use are freed, or freed
+ * twice, and a later garbage collection crashes the host (a pytest run after the FMU-state refusal
+ * tests: segfault "Garbage-collecting").  So the guard forwards nothing more to an instance in
+ * the fatal state (every function's allowed states leave it out), and fmi2FreeInstance frees only
+ * the guard's record (pythonfmu's C++ object, a few hundred bytes, stays allocated; its Python
+ * objects were released once). */
 EXPORT void fmi2FreeInstance(fmi2Component c) {
     if (c == NULL) return;
     GuardedInstance *in = guarded(c, "fmi2FreeInstance");
     if (in == NULL) return;
-    int lost = in->phase == PHASE_FATAL;
-    if (!lost && real_fmi2FreeInstance != NULL) /* first: pythonfmu may log while freeing */
+    if (in->phase != PHASE_FATAL && real_fmi2FreeInstance != NULL) /* first: pythonfmu may log while freeing */
         ((void (*)(fmi2Component))real_fmi2FreeInstance)(in->real);
     free_guarded(in);
-    if (lost || real_fmi2FreeInstance == NULL) return;
+    if (real_fmi2FreeInstance == NULL) return;
     lock(&load_lock);
     if (--live_instances == 0) release_pythonfmu_state();
     unlock(&load_lock);

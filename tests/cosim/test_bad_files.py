@@ -1,4 +1,4 @@
-"""Names and files that broke the tools (issue 17): component names a CSV cannot carry,
+"""Names and files that broke the tools (issue 17): component names a CSV quotes (issue 26),
 result files compare/metrics must refuse with exit 2, a file with an ``inf`` that differed
 from itself, a closed pipe, and a NUL byte in an FMU source inside an .ssp."""
 from __future__ import annotations
@@ -63,18 +63,34 @@ def test_metrics_windows_outside_the_result_are_refused(tmp_path, capsys, argv, 
     assert text in _exit(capsys, 2, "metrics", str(path), "--signal", "y", "--setpoint", "r", *argv)
 
 
-@pytest.mark.parametrize("name", ["pl,ant", 'pl"ant', "pl\nant"])
-def test_a_name_a_csv_cannot_carry_is_refused_and_parquet_carries_it(tmp_path, capsys, name):
+@pytest.mark.parametrize("name", ["pl,ant", 'pl"ant', "pl\nant", 'p"l,\na"n""t'])
+def test_a_name_with_commas_quotes_or_line_breaks_is_quoted_in_the_csv(tmp_path, capsys, name):
+    """Issue 26 (was refused at run time, naming the CSV, while validate passed it): the header
+    quotes it as RFC 4180 does, and cosim's reader reads it back; Parquet carries it too."""
     folder = Path(shutil.copytree(SCENARIO, tmp_path / "s"))
     ssd = folder / "SystemStructure.ssd"
-    escaped = name.replace('"', "&quot;").replace("\n", "&#10;")
+    escaped = name.replace('"', "&quot;").replace("\n", "&#10;").replace("\r", "&#13;")
     ssd.write_text(ssd.read_text().replace('"plant"', f'"{escaped}"'))
-    err = _exit(capsys, 2, "run", str(folder), "-q", "--stop", "1", "-o", str(tmp_path / "r.csv"))
-    assert "which a result CSV cannot carry" in err and not (tmp_path / "r.csv").exists()
+    _exit(capsys, 0, "validate", str(folder))
+    _exit(capsys, 0, "run", str(folder), "-q", "--stop", "1", "-o", str(tmp_path / "r.csv"))
     _exit(capsys, 0, "run", str(folder), "-q", "--stop", "1", "-o", str(tmp_path / "r.parquet"))
-    assert f"{name}.y" in read(tmp_path / "r.parquet").dtype.names
-    with pytest.raises(Exception, match="cannot carry"):
-        write(read(tmp_path / "r.parquet"), tmp_path / "again.csv")
+    csv, parquet = read(tmp_path / "r.csv"), read(tmp_path / "r.parquet")
+    assert f"{name}.y" in csv.dtype.names and csv.dtype.names == parquet.dtype.names
+    assert all(np.array_equal(csv[n], parquet[n]) for n in csv.dtype.names)
+    header = (tmp_path / "r.csv").read_text().split('"time",', 1)[1]
+    assert '"' + f"{name}.y".replace('"', '""') + '"' in header
+    write(csv, tmp_path / "again.csv")
+    assert (tmp_path / "again.csv").read_bytes() == (tmp_path / "r.csv").read_bytes()
+    _exit(capsys, 0, "compare", str(tmp_path / "r.csv"), str(tmp_path / "r.parquet"))
+
+
+def test_a_plain_header_reads_as_fmpy_reads_it(tmp_path):
+    from fmpy.util import read_csv
+
+    path = _result(tmp_path, "r.csv", {"time": [0, 1, 2], "a.y": [1.5, "-0", "nan"], "b": ["inf", 2, 3]})
+    ours, theirs = read(path), read_csv(str(path))
+    assert ours.dtype == theirs.dtype
+    assert all(np.array_equal(ours[n], theirs[n], equal_nan=True) for n in ours.dtype.names)
 
 
 def test_a_closed_pipe_ends_quietly():

@@ -77,7 +77,8 @@ def test_a_crash_in_a_parquet_run_is_recovered_too(tmp_path, faulty):
 
 def _wait_for_rows(csv: Path, proc: subprocess.Popen) -> None:
     deadline = time.monotonic() + 60
-    while not (csv.exists() and csv.stat().st_size > 200):  # the header and a flushed row or more
+    part = csv.with_name(csv.name + ".part")  # written there until the run ends (cosim.safeio.atomic_path)
+    while not (part.exists() and part.stat().st_size > 200):  # the header and a flushed row or more
         assert proc.poll() is None and time.monotonic() < deadline
         time.sleep(0.1)
 
@@ -168,3 +169,105 @@ def test_a_journal_left_by_a_crashed_api_run_is_recovered(tmp_path, faulty):
     meta = json.loads(out.with_suffix(".json").read_text())
     assert meta["status"] == "crashed" and meta["message"] == "found after the run"
     assert not list(tmp_path.glob("cosim-fmu-*"))  # the crashed process's extraction folder too
+
+
+def _wait_for_journal_rows(journal: Path, rows: int, proc: subprocess.Popen) -> None:
+    """Until the run's journal holds ``rows`` rows (the CSV gets them only at a flush)."""
+    from cosim.journal import read_journal
+
+    deadline = time.monotonic() + 60
+    while True:
+        assert proc.poll() is None and time.monotonic() < deadline
+        try:
+            if len(read_journal(journal)[1]) >= rows:
+                return
+        except (OSError, ValueError):
+            pass
+        time.sleep(0.05)
+
+
+@pytest.mark.parametrize("second", [True, False], ids=["second-sigint", "grace"])
+def test_sigint_abandons_a_hung_fmu_call_and_keeps_the_rows(tmp_path, faulty, second):
+    """Issue 26: an FMU hung in fmi2DoStep; SIGINT asks the run to stop, and a second SIGINT (or
+    `INTERRUPT_GRACE` s without the run gone) abandons the call: every completed row and the
+    JSON are written, exit 130."""
+    from cosim.supervisor import INTERRUPT_GRACE
+
+    folder = _scenario(tmp_path, faulty, 4, fault_time=3.0, stop=25.0)
+    csv = tmp_path / "out.csv"
+    proc = _cosim(tmp_path, "run", str(folder), "-q", "-o", str(csv))
+    _wait_for_journal_rows(tmp_path / "out.csv.journal", 7, proc)  # t = 0 .. 3, then the hang
+    proc.send_signal(signal.SIGINT)
+    if second:
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "stopped by SIGINT" in err and "7 rows recovered" in err
+    assert ("a second SIGINT abandoned it" if second else f"abandoned {INTERRUPT_GRACE:g} s after the SIGINT") in err
+    assert list(read(csv)["time"]) == pytest.approx([0, 0.5, 1, 1.5, 2, 2.5, 3])
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    assert meta["status"] == "interrupted" and meta["last_time"] == 3.0 and meta["samples"] == 7
+    assert not csv.with_name("out.csv.journal").exists()
+    assert _leftovers(tmp_path) == []
+
+
+def _children(pid: int) -> list[int]:
+    return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+
+
+def _gone(pid: int) -> bool:
+    """Ended (a zombie waiting for init to reap it counts as ended)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("fault, status_rows", [(5, None), (4, 7)], ids=["stepping", "hung"])
+def test_the_run_dies_with_its_killed_parent(tmp_path, faulty, fault, status_rows):
+    """Issue 26: ``kill -9`` of the supervising parent ends its child too (``PR_SET_PDEATHSIG``
+    and the pipe watch): a stepping child stops at its next communication point and writes its
+    files, a hung one writes the journal's rows and ends ``INTERRUPT_GRACE`` s later."""
+    from cosim.supervisor import INTERRUPT_GRACE
+
+    folder = _scenario(tmp_path, faulty, fault, fault_time=3.0 if fault == 4 else 0.0, stop=1000.0,
+                       step=0.5 if fault == 4 else 0.1, delay=0.01)
+    csv = tmp_path / "out.csv"
+    proc = _cosim(tmp_path, "run", str(folder), "-q", "-o", str(csv))
+    _wait_for_journal_rows(tmp_path / "out.csv.journal", 7, proc)
+    child, = _children(proc.pid)
+    proc.kill()
+    proc.wait(timeout=10)
+    deadline = time.monotonic() + INTERRUPT_GRACE + 5.0
+    while not _gone(child):
+        assert time.monotonic() < deadline, "the child outlived its parent"
+        time.sleep(0.1)
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    assert meta["status"] == "interrupted"
+    res = read(csv)
+    assert len(res) == (status_rows or round(meta["last_time"] / 0.1) + 1) > 0
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
+def test_running_out_of_memory_is_one_message_naming_the_result(tmp_path, faulty):
+    """Issue 26: the address space exhausted mid-run (the FMU limits it at t = 1 as ``ulimit -v``
+    would; the master's in-memory copy of the samples then outgrows it): one message saying
+    memory ran out and naming the result file, exit 1, every recorded row in the CSV."""
+    import re
+
+    folder = _scenario(tmp_path, faulty, 6, fault_time=1.0, stop=1e6, step=0.1)
+    csv = tmp_path / "out.csv"
+    proc = _cosim(tmp_path, "run", str(folder), "-q", "-o", str(csv))
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 1 and "Traceback" not in err and "Error" not in err, err
+    found = re.fullmatch(rf"cosim: the run failed: {re.escape(str(csv))}: the process ran out of memory \(its "
+                         r"address space: see ulimit -v\) at t = (\S+); the (\d+) rows recorded before are "
+                         r"kept\.\n", err)
+    assert found, err
+    res = read(csv)
+    assert len(res) == int(found.group(2)) > 10 and res["time"][-1] == pytest.approx(float(found.group(1)))
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    assert meta["status"] == "failed" and "ran out of memory" in meta["message"]
+    assert not csv.with_name("out.csv.journal").exists()

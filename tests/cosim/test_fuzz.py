@@ -567,9 +567,10 @@ def test_fmus_inside_an_archive_are_checked_too(tmp_path, built_fmus):
     fmus = {source: built_fmus[Path(source).stem].read_bytes() for source in sources}
     ssp.load(_scenario_archive(tmp_path / "good.ssp", fmus)).close()    # real FMUs pass the checks
 
+    # a member that is no zip archive is refused by the component that uses it, naming both
+    # (tests/cosim/test_master_errors.py::test_an_unusable_fmu_in_an_ssp_archive_names_its_component)
     broken = dict(fmus, **{sources[0]: b"MZ not a zip"})
-    message = _refused(ssp.load, _scenario_archive(tmp_path / "broken.ssp", broken))
-    assert f"broken.ssp!{sources[0]}" in message and "not a zip archive" in message
+    ssp.load(_scenario_archive(tmp_path / "broken.ssp", broken)).close()
 
     raw, size, crc = _zeros_bomb(1)
     bomb = _raw_zip(tmp_path / "bomb.fmu", [("modelDescription.xml", raw, size, crc)])

@@ -179,7 +179,8 @@ def test_cli_ctrl_c_to_the_process_group_stops_at_a_communication_point(tmp_path
     csv = tmp_path / "out.csv"
     proc = _cosim(tmp_path, "run", str(folder), "-q", "--isolate", "-o", str(csv), start_new_session=True)
     deadline = time.monotonic() + 60
-    while not (csv.exists() and csv.stat().st_size > 200):
+    part = csv.with_name(csv.name + ".part")  # written there until the run ends (cosim.safeio.atomic_path)
+    while not (part.exists() and part.stat().st_size > 200):
         assert proc.poll() is None and time.monotonic() < deadline
         time.sleep(0.1)
     os.killpg(proc.pid, signum)

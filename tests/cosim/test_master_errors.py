@@ -292,3 +292,54 @@ def test_non_finite_or_out_of_range_parameter_is_refused(tmp_path, fmus, capsys,
     ssd.write_text(ssd.read_text().replace(given, text))
     err = _cli_error(capsys, "validate", str(folder))
     assert message in err and (f"variable '{variable}'" in err or "xs:int" in message)
+
+
+@pytest.mark.parametrize("argv, element", [(["--start=-1e308", "--stop=1.7e308", "--step=1e300"], "--stop"),
+                                           (["--step=1e300"], "ssd:DefaultExperiment stopTime")])
+def test_a_span_that_overflows_names_the_stop_time(tmp_path, fmus, capsys, argv, element):
+    """Issue 26: stop - start past the largest double was refused as an infinite number of
+    steps, naming the step size."""
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    if element.startswith("ssd:"):
+        ssd = folder / "SystemStructure.ssd"
+        ssd.write_text(ssd.read_text().replace('startTime="0" stopTime="1.0"', 'startTime="-1e308" stopTime="1.7e308"'))
+    err = _cli_error(capsys, "run", str(folder), "-q", *argv)
+    assert f"SystemStructure.ssd, {element}: the stop time 1.7e+308 is inf s after the start time -1e+308: the span " \
+           "overflows a double" in err, err
+
+
+@pytest.mark.parametrize("fault", ["empty", "truncated", "the SSD"])
+def test_an_unusable_fmu_file_names_its_component(tmp_path, fmus, capsys, fault):
+    """Issue 26: a zero-byte or truncated FMU, or the SSD given as a component's FMU, was refused
+    naming the file but not the component."""
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    fmu, ssd = folder / "resources" / "ramp.fmu", folder / "SystemStructure.ssd"
+    if fault == "empty":
+        fmu.write_bytes(b"")
+    elif fault == "truncated":
+        fmu.write_bytes(fmu.read_bytes()[:3000])
+    else:
+        ssd.write_text(ssd.read_text().replace('source="resources/ramp.fmu"', 'source="SystemStructure.ssd"'))
+    err = _cli_error(capsys, "validate", str(folder))
+    named = ssd if fault == "the SSD" else fmu
+    assert f"SystemStructure.ssd, ssd:Component 'src' (line " in err and f"its FMU {named} is not a usable FMU " \
+           "archive" in err and "not a zip archive" in err, err
+    assert ("0 bytes" in err) == (fault == "empty") and ("the SSD itself" in err) == (fault == "the SSD")
+
+
+@pytest.mark.parametrize("fault", ["empty", "truncated"])
+def test_an_unusable_fmu_in_an_ssp_archive_names_its_component(tmp_path, fmus, capsys, fault):
+    """Issue 26: inside an .ssp archive, a zero-byte or truncated FMU was refused while the
+    archive was unpacked, naming 'archive.ssp!resources/x.fmu' but not the component."""
+    folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
+    fmu = folder / "resources" / "ramp.fmu"
+    fmu.write_bytes(b"" if fault == "empty" else fmu.read_bytes()[:3000])
+    archive = tmp_path / "system.ssp"
+    with zipfile.ZipFile(archive, "w") as packed:
+        for member in sorted(folder.rglob("*")):
+            if member.is_file():
+                packed.write(member, member.relative_to(folder).as_posix())
+    err = _cli_error(capsys, "validate", str(archive))
+    assert f"{archive}!SystemStructure.ssd, ssd:Component 'src' (line " in err and "resources/ramp.fmu is not a " \
+           "usable FMU archive" in err and "not a zip archive" in err, err
+    assert ("0 bytes" in err) == (fault == "empty")

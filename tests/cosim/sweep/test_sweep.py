@@ -184,6 +184,7 @@ def test_a_refused_value_is_a_failed_row_and_the_others_complete(scenario, tmp_p
     (["--set", "plant.T=1,2", "--metrics", "plant.yy:setpoint.y"], "Did you mean 'plant.y'"),
     (["--seeds", "1,2", "--seed-parameter", "noise.sed"], "Did you mean 'seed'"),
     (["--set", "plant.T=1,2", "--scheduler", "local:two"], "give local:N"),
+    (["--set", "plant.T=1,2", "--scheduler", "tcp://sched"], "'tcp://sched' is not a Dask scheduler address"),
     (["--seeds", "1,2", "--set", "noise.seed=3"], "both swept with --set and set by --seeds"),
     # issue 17: every value checked before the first run
     (["--set", "plant.tau=4,nan"], "'nan' is not a finite number"),
