@@ -8,8 +8,9 @@ requirements, `drop_in` returns new entries:
   Where there is no C compiler for a platform (cc; x86_64-w64-mingw32-gcc for win64) the
   pythonfmu library stays the binary, and the build says so once on stderr: that FMU then
   loads only in a host that already runs Python (fmpy, cosim; on Windows, python3.dll on PATH);
-- ``resources/`` gets the loader's target check, the FMU's requirements and the path of the
-  interpreter that built it (the loader's second choice);
+- ``resources/`` gets the loader's target check, the FMU's requirements, the path of the
+  interpreter that built it (the loader's second choice) and ``greyfmu_guard.txt``, what the
+  loader's guard checks every call against (`guard_text`);
 - pythonfmu's package in ``resources/`` becomes its run-time modules only, under the private
   name `RUNTIME_PACKAGE` (`vendor_pythonfmu`), and the slave modules import it by that name.
   A Python host keeps an FMU's ``resources/`` on ``sys.path`` after running it (fmpy does,
@@ -44,6 +45,15 @@ LICENSE = "MIT"
 COPYRIGHT = "Copyright (c) 2026 the greyfmu authors; embeds pythonfmu 0.7.0, Copyright (c) 2019-2020 NTNU and Safran SA"
 BUILD_PYTHON = "resources/greyfmu_build_python.txt"
 """Machine-specific, so left out of the GUID's hash."""
+GUARD = "resources/greyfmu_guard.txt"
+"""What the loader's guard (greyfmu/loader/guard.h) checks calls against: `guard_text`.  It
+holds the GUID, so it is left out of the GUID's hash (it is derived from the hashed model
+description)."""
+MAX_STEP_FACTOR = 1e4
+"""The longest communication step the guard accepts, in DefaultExperiment stepSize units: a
+slave computes every internal sample of a step, so h = 1e300 would never return."""
+TYPE_LETTERS = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
+"""The fmi2Get/Set function family of each variable type (an Enumeration is an Integer)."""
 RUNTIME_PACKAGE = "greyfmu_pythonfmu"
 """The name pythonfmu's run-time modules get inside an FMU (`vendor_pythonfmu`)."""
 PYTHONFMU_RUNTIME = ("__init__.py", "_version.py", "default_experiment.py", "enums.py", "fmi2slave.py", "logmsg.py",
@@ -84,6 +94,7 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
     root.attrib.pop("generationDateAndTime", None)
     ElementTree.indent(root)  # before the hash: it covers the text as written
     root.set("guid", stable_guid(root, result))
+    result[GUARD] = guard_text(root).encode()
     result["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
     result["documentation/index.html"] = index_html(root, requirements, tuple(loaders)).encode()
     return result
@@ -133,9 +144,35 @@ def stable_guid(root: ElementTree.Element, entries: dict[str, bytes]) -> str:
     for child in root:
         digest.update(ElementTree.tostring(child, encoding="UTF-8"))
     for name in sorted(entries):
-        if name.startswith("resources/") and name != BUILD_PYTHON:
+        if name.startswith("resources/") and name not in (BUILD_PYTHON, GUARD):
             digest.update(name.encode() + b"\0" + hashlib.sha256(entries[name]).digest())
     return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
+
+
+def guard_text(root: ElementTree.Element) -> str:
+    """`GUARD`'s text: ``guid G``, ``max_step H`` (`MAX_STEP_FACTOR` DefaultExperiment steps; 0:
+    no bound but finiteness), then one ``variable VR TYPE CAUSALITY VARIABILITY INITIAL NAME``
+    line per ScalarVariable (TYPE one of `TYPE_LETTERS`' letters, INITIAL as FMI 2.0 Table 2
+    resolves its default, ``none`` for inputs and the independent variable)."""
+    experiment = root.find("DefaultExperiment")
+    step = float(experiment.get("stepSize", "0")) if experiment is not None else 0.0
+    lines = [f"guid {root.get('guid')}", f"max_step {MAX_STEP_FACTOR * step!r}"]
+    for variable in root.findall("ModelVariables/ScalarVariable"):
+        causality = variable.get("causality", "local")
+        variability = variable.get("variability", "continuous")
+        initial = variable.get("initial") or _default_initial(causality, variability)
+        lines.append(f"variable {variable.get('valueReference')} {TYPE_LETTERS[variable[0].tag]} {causality} "
+                     f"{variability} {initial} {variable.get('name')}")
+    return "".join(f"{line}\n" for line in lines)
+
+
+def _default_initial(causality: str, variability: str) -> str:
+    """FMI 2.0 §2.2.7 Table: the ``initial`` a variable has when it does not say."""
+    if causality in ("input", "independent"):
+        return "none"
+    if causality == "parameter" or variability == "constant":
+        return "exact"
+    return "calculated"
 
 
 def _check_requirements_are_stated(root: ElementTree.Element, model: str, requirements: tuple[str, ...]) -> None:

@@ -1,6 +1,6 @@
 """The drop-in loader of the greyfmu FMUs (build side; not embedded in the FMUs).
 
-``fmi2_loader.c`` (with its platform layer ``platform.h``) becomes each FMU's
+``fmi2_loader.c`` (with its platform layer ``platform.h`` and its guard ``guard.h``) becomes each FMU's
 ``binaries/linux64/<modelIdentifier>.so`` and ``binaries/win64/<modelIdentifier>.dll``: it finds
 a Python, loads its shared libpython and forwards every fmi2 function to pythonfmu's library,
 shipped next to it as ``pythonfmu-export.so`` / ``.dll`` (see the C file's header).

@@ -24,6 +24,10 @@
  *      requirements; once per process, see CHECK_ONCE), then pythonfmu-export.so is loaded and
  *      every fmi2 function forwards to it.
  *
+ * Every call passes the guard first (guard.h): the fmi2Component the host gets is the guard's
+ * record of the instance, and a call the FMI 2.0 state machine, the arguments or the FMU's
+ * variables do not allow returns fmi2Error with one log line instead of reaching pythonfmu.
+ *
  * Where no usable Python is found, fmi2Instantiate logs one message naming what is missing and
  * how to fix it, and returns NULL.  Python is never finalised (numpy and scipy cannot be
  * re-initialised in one process).
@@ -487,161 +491,336 @@ static void balance_pythonfmu(void) {
     run_in_process(&python_api, BALANCE_PYTHONFMU, script, NULL, ignored, sizeof ignored);
 }
 
-/* ---- instances pythonfmu has given up on ----
- * pythonfmu 0.7.0 answers a Python exception in any call with fmi2Fatal after releasing the
- * instance's Python objects (PySlaveInstance.cpp: handle_py_exception calls cleanPyObject), and
- * releases them again when the instance is freed (~PySlaveInstance calls cleanPyObject, whose
- * pointers were never cleared): objects still in use are freed, or freed twice, and a later
- * garbage collection crashes the host (a pytest run after the FMU-state refusal tests: segfault
- * "Garbage-collecting").  The loader remembers each instance that answered fmi2Fatal: nothing
- * more is forwarded to it (fmi2Error), and fmi2FreeInstance forgets it without forwarding (its
- * C++ object, a few hundred bytes, stays allocated; its Python objects were released once). */
-static fmi2Component *lost_instances;
-static size_t lost_count, lost_capacity;
+/* ---- the exported FMI 2.0 functions, behind the guard (guard.h) ---- */
 
-static int is_lost(fmi2Component c) {
-    int found = 0;
-    lock(&load_lock);
-    for (size_t i = 0; i < lost_count && !found; i++) found = lost_instances[i] == c;
-    unlock(&load_lock);
-    return found;
-}
-
-static void remember_lost(fmi2Component c) {
-    lock(&load_lock);
-    if (lost_count == lost_capacity) {
-        size_t capacity = lost_capacity ? 2 * lost_capacity : 8;
-        fmi2Component *grown = realloc(lost_instances, capacity * sizeof *grown);
-        if (grown != NULL) {
-            lost_instances = grown;
-            lost_capacity = capacity;
-        }
-    }
-    if (lost_count < lost_capacity) lost_instances[lost_count++] = c;
-    unlock(&load_lock);
-}
-
-/* Whether `c` was lost; if so it is forgotten (its fmi2FreeInstance). */
-static int forget_lost(fmi2Component c) {
-    int found = 0;
-    lock(&load_lock);
-    for (size_t i = 0; i < lost_count && !found; i++)
-        if (lost_instances[i] == c) {
-            lost_instances[i] = lost_instances[--lost_count];
-            found = 1;
-        }
-    unlock(&load_lock);
-    return found;
-}
-
-/* ---- the exported FMI 2.0 functions ---- */
+#include "guard.h"
 
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
+/* An instantiation refused before there is an instance: one line through the host's logger. */
+static fmi2Component refuse_instance(const fmi2CallbackFunctions *functions, fmi2String name, const char *format, ...) {
+    char text[16384];
+    va_list args;
+    va_start(args, format);
+    vsnprintf(text, sizeof text, format, args);
+    va_end(args);
+    functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError", "%s", text);
+    return NULL;
+}
+
+/* The guard's checks of fmi2Instantiate's arguments; the instance (model read, resources folder
+ * found) or NULL after one line. */
+static GuardedInstance *new_instance(fmi2String name, fmi2Type type, fmi2String guid, fmi2String location,
+                                     const fmi2CallbackFunctions *functions, char *folder, size_t size) {
+    const char *shown = name != NULL ? name : "";
+    if (name == NULL || *name == '\0')
+        return refuse_instance(functions, shown, "fmi2Instantiate: instanceName is %s", name ? "empty" : "NULL");
+    if (type != fmi2CoSimulation)
+        return refuse_instance(functions, name, "fmi2Instantiate: fmuType = %d: this FMU is Co-Simulation only "
+                               "(fmi2CoSimulation = 1), it has no Model Exchange interface", (int)type);
+    char root[PATH_MAX], problem[4096] = "";
+    if (!fmu_root(root, sizeof root))
+        return refuse_instance(functions, name, "fmi2Instantiate: cannot locate the FMU's folder from its binary");
+    char own[PATH_MAX + 16];
+    snprintf(own, sizeof own, "%s%cresources", root, SEPARATOR);
+    GuardedInstance *in = calloc(1, sizeof *in);
+    if (in == NULL) return refuse_instance(functions, name, "fmi2Instantiate: out of memory");
+    int fallback = 0, ok = resource_folder(location, root, folder, size, &fallback, problem, sizeof problem);
+    if (!ok) {
+        refuse_instance(functions, name, "fmi2Instantiate: fmuResourceLocation '%s' %s", location, problem);
+    } else if (!read_model(own, &in->model, problem, sizeof problem) &&
+               !read_model(folder, &in->model, problem, sizeof problem)) { /* fmpy may extract only resources/ */
+        refuse_instance(functions, name, "fmi2Instantiate: %s", problem);
+        ok = 0;
+    } else if (guid == NULL || strcmp(guid, in->model.guid) != 0) {
+        refuse_instance(functions, name, "fmi2Instantiate: fmuGUID %s%s%s is not this FMU's GUID %s",
+                        guid ? "'" : "", guid ? guid : "NULL", guid ? "'" : "", in->model.guid);
+        ok = 0;
+    }
+    if (!ok) {
+        free_model(&in->model);
+        free(in);
+        return NULL;
+    }
+    if (fallback)
+        functions->logger(functions->componentEnvironment, name, fmi2Warning, "logStatusWarning", "%s",
+                          "fmi2Instantiate: fmuResourceLocation is NULL or empty: using the FMU's own resources folder");
+    in->name = strdup(name);
+    in->host = *functions;
+    in->forwarded = *functions;
+    in->forwarded.logger = guard_logger;
+    in->forwarded.componentEnvironment = in;
+    in->phase = PHASE_INSTANTIATED;
+    in->magic = GUARD_MAGIC;
+    return in;
+}
+
+static void free_guarded(GuardedInstance *in) {
+    in->magic = 0;
+    free_model(&in->model);
+    free(in->name);
+    free(in);
+}
+
 EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
                                      fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                                      fmi2Boolean visible, fmi2Boolean loggingOn) {
+    if (functions == NULL || functions->logger == NULL) {
+        fprintf(stderr, "greyfmu: fmi2Instantiate: %s is NULL: FMI 2.0 requires the callbacks and their logger\n",
+                functions == NULL ? "functions (the callbacks)" : "functions->logger");
+        return NULL;
+    }
+    char folder[PATH_MAX + 16];
+    GuardedInstance *in =
+        new_instance(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, folder, sizeof folder);
+    if (in == NULL) return NULL;
     char problem[16384] = "";
     lock(&load_lock);
     int loaded = ensure_loaded(problem, sizeof problem);
     unlock(&load_lock);
     if (!loaded) {
-        if (functions != NULL && functions->logger != NULL)
-            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
-                              "greyfmu: %s", problem);
-        else
-            fprintf(stderr, "greyfmu: %s\n", problem);
+        refuse_instance(functions, instanceName, "greyfmu: %s", problem);
+        free_guarded(in);
         return NULL;
     }
     typedef fmi2Component (*Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
                                          fmi2Boolean, fmi2Boolean);
-    fmi2Component component =
-        ((Instantiate)real_fmi2Instantiate)(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, visible,
-                                            loggingOn);
+    in->real = ((Instantiate)real_fmi2Instantiate)(instanceName, fmuType, fmuGUID, folder, &in->forwarded, visible,
+                                                   loggingOn);
     balance_pythonfmu();
-    if (component != NULL) {
-        lock(&load_lock);
-        live_instances++;
-        unlock(&load_lock);
+    if (in->real == NULL) {
+        free_guarded(in);
+        return NULL;
     }
-    return component;
+    lock(&load_lock);
+    live_instances++;
+    unlock(&load_lock);
+    return in;
 }
 
+/* Instances pythonfmu has given up on: pythonfmu 0.7.0 answers a Python exception in any call with
+ * fmi2Fatal after releasing the instance's Python objects (PySlaveInstance.cpp: handle_py_exception
+ * calls cleanPyObject), and releases them again when the instance is freed (~PySlaveInstance calls
+ * cleanPyObject, whose pointers were never cleared): objects still in use are freed, or freed
+ * twice, and a later garbage collection crashes the host (a pytest run after the FMU-state refusal
+ * tests: segfault "Garbage-collecting").  So the guard forwards nothing more to an instance in
+ * the fatal state (every function's allowed states leave it out), and fmi2FreeInstance frees only
+ * the guard's record (pythonfmu's C++ object, a few hundred bytes, stays allocated; its Python
+ * objects were released once). */
 EXPORT void fmi2FreeInstance(fmi2Component c) {
-    if (real_fmi2FreeInstance == NULL || c == NULL) return;
-    if (!forget_lost(c)) ((void (*)(fmi2Component))real_fmi2FreeInstance)(c);
+    if (c == NULL) return;
+    GuardedInstance *in = guarded(c, "fmi2FreeInstance");
+    if (in == NULL) return;
+    if (in->phase != PHASE_FATAL && real_fmi2FreeInstance != NULL) /* first: pythonfmu may log while freeing */
+        ((void (*)(fmi2Component))real_fmi2FreeInstance)(in->real);
+    free_guarded(in);
+    if (real_fmi2FreeInstance == NULL) return;
     lock(&load_lock);
     if (--live_instances == 0) release_pythonfmu_state();
     unlock(&load_lock);
 }
 
-#define FORWARD(ret, name, params, args)                                                                           \
-    EXPORT ret name params {                                                                                       \
-        if (real_##name == NULL || is_lost(c)) return fmi2Error;                                                   \
-        ret status = ((ret(*) params)real_##name) args;                                                            \
-        if (status == fmi2Fatal) remember_lost(c);                                                                 \
-        return status;                                                                                             \
-    }
+#define CALL(name, params, ...) (((fmi2Status(*) params)real_##name)(in->real, __VA_ARGS__))
+#define GUARDED(name, phases)                                                                                      \
+    GuardedInstance *in = guarded(c, #name);                                                                       \
+    if (in == NULL) return fmi2Error;                                                                              \
+    if (!allowed_in(in, #name, phases)) return fmi2Error;
 
-FORWARD(fmi2Status, fmi2SetDebugLogging, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]),
-        (c, on, n, categories))
-FORWARD(fmi2Status, fmi2SetupExperiment,
-        (fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance, fmi2Real startTime,
-         fmi2Boolean stopTimeDefined, fmi2Real stopTime),
-        (c, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime))
-FORWARD(fmi2Status, fmi2EnterInitializationMode, (fmi2Component c), (c))
-FORWARD(fmi2Status, fmi2ExitInitializationMode, (fmi2Component c), (c))
-FORWARD(fmi2Status, fmi2Terminate, (fmi2Component c), (c))
-FORWARD(fmi2Status, fmi2Reset, (fmi2Component c), (c))
-FORWARD(fmi2Status, fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]),
-        (c, vr, n, value))
-FORWARD(fmi2Status, fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer value[]),
-        (c, vr, n, value))
-FORWARD(fmi2Status, fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean value[]),
-        (c, vr, n, value))
-FORWARD(fmi2Status, fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String value[]),
-        (c, vr, n, value))
-FORWARD(fmi2Status, fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]),
-        (c, vr, n, value))
-FORWARD(fmi2Status, fmi2SetInteger,
-        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[]), (c, vr, n, value))
-FORWARD(fmi2Status, fmi2SetBoolean,
-        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean value[]), (c, vr, n, value))
-FORWARD(fmi2Status, fmi2SetString,
-        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String value[]), (c, vr, n, value))
-FORWARD(fmi2Status, fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate *state), (c, state))
-FORWARD(fmi2Status, fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (c, state))
-FORWARD(fmi2Status, fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate *state), (c, state))
-FORWARD(fmi2Status, fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t *size), (c, state, size))
-FORWARD(fmi2Status, fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size),
-        (c, state, bytes, size))
-FORWARD(fmi2Status, fmi2DeSerializeFMUstate,
-        (fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state), (c, bytes, size, state))
-FORWARD(fmi2Status, fmi2GetDirectionalDerivative,
-        (fmi2Component c, const fmi2ValueReference unknown[], size_t nUnknown, const fmi2ValueReference known[],
-         size_t nKnown, const fmi2Real dvKnown[], fmi2Real dvUnknown[]),
-        (c, unknown, nUnknown, known, nKnown, dvKnown, dvUnknown))
-FORWARD(fmi2Status, fmi2SetRealInputDerivatives,
-        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], const fmi2Real value[]),
-        (c, vr, n, order, value))
-FORWARD(fmi2Status, fmi2GetRealOutputDerivatives,
-        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], fmi2Real value[]),
-        (c, vr, n, order, value))
-FORWARD(fmi2Status, fmi2DoStep,
-        (fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
-         fmi2Boolean noSetFMUStatePriorToCurrentPoint),
-        (c, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint))
-FORWARD(fmi2Status, fmi2CancelStep, (fmi2Component c), (c))
-FORWARD(fmi2Status, fmi2GetStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Status *value), (c, s, value))
-FORWARD(fmi2Status, fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Real *value), (c, s, value))
-FORWARD(fmi2Status, fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Integer *value),
-        (c, s, value))
-FORWARD(fmi2Status, fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value),
-        (c, s, value))
-FORWARD(fmi2Status, fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2String *value),
-        (c, s, value))
+EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]) {
+    GUARDED(fmi2SetDebugLogging, PHASES_ANY_BUT_FATAL)
+    if (n > 0 && categories == NULL) REFUSE(in, "fmi2SetDebugLogging", "categories is NULL with nCategories = %zu", n);
+    for (size_t i = 0; i < n; i++)
+        if (categories[i] == NULL) REFUSE(in, "fmi2SetDebugLogging", "categories[%zu] is NULL", i);
+    return CALL(fmi2SetDebugLogging, (fmi2Component, fmi2Boolean, size_t, const fmi2String[]), on, n, categories);
+}
+
+EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                                      fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
+    GUARDED(fmi2SetupExperiment, PHASE_INSTANTIATED)
+    if (!isfinite(startTime)) REFUSE(in, "fmi2SetupExperiment", "startTime = %g is not finite", startTime);
+    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime))
+        REFUSE(in, "fmi2SetupExperiment", "stopTime = %g is not a finite time >= startTime = %g", stopTime, startTime);
+    fmi2Status status =
+        CALL(fmi2SetupExperiment, (fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real),
+             toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
+    if (status <= fmi2Warning) {
+        in->time_known = 1;
+        in->next_time = startTime;
+        in->stop_defined = stopTimeDefined != 0;
+        in->stop_time = stopTime;
+    }
+    return settle(in, status, 0);
+}
+
+EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    GUARDED(fmi2EnterInitializationMode, PHASE_INSTANTIATED)
+    return settle(in, ((fmi2Status(*)(fmi2Component))real_fmi2EnterInitializationMode)(in->real),
+                  PHASE_INITIALIZATION);
+}
+
+EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    GUARDED(fmi2ExitInitializationMode, PHASE_INITIALIZATION)
+    return settle(in, ((fmi2Status(*)(fmi2Component))real_fmi2ExitInitializationMode)(in->real), PHASE_STEP_COMPLETE);
+}
+
+EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
+    GUARDED(fmi2Terminate, PHASE_STEP_COMPLETE | PHASE_STEP_FAILED)
+    return settle(in, ((fmi2Status(*)(fmi2Component))real_fmi2Terminate)(in->real), PHASE_TERMINATED);
+}
+
+EXPORT fmi2Status fmi2Reset(fmi2Component c) {
+    GUARDED(fmi2Reset, PHASES_ANY_BUT_FATAL)
+    fmi2Status status = ((fmi2Status(*)(fmi2Component))real_fmi2Reset)(in->real);
+    if (status <= fmi2Warning) in->time_known = in->stop_defined = 0;
+    return settle(in, status, PHASE_INSTANTIATED);
+}
+
+/* fmi2Get<Type> and fmi2Set<Type>: the state, the arrays, every value reference (and for a set,
+ * whether each variable may be set now); nothing is forwarded for nvr = 0. */
+#define GET_SET(name, T, letter, phases, setting)                                                                  \
+    EXPORT fmi2Status name(fmi2Component c, const fmi2ValueReference vr[], size_t n, T value[]) {                  \
+        GUARDED(name, phases)                                                                                      \
+        if (!references_ok(in, #name, vr, n, value, letter, setting)) return fmi2Error;                            \
+        if (n == 0) return fmi2OK;                                                                                 \
+        return settle(in, CALL(name, (fmi2Component, const fmi2ValueReference[], size_t, T[]), vr, n, value), 0); \
+    }
+GET_SET(fmi2GetReal, fmi2Real, 'R', PHASES_GET, 0)
+GET_SET(fmi2GetInteger, fmi2Integer, 'I', PHASES_GET, 0)
+GET_SET(fmi2GetBoolean, fmi2Boolean, 'B', PHASES_GET, 0)
+GET_SET(fmi2GetString, fmi2String, 'S', PHASES_GET, 0)
+GET_SET(fmi2SetReal, const fmi2Real, 'R', PHASES_SET, 1)
+GET_SET(fmi2SetInteger, const fmi2Integer, 'I', PHASES_SET, 1)
+GET_SET(fmi2SetBoolean, const fmi2Boolean, 'B', PHASES_SET, 1)
+GET_SET(fmi2SetString, const fmi2String, 'S', PHASES_SET, 1)
+
+EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    GUARDED(fmi2GetFMUstate, PHASES_ANY_BUT_FATAL)
+    if (state == NULL) REFUSE(in, "fmi2GetFMUstate", "FMUstate (the fmi2FMUstate* to fill) is NULL");
+    return settle(in, CALL(fmi2GetFMUstate, (fmi2Component, fmi2FMUstate *), state), 0);
+}
+
+/* A state restored leaves the error state for the state the instance had before it. */
+static fmi2Status restored(GuardedInstance *in, fmi2Status status) {
+    if (status <= fmi2Warning && in->phase == PHASE_ERROR) in->phase = in->phase_before_error;
+    if (status <= fmi2Warning) in->time_known = 0; /* the state's time: the next step says it */
+    return settle(in, status, 0);
+}
+
+EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
+    GUARDED(fmi2SetFMUstate, PHASES_ANY_BUT_FATAL)
+    if (state == NULL) REFUSE(in, "fmi2SetFMUstate", "FMUstate is NULL");
+    return restored(in, CALL(fmi2SetFMUstate, (fmi2Component, fmi2FMUstate), state));
+}
+
+EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    GUARDED(fmi2FreeFMUstate, PHASES_ANY_BUT_FATAL)
+    if (state == NULL) REFUSE(in, "fmi2FreeFMUstate", "FMUstate (the fmi2FMUstate* to free) is NULL");
+    if (*state == NULL) return fmi2OK; /* nothing to free */
+    return settle(in, CALL(fmi2FreeFMUstate, (fmi2Component, fmi2FMUstate *), state), 0);
+}
+
+EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size) {
+    GUARDED(fmi2SerializedFMUstateSize, PHASES_ANY_BUT_FATAL)
+    if (state == NULL || size == NULL)
+        REFUSE(in, "fmi2SerializedFMUstateSize", "%s is NULL", state == NULL ? "FMUstate" : "size");
+    return settle(in, CALL(fmi2SerializedFMUstateSize, (fmi2Component, fmi2FMUstate, size_t *), state, size), 0);
+}
+
+EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size) {
+    GUARDED(fmi2SerializeFMUstate, PHASES_ANY_BUT_FATAL)
+    if (state == NULL) REFUSE(in, "fmi2SerializeFMUstate", "FMUstate is NULL");
+    if (bytes == NULL && size > 0) REFUSE(in, "fmi2SerializeFMUstate", "serializedState is NULL with size = %zu", size);
+    return settle(in, CALL(fmi2SerializeFMUstate, (fmi2Component, fmi2FMUstate, fmi2Byte[], size_t), state, bytes, size),
+                  0);
+}
+
+EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state) {
+    GUARDED(fmi2DeSerializeFMUstate, PHASES_ANY_BUT_FATAL)
+    if (bytes == NULL && size > 0)
+        REFUSE(in, "fmi2DeSerializeFMUstate", "serializedState is NULL with size = %zu", size);
+    if (state == NULL) REFUSE(in, "fmi2DeSerializeFMUstate", "FMUstate (the fmi2FMUstate* to fill) is NULL");
+    return settle(in,
+                  CALL(fmi2DeSerializeFMUstate, (fmi2Component, const fmi2Byte[], size_t, fmi2FMUstate *), bytes, size,
+                       state),
+                  0);
+}
+
+/* The functions pythonfmu does not support (it says so and returns fmi2Error or fmi2Discard):
+ * the state is checked, the answer changes nothing. */
+EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference unknown[], size_t nUnknown,
+                                               const fmi2ValueReference known[], size_t nKnown,
+                                               const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
+    GUARDED(fmi2GetDirectionalDerivative, PHASES_GET)
+    return CALL(fmi2GetDirectionalDerivative,
+                (fmi2Component, const fmi2ValueReference[], size_t, const fmi2ValueReference[], size_t,
+                 const fmi2Real[], fmi2Real[]),
+                unknown, nUnknown, known, nKnown, dvKnown, dvUnknown);
+}
+
+EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                                              const fmi2Integer order[], const fmi2Real value[]) {
+    GUARDED(fmi2SetRealInputDerivatives, PHASES_SET)
+    return CALL(fmi2SetRealInputDerivatives,
+                (fmi2Component, const fmi2ValueReference[], size_t, const fmi2Integer[], const fmi2Real[]), vr, n,
+                order, value);
+}
+
+EXPORT fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                                               const fmi2Integer order[], fmi2Real value[]) {
+    GUARDED(fmi2GetRealOutputDerivatives, PHASES_OUTPUT_DERIVATIVES)
+    return CALL(fmi2GetRealOutputDerivatives,
+                (fmi2Component, const fmi2ValueReference[], size_t, const fmi2Integer[], fmi2Real[]), vr, n, order,
+                value);
+}
+
+EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
+                             fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
+    GUARDED(fmi2DoStep, PHASE_STEP_COMPLETE)
+    double t = currentCommunicationPoint, h = communicationStepSize;
+    if (!isfinite(t)) REFUSE(in, "fmi2DoStep", "currentCommunicationPoint = %g is not finite", t);
+    if (!(isfinite(h) && h > 0))
+        REFUSE(in, "fmi2DoStep", "communicationStepSize = %g: a step must be finite and > 0", h);
+    if (in->model.max_step > 0 && h > in->model.max_step)
+        REFUSE(in, "fmi2DoStep",
+               "communicationStepSize = %g s is longer than this FMU's longest step, %g s (10^4 DefaultExperiment "
+               "steps: the FMU computes every internal sample of a step)",
+               h, in->model.max_step);
+    if (!isfinite(t + h)) REFUSE(in, "fmi2DoStep", "currentCommunicationPoint + communicationStepSize is not finite");
+    if (in->time_known && !same_time(t, in->next_time))
+        REFUSE(in, "fmi2DoStep",
+               "currentCommunicationPoint = %.17g s, but the instance is at %.17g s (a step starts where the last one "
+               "ended; fmi2SetFMUstate moves the time)",
+               t, in->next_time);
+    if (in->stop_defined && t + h > in->stop_time && !same_time(t + h, in->stop_time))
+        REFUSE(in, "fmi2DoStep", "the step [%.17g, %.17g] s ends after stopTime = %.17g s (fmi2SetupExperiment)", t,
+               t + h, in->stop_time);
+    fmi2Status status =
+        CALL(fmi2DoStep, (fmi2Component, fmi2Real, fmi2Real, fmi2Boolean), t, h, noSetFMUStatePriorToCurrentPoint);
+    if (status <= fmi2Warning) {
+        in->time_known = 1;
+        in->next_time = t + h;
+    }
+    return settle(in, status, status == fmi2Discard ? PHASE_STEP_FAILED : PHASE_STEP_COMPLETE);
+}
+
+EXPORT fmi2Status fmi2CancelStep(fmi2Component c) {
+    GUARDED(fmi2CancelStep, 0) /* no step is ever in progress: fmi2DoStep is synchronous */
+    return fmi2Error;
+}
+
+#define STATUS_INQUIRY(name, T)                                                                                    \
+    EXPORT fmi2Status name(fmi2Component c, const fmi2StatusKind s, T *value) {                                    \
+        GUARDED(name, PHASES_STATUS)                                                                               \
+        if (value == NULL) REFUSE(in, #name, "value (where to write the status) is NULL");                         \
+        return CALL(name, (fmi2Component, const fmi2StatusKind, T *), s, value);                                   \
+    }
+STATUS_INQUIRY(fmi2GetStatus, fmi2Status)
+STATUS_INQUIRY(fmi2GetRealStatus, fmi2Real)
+STATUS_INQUIRY(fmi2GetIntegerStatus, fmi2Integer)
+STATUS_INQUIRY(fmi2GetBooleanStatus, fmi2Boolean)
+STATUS_INQUIRY(fmi2GetStringStatus, fmi2String)
 
 /* Unload: pythonfmu's state released (see the top comment), then its library (Linux only:
  * Windows forbids unloading a DLL while one is being detached). */

@@ -94,6 +94,11 @@ static int library_path(char *path, size_t size) {
     return length > 0 && length < size;
 }
 
+static int is_directory(const char *path) {
+    DWORD attributes = GetFileAttributesA(path);
+    return attributes != INVALID_FILE_ATTRIBUTES && (attributes & FILE_ATTRIBUTE_DIRECTORY);
+}
+
 static int is_executable(const char *path) {
     DWORD attributes = GetFileAttributesA(path);
     return attributes != INVALID_FILE_ATTRIBUTES && !(attributes & FILE_ATTRIBUTE_DIRECTORY);
@@ -249,6 +254,11 @@ static int library_path(char *path, size_t size) {
         return 0;
     snprintf(path, size, "%s", resolved);
     return 1;
+}
+
+static int is_directory(const char *path) {
+    struct stat status;
+    return stat(path, &status) == 0 && S_ISDIR(status.st_mode);
 }
 
 static int is_executable(const char *path) {

@@ -28,7 +28,7 @@ from greyfmu.build import (
     slave_class,
 )
 from greyfmu.cli import main
-from greyfmu.dropin import BUILD_PYTHON, PYTHONFMU_RUNTIME, stable_guid
+from greyfmu.dropin import BUILD_PYTHON, GUARD, MAX_STEP_FACTOR, PYTHONFMU_RUNTIME, stable_guid
 from greyfmu.loader import PLATFORMS, loader_binary
 from testfmus import edited_copy
 
@@ -292,6 +292,27 @@ def test_the_guid_follows_the_model_description_and_every_embedded_source(built_
     assert stable_guid(root, dict(entries, **{BUILD_PYTHON: b"/elsewhere/python3\n"})) == root.get("guid")
     root.find("DefaultExperiment").set("stopTime", "99")
     assert stable_guid(root, entries) != root.get("guid")
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_the_guard_file_lists_the_guid_and_every_variable_as_the_model_description(built_fmus, name):
+    """resources/greyfmu_guard.txt (what the loader's guard checks calls against) agrees with
+    modelDescription.xml, with FMI 2.0's default initial where a variable states none; it is
+    left out of the GUID's hash (it holds the GUID)."""
+    with zipfile.ZipFile(built_fmus[name]) as archive:
+        lines = archive.read(GUARD).decode().splitlines()
+        entries = {entry: archive.read(entry) for entry in archive.namelist()}
+    md = read_model_description(str(built_fmus[name]))
+    assert lines[:2] == [f"guid {md.guid}", f"max_step {MAX_STEP_FACTOR * float(md.defaultExperiment.stepSize)!r}"]
+    letters = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
+    defaults = {"parameter": "exact", "input": "none"}  # FMI 2.0 §2.2.7; an input has no initial
+    root = ElementTree.fromstring(entries["modelDescription.xml"])
+    declared = {node.get("name"): node.get("initial") for node in root.iter("ScalarVariable")}
+    expected = [f"variable {v.valueReference} {letters[v.type]} {v.causality} {v.variability} "
+                f"{declared[v.name] or defaults.get(v.causality, 'calculated')} {v.name}" for v in md.modelVariables]
+    assert lines[2:] == expected
+    assert {line.split()[5] for line in lines[2:]} <= {"exact", "calculated", "none"}
+    assert stable_guid(root, dict(entries, **{GUARD: b"guid other\n"})) == md.guid
 
 
 @pytest.mark.parametrize("name", ["PID", "OSMMGPC", "SteamHeader"])

@@ -202,3 +202,26 @@ def test_a_windows_python_without_numpy_is_refused_with_one_message(windows_pyth
     completed = run_wine(windows_host, tmp_path / "out.csv", [fmu], [], GREYFMU_PYTHON=windows_path(bare / "python.exe"))
     assert completed.returncode == 1
     assert "cannot import numpy" in completed.stderr and "fmi2Instantiate of instance 0 returned NULL" in completed.stderr
+
+
+def test_the_guard_answers_a_hostile_windows_host_as_on_linux(windows_python, built_fmus, tmp_path):
+    """tests/hostile_host.c built with mingw-w64 and run under Wine on PID: every case (resource
+    URIs with a drive letter, file:/Z:/..., percent-encoded, a plain Z:\\ path included) gives
+    the same status and the same log lines as on Linux."""
+    from test_hostile_host import HOST_SOURCE as HOSTILE_SOURCE
+    from test_hostile_host import host_arguments, parse_host_output, run_hostile_host
+
+    host = tmp_path / "hostile_host.exe"
+    subprocess.run([MINGW, "-O1", "-Wall", "-Werror", "-o", str(host), str(HOSTILE_SOURCE)], check=True)
+    arguments, fixed = host_arguments(built_fmus["PID"], tmp_path / "PID")
+    completed = subprocess.run([WINE, str(host), windows_path(tmp_path / "PID"), *arguments], capture_output=True,
+                               text=True, timeout=600, env=environment(WINEPREFIX=str(PREFIX), WINEDEBUG="-all",
+                                                                       GREYFMU_PYTHON=windows_path(windows_python)))
+    windows = parse_host_output(completed, fixed)
+    linux_host = tmp_path / "hostile_host"
+    subprocess.run(["cc", "-O1", "-Wall", "-Werror", "-o", str(linux_host), str(HOSTILE_SOURCE), "-ldl"], check=True)
+    linux = run_hostile_host(linux_host, built_fmus["PID"], tmp_path / "PID-linux")
+    assert len(windows.results) == 66
+    assert windows.results == linux.results
+    assert windows.logs == linux.logs
+    assert windows.stderr.splitlines() == linux.stderr.splitlines()

@@ -1,0 +1,433 @@
+/* The guard of the greyfmu loader (fmi2_loader.c): a host that misuses the FMU gets fmi2Error
+ * and one log line, never a crash.
+ *
+ * fmi2Instantiate returns a `GuardedInstance` as the fmi2Component: it holds pythonfmu's
+ * component, the instance's state in the FMI 2.0 Co-Simulation state machine (FMI 2.0 §4.2.4),
+ * a copy of the host's callbacks and the FMU's variables (resources/greyfmu_guard.txt, written by
+ * greyfmu.dropin.guard_text: the GUID, the longest step accepted, and one line per variable with
+ * its value reference, type, causality, variability and initial).  Every exported function checks
+ * its call against them before forwarding to pythonfmu: the state, NULL pointers (instance,
+ * arrays with n > 0, callbacks, logger), value references (unknown, or of another type), which
+ * variables may be set in the state (FMI 2.0 §4.2.4 Table, footnotes 1, 3 and 6), step sizes
+ * (finite, > 0, at most max_step, starting where the last step ended and ending by stopTime, as
+ * the Reference FMUs check) and, at instantiation, the GUID, the interface type
+ * (Co-Simulation only) and the resource location (every RFC 8089 form, normalised to the plain
+ * folder path pythonfmu uses).  A refused call is not forwarded; it returns fmi2Error after one
+ * line through the host's logger naming the function, the argument and the state, and the
+ * instance enters the error state, as after any fmi2Error (only get, reset, free, FMU states
+ * and debug logging are then allowed; fmi2Reset or fmi2SetFMUstate leave it).
+ *
+ * Every message reaches the host's logger as data: logger(env, name, status, category, "%s",
+ * text).  pythonfmu passes its messages as the format (`%s%n` in a message crashed hosts), so
+ * pythonfmu is given the guard's own callbacks, whose logger forwards that format verbatim as the
+ * "%s" argument.
+ */
+#ifndef GREYFMU_LOADER_GUARD_H
+#define GREYFMU_LOADER_GUARD_H
+
+#include <ctype.h>
+#include <math.h>
+
+#define GUARD_MAGIC 0x67726579u /* "grey": a live GuardedInstance */
+#define GUARD_FILE "greyfmu_guard.txt"
+
+typedef enum {
+    PHASE_INSTANTIATED = 1,
+    PHASE_INITIALIZATION = 2,
+    PHASE_STEP_COMPLETE = 4,
+    PHASE_STEP_FAILED = 8,
+    PHASE_STEP_CANCELED = 16,
+    PHASE_TERMINATED = 32,
+    PHASE_ERROR = 64,
+    PHASE_FATAL = 128
+} Phase;
+
+/* The states each function is allowed in (FMI 2.0 §4.2.4; stepInProgress never happens here:
+ * fmi2DoStep is synchronous). */
+#define PHASES_ANY_BUT_FATAL                                                                                       \
+    (PHASE_INSTANTIATED | PHASE_INITIALIZATION | PHASE_STEP_COMPLETE | PHASE_STEP_FAILED | PHASE_STEP_CANCELED |   \
+     PHASE_TERMINATED | PHASE_ERROR)
+#define PHASES_GET                                                                                                 \
+    (PHASE_INITIALIZATION | PHASE_STEP_COMPLETE | PHASE_STEP_FAILED | PHASE_STEP_CANCELED | PHASE_TERMINATED |     \
+     PHASE_ERROR)
+#define PHASES_SET (PHASE_INSTANTIATED | PHASE_INITIALIZATION | PHASE_STEP_COMPLETE)
+#define PHASES_STATUS (PHASE_STEP_COMPLETE | PHASE_STEP_FAILED | PHASE_TERMINATED)
+#define PHASES_OUTPUT_DERIVATIVES (PHASE_STEP_COMPLETE | PHASE_STEP_FAILED | PHASE_STEP_CANCELED | PHASE_TERMINATED | PHASE_ERROR)
+
+static const char *phase_name(Phase phase) {
+    switch (phase) {
+    case PHASE_INSTANTIATED: return "instantiated";
+    case PHASE_INITIALIZATION: return "initializationMode";
+    case PHASE_STEP_COMPLETE: return "stepComplete";
+    case PHASE_STEP_FAILED: return "stepFailed";
+    case PHASE_STEP_CANCELED: return "stepCanceled";
+    case PHASE_TERMINATED: return "terminated";
+    case PHASE_ERROR: return "error";
+    default: return "fatal";
+    }
+}
+
+/* The names of the states in `phases`, comma-separated. */
+static void phase_names(int phases, char *text, size_t size) {
+    text[0] = '\0';
+    for (int phase = PHASE_INSTANTIATED; phase <= PHASE_FATAL; phase <<= 1)
+        if (phases & phase) append(text, size, "%s%s", *text ? ", " : "", phase_name((Phase)phase));
+}
+
+typedef struct {
+    fmi2ValueReference vr;
+    char type;               /* R, I (Integer and Enumeration), B, S */
+    const char *causality;   /* parameter, calculatedParameter, input, output, local, independent */
+    const char *variability; /* constant, fixed, tunable, discrete, continuous */
+    const char *initial;     /* exact, approx, calculated, none */
+    const char *name;
+} GuardVariable;
+
+typedef struct {
+    char *text; /* the guard file, its lines cut into the strings below */
+    const char *guid;
+    double max_step; /* 0: no bound but finiteness */
+    GuardVariable *variables;
+    size_t count;
+} GuardModel;
+
+typedef struct {
+    unsigned magic;
+    fmi2Component real; /* pythonfmu's component */
+    Phase phase;
+    Phase phase_before_error;
+    char *name;
+    fmi2CallbackFunctions host;      /* the host's callbacks, copied */
+    fmi2CallbackFunctions forwarded; /* given to pythonfmu: guard_logger, componentEnvironment = this */
+    GuardModel model;
+    int time_known;   /* next_time is where the next step starts (unknown after a reset or a restored state) */
+    double next_time;
+    int stop_defined; /* fmi2SetupExperiment's stopTime: no step may end after it */
+    double stop_time;
+} GuardedInstance;
+
+/* Two communication times that are the same time up to rounding. */
+static int same_time(double a, double b) {
+    double scale = fabs(a) > fabs(b) ? fabs(a) : fabs(b);
+    return fabs(a - b) <= 1e-9 * (scale > 1 ? scale : 1);
+}
+
+static const char *type_name(char type) {
+    return type == 'R' ? "Real" : type == 'I' ? "Integer" : type == 'B' ? "Boolean" : "String";
+}
+
+/* ---- the model: resources/greyfmu_guard.txt ---- */
+
+static int compare_variables(const void *a, const void *b) {
+    const GuardVariable *x = a, *y = b;
+    if (x->type != y->type) return x->type < y->type ? -1 : 1;
+    return x->vr < y->vr ? -1 : x->vr > y->vr;
+}
+
+/* The next space-separated word of *cursor, NUL-terminated in place. */
+static char *next_word(char **cursor) {
+    char *word = *cursor;
+    while (*word == ' ') word++;
+    char *end = word + strcspn(word, " ");
+    if (*end) *end++ = '\0';
+    *cursor = end;
+    return word;
+}
+
+static void free_model(GuardModel *model) {
+    free(model->text);
+    free(model->variables);
+    memset(model, 0, sizeof *model);
+}
+
+/* Read folder/greyfmu_guard.txt into model; 0 with problem set if it is missing or malformed. */
+static int read_model(const char *folder, GuardModel *model, char *problem, size_t size) {
+    char path[PATH_MAX + 64];
+    snprintf(path, sizeof path, "%s%c%s", folder, SEPARATOR, GUARD_FILE);
+    memset(model, 0, sizeof *model);
+    if ((model->text = read_file(path)) == NULL) {
+        append(problem, size, "cannot read %s (the FMU is incomplete)", path);
+        return 0;
+    }
+    size_t lines = 1;
+    for (const char *c = model->text; *c; c++) lines += *c == '\n';
+    model->variables = calloc(lines, sizeof *model->variables);
+    char *line = model->text;
+    while (model->variables != NULL && *line) {
+        char *end = line + strcspn(line, "\r\n");
+        char *following = end + strspn(end, "\r\n");
+        *end = '\0';
+        char *cursor = line;
+        const char *key = next_word(&cursor);
+        if (strcmp(key, "guid") == 0) {
+            model->guid = next_word(&cursor);
+        } else if (strcmp(key, "max_step") == 0) {
+            model->max_step = strtod(next_word(&cursor), NULL);
+        } else if (strcmp(key, "variable") == 0) {
+            GuardVariable *v = &model->variables[model->count++];
+            v->vr = (fmi2ValueReference)strtoul(next_word(&cursor), NULL, 10);
+            v->type = *next_word(&cursor);
+            v->causality = next_word(&cursor);
+            v->variability = next_word(&cursor);
+            v->initial = next_word(&cursor);
+            v->name = cursor;
+        }
+        line = following;
+    }
+    if (model->variables == NULL || model->guid == NULL) {
+        append(problem, size, "%s has no GUID line (the FMU is damaged)", path);
+        free_model(model);
+        return 0;
+    }
+    qsort(model->variables, model->count, sizeof *model->variables, compare_variables);
+    return 1;
+}
+
+static const GuardVariable *find_variable(const GuardModel *model, char type, fmi2ValueReference vr) {
+    GuardVariable key = {.vr = vr, .type = type};
+    return bsearch(&key, model->variables, model->count, sizeof *model->variables, compare_variables);
+}
+
+/* The variable of any type with this value reference (to say what a wrong-typed one is). */
+static const GuardVariable *any_variable(const GuardModel *model, fmi2ValueReference vr) {
+    for (size_t i = 0; i < model->count; i++)
+        if (model->variables[i].vr == vr) return &model->variables[i];
+    return NULL;
+}
+
+/* ---- logging: text is data ---- */
+
+static const char *status_category(fmi2Status status) {
+    return status == fmi2Warning ? "logStatusWarning" : status == fmi2Fatal ? "logStatusFatal" : "logStatusError";
+}
+
+/* pythonfmu's logger: it passes each message as the format, with no arguments; the host
+ * receives it as the "%s" argument, never as a format. */
+static void guard_logger(fmi2ComponentEnvironment environment, fmi2String name, fmi2Status status,
+                         fmi2String category, fmi2String message, ...) {
+    const GuardedInstance *in = environment;
+    in->host.logger(in->host.componentEnvironment, name, status, category != NULL ? category : "", "%s",
+                    message != NULL ? message : "");
+}
+
+/* One line through the host's logger: "<function>: <text> (instance '<name>', state <state>)". */
+static void guard_say(const GuardedInstance *in, fmi2Status status, const char *function, const char *format, ...) {
+    char text[2048];
+    va_list args;
+    va_start(args, format);
+    vsnprintf(text, sizeof text, format, args);
+    va_end(args);
+    char line[2400];
+    snprintf(line, sizeof line, "%s: %s (instance '%s', state %s)", function, text, in->name, phase_name(in->phase));
+    in->host.logger(in->host.componentEnvironment, in->name, status, status_category(status), "%s", line);
+}
+
+static void enter_error(GuardedInstance *in) {
+    if (in->phase == PHASE_FATAL || in->phase == PHASE_ERROR) return;
+    in->phase_before_error = in->phase;
+    in->phase = PHASE_ERROR;
+}
+
+/* Refuse a call: one line, the error state, fmi2Error. */
+#define REFUSE(in, function, ...)                                                                                  \
+    do {                                                                                                           \
+        guard_say(in, fmi2Error, function, __VA_ARGS__);                                                           \
+        enter_error(in);                                                                                           \
+        return fmi2Error;                                                                                          \
+    } while (0)
+
+/* ---- the checks ---- */
+
+/* The GuardedInstance behind c; NULL (one line on stderr: there is no logger to use) if c is
+ * NULL or not a live instance of this FMU. */
+static GuardedInstance *guarded(fmi2Component c, const char *function) {
+    GuardedInstance *in = c;
+    if (in == NULL) {
+        fprintf(stderr, "greyfmu: %s: the instance (fmi2Component) is NULL\n", function);
+        return NULL;
+    }
+    if (in->magic != GUARD_MAGIC) {
+        fprintf(stderr, "greyfmu: %s: %p is not a live instance of this FMU (freed, or another FMU's)\n", function, c);
+        return NULL;
+    }
+    return in;
+}
+
+/* 1 if `function` is allowed in the instance's state; otherwise the refusal is logged. */
+static int allowed_in(GuardedInstance *in, const char *function, int phases) {
+    if (in->phase & phases) return 1;
+    char names[256];
+    phase_names(phases, names, sizeof names);
+    if (in->phase == PHASE_FATAL)
+        guard_say(in, fmi2Error, function, "not allowed: the instance returned fmi2Fatal, only fmi2FreeInstance is");
+    else if (phases == 0)
+        guard_say(in, fmi2Error, function, "not allowed: no step is ever in progress (fmi2DoStep is synchronous)");
+    else
+        guard_say(in, fmi2Error, function, "not allowed in this state (allowed in: %s)", names);
+    enter_error(in);
+    return 0;
+}
+
+/* Whether variable v may be set in `phase` (FMI 2.0 §4.2.4 Table, footnotes 1, 3 and 6); the
+ * reason it may not in `why`. */
+static int settable(const GuardVariable *v, Phase phase, char *why, size_t size) {
+    int input = strcmp(v->causality, "input") == 0;
+    if (strcmp(v->variability, "constant") == 0) {
+        snprintf(why, size, "is a constant: it cannot be set");
+        return 0;
+    }
+    if (phase == PHASE_INSTANTIATED && !(input || !strcmp(v->initial, "exact") || !strcmp(v->initial, "approx"))) {
+        snprintf(why, size, "is a %s %s with initial=%s: it cannot be set before initialisation", v->variability,
+                 v->causality, v->initial);
+        return 0;
+    }
+    if (phase == PHASE_INITIALIZATION && !(input || !strcmp(v->initial, "exact"))) {
+        snprintf(why, size, "is a %s %s with initial=%s: it cannot be set in initialisation mode", v->variability,
+                 v->causality, v->initial);
+        return 0;
+    }
+    if (phase == PHASE_STEP_COMPLETE &&
+        !(input || (!strcmp(v->causality, "parameter") && !strcmp(v->variability, "tunable")))) {
+        snprintf(why, size, "is a %s %s: after initialisation only inputs and tunable parameters can be set",
+                 v->variability, v->causality);
+        return 0;
+    }
+    return 1;
+}
+
+/* Check a get/set call's arrays and value references (type: R, I, B, S; setting: a set call). */
+static int references_ok(GuardedInstance *in, const char *function, const fmi2ValueReference vr[], size_t n,
+                         const void *values, char type, int setting) {
+    if (n > 0 && vr == NULL) {
+        guard_say(in, fmi2Error, function, "the value reference array vr is NULL with nvr = %zu", n);
+        enter_error(in);
+        return 0;
+    }
+    if (n > 0 && values == NULL) {
+        guard_say(in, fmi2Error, function, "the value array is NULL with nvr = %zu", n);
+        enter_error(in);
+        return 0;
+    }
+    for (size_t i = 0; i < n; i++) {
+        const GuardVariable *v = find_variable(&in->model, type, vr[i]);
+        char why[512] = "";
+        if (v == NULL) {
+            const GuardVariable *other = any_variable(&in->model, vr[i]);
+            if (other != NULL)
+                snprintf(why, sizeof why, "vr[%zu] = %u is %s, a %s variable, not of type %s", i, vr[i], other->name,
+                         type_name(other->type), type_name(type));
+            else
+                snprintf(why, sizeof why, "vr[%zu] = %u is not a value reference of this FMU", i, vr[i]);
+        } else if (setting && type == 'S' && ((const fmi2String *)values)[i] == NULL) {
+            snprintf(why, sizeof why, "value[%zu] (for %s) is NULL", i, v->name);
+        } else if (setting) {
+            char reason[400];
+            if (!settable(v, in->phase, reason, sizeof reason))
+                snprintf(why, sizeof why, "vr[%zu] = %u: %s %s", i, vr[i], v->name, reason);
+        }
+        if (*why) {
+            guard_say(in, fmi2Error, function, "%s", why);
+            enter_error(in);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* The state after a forwarded call returned `status` (`next` when it succeeded; 0: unchanged). */
+static fmi2Status settle(GuardedInstance *in, fmi2Status status, int next) {
+    if (status == fmi2Error) enter_error(in);
+    else if (status == fmi2Fatal) in->phase = PHASE_FATAL;
+    else if (status <= fmi2Warning && next) in->phase = (Phase)next;
+    return status;
+}
+
+/* ---- the resource location ---- */
+
+static int hex_value(char c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    c = (char)tolower((unsigned char)c);
+    return c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1;
+}
+
+/* The folder of a file URI's path part (percent-decoded); 0 with problem set if malformed. */
+static int decode_path(const char *encoded, char *folder, size_t size, char *problem, size_t psize) {
+    size_t length = 0;
+    for (const char *c = encoded; *c; c++) {
+        char byte = *c;
+        if (byte == '%') {
+            int high = hex_value(c[1]), low = high < 0 ? -1 : hex_value(c[2]);
+            if (low < 0 || (high == 0 && low == 0)) {
+                append(problem, psize, "has '%.3s', which is not a valid percent-encoded byte", c);
+                return 0;
+            }
+            byte = (char)(high * 16 + low);
+            c += 2;
+        }
+        if (length + 1 >= size) {
+            append(problem, psize, "is too long");
+            return 0;
+        }
+        folder[length++] = byte;
+    }
+    folder[length] = '\0';
+#ifdef _WIN32
+    /* /C:/path -> C:/path */
+    if (folder[0] == '/' && isalpha((unsigned char)folder[1]) && folder[2] == ':') memmove(folder, folder + 1, length);
+#endif
+    return 1;
+}
+
+static int has_drive(const char *path) { return isalpha((unsigned char)path[0]) && path[1] == ':'; }
+
+/* The resources folder a fmuResourceLocation names, as the plain path pythonfmu uses:
+ * file:/path, file:///path, file://localhost/path (percent-encoded), or a plain path; NULL or
+ * empty: the FMU's own resources folder (*fallback set).  0 with problem set otherwise. */
+static int resource_folder(const char *location, const char *root, char *folder, size_t size, int *fallback,
+                           char *problem, size_t psize) {
+    *fallback = location == NULL || *location == '\0';
+    if (*fallback) {
+        snprintf(folder, size, "%s%cresources", root, SEPARATOR);
+    } else if (strncmp(location, "file:", 5) == 0 || strncmp(location, "FILE:", 5) == 0) {
+        const char *path = location + 5;
+        if (strncmp(path, "//", 2) == 0) {
+            const char *host = path + 2;
+            size_t host_length = strcspn(host, "/");
+            if (host_length > 0 && !(host_length == 9 && strncmp(host, "localhost", 9) == 0)) {
+                append(problem, psize, "names the host '%.*s': only local files (file:///path) are supported",
+                       (int)host_length, host);
+                return 0;
+            }
+            path = host + host_length;
+        }
+        if (path[0] != '/' && !has_drive(path)) {
+            append(problem, psize, "is not an absolute file URI (file:///path)");
+            return 0;
+        }
+        if (!decode_path(path, folder, size, problem, psize)) return 0;
+    } else {
+        size_t scheme = strspn(location, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789+.-");
+        if (scheme > 1 && location[scheme] == ':') {
+            append(problem, psize, "is a '%.*s:' URI: only file URIs and paths are supported", (int)scheme, location);
+            return 0;
+        }
+        snprintf(folder, size, "%s", location);
+    }
+    size_t length = strlen(folder);
+    while (length > 1 && (folder[length - 1] == '/' || folder[length - 1] == '\\')) folder[--length] = '\0';
+    if (!is_directory(folder)) {
+        append(problem, psize, "is the folder %s, which does not exist", folder);
+        return 0;
+    }
+    char module[PATH_MAX + 64];
+    snprintf(module, sizeof module, "%s%cslavemodule.txt", folder, SEPARATOR);
+    FILE *file = fopen(module, "rb");
+    if (file == NULL) {
+        append(problem, psize, "is the folder %s, which has no slavemodule.txt: not this FMU's resources", folder);
+        return 0;
+    }
+    fclose(file);
+    return 1;
+}
+
+#endif
