@@ -186,3 +186,17 @@ def test_least_fuel_allocation_leaves_no_room_for_the_papers_saving():
 
 def plant_pressures(p, q, valves):
     return SteamHeader(p).equilibrium(q, np.asarray(valves))[9:11]
+
+
+def test_equilibrium_is_at_rest_away_from_the_design_point():
+    """SteamHeader.equilibrium is a steady state of SteamHeader.derivative for any firing and valves, also where the
+    segment pressures differ: B2 sits between the segments, so at rest its flow G_s (P_b2 − (P1 + P2)/2) = w2 enters
+    segment 1 as 0.5 G_s (P_b2 − P1) = w2/2 + 0.25 G_s (P2 − P1) — the 0.25 G_s (P2 − P1) term the balance of
+    the equilibrium missed before (its pressures were off by up to 0.041 MPa in these cases; exact only for P1 = P2)."""
+    plant = SteamHeader(HeaderParameters())
+    for u, v in (([1.0, 0.5, 0.8], [0.7, 0.3]), ([0.4, 1.1, 0.6], [0.35, 0.65]), ([0.75, 0.75, 0.75], [0.5, 0.5])):
+        u, v = np.asarray(u), np.asarray(v)
+        x = plant.equilibrium(u, v)
+        assert np.max(np.abs(plant.derivative(x, u, v))) < 1e-9, (u, v)
+    x = plant.equilibrium(np.array([1.0, 0.5, 0.8]), np.array([0.7, 0.3]))
+    assert abs(x[9] - x[10]) > 0.01  # the case where the term matters
