@@ -114,13 +114,15 @@ def table2_seeds(built_fmus, tmp_path_factory):
 
 
 def test_table2_ordering_depends_on_the_seed_and_mfrls_margin_is_small(table2_seeds):
-    """Table 2 over PRBS seed pairs (2s+1, 2s+2), s = 0 … 3: local < global always, but MFRLS < local < global on
+    """Table 2 over PRBS seed pairs (2s+1, 2s+2), s = 0 … 7: local < global (on at least 90 % of the 40 pairs of
+    GREYFMU_SEEDS=full: 38 (h1), 37 (h2)), but MFRLS < local < global on
     both outputs for only some pairs (8 of 20 over the full study), with margins of −1.3 … +2.8 % (s < 20) and
     −1.9 … +4.1 % (fresh s = 20 … 39) against the paper's 26 %/38 % — the same for the literal ramp of (41) (14 of 20)."""
     for variant in ("continuous ramp (scenario)", "literal ramp of (41)"):
         rows = table2_seeds[variant]
         counts = table2_orderings(rows)
-        assert counts["local < global (h1)"] == counts["local < global (h2)"] == len(rows), variant
+        # local < global on every pair of the default subset; 38 and 37 of the 40 pairs of GREYFMU_SEEDS=full
+        assert min(counts["local < global (h1)"], counts["local < global (h2)"]) >= 0.9 * len(rows), variant
         assert 0 < counts["MFRLS < local < global (h1 and h2)"] < len(rows), variant  # seed-dependent
         assert all(abs(mfrls_margin(r, j)) < 5.0 for r in rows for j in (0, 1)), variant  # never the paper's 26 %
     continuous, literal = table2_seeds["continuous ramp (scenario)"][:4], table2_seeds["literal ramp of (41)"]
