@@ -178,6 +178,109 @@ def estimation_study(folder: Path, seeds: range = range(5)) -> list[str]:
     return lines + [""]
 
 
+# --- issue 31 ---------------------------------------------------------------------------------------------
+
+FRESH_SEEDS = range(20, 40)
+"""Fresh PRBS seed pairs (2s + 1, 2s + 2) for the Table 2 margins (s = 0 … 19 are the doc's first study)."""
+CHANGE_WINDOW = 50
+"""Steps after a PRBS switch (u1 or u2 jumps between 0.45 and 1.0) counted as "a large input change" (§5.1)."""
+EFFICIENCY_FORMS = {"(31) as printed (default)": 1, "unit-consistent gain form": 0}
+"""controller.efficiency of the scheduling study."""
+
+
+def switching(run: np.ndarray) -> tuple[int, list[tuple[float, int]], dict[int, float]]:
+    """Group switches after the first sample (count, (time, new group)) and each group's share of 2000–4500 s."""
+    t, group = run["time"], run["controller.active_group"]
+    later = np.flatnonzero(np.diff(group) != 0)
+    later = later[t[later + 1] > 10.0]  # the first sample's choice is not a switch
+    window = t >= 2000
+    return len(later), [(float(t[i + 1]), int(group[i + 1])) for i in later], \
+        {g: float(np.mean(group[window] == g)) for g in (1, 2, 3)}
+
+
+def header_metrics(run: np.ndarray) -> list[tuple[float, float]]:
+    """(largest deviation MPa, settling s) of P_m2, P_m4 after the first step, then after the second."""
+    return [deviation_metrics(run["time"], run[y], start, end) for start, end in STEPS for y in ("header.y1", "header.y2")]
+
+
+def scheduling_study(folder: Path, seeds: range = SEEDS) -> list[str]:
+    """Fig. 5(d) and the transient claim under both forms of (31): seed 0 in detail, then the switch count over seeds."""
+    lines = ["", "## Fig. 5(d): scheduling under both forms of (31) (identification seed 0; fixed pairs for reference)", "",
+             "| control | switches | switch times → group | share of 2000–4500 s (1,2)/(1,3)/(2,3) | fuel kg | "
+             "P_m2 dev/settle 1st | P_m4 dev/settle 1st | P_m2 dev/settle 2nd | P_m4 dev/settle 2nd |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    names = {1: "(1,2)", 2: "(1,3)", 3: "(2,3)"}
+    cases = {f"OSMM-GPC, {label}": {"controller.efficiency": form} for label, form in EFFICIENCY_FORMS.items()}
+    cases.update({LABELS[n]: {"controller.group": GROUP[n]} for n in ("gpc_12", "gpc_13")})
+    for label, values in cases.items():
+        run = run_with(HEADER_SCENARIO, values, folder, stop_time=4500)
+        count, times, share = switching(run)
+        events = ", ".join(f"{t:.0f} → {names[g]}" for t, g in times[:6]) + (" …" if len(times) > 6 else "")
+        cells = " | ".join(f"{d:.3f} MPa / {s:.0f} s" for d, s in header_metrics(run))
+        lines.append(f"| {label} | {count} | {events or '—'} | {share[1]:.2f}/{share[2]:.2f}/{share[3]:.2f} | "
+                     f"{window_fuel(run):.0f} | {cells} |")
+    lines += ["", f"Over identification seeds {seeds.start} … {seeds.stop - 1}, switches after the first sample, and share of "
+              "2000–4500 s with boiler 1 in the group:", "", "| form | switches: median [min … max] | exactly one switch | "
+              "boiler 1 throughout | P_m2 deviation 1st step, MPa: median [min … max] |", "|---|---|---|---|---|"]
+    for label, form in EFFICIENCY_FORMS.items():
+        runs = [run_with(HEADER_SCENARIO, {"controller.efficiency": form, "controller.identification_seed": s}, folder,
+                         stop_time=4500) for s in seeds]
+        counts = [switching(r)[0] for r in runs]
+        b1 = [switching(r)[2][1] + switching(r)[2][2] for r in runs]
+        dev = [header_metrics(r)[0][0] for r in runs]
+        lines.append(f"| {label} | {np.median(counts):.0f} [{min(counts)} … {max(counts)}] | {sum(c == 1 for c in counts)} of "
+                     f"{len(runs)} | {sum(x == 1.0 for x in b1)} of {len(runs)} | {np.median(dev):.3f} [{min(dev):.3f} … {max(dev):.3f}] |")
+    return lines + [""]
+
+
+def change_windows(run: np.ndarray) -> np.ndarray:
+    """True for the CHANGE_WINDOW steps after either PRBS input switches level."""
+    switched = np.zeros(len(run), dtype=bool)
+    for u in ("u1.y", "u2.y"):
+        switched[1:] |= np.diff(run[u]) != 0
+    near = np.zeros(len(run), dtype=bool)
+    for i in np.flatnonzero(switched):
+        near[i : i + CHANGE_WINDOW] = True
+    return near
+
+
+def estimation_errors(seed: int, folder: Path) -> dict[str, tuple[float, ...]]:
+    """Per estimator: MAE of h1, h2 over the run, then over the windows after a large input change and outside them;
+    "frozen" is the TS model without on-line estimation (C(0) = 1e-12 I on the global-FRLS instance: no update moves it)."""
+    result = {}
+    for label, values in (("online", {}), ("frozen", {"global_frls.omega": 1e-12})):
+        run = run_with(MFRLS_SCENARIO, {"u1.seed": 2 * seed + 1, "u2.seed": 2 * seed + 2, **values}, folder, stop_time=1500)
+        near = change_windows(run)
+        for name in (("global_frls", "local_frls", "mfrls") if label == "online" else ("global_frls",)):
+            key = "frozen" if label == "frozen" else name
+            # y_hat recorded at row k + 1 is the prediction of the level read at row k (the FMU has no feedthrough)
+            errors = [np.abs(run[f"plant.h{j}"][1:-1] - run[f"{name}.y_hat{j}"][2:]) for j in (1, 2)]
+            result[key] = tuple(float(np.mean(e)) for e in errors) + tuple(
+                float(np.mean(e[part[1:-1]])) for part in (near, ~near) for e in errors)
+    return result
+
+
+def estimation_claims_study(folder: Path, seeds: range = SEEDS) -> list[str]:
+    """§5.1: the TS model without on-line estimation, MFRLS under large input changes, and the fresh seed pairs."""
+    rows = [estimation_errors(s, folder) for s in seeds]
+    lines = ["", f"## §5.1 without on-line estimation and under large input changes (PRBS seed pairs s = {seeds.start} … "
+             f"{seeds.stop - 1}; window {CHANGE_WINDOW} steps after a switch)", "",
+             "| model | MAE h1 | MAE h2 | after a change h1 | after a change h2 | elsewhere h1 | elsewhere h2 |", "|---|---|---|---|---|---|---|"]
+    for key, label in (("frozen", "TS model, no on-line estimation"), ("global_frls", "global FRLS"), ("local_frls", "local FRLS"),
+                       ("mfrls", "MFRLS")):
+        lines.append(f"| {label} | " + " | ".join(f"{np.median([r[key][i] for r in rows]):.4f}" for i in range(6)) + " |")
+    for i, part in ((2, "after a change h1"), (3, "after a change h2"), (4, "elsewhere h1"), (5, "elsewhere h2")):
+        margins = [100 * (r["local_frls"][i] - r["mfrls"][i]) / r["local_frls"][i] for r in rows]
+        lines.append(f"\nMFRLS margin over local FRLS, {part}: median {np.median(margins):+.1f} % "
+                     f"[{min(margins):+.1f} … {max(margins):+.1f}], MFRLS better in {sum(m > 0 for m in margins)} of {len(rows)}")
+    fresh = [table2_mae({}, s, folder) for s in FRESH_SEEDS]
+    lines += ["", f"Fresh seed pairs s = {FRESH_SEEDS.start} … {FRESH_SEEDS.stop - 1}: Table 2's ordering in "
+              f"{table2_orderings(fresh)['MFRLS < local < global (h1 and h2)']} of {len(fresh)}; MFRLS margin over local h1 "
+              + ", h2 ".join(f"median {np.median(m):+.1f} % [{min(m):+.1f} … {max(m):+.1f}], positive in {sum(x > 0 for x in m)}"
+                             for m in ([mfrls_margin(r, j) for r in fresh] for j in (0, 1))), ""]
+    return lines
+
+
 OPERATING_POINTS = (((0.5, 0.5), 50.0), ((0.7, 0.5), 1450.0), ((0.7, 0.35), 1000.0))
 """Valve openings of Table 3's window and how long each holds in 2000–4500 s (steps at 2050 s and 3500 s)."""
 EFFICIENCY_VARIANTS = {"ours (η_max,2 = 0.88)": 0.88, "η_max,2 = 0.90": 0.90, "η_max,2 = 0.92": 0.92, "η_max,2 = 0.96": 0.96,
@@ -290,6 +393,8 @@ def main() -> None:
         lines += table2_study(folder)
         lines += table3_study(folder)
         lines += estimation_study(folder)
+        lines += scheduling_study(folder)
+        lines += estimation_claims_study(folder)
     TABLES.write_text("\n".join(lines) + "\n")
 
     fig, axes = plt.subplots(4, 1, figsize=(9, 10), sharex=True)

@@ -225,6 +225,80 @@ def horizon_tables(folder: Path) -> list[str]:
     return lines + [""]
 
 
+# --- issue 31: the reference trajectory, X_p in 0.5 … 0.8, the horizon-overlap rule --------------------
+
+REFERENCE_TIME_CONSTANTS = [0.0, 20.0, 40.0, 80.0, 100.0, 150.0, 200.0, 400.0]
+"""T_ref values of the Fig. 5 study (0 = none); the paper gives none, its Fig. 5 is lost."""
+WEIGHTINGS = [0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0]
+"""X_p grid of the "fix X_p in advance at 0.5 … 0.8" study."""
+WEIGHTING_CASES = [("nominal", NOMINAL, 0.0, 1.2), ("nominal", NOMINAL, 0.0, 1.5), ("nominal", NOMINAL, 0.0, 2.0),
+                   ("nominal", NOMINAL, 0.0, 3.0), ("NMP T4 = 60 s", NMP, 60.0, 2.0), ("NMP T4 = 60 s", NMP, 60.0, 4.0)]
+"""(process, scenario, T4, X_k) of the X_p study."""
+OVERLAP_HORIZONS = [6, 8, 10, 12, 13, 15, 17, 20, 24, 30]
+"""Horizons N at T = 40 s with the model fixed (T0 = 200 s): N·T = 240 … 1200 s against T_r = 518 s."""
+
+
+def sampled_loop(tuning: dict, T4: float = 0.0) -> np.ndarray:
+    """The scenario's loop (setpoint 1 at 40 s, load −0.2 at 2500 s, master step 2 s) without the FMUs: the controller
+    samples every T, its output reaches the plant one master step later, as in ``cosim.simulate`` (equal to the
+    master's run to the last bit for the nominal tuning, tested).  For tunings the FMU does not expose (``N``)."""
+    controller, plant = SOPDTPredictive(**{**START, **tuning}), ThirdOrderPlant(T4=T4)
+    steps = int(round(STOP_TIME / MASTER_STEP))
+    result = np.zeros(steps + 1, dtype=[("time", float), ("plant.y", float), ("setpoint.y", float)])
+    result["time"] = np.arange(steps + 1) * MASTER_STEP
+    result["setpoint.y"] = (result["time"] >= SETPOINT_TIME).astype(float)
+    applied = 0.0
+    per_sample = int(round(controller.Ts / MASTER_STEP))
+    for k in range(steps):
+        t = result["time"][k]
+        new = controller.step(result["setpoint.y"][k], result["plant.y"][k]) if k % per_sample == 0 else None
+        result["plant.y"][k + 1] = plant.advance(t, MASTER_STEP, applied, -0.2 if t >= LOAD_TIME else 0.0)
+        applied = applied if new is None else new
+    return result
+
+
+def metric_cells(rho: float, m: dict) -> str:
+    return (f"{rho:.4f} | {'yes' if rho < 1 else '**no**'} | {fmt(m['IAE'])} | {fmt(m['overshoot'])} | "
+            f"{fmt(m['rise_time'], 0)} | {fmt(m['settling_time'], 0)} | {fmt(m['load_IAE'])} |")
+
+
+def best_weighting(scenario: Path, T4: float, X_k: float, folder: Path) -> tuple[float, dict[float, float]]:
+    """The X_p of ``WEIGHTINGS`` with the smallest setpoint IAE among the stable loops, and every stable IAE (master runs)."""
+    iae = {X_p: loop_metrics(run(scenario, {"controller.X_k": X_k, "controller.X_p": X_p}, folder))["IAE"]
+           for X_p in WEIGHTINGS if spectral_radius({"X_k": X_k, "X_p": X_p}, T4) < 1.0}
+    return min(iae, key=iae.get), iae
+
+
+def issue31_tables(folder: Path) -> list[str]:
+    """Fig. 5's T_ref, the X_p range 0.5 … 0.8 against X_k and the process, and the horizon-overlap rule."""
+    header = "| ρ | stable | IAE (setpoint) | overshoot % | rise time s | settling time s (±2 %) | IAE (load) |"
+    rule = "|---|---|---|---|---|---|---|"
+    lines = ["### Fig. 5: the reference trajectory's impact against T_ref (master runs; α^m = e^{−mT/T_ref}, m = 2)", "",
+             "| T_ref s | α^m " + header, "|---|---" + rule]
+    for T_ref in REFERENCE_TIME_CONSTANTS:
+        m = loop_metrics(run(NOMINAL, {"controller.T_ref": T_ref}, folder))
+        alpha_m = math.exp(-2 * START["Ts"] / T_ref) if T_ref else 0.0
+        lines.append(f"| {T_ref:g} | {alpha_m:.3f} | {metric_cells(spectral_radius({'T_ref': T_ref}), m)}")
+    lines += ["", "### §3: \"X_p can be fixed in advance at a value in the range 0.5 - 0.8\" (setpoint IAE, master runs; "
+              "— = unstable)", "",
+              "| process | X_k | " + " | ".join(f"X_p = {v:g}" for v in WEIGHTINGS) + " | best X_p | best in 0.5 … 0.8 against the best |",
+              "|---|---|" + "---|" * len(WEIGHTINGS) + "---|---|"]
+    for process, scenario, T4, X_k in WEIGHTING_CASES:
+        best, iae = best_weighting(scenario, T4, X_k, folder)
+        in_range = min(iae[v] for v in (0.5, 0.6, 0.7, 0.8) if v in iae)
+        cells = " | ".join(fmt(iae[v]) if v in iae else "—" for v in WEIGHTINGS)
+        lines.append(f"| {process} | {X_k:g} | {cells} | {best:g} | +{100 * (in_range / iae[best] - 1):.1f} % |")
+    T_r = transient_time(ThirdOrderPlant())
+    lines += ["", f"### §4/abstract: \"the prediction horizon should completely overlap the transient time\" (T = 40 s, "
+              f"model fixed at T0 = 200 s, N set directly; T_r = {T_r:.0f} s; Python loop `sampled_loop`, the FMU has no N)", "",
+              "| N | N·T s | N·T / T_r | X_k where stability is lost " + header, "|---|---|---|---" + rule]
+    for N in OVERLAP_HORIZONS:
+        _, rho, limit = design_row({"N": N})
+        m = loop_metrics(sampled_loop({"N": N}))
+        lines.append(f"| {N} | {N * START['Ts']:g} | {N * START['Ts'] / T_r:.2f} | {fmt(limit, 3)} | {metric_cells(rho, m)}")
+    return lines + [""]
+
+
 # --- runs through the master ---------------------------------------------------------------------------
 
 
@@ -375,6 +449,8 @@ def main() -> int:
         lines.append("")
         lines += horizon_tables(folder)
         print("horizon: done", file=sys.stderr)
+        lines += issue31_tables(folder)
+        print("issue 31: done", file=sys.stderr)
 
         itae, detuned = ITAE()(1.2, 200.0, 90.0), ITAE(A=0.35)(1.2, 200.0, 90.0)
         comparison = [

@@ -29,6 +29,15 @@ class ModelGroup(IntEnum):
     """Boilers 2 and 3, fixed."""
 
 
+class EfficiencyForm(IntEnum):
+    """Which form of the regulating efficiency (31) the scheduling (32) maximises."""
+
+    GAIN = 0
+    """Σ ω_j Σ_l B_jl(1)/A_j(1): the steady pressure gain per unit firing (unit-consistent)."""
+    PRINTED = 1
+    """Σ ω_j A_j(1)/Σ_l B_jl(1): (31) as the paper prints it."""
+
+
 class Adaptation(IntEnum):
     """Whether the TS models' consequents are estimated on line."""
 
@@ -55,7 +64,7 @@ class OSMMGPC(GreyfmuSlave):
     description = (
         "OSMM-GPC of Pan, Shen & Luh (2012), §4: every sample, update the Takagi-Sugeno ARX models of the "
         "C(3,2) boiler groups by MFRLS (our reconstruction), compute the regulating efficiencies (31) "
-        "(unit-consistent form, see greyfmu.control.osmm) and choose the best group (32), solve the 2x2 "
+        "(as printed, or the unit-consistent form: parameter efficiency) and choose the best group (32), solve the 2x2 "
         "constrained GPC (34)-(39) on the active model (33) and add the moves to the chosen boilers; the third "
         "boiler holds its firing. group = PAIR_1_2, PAIR_1_3, PAIR_2_3 fixes that pair: a plain GPC with the same "
         "adaptive models. Initial TS models are identified at initialisation from open-loop runs of "
@@ -80,6 +89,7 @@ class OSMMGPC(GreyfmuSlave):
         self.parameter("dM_max", 0.05, "Largest firing move per sample |dM| of (35) (p.u.)", unit="1", minimum=0.0)
         self.parameter("M0", 0.75, "Initial firing of every boiler (p.u.)", unit="1")
         self.parameter("group", ModelGroup.SCHEDULED, "Boiler pair: SCHEDULED by OSMM, or fixed PAIR_1_2, PAIR_1_3 or PAIR_2_3")
+        self.parameter("efficiency", EfficiencyForm.PRINTED, "Regulating efficiency (31) maximised by (32): as PRINTED (the paper) or the unit-consistent GAIN form")
         self.parameter("adapt", Adaptation.ONLINE, "TS models: ONLINE estimation or FROZEN initial models")
         self.parameter("method", Estimator.MFRLS, "On-line estimator: GLOBAL_FRLS, LOCAL_FRLS or MFRLS")
         self.parameter("forgetting", 1.0, "Forgetting factor in (0, 1]", unit="1", minimum=0.0, maximum=1.0)
@@ -105,6 +115,7 @@ class OSMMGPC(GreyfmuSlave):
             Bounds(self.M_min, self.M_max, -self.dM_max, self.dM_max),
             fixed_group=None if self.group == 0 else self.group - 1, adapt=bool(self.adapt),
             method=Estimator(self.method).rls_method, forgetting=self.forgetting, omega=self.omega,
+            efficiency_form="printed" if self.efficiency == EfficiencyForm.PRINTED else "gain",
         )
         self.clock = SampleClock(self.Ts, self.experiment_start)
 

@@ -11,13 +11,14 @@ by MFRLS (§3; :class:`greyfmu.control.ts_fuzzy.FuzzyRLS`), form each group's ac
 (31) and choose the best group (32), solve the m × m constrained GPC (34)–(39) for that
 group, add ΔM to the chosen boilers and hold the others.
 
-Regulating efficiency.  (31) as printed, Σ_j ω_j A_j(1)/Σ_l B_jl(1), has units (kg/s)/MPa and
-its maximum is the group that needs the MOST firing per MPa, against the unit the paper
-states (MPa/(kg/s)) and its fuel result (Table 3).  We use the unit-consistent
-η = Σ_j ω_j Σ_l B_jl(1)/A_j(1), the steady-state pressure gain per unit firing.  A group with a
-singular denominator (A_j(1) ≈ 0, or Σ_l B_jl(1) ≈ 0 which makes (31) as printed singular) or
-a non-finite η is excluded with a logged warning; if every group is excluded the previous
-group is kept.
+Regulating efficiency.  (31) as printed, Σ_j ω_j A_j(1)/Σ_l B_jl(1), has units (kg/s)/MPa: its
+maximum is the group that needs the most firing per MPa of pressure.  It is the default: run
+through the header scenario it reproduces Fig. 5(d) (one switch, (1,3) → (1,2) after the valve-2
+step, boiler 1 in the group throughout; docs/osmm_gpc.md).  ``efficiency_form="gain"`` uses the
+unit-consistent η = Σ_j ω_j Σ_l B_jl(1)/A_j(1), the steady-state pressure gain per unit firing
+(the default until issue 31: it switches 16 times there after the first sample).  A group with a singular denominator
+(A_j(1) ≈ 0 or Σ_l B_jl(1) ≈ 0, either form's) or a non-finite η is excluded with a logged
+warning; if every group is excluded the previous group is kept.
 """
 
 from __future__ import annotations
@@ -68,11 +69,14 @@ class ARXStructure:
         return A, B
 
 
-def regulating_efficiency(model: CARIMA, weights: ArrayLike | None = None) -> float:
-    """η = Σ_j ω_j Σ_l B_jl(1) / A_j(1) (31), unit-consistent form (see the module docstring).
+def regulating_efficiency(model: CARIMA, weights: ArrayLike | None = None, form: str = "printed") -> float:
+    """η = Σ_j ω_j A_j(1) / Σ_l B_jl(1), (31) as printed (default, the paper's rule);
+    ``form="gain"``: the unit-consistent Σ_j ω_j Σ_l B_jl(1) / A_j(1) (see the module docstring).
 
     Returns NaN for a singular denominator (A_j(1) ≈ 0 or Σ_l B_jl(1) ≈ 0).
     """
+    if form not in ("gain", "printed"):
+        raise ValueError(f"regulating efficiency form must be 'gain' or 'printed', got {form!r}")
     w = np.ones(model.outputs) if weights is None else np.asarray(weights, dtype=float)
     total = 0.0
     for j in range(model.outputs):
@@ -80,7 +84,7 @@ def regulating_efficiency(model: CARIMA, weights: ArrayLike | None = None) -> fl
         b1 = float(sum(b.sum() for b in model.B[j]))
         if abs(a1) < SINGULAR or abs(b1) < SINGULAR:
             return math.nan
-        total += w[j] * b1 / a1
+        total += w[j] * (b1 / a1 if form == "gain" else a1 / b1)
     return total
 
 
@@ -118,6 +122,8 @@ class OSMMGPC:
     alpha: float = 0.0
     bounds: Bounds = field(default_factory=Bounds)
     efficiency_weights: ArrayLike | None = None
+    efficiency_form: str = "printed"
+    """(31) as "printed" (default, the paper's rule) or in the unit-consistent "gain" form (`regulating_efficiency`)."""
     fixed_group: int | None = None
     adapt: bool = True
     method: Method = "mixed"
@@ -189,7 +195,7 @@ class OSMMGPC:
             self._update_models(y)  # y_past[:, s] = y(k−1−s) here
         self.y_past = np.hstack([y[:, None], self.y_past[:, :-1]])  # y_past[:, s] = y(k−s) from here on
         models = [self.active_model(g) for g in range(len(self.groups))]
-        self.efficiencies = np.array([regulating_efficiency(model, self.efficiency_weights) for model in models])
+        self.efficiencies = np.array([regulating_efficiency(model, self.efficiency_weights, self.efficiency_form) for model in models])
         if self.fixed_group is None:
             self.group = choose_group(self.efficiencies, self.group)
         result = self._solve(models[self.group], np.asarray(r, dtype=float), y)

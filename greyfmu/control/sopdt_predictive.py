@@ -129,12 +129,15 @@ def sopdt_design(
     X_k: float = 1.5,
     X_t: float = 1.0,
     X_d: float = 1.0,
+    N: int | None = None,
 ) -> SOPDTDesign:
     """Off-line computation of the paper's §2 from the process data K, T0, τ, ξ, Ts and the tuning X_k, X_t, X_d.
 
-    Refuses K ≤ 0, T0 ≤ 0, τ < 0, ξ outside (0, 1], X_k/X_t ≤ 0, X_d < 0, N > 40 and m ≥ N,
-    each with a message giving the allowed range.  Warns (``HorizonWarning``) for 20 < N ≤ 40:
-    the paper limits N to 20 ("at maximum 20").
+    ``N`` overrides the paper's horizon rule N = [(τ + 3·T0)/Ts] (None: the rule); it changes the
+    horizon only, not the model (used to study the rule "the prediction horizon should completely
+    overlap the transient time", §4).  Refuses K ≤ 0, T0 ≤ 0, τ < 0, ξ outside (0, 1], X_k/X_t ≤ 0,
+    X_d < 0, N < 1, N > 40 and m ≥ N, each with a message giving the allowed range.  Warns
+    (``HorizonWarning``) for 20 < N ≤ 40: the paper limits N to 20 ("at maximum 20").
     """
     _check_process(K, T0, tau)
     if not (math.isfinite(xi) and 0.0 < xi <= 1.0):
@@ -146,7 +149,10 @@ def sopdt_design(
             raise ValueError(f"SOPDTPredictive: adjustment coefficient {name} must be a finite number > 0, got {value}")
     if not (math.isfinite(X_d) and X_d >= 0.0):
         raise ValueError(f"SOPDTPredictive: adjustment coefficient X_d must be a finite number >= 0, got {X_d}")
-    N = horizon_length(T0, tau, Ts)
+    if N is None:
+        N = horizon_length(T0, tau, Ts)
+    elif not (isinstance(N, int) and N >= 1):
+        raise ValueError(f"SOPDTPredictive: horizon N must be an integer >= 1 (None = [(tau + 3 T0)/Ts]), got {N!r}")
     if N > N_LIMIT:
         low, high = sampling_time_range(T0, tau)
         raise ValueError(
@@ -266,18 +272,19 @@ class SOPDTPredictive:
         u_max: float = math.inf,
         du_max: float = 0.0,
         u0: float = 0.0,
+        N: int | None = None,
     ) -> None:
         self.limits = OutputLimits("SOPDTPredictive", Ts, u_min, u_max, du_max)
         self.limits.check_start(u0)
         self.Ts = Ts
         self.u0 = u0
-        self._settings = dict(K=K, T0=T0, tau=tau, xi=xi, X_k=X_k, X_t=X_t, X_d=X_d, X_p=X_p, law=law, T_ref=T_ref)
+        self._settings = dict(K=K, T0=T0, tau=tau, xi=xi, X_k=X_k, X_t=X_t, X_d=X_d, X_p=X_p, law=law, T_ref=T_ref, N=N)
         self._initial_settings = dict(self._settings)
         self._apply(self._settings)
         self.reset()
 
     def retune(self, **changes: float) -> None:
-        """Re-run the off-line part with the changed K, T0, tau, xi, X_k, X_t, X_d, X_p, law or T_ref.
+        """Re-run the off-line part with the changed K, T0, tau, xi, X_k, X_t, X_d, X_p, law, T_ref or N.
 
         An invalid change is refused (ValueError) and the controller keeps its previous design.
         """
@@ -297,7 +304,8 @@ class SOPDTPredictive:
             law = ControlLaw(s["law"])
         except ValueError:
             raise ValueError(f"SOPDTPredictive: law must be 7, 12 or 15 (the paper's equation numbers), got {s['law']}") from None
-        design = sopdt_design(s["K"], s["T0"], s["tau"], self.Ts, xi=s["xi"], X_k=s["X_k"], X_t=s["X_t"], X_d=s["X_d"])
+        design = sopdt_design(s["K"], s["T0"], s["tau"], self.Ts, xi=s["xi"], X_k=s["X_k"], X_t=s["X_t"], X_d=s["X_d"],
+                              N=s["N"])
         self.design = design
         self.law = law
         self.X_p = float(s["X_p"])

@@ -102,8 +102,11 @@ class SteamHeader:
         p = self.params
         w = p.steam(u)
         k1, k2 = self.K_t * v
-        # segment balances: w1 + w2/2 = k1 P1 + G_l (P1 − P2); w3 + w2/2 = k2 P2 − G_l (P1 − P2)
-        M = np.array([[k1 + p.G_l, -p.G_l], [-p.G_l, k2 + p.G_l]])
+        # segment balances (derivative at rest): B2's flow G_s (P_b2 − (P1 + P2)/2) = w2 enters segment 1 as
+        # 0.5 G_s (P_b2 − P1) = w2/2 + G_s (P2 − P1)/4 and segment 2 as w2/2 − G_s (P2 − P1)/4, so
+        # w1 + w2/2 = k1 P1 + (G_l + G_s/4)(P1 − P2); w3 + w2/2 = k2 P2 − (G_l + G_s/4)(P1 − P2)
+        tie = p.G_l + 0.25 * p.G_s
+        M = np.array([[k1 + tie, -tie], [-tie, k2 + tie]])
         P1, P2 = np.linalg.solve(M, [w[0] + 0.5 * w[1], w[2] + 0.5 * w[1]])
         seg = np.array([P1, 0.5 * (P1 + P2), P2])
         return np.concatenate([u, w, seg + w / p.G_s, [P1, P2]])

@@ -36,10 +36,13 @@ def test_groups_are_the_combinations():
 
 def test_regulating_efficiency_formula_and_singular_denominator():
     model = CARIMA([[1.0, -0.9], [1.0, -0.5]], [[[0.1], [0.2]], [[0.3], [0.1]]])
-    assert regulating_efficiency(model) == pytest.approx((0.3 / 0.1) + (0.4 / 0.5))
-    assert regulating_efficiency(model, [1.0, 0.0]) == pytest.approx(3.0)
+    assert regulating_efficiency(model, form="gain") == pytest.approx((0.3 / 0.1) + (0.4 / 0.5))
+    assert regulating_efficiency(model, [1.0, 0.0], form="gain") == pytest.approx(3.0)
+    assert regulating_efficiency(model) == pytest.approx((0.1 / 0.3) + (0.5 / 0.4))  # (31) as printed: A(1)/ΣB(1)
+    with pytest.raises(ValueError, match="'gain' or 'printed'"):
+        regulating_efficiency(model, form="inverse")
     integrating = CARIMA([[1.0, -1.0], [1.0, -0.5]], [[[0.1], [0.2]], [[0.3], [0.1]]])
-    assert np.isnan(regulating_efficiency(integrating))
+    assert np.isnan(regulating_efficiency(integrating)) and np.isnan(regulating_efficiency(integrating, form="gain"))
     no_gain = CARIMA([[1.0, -0.9], [1.0, -0.5]], [[[0.1], [-0.1]], [[0.3], [0.1]]])  # Σ_l B(1) = 0: (31) as printed is singular
     assert np.isnan(regulating_efficiency(no_gain))
 
@@ -74,9 +77,10 @@ def simulate(controller, steps=300, disturbance=0.02):
 def test_osmm_picks_most_efficient_pair_holds_the_other_and_respects_bounds():
     groups = boiler_groups(3, 2)
     bounds = Bounds(0.5, 1.0, -0.02, 0.02)
-    controller = OSMMGPC(groups, exact_models(groups), ARXStructure(1, 1), [0.75] * 3, move_weight=0.5, bounds=bounds, adapt=False)
+    controller = OSMMGPC(groups, exact_models(groups), ARXStructure(1, 1), [0.75] * 3, move_weight=0.5, bounds=bounds, adapt=False,
+                         efficiency_form="gain")
     history = simulate(controller)
-    efficiencies = [regulating_efficiency(controller.active_model(g)) for g in range(3)]
+    efficiencies = [regulating_efficiency(controller.active_model(g), form="gain") for g in range(3)]
     assert controller.group == int(np.argmax(efficiencies)) == 1  # boilers 1 and 3 have the largest gains
     M = np.array([h[1] for h in history])
     assert np.all(M[:, 1] == 0.75)  # boiler 2, never chosen, holds its firing
@@ -120,7 +124,7 @@ def test_header_plant_efficiency_ordering_behind_the_papers_switching():
     Measured on the plant (steady steam per fuel, central differences), and `marginal_steam` — what the
     reconstruction says regulating efficiency tracks — agrees with it.  This is the plant property behind the
     paper's switching; whether our OSMM-GPC switches that way is tests/scenarios/test_osmm_scenarios.py's (it
-    does not: 17 switches, docs/osmm_gpc.md)."""
+    with (31) as printed on seed 0 it does — one switch (1,3) → (1,2) — but not over seeds, docs/osmm_gpc.md)."""
     p = HeaderParameters()
     plant = SteamHeader(p)
     assert np.allclose(plant.pressures, 8.75) and plant.fuel.sum() == pytest.approx(16.2)  # Table 3's firing scale
@@ -186,3 +190,17 @@ def test_least_fuel_allocation_leaves_no_room_for_the_papers_saving():
 
 def plant_pressures(p, q, valves):
     return SteamHeader(p).equilibrium(q, np.asarray(valves))[9:11]
+
+
+def test_equilibrium_is_at_rest_away_from_the_design_point():
+    """SteamHeader.equilibrium is a steady state of SteamHeader.derivative for any firing and valves, also where the
+    segment pressures differ: B2 sits between the segments, so at rest its flow G_s (P_b2 − (P1 + P2)/2) = w2 enters
+    segment 1 as 0.5 G_s (P_b2 − P1) = w2/2 + 0.25 G_s (P2 − P1) — the 0.25 G_s (P2 − P1) term the balance of
+    the equilibrium missed before (its pressures were off by up to 0.041 MPa in these cases; exact only for P1 = P2)."""
+    plant = SteamHeader(HeaderParameters())
+    for u, v in (([1.0, 0.5, 0.8], [0.7, 0.3]), ([0.4, 1.1, 0.6], [0.35, 0.65]), ([0.75, 0.75, 0.75], [0.5, 0.5])):
+        u, v = np.asarray(u), np.asarray(v)
+        x = plant.equilibrium(u, v)
+        assert np.max(np.abs(plant.derivative(x, u, v))) < 1e-9, (u, v)
+    x = plant.equilibrium(np.array([1.0, 0.5, 0.8]), np.array([0.7, 0.3]))
+    assert abs(x[9] - x[10]) > 0.01  # the case where the term matters

@@ -314,3 +314,21 @@ def test_test_process_starts_in_equilibrium_and_adds_the_load():
     for k in range(1, 200):
         plant.advance(50.0 * k, 50.0, 0.5, 0.25)
     assert plant.y == pytest.approx(1.2 * 0.75, rel=1e-9)
+
+
+def test_horizon_override_changes_only_the_horizon():
+    """N set directly (the horizon-overlap study): the model (a1, a2, b) is the rule's, g is the same response up to N;
+    N = None is the rule; N < 1 and m >= N are refused."""
+    rule = sopdt_design(1.2, 200.0, 90.0, 40.0)
+    short = sopdt_design(1.2, 200.0, 90.0, 40.0, N=10)
+    assert rule.N == 17 and short.N == 10
+    assert (short.a1, short.a2, short.b) == (rule.a1, rule.a2, rule.b)
+    np.testing.assert_array_equal(short.g, rule.g[:11])
+    with pytest.raises(ValueError, match="integer >= 1"):
+        sopdt_design(1.2, 200.0, 90.0, 40.0, N=0)
+    with pytest.raises(ValueError, match="must be less than the horizon N = 2"):
+        sopdt_design(1.2, 200.0, 90.0, 40.0, N=2)
+    controller = SOPDTPredictive(1.2, 200.0, 90.0, 40.0, N=10)
+    assert controller.design.N == 10 and len(controller.weights) == 9
+    controller.retune(X_k=2.0)
+    assert controller.design.N == 10

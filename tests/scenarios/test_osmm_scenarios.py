@@ -18,8 +18,13 @@ DOCS = Path(__file__).resolve().parents[2] / "docs"
 sys.path.insert(0, str(DOCS))
 from osmm_report import (  # noqa: E402
     RELAXED_BOUNDS,
+    HEADER_SCENARIO,
     TABLE2_VARIANTS,
+    estimation_errors,
+    header_metrics,
     mfrls_margin,
+    run_with,
+    switching,
     scheduling_bound,
     table2_mae,
     table2_orderings,
@@ -81,7 +86,7 @@ def test_table3_fuel_recorded(header_runs):
     ours = {name: fuel(run) for name, run in header_runs.items()}
     assert ours["gpc_12"] == pytest.approx(45892, rel=2e-3)
     assert ours["gpc_13"] == pytest.approx(46008, rel=2e-3)
-    assert ours["osmm"] == pytest.approx(46153, rel=2e-3)
+    assert ours["osmm"] == pytest.approx(46036, rel=2e-3)  # (31) as printed; 46153 with the gain form
     switches = np.flatnonzero(np.diff(header_runs["osmm"]["controller.active_group"]))
     assert len(switches) > 0  # OSMM did re-schedule the boilers
 
@@ -109,15 +114,17 @@ def table2_seeds(built_fmus, tmp_path_factory):
 
 
 def test_table2_ordering_depends_on_the_seed_and_mfrls_margin_is_small(table2_seeds):
-    """Table 2 over PRBS seed pairs (2s+1, 2s+2), s = 0 … 3: local < global always, but MFRLS < local < global on
-    both outputs for only some pairs (8 of 20 over the full study), with margins of −1.3 … +2.8 % against the
-    paper's 26 %/38 % — the same for the literal ramp of (41) (14 of 20)."""
+    """Table 2 over PRBS seed pairs (2s+1, 2s+2), s = 0 … 7: local < global (on at least 90 % of the 40 pairs of
+    GREYFMU_SEEDS=full: 38 (h1), 37 (h2)), but MFRLS < local < global on
+    both outputs for only some pairs (8 of 20 over the full study), with margins of −1.3 … +2.8 % (s < 20) and
+    −1.9 … +4.1 % (fresh s = 20 … 39) against the paper's 26 %/38 % — the same for the literal ramp of (41) (14 of 20)."""
     for variant in ("continuous ramp (scenario)", "literal ramp of (41)"):
         rows = table2_seeds[variant]
         counts = table2_orderings(rows)
-        assert counts["local < global (h1)"] == counts["local < global (h2)"] == len(rows), variant
+        # local < global on every pair of the default subset; 38 and 37 of the 40 pairs of GREYFMU_SEEDS=full
+        assert min(counts["local < global (h1)"], counts["local < global (h2)"]) >= 0.9 * len(rows), variant
         assert 0 < counts["MFRLS < local < global (h1 and h2)"] < len(rows), variant  # seed-dependent
-        assert all(abs(mfrls_margin(r, j)) < 3.0 for r in rows for j in (0, 1)), variant  # never the paper's 26 %
+        assert all(abs(mfrls_margin(r, j)) < 5.0 for r in rows for j in (0, 1)), variant  # never the paper's 26 %
     continuous, literal = table2_seeds["continuous ramp (scenario)"][:4], table2_seeds["literal ramp of (41)"]
     assert table2_orderings(continuous)["MFRLS < local < global (h1 and h2)"] == 2  # s = 0, 1 (docs/osmm_tables.md)
     for name in ("global_frls", "local_frls", "mfrls"):  # the literal ramp (c down to 0.25) is easier to track
@@ -181,3 +188,86 @@ def test_pair_12_burns_least_because_it_cannot_hold_the_pressures(header_runs, b
     assert relaxed["gpc_12"] == pytest.approx(unbounded_pair_fuel(HeaderParameters(), (0, 1)), rel=2e-3)
     better_b2 = HeaderParameters(eta_max=(0.92, 0.90, 0.90))
     assert unbounded_pair_fuel(better_b2, (0, 2)) < unbounded_pair_fuel(better_b2, (0, 1))
+
+
+# --- issue 31: Fig. 5(d)'s scheduling, Fig. 5(b)/(c)'s transients, §5.1's unmeasured claims -------------------
+
+SCHEDULING_SEEDS = range(20) if FULL_SEEDS else range(2)
+"""Identification seeds of the scheduling verdict (GREYFMU_SEEDS=full: all 20 of docs/osmm_tables.md)."""
+ESTIMATION_SEEDS = range(20) if FULL_SEEDS else range(2)
+"""PRBS seed pairs (2s + 1, 2s + 2) of the §5.1 verdicts."""
+ONE_SWITCH_SEEDS = (0,)
+"""Identification seeds s < 20 where the OSMM-GPC (31 as printed) switches exactly once after its first sample (measured)."""
+BOILER_1_SEEDS = (0, 5, 7, 12, 15, 17, 18, 19)
+"""… and where boiler 1 is in the active group all through 2000–4500 s (measured: 8 of 20)."""
+CHANGE_BETTER_SEEDS = ((0, 1, 2, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 17, 18, 19),
+                       (0, 1, 2, 3, 4, 5, 6, 8, 9, 10, 11, 12, 13, 14, 15, 17, 18, 19))
+"""PRBS seed pairs s < 20 where MFRLS's MAE of h1 (h2) in the 50 steps after an input switch is below local FRLS's (18, 18 of 20)."""
+
+
+def test_fig_5d_printed_31_switches_once_and_keeps_boiler_1(header_runs, tmp_path):
+    """Fig. 5(d) / §5.2: one switch, boilers 1 and 3 before it, 1 and 2 after ("boiler 1 had the highest efficiency
+    all along").  With (31) as printed, Σ A_j(1)/Σ B_jl(1) (now the default), our OSMM-GPC does exactly that
+    (seed 0): one switch, (1,3) → (1,2) at 3721 s, after the valve-2 step; (2,3) never active.  With the
+    unit-consistent gain form we used before it switches 16 times after its first sample (17 counting that one) and
+    (2,3) — without boiler 1 — is active 58 % of 2000–4500 s: our scheduler had departed from the paper's rule."""
+    count, times, share = switching(header_runs["osmm"])
+    assert count == 1 and times[0][1] == 1 and 3500 < times[0][0] < 4000
+    assert share[3] == 0.0 and share[2] > 0.5
+    gain = run_with(HEADER_SCENARIO, {"controller.efficiency": 0}, tmp_path, stop_time=4500)
+    count, _, share = switching(gain)
+    assert count == 16 and share[3] == pytest.approx(0.58, abs=0.01)
+
+
+def test_fig_5d_over_identification_seeds(tmp_path):
+    """Fig. 5(d)'s pattern over identification seeds (31 as printed): exactly one switch on 1 of 20 seeds (s = 0),
+    boiler 1 in the group throughout on 8 of 20; switches median 3.5 [0 … 56] (docs/osmm_tables.md).  Not reproduced
+    over seeds: which group the identified models favour depends on the identification run.  The first seeds here."""
+    runs = [switching(run_with(HEADER_SCENARIO, {"controller.identification_seed": s}, tmp_path, stop_time=4500))
+            for s in SCHEDULING_SEEDS]
+    one = tuple(s for s, (count, _, _) in zip(SCHEDULING_SEEDS, runs) if count == 1)
+    boiler_1 = tuple(s for s, (_, _, share) in zip(SCHEDULING_SEEDS, runs) if share[3] == 0.0)
+    assert one == tuple(s for s in ONE_SWITCH_SEEDS if s in SCHEDULING_SEEDS)
+    assert boiler_1 == tuple(s for s in BOILER_1_SEEDS if s in SCHEDULING_SEEDS)
+    if FULL_SEEDS:
+        assert len(one) == 1 and len(boiler_1) == 8
+
+
+def test_fig_5bc_osmm_transient_against_the_fixed_pairs(header_runs):
+    """Fig. 5(b)/(c): "OSMM-GPC control had less overshoot and shorter regulating time than the other two ways".
+    Seed 0, largest deviation from 8.75 MPa / settling into ±0.02 MPa before the next event (docs/osmm_tables.md).
+    After the valve-1 step OSMM runs (1,3) and equals it: P_m2 0.493 MPa / 278 s against (1,2)'s 0.482 MPa / 269 s
+    (worse), P_m4 0.425 / 401 s against 0.432 / 262 s.  After the valve-2 step its switch to (1,2) settles both
+    pressures (233 s, 262 s) while neither fixed pair settles before 4500 s, with the same deviations (within
+    0.01 MPa).  Verdict: partly — shorter regulating time after the second step only; not less overshoot."""
+    m = {name: header_metrics(run) for name, run in header_runs.items()}
+    assert m["osmm"][0] == pytest.approx(m["gpc_13"][0], abs=1e-6)  # 1st step: OSMM is the (1,3) loop
+    assert m["osmm"][0][0] > m["gpc_12"][0][0] and m["osmm"][0][1] > m["gpc_12"][0][1]  # P_m2: (1,2) better
+    for k in (2, 3):  # 2nd step, P_m2 and P_m4
+        assert m["osmm"][k][1] < 300.0 < 900.0 < min(m["gpc_12"][k][1], m["gpc_13"][k][1])
+        assert abs(m["osmm"][k][0] - min(m["gpc_12"][k][0], m["gpc_13"][k][0])) < 0.01
+
+
+def test_section_5_1_ts_model_without_online_estimation_has_major_errors(tmp_path):
+    """§5.1: "there are major errors between the outputs of the TS model without online estimation and the
+    theoretical model".  The Table 1 TS model with no update (C(0) = 1e-12 I) has MAE 3.26 / 3.67 (seed pair (1, 2))
+    against 0.067–0.107 for the on-line estimators: at least 18.6 times larger on every seed pair (20/20 with
+    GREYFMU_SEEDS=full).  Reproduced."""
+    rows = [estimation_errors(s, tmp_path) for s in ESTIMATION_SEEDS]
+    assert rows[0]["frozen"][:2] == pytest.approx((3.2613, 3.6732), abs=1e-3)
+    major = sum(all(r["frozen"][j] > 15 * r[name][j] for name in ("global_frls", "local_frls", "mfrls") for j in (0, 1))
+                for r in rows)
+    assert major == len(rows)
+
+
+def test_section_5_1_mfrls_advantage_under_large_input_changes(tmp_path):
+    """§5.1: "when the input has a large change … MFRLS shows great advantage over the local FRLS".  MAE in the 50
+    steps after a PRBS switch (0.45 ↔ 1.0): MFRLS below local FRLS on 18/20 seed pairs for h1 and for h2, margin
+    median +2.2 % [−1.6 … +7.3] / +1.4 % [−1.7 … +5.4]; elsewhere +0.1 % (12/20) / −0.3 % (8/20).  Verdict: the
+    advantage is where the paper says (after large changes), but small, not "great"."""
+    rows = [estimation_errors(s, tmp_path) for s in ESTIMATION_SEEDS]
+    better = {j: tuple(s for s, r in zip(ESTIMATION_SEEDS, rows) if r["mfrls"][2 + j] < r["local_frls"][2 + j]) for j in (0, 1)}
+    for j in (0, 1):
+        assert better[j] == tuple(s for s in CHANGE_BETTER_SEEDS[j] if s in ESTIMATION_SEEDS), j
+    if FULL_SEEDS:
+        assert len(better[0]) == len(better[1]) == 18

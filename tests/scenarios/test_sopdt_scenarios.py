@@ -5,6 +5,7 @@ Loop: setpoint 0 → 1 at 40 s, load −0.2 on the plant input at 2500 s, 0 … 
 
 import math
 import sys
+import warnings
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
@@ -22,7 +23,20 @@ SSP = Path(__file__).resolve().parents[2] / "ssp"
 NOMINAL, NMP, PID_LOOP = SSP / "sopdt_nominal", SSP / "sopdt_nmp", SSP / "sopdt_pid_itae"
 SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
 sys.path.insert(0, str(SSP.parent / "docs"))
-from sopdt_report import START, controller_radius, design_row, spectral_radius  # noqa: E402
+from sopdt_report import (  # noqa: E402
+    NOMINAL as REPORT_NOMINAL,
+    OVERLAP_HORIZONS,
+    START,
+    best_weighting,
+    controller_radius,
+    design_row,
+    loop_metrics,
+    run,
+    sampled_loop,
+    spectral_radius,
+    transient_time,
+)
+from greyfmu.plants import ThirdOrderPlant  # noqa: E402
 
 sys.path.remove(str(SSP.parent / "docs"))
 
@@ -175,6 +189,53 @@ def test_itae_pid_comparison_uses_the_rule_2_8():
     pid = simulate(PID_LOOP)
     assert settled(pid)
     assert unstable(simulate(PID_LOOP, "itae_full.ssv"))  # the rule's A = 1.357 (Kc = 2.41) is too strong here
+
+
+def test_fig_5_reference_trajectory_has_no_important_impact_only_for_T_ref_up_to_T(tmp_path):
+    """Fig. 5 / §3: "the introduction of the reference trajectory has not an important impact on the loop dynamics".
+    The paper gives no T_ref.  w_{t+i} = r − α^i (r − Y_t) acts from i = m on, α^m = e^{−mT/T_ref}: up to
+    T_ref = T = 40 s (α^m = 0.135) the setpoint response is unchanged (overshoot 25.8 → 25.4 %, IAE 423.4 → 421.6);
+    from 100 s on it is not (21.5 %), at 200 s the overshoot falls to 9.9 % and the load IAE by 21 % (81.6 → 64.8);
+    the loop's poles move little (ρ 0.940 → 0.925).  Verdict: reproduced only for T_ref ≤ T."""
+    none, short, long = (loop_metrics(run(REPORT_NOMINAL, {"controller.T_ref": T_ref}, tmp_path)) for T_ref in (0.0, 40.0, 200.0))
+    assert abs(short["overshoot"] - none["overshoot"]) < 1.0 and short["IAE"] == pytest.approx(none["IAE"], rel=0.01)
+    assert long["overshoot"] < 0.5 * none["overshoot"] and long["IAE"] < 0.9 * none["IAE"]
+    assert long["load_IAE"] < 0.85 * none["load_IAE"]
+    assert spectral_radius({"T_ref": 200.0}) == pytest.approx(spectral_radius({}), abs=0.02)
+
+
+def test_section_3_X_p_in_0_5_to_0_8_is_near_best_only_from_the_default_X_k_on(tmp_path):
+    """§3 (Fig. 10): "for many processes X_p can be fixed in advance at a value in the range 0.5 - 0.8".  The setpoint-IAE
+    best X_p (grid 0.2 … 1, master runs, docs/sopdt_tables.md) moves with X_k: 0.3 (X_k = 1.2), 0.4 (1.5, the paper's
+    default), 0.6 (2), 0.9 (3); the best value inside 0.5 … 0.8 costs +31.6 %, +4.3 %, 0 %, +2.2 % (NMP process:
+    +21.5 % at X_k = 2, +0.4 % at 4).  Verdict: partly — near-best (≤ 5 %) at X_k ≥ 1.5, not for a small X_k."""
+    cost = {}
+    for X_k, expected in ((1.2, 0.3), (1.5, 0.4), (3.0, 0.9)):
+        best, iae = best_weighting(REPORT_NOMINAL, 0.0, X_k, tmp_path)
+        assert best == expected, (X_k, iae)
+        cost[X_k] = min(iae[v] for v in (0.5, 0.6, 0.7, 0.8) if v in iae) / iae[best] - 1.0
+    assert cost[1.5] < 0.05 and cost[3.0] < 0.05 < 0.25 < cost[1.2]
+
+
+def test_abstract_horizon_overlapping_the_transient_time_is_no_threshold(nominal):
+    """Abstract/§4: "the prediction horizon should completely overlap the transient time".  Model fixed (T0 = 200 s,
+    T = 40 s), N set directly: N·T from 240 s to 1200 s against T_r = 518 s (±5 %).  The loop of `sampled_loop` is the
+    master's to the last bit.  Setpoint IAE falls steadily with N (1479, 744, 559, 486, 466 at N = 13 = T_r/T, 439, …,
+    391 at N = 30) with diminishing returns and no step where N·T passes T_r; horizons shorter than T_r (N = 8 … 12)
+    are stable at X_k = 1.5, only N = 6 (0.46 T_r) is not; the X_k where stability is lost falls with N (1.34 → 1.01).
+    Verdict: partly — a longer horizon helps, but the overlap point is not where stability or performance changes."""
+    np.testing.assert_array_equal(sampled_loop({})["plant.y"], nominal["plant.y"])
+    assert transient_time(ThirdOrderPlant()) == 518.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rows = {N: (design_row({"N": N}), loop_metrics(sampled_loop({"N": N}))["IAE"]) for N in OVERLAP_HORIZONS}
+    iae = [rows[N][1] for N in OVERLAP_HORIZONS]
+    assert iae == sorted(iae, reverse=True)
+    per_sample = {N: (rows[a][1] / rows[N][1]) ** (1.0 / (N - a)) for a, N in zip(OVERLAP_HORIZONS, OVERLAP_HORIZONS[1:])}
+    assert per_sample[13] < per_sample[12]  # crossing N·T = T_r (12 → 13) gains less per sample than 10 → 12
+    assert rows[6][0][1] > 1.0 and all(rows[N][0][1] < 1.0 for N in (8, 10, 12))
+    limits = [rows[N][0][2] for N in OVERLAP_HORIZONS]
+    assert limits == sorted(limits, reverse=True)
 
 
 # --- the FMUs alone ----------------------------------------------------------------------------------

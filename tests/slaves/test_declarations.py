@@ -30,7 +30,7 @@ MODES = {
     "SOPDTPredictive": {"law": "ControlLaw"},
     "FourTank": {"time_varying": "FourTankModel"},
     "LookupTable": {"extrapolate": "Extrapolation"},
-    "OSMMGPC": {"group": "ModelGroup", "adapt": "Adaptation", "method": "Estimator"},
+    "OSMMGPC": {"group": "ModelGroup", "efficiency": "EfficiencyForm", "adapt": "Adaptation", "method": "Estimator"},
     "TSEstimator": {"method": "Estimator", "dominance": "Dominance"},
 }
 COUNTS = {"seed", "identification_seed", "k_change", "ramp_origin", "delay", "N", "N1", "N2", "Nu", "n", "m",
