@@ -72,6 +72,8 @@ RUNS: dict[str, Run] = {
                                 "grey_pi.mode")),     # setpoint step at 20 s, 600 steps of 0.1 s
     "grey_sim33": Run(300.0, PREDICTOR),              # the rise from 250 s, 300 steps of 1 s
     "grey_sim34": Run(400.0, PREDICTOR),              # the rise from 320 s, 400 steps of 1 s
+    # ch. 5 conclusion 1: the load step d = 6 at 50 s and its first 50 s, 1000 steps of 0.1 s
+    "gs_ch5_large_disturbance": Run(100.0, GS_LOOP + ("load.y",)),
     "gs_sim2_1": Run(60.0, GS_LOOP),                  # setpoint step at 10 s, 600 steps of 0.1 s
     "gs_sim2_2": Run(60.0, GS_LOOP),
     "gs_sim2_3": Run(60.0, GS_LOOP),
