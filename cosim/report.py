@@ -13,7 +13,6 @@ import base64
 import html
 import io
 import json
-import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -21,10 +20,8 @@ import numpy as np
 
 from .errors import SetupError
 from .metrics import EVENT_METRICS, UNITS, event_metrics, find_events
-from .plots import connections, default_panels, figure, label, setpoints, title
+from .plots import default_panels, disturbances, figure, label, setpoints, title
 from .safeio import write_atomic
-
-_DISTURBANCE_INPUT = re.compile(r"d\d*")
 
 _STYLE = """body{font-family:sans-serif;margin:2em;max-width:70em;color:#222}
 table{border-collapse:collapse;margin:.5em 0 1.5em}th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right}
@@ -42,12 +39,6 @@ def read_metadata(result: Path) -> dict:
         return json.loads(path.read_text())
     except json.JSONDecodeError as e:
         raise SetupError(f"the metadata is not JSON ({e}).", file=str(path)) from None
-
-
-def disturbances(metadata: Mapping, names: Sequence[str]) -> list[str]:
-    """Recorded signals that drive a disturbance input ``d<k>`` of some component."""
-    return list(dict.fromkeys(src for src, dst, _ in connections(metadata)
-                              if _DISTURBANCE_INPUT.fullmatch(dst.rpartition(".")[2]) and src in names))
 
 
 def _png(result: np.ndarray, panels: Sequence[Sequence[str]], scenario: str, metadata: Mapping) -> str:

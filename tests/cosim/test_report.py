@@ -72,7 +72,7 @@ def test_chromium_decodes_the_figure_and_the_screenshot_shows_it(run, tmp_path):
 def test_plot_labels_set_points_and_default_panels_come_from_the_metadata(run):
     meta = json.loads(run.with_suffix(".json").read_text())
     names = [n for n in meta["units"]]
-    assert default_panels(meta, names) == [["setpoint.y", "plant.y"], ["controller.u"]]
+    assert default_panels(meta, names) == [["setpoint.y", "plant.y"], ["controller.u"], ["load.y"]]
     assert setpoints(meta, names) == {"setpoint.y", "controller.r"}
     # a Step's generic "Step output" gives way to what the signal drives
     assert label("setpoint.y", meta) == "setpoint.y — Set-point"
@@ -91,7 +91,11 @@ def test_default_result_names_carry_the_parameter_sets(tmp_path, monkeypatch, ca
         "pid_fopdt.csv", "pid_fopdt.json", "pid_fopdt__pi_only.csv", "pid_fopdt__pi_only.json",
         "pid_fopdt__pi_only.png"]
     meta = json.loads((tmp_path / "results" / "pid_fopdt__pi_only.json").read_text())
-    assert meta["parameter_sets"] == [str(scenario / "pi_only.ssv")]
+    # no absolute path of this machine: outside the working folder, relative to the scenario's folder
+    assert meta["parameter_sets"] == ["pid_fopdt/pi_only.ssv"] and meta["system"] == "pid_fopdt/SystemStructure.ssd"
+    assert meta["components"]["controller"]["fmu"] == "PID.fmu"           # a provider's, by name
+    text = (tmp_path / "results" / "pid_fopdt__pi_only.json").read_text()
+    assert str(scenario.parent) not in text and str(tmp_path) not in text and str(Path(__file__).parents[2]) not in text
     assert main(["report", "results/pid_fopdt__pi_only.csv", "-o", "r.html"]) == 0
     assert "<h1>pid_fopdt — pi_only</h1>" in (tmp_path / "r.html").read_text()
     assert main(["report", "results/missing.csv"]) == 2
