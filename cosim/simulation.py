@@ -331,6 +331,14 @@ def signal_info(plan: Plan) -> dict:
                                 for sv in plan.start_values if unit_of(sv.variable)}}
 
 
+def signal_units(plan: Plan) -> dict[str, tuple[str, bool]]:
+    """Each recorded signal's unit and whether it is "as wired" (`cosim.plots.units`)."""
+    from .plots import units
+
+    return units({"units": plan.units, "connections": signal_info(plan)["connections"],
+                  "components": {name: {"fmu": str(d.path)} for name, d in plan.fmus.items()}})
+
+
 class SystemOutputColumns:
     """A sink wrapper that appends the root system's output connectors to every chunk.
 
