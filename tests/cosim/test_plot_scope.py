@@ -98,3 +98,11 @@ def test_a_saturating_output_shows_its_limits(mass_damper):
                         if len(set(line.get_ydata())) == 1 and tuple(line.get_xdata()) == (0, 1))
     assert horizontal == [-2000, 2000]
     assert {t.get_text() for t in output.texts} == {"u_min = -2000", "u_max = 2000"}
+
+
+def test_the_report_gives_metric_units_from_the_signal(mass_damper, tmp_path):
+    from cosim.report import render
+
+    result, meta = mass_damper
+    page = render(result, meta, source=str(tmp_path / "md.csv"))
+    assert "<th>IAE [m·s]</th><th>ISE [m²·s]</th><th>ITAE [m·s²]</th>" in page and "<th>peak_error [m]</th>" in page

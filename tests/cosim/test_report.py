@@ -37,7 +37,25 @@ def test_the_page_is_self_contained_and_holds_metrics_per_event_and_parameters(r
     assert "set-point setpoint.y 0 → 1" in page and "disturbance load.y 0 → -1" in page
     assert "has no set-point step" in page                                       # why overshoot is undefined
     assert "controller.Kc</td><td class=t>8.0345</td><td class=t>ssp/pid_fopdt/controller.ssv:7" in page
-    assert "PID.fmu" in page and "&quot;step_size&quot;: 0.1" in page
+    assert re.search(r"<td class=t>([\w/]*/)?PID.fmu</td>", page)          # relative: build/fmus/PID.fmu
+
+
+def test_the_page_is_for_people_and_holds_no_path_of_this_machine(run):
+    """Issue 27 item 2: a mode parameter by its item name, metric units, run facts formatted,
+    no dump of the metadata JSON and no absolute path (of the FMUs, the result, the scenario)."""
+    page = run.with_suffix(".html").read_text()
+    assert "controller.integral_mode</td><td class=t>METHOD3 (3)</td>" in page
+    assert "controller.Ti</td><td class=t>7.1713 s</td>" in page
+    assert "<th>IAE [s]</th><th>ISE [s]</th><th>ITAE [s²]</th>" in page and "plant.y declares no unit" in page
+    assert "<td class=t>step size</td><td class=t>0.1 s</td>" in page
+    assert re.search(r"<td class=t>wall time of the stepping loop</td><td class=t>\d(\.\d+)?(e-\d+)? s</td>", page)
+    loop = re.search(r"stepping loop</td><td class=t>([^<]*) s<", page).group(1)
+    assert len(loop.replace(".", "").lstrip("0").partition("e")[0]) <= 3          # 3 significant digits
+    assert "<td class=t>parameter sets</td><td class=t>none</td>" in page and "loop_seconds" not in page
+    assert "&quot;" not in page                                                  # no JSON dump
+    meta = run.with_suffix(".json").read_text()
+    for folder in (run.parent, Path.cwd()):
+        assert str(folder) not in page and str(folder) not in meta
 
 
 def _chromium(*args: str, tmp: Path) -> subprocess.CompletedProcess:
