@@ -220,7 +220,7 @@ def plain(text: str) -> str:
     return text.replace("$", r"\$")
 
 
-def _events(result: np.ndarray, metadata: Mapping, setpoint: str):
+def loop_events(result: np.ndarray, metadata: Mapping, setpoint: str):
     """The set-point's and the disturbances' events (`cosim.metrics.find_events`)."""
     load = disturbances(metadata, result.dtype.names)
     return find_events(result["time"], (setpoint, result[setpoint]), {d: result[d] for d in load})
@@ -230,7 +230,7 @@ def _mark_events(ax, result: np.ndarray, metadata: Mapping, loops: Sequence[Sequ
     """A vertical line at each set-point change (solid) and disturbance step (dotted)."""
     seen = set()
     for setpoint, _ in loops:
-        for ev in _events(result, metadata, setpoint):
+        for ev in loop_events(result, metadata, setpoint):
             if ev.before == ev.after or (ev.signal, ev.t0) in seen:
                 continue
             seen.add((ev.signal, ev.t0))
@@ -241,7 +241,7 @@ def _annotate_loop(ax, result: np.ndarray, metadata: Mapping, setpoint: str, mea
     """Per set-point step: the ±2 % settling band over its window, the settling instant and the
     overshoot peak, from `cosim.metrics.event_metrics`; each disturbance step named."""
     t, y = result["time"], result[measured]
-    events = _events(result, metadata, setpoint)
+    events = loop_events(result, metadata, setpoint)
     for ev, row in zip(events, event_metrics(t, y, result[setpoint], events)):
         if ev.kind != "set-point":
             ax.annotate(plain(f"{ev.signal} {ev.before:g} → {ev.after:g}"), (ev.t0, 1), xycoords=("data", "axes fraction"),
@@ -267,13 +267,18 @@ def _annotate_loop(ax, result: np.ndarray, metadata: Mapping, setpoint: str, mea
                         fontsize=7, color="C3")
 
 
+def near(value: float, values: np.ndarray) -> bool:
+    """Whether a limit is within one span of the signal's range (drawn), not far off it (named)."""
+    lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
+    span = max(hi - lo, 1e-9 * max(1.0, abs(hi)))
+    return lo - span <= value <= hi + span
+
+
 def _draw_limits(ax, signal: str, values: np.ndarray, metadata: Mapping) -> None:
     """The controller output's limits as lines; one far off the signal's range (more than its
     span beyond it) is named in the corner instead, so the signal stays readable."""
-    lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
-    span = max(hi - lo, 1e-9 * max(1.0, abs(hi)))
     for name, value in limits(signal, metadata).items():
-        if lo - span <= value <= hi + span:
+        if near(value, values):
             ax.axhline(value, color="C3", lw=0.9, ls="-.")
             ax.annotate(plain(f"{name} = {value:g}"), (1, value), xycoords=("axes fraction", "data"),
                         xytext=(-3, 2), textcoords="offset points", ha="right", fontsize=7, color="C3")

@@ -1,11 +1,15 @@
 """``cosim report RESULT``: one self-contained HTML page per run, for a reviewer of a control study.
 
-The page holds the plot (`cosim.plots`, PNG embedded as a data URI, so the file can be mailed
-or archived alone), the metrics of every control loop per event (`cosim.metrics.find_events`
-and `event_metrics`: each set-point change and each step of a disturbance, a signal driving
-a plant input ``d``, ``d1``, ...), the parameters applied with the file and line each came
-from, the FMUs, and the rest of the run's metadata JSON.  Nothing is fetched at view time:
-no scripts, no style sheets or fonts from elsewhere.
+The page holds the plot, interactive (`cosim.interactive`: zoom, pan, cursor read-out, signals
+toggled; Plotly's library written into the page) and as a static PNG (`cosim.plots`, a data
+URI), so the file can be mailed or archived alone and works offline; the metrics of every
+control loop per event (`cosim.metrics.find_events` and `event_metrics`: each set-point change
+and each step of a disturbance, a signal driving a plant input ``d``, ``d1``, ...), with units
+from the measured signal's (IAE in unit·s, ...); the parameters applied, a mode parameter by
+its item name (``METHOD3``), with the file and line each came from; the FMUs; the run's facts
+for people (seconds to three significant digits, lists joined).  Paths are as the metadata
+holds them: relative, never those of the machine that ran it.  Nothing is fetched at view
+time: no script, style sheet or font comes from elsewhere.
 """
 from __future__ import annotations
 
@@ -20,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SetupError
+from .interactive import page_div
 from .metrics import EVENT_METRICS, event_metrics, find_events, metric_unit
 from .plots import default_panels, disturbances, figure, label, setpoints, title, units
 from .safeio import write_atomic
@@ -148,7 +153,12 @@ def render(result: np.ndarray, metadata: Mapping, *, source: str,
 <p>Result <code>{html.escape(Path(source).name)}</code>: {len(result)} samples, t = {result["time"][0]:g} … {result["time"][-1]:g} s,
 status <b>{html.escape(str(metadata.get("status", "unknown")))}</b>.</p>
 <h2>Plot</h2>
+<p class=undefined>Drag to zoom (double-click: back), shift-drag or the toolbar to pan, the cursor reads every
+signal at its time, a click on a legend entry hides or shows that signal.</p>
+{page_div(result, all_panels, scenario=scenario, metadata=metadata)}
+<details><summary>The same plot as a static image (for print or mail)</summary>
 <img id="plot" alt="{html.escape(heading)}" src="data:image/png;base64,{_png(result, all_panels, scenario, metadata)}">
+</details>
 <h2>Metrics per event</h2>
 {_metrics_section(result, metadata, loops)}
 <h2>Parameters applied</h2>
