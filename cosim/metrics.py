@@ -36,6 +36,16 @@ EVENT_METRICS = METRICS + ("peak_error",)
 UNITS = {"overshoot": "%", "rise_time": "s", "settling_time": "s"}
 
 
+def metric_unit(metric: str, unit: str | None) -> str:
+    """The unit of ``metric`` of a signal in ``unit`` (None: no unit, taken as 1): IAE in
+    unit·s, ISE in unit²·s, ITAE in unit·s², the peak error in unit; the others as `UNITS`."""
+    if metric in UNITS:
+        return UNITS[metric]
+    time = {"IAE": "s", "ISE": "s", "ITAE": "s²"}.get(metric, "")
+    signal = (f"({unit})²" if "/" in unit or "·" in unit else f"{unit}²") if unit and metric == "ISE" else (unit or "")
+    return "·".join(p for p in (signal, time) if p)
+
+
 def _trapezoid(values: np.ndarray, time: np.ndarray) -> float:
     return float(np.sum((values[1:] + values[:-1]) * np.diff(time)) / 2) if len(time) > 1 else 0.0
 

@@ -1,11 +1,15 @@
 """``cosim report RESULT``: one self-contained HTML page per run, for a reviewer of a control study.
 
-The page holds the plot (`cosim.plots`, PNG embedded as a data URI, so the file can be mailed
-or archived alone), the metrics of every control loop per event (`cosim.metrics.find_events`
-and `event_metrics`: each set-point change and each step of a disturbance, a signal driving
-a plant input ``d``, ``d1``, ...), the parameters applied with the file and line each came
-from, the FMUs, and the rest of the run's metadata JSON.  Nothing is fetched at view time:
-no scripts, no style sheets or fonts from elsewhere.
+The page holds the plot, interactive (`cosim.interactive`: zoom, pan, cursor read-out, signals
+toggled; Plotly's library written into the page) and as a static PNG (`cosim.plots`, a data
+URI), so the file can be mailed or archived alone and works offline; the metrics of every
+control loop per event (`cosim.metrics.find_events` and `event_metrics`: each set-point change
+and each step of a disturbance, a signal driving a plant input ``d``, ``d1``, ...), with units
+from the measured signal's (IAE in unit·s, ...); the parameters applied, a mode parameter by
+its item name (``METHOD3``), with the file and line each came from; the FMUs; the run's facts
+for people (seconds to three significant digits, lists joined).  Paths are as the metadata
+holds them: relative, never those of the machine that ran it.  Nothing is fetched at view
+time: no script, style sheet or font comes from elsewhere.
 """
 from __future__ import annotations
 
@@ -20,16 +24,15 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SetupError
-from .metrics import EVENT_METRICS, UNITS, event_metrics, find_events
-from .plots import connections, default_panels, figure, label, setpoints, title
+from .interactive import page_div
+from .metrics import EVENT_METRICS, event_metrics, find_events, metric_unit
+from .plots import default_panels, disturbances, figure, label, setpoints, title, units
 from .safeio import write_atomic
-
-_DISTURBANCE_INPUT = re.compile(r"d\d*")
 
 _STYLE = """body{font-family:sans-serif;margin:2em;max-width:70em;color:#222}
 table{border-collapse:collapse;margin:.5em 0 1.5em}th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right}
 th{background:#eee}td.t{text-align:left}img{max-width:100%;border:1px solid #ddd}
-.undefined{color:#666;font-size:90%}pre{background:#f6f6f6;padding:1em;overflow:auto}"""
+.undefined{color:#666;font-size:90%}"""
 
 
 def read_metadata(result: Path) -> dict:
@@ -42,12 +45,6 @@ def read_metadata(result: Path) -> dict:
         return json.loads(path.read_text())
     except json.JSONDecodeError as e:
         raise SetupError(f"the metadata is not JSON ({e}).", file=str(path)) from None
-
-
-def disturbances(metadata: Mapping, names: Sequence[str]) -> list[str]:
-    """Recorded signals that drive a disturbance input ``d<k>`` of some component."""
-    return list(dict.fromkeys(src for src, dst, _ in connections(metadata)
-                              if _DISTURBANCE_INPUT.fullmatch(dst.rpartition(".")[2]) and src in names))
 
 
 def _png(result: np.ndarray, panels: Sequence[Sequence[str]], scenario: str, metadata: Mapping) -> str:
@@ -71,7 +68,8 @@ def _metrics_section(result: np.ndarray, metadata: Mapping, loops: Sequence[Sequ
     for setpoint, measured in loops:
         events = find_events(result["time"], (setpoint, result[setpoint]), {d: result[d] for d in load})
         rows = event_metrics(result["time"], result[measured], result[setpoint], events)
-        head = "".join(f"<th>{html.escape(k)}{' [' + UNITS[k] + ']' if k in UNITS else ''}</th>"
+        unit = units(metadata).get(measured, (None, False))[0]
+        head = "".join(f"<th>{html.escape(k)}{' [' + html.escape(metric_unit(k, unit)) + ']' if metric_unit(k, unit) else ''}</th>"
                        for k in EVENT_METRICS)
         body = []
         notes = []
@@ -82,13 +80,51 @@ def _metrics_section(result: np.ndarray, metadata: Mapping, loops: Sequence[Sequ
             notes += [f"<li>event {i}, {html.escape(', '.join(keys))}: {html.escape(why)}</li>" for keys, why in row.grouped()]
         parts.append(f"<h3>{html.escape(label(measured, metadata))} following "
                      f"{html.escape(label(setpoint, metadata))}</h3>\n"
-                     f"<table><tr><th>#</th><th>event</th><th>window [s]</th>{head}</tr>\n" + "\n".join(body)
+                     + ("" if unit else f"<p class=undefined>{html.escape(measured)} declares no unit (none as wired "
+                                        "either): the error is taken as a pure number, so IAE is in s.</p>\n")
+                     + f"<table><tr><th>#</th><th>event</th><th>window [s]</th>{head}</tr>\n" + "\n".join(body)
                      + "</table>\n" + (f"<ul class=undefined>{''.join(notes)}</ul>" if notes else ""))
     if not parts:
         return "<p>No control loop found (no component with inputs r and y), so no loop metrics.</p>"
     return (f"<p>e = set-point − measured; settling into ±2 % of the set-point step (after a disturbance: "
             f"of the last set-point step); disturbances: {html.escape(', '.join(load) or 'none found')}.</p>"
             + "\n".join(parts))
+
+
+_ENUMERATION = re.compile(r"\((\d+ = \w+(?:, \d+ = \w+)*)\)\s*$")
+
+
+def parameter_value(name: str, value: object, metadata: Mapping) -> str:
+    """A parameter's value for people: a mode parameter by its item name (``METHOD3``, from the
+    ``(1 = METHOD1, ...)`` its FMU's description lists), a number with its unit (``7.17 s``)."""
+    description = metadata.get("parameter_descriptions", {}).get(name, "")
+    found = _ENUMERATION.search(description)
+    if found and isinstance(value, int):
+        items = dict(item.split(" = ") for item in found.group(1).split(", "))
+        if str(value) in items:
+            return f"{items[str(value)]} ({value})"
+    text = f"{value:g}" if isinstance(value, float) else str(value)
+    unit = metadata.get("parameter_units", {}).get(name)
+    return f"{text} {unit}" if unit and unit != "1" and isinstance(value, (int, float)) else text
+
+
+def _seconds(value: object) -> str:
+    return f"{value:.3g} s" if isinstance(value, (int, float)) else str(value)
+
+
+#: the run's facts shown, each with its name for people and how its value reads
+_RUN_FACTS = (("status", "status", str), ("message", "message", str), ("start_time", "start time", _seconds),
+              ("stop_time", "stop time", _seconds), ("step_size", "step size", _seconds),
+              ("step_size_source", "step size from", str), ("algorithm", "algorithm", str),
+              ("steps", "steps", str), ("loop_seconds", "wall time of the stepping loop", _seconds),
+              ("finished_at", "finished at", str), ("system", "system", str),
+              ("parameter_sets", "parameter sets", lambda v: ", ".join(map(str, v)) or "none"))
+
+
+def run_facts(metadata: Mapping) -> list[tuple[str, str]]:
+    """(name, value) of each run fact the metadata holds, formatted for people."""
+    return [(name, show(metadata[key])) for key, name, show in _RUN_FACTS
+            if key in metadata and metadata[key] not in (None, "")]
 
 
 def _table(rows: Sequence[Sequence[str]], header: Sequence[str]) -> str:
@@ -105,21 +141,24 @@ def render(result: np.ndarray, metadata: Mapping, *, source: str,
     all_panels = list(panels) if panels else default_panels(metadata, names)
     loops = [p for p in default_panels(metadata, names) if len(p) == 2 and p[0] in setpoints(metadata, names)]
     origins = metadata.get("parameter_origins", {})
-    parameters = [(k, v, origins.get(k, "")) for k, v in metadata.get("parameters", {}).items()]
-    components = [(k, Path(c.get("fmu", "")).name, c.get("interface", ""), c.get("generation_tool", ""), c.get("guid", ""))
+    parameters = [(k, parameter_value(k, v, metadata), origins.get(k, ""))
+                  for k, v in metadata.get("parameters", {}).items()]
+    components = [(k, c.get("fmu", ""), c.get("interface", ""), c.get("generation_tool", ""), c.get("guid", ""))
                   for k, c in metadata.get("components", {}).items()]
-    run = [(k, metadata.get(k)) for k in ("status", "message", "start_time", "stop_time", "step_size",
-                                          "step_size_source", "algorithm", "steps", "loop_seconds", "finished_at",
-                                          "system", "parameter_sets") if k in metadata]
     heading = title(metadata, scenario)
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(heading)}</title><style>{_STYLE}</style></head>
 <body>
 <h1>{html.escape(heading)}</h1>
-<p>Result <code>{html.escape(source)}</code>: {len(result)} samples, t = {result["time"][0]:g} … {result["time"][-1]:g} s,
+<p>Result <code>{html.escape(Path(source).name)}</code>: {len(result)} samples, t = {result["time"][0]:g} … {result["time"][-1]:g} s,
 status <b>{html.escape(str(metadata.get("status", "unknown")))}</b>.</p>
 <h2>Plot</h2>
+<p class=undefined>Drag to zoom (double-click: back), shift-drag or the toolbar to pan, the cursor reads every
+signal at its time, a click on a legend entry hides or shows that signal.</p>
+{page_div(result, all_panels, scenario=scenario, metadata=metadata)}
+<details><summary>The same plot as a static image (for print or mail)</summary>
 <img id="plot" alt="{html.escape(heading)}" src="data:image/png;base64,{_png(result, all_panels, scenario, metadata)}">
+</details>
 <h2>Metrics per event</h2>
 {_metrics_section(result, metadata, loops)}
 <h2>Parameters applied</h2>
@@ -127,9 +166,8 @@ status <b>{html.escape(str(metadata.get("status", "unknown")))}</b>.</p>
 <h2>FMUs</h2>
 {_table(components, ("component", "FMU", "interface", "generated by", "GUID"))}
 <h2>Run</h2>
-{_table(run, ("", ""))}
-<h2>Metadata (the run's JSON)</h2>
-<pre>{html.escape(json.dumps(metadata, indent=1, default=str))}</pre>
+{_table(run_facts(metadata), ("", ""))}
+<p>The run's full metadata: <code>{html.escape(Path(source).with_suffix(".json").name)}</code> beside the result.</p>
 </body></html>
 """
 

@@ -9,6 +9,7 @@ writing them to a CSV as it goes if asked.
 from __future__ import annotations
 
 import fnmatch
+import os
 import warnings
 from collections.abc import Sequence
 from contextlib import nullcontext
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import ssp
+from .description import unit_of
 from .errors import ComponentLost, OutOfMemory, OutputError, RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
 from .instances import Unzipped
@@ -267,10 +269,33 @@ def _journal_factory(output: str | Path, plan: Plan, metadata: dict):
     return create
 
 
+def _portable(path: str | Path, *bases: Path) -> str:
+    """``path`` relative to the first of ``bases`` holding it, else its file name alone: no
+    absolute path of the machine that ran it in the metadata (nor in the report made from it)."""
+    path = Path(path).resolve()
+    for base in bases:
+        if path.is_relative_to(base.resolve()):
+            return path.relative_to(base.resolve()).as_posix()
+    return path.name
+
+
+def _portable_origin(origin: str, bases: Sequence[Path]) -> str:
+    """A parameter's origin ``FILE:LINE[, mapped by ...]`` with FILE made `_portable`."""
+    where, comma, rest = origin.partition(", ")
+    file, colon, line = where.rpartition(":")
+    if not colon or not line.isdigit() or not file:
+        return origin
+    return f"{_portable(file, *bases)}:{line}{comma}{rest}"
+
+
 def _metadata(prepared: Prepared, execution: Execution) -> dict:
     meta = execution.metadata()
     plan = prepared.plan
-    meta["system"] = str(plan.files.source)
+    scenario = Path(plan.files.source).parent
+    # the system and parameter sets relative to the working folder (as the user named them), the
+    # FMUs to the scenario that ships them or the working folder (a provider's build/fmus)
+    named = (Path.cwd(), scenario.parent)
+    meta["system"] = _portable(plan.files.source, *named)
     meta["scenario"] = plan.name
     # result names are paths relative to this system (loop.ctrl.u for component ctrl of subsystem loop)
     meta["root_system"] = plan.system_name
@@ -280,8 +305,11 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
     meta["isolation"] = execution.isolation.metadata() if execution.isolation is not None else None
     meta["step_size_source"] = prepared.step_source
     meta["units"] = plan.units
-    meta["parameter_sets"] = list(prepared.parameter_sets)
-    meta["parameter_origins"] = {f"{sv.component}.{sv.variable.name}": sv.origin for sv in plan.start_values}
+    meta["parameter_sets"] = [_portable(p, *named) for p in prepared.parameter_sets]
+    for component in meta.get("components", {}).values():
+        component["fmu"] = _portable(component["fmu"], scenario, Path.cwd())
+    meta["parameter_origins"] = {f"{sv.component}.{sv.variable.name}": _portable_origin(sv.origin, named)
+                                 for sv in plan.start_values}
     meta.update(signal_info(plan))
     return meta
 
@@ -294,7 +322,21 @@ def signal_info(plan: Plan) -> dict:
                    + (f" (x{r.factor:g} {r.offset:+g})" if (r.factor, r.offset) != (1.0, 0.0) else "")
                    for r in plan.routes]
     return {"descriptions": {n: v.description for n, v in variables.items() if v.description},
-            "connections": connections}
+            "connections": connections,
+            # sampled outputs (FMI variability discrete): held between samples, drawn as steps
+            "discrete": sorted(n for n, v in variables.items() if v.variability == "discrete"),
+            "parameter_descriptions": {f"{sv.component}.{sv.variable.name}": sv.variable.description
+                                       for sv in plan.start_values if sv.variable.description},
+            "parameter_units": {f"{sv.component}.{sv.variable.name}": unit_of(sv.variable)
+                                for sv in plan.start_values if unit_of(sv.variable)}}
+
+
+def signal_units(plan: Plan) -> dict[str, tuple[str, bool]]:
+    """Each recorded signal's unit and whether it is "as wired" (`cosim.plots.units`)."""
+    from .plots import units
+
+    return units({"units": plan.units, "connections": signal_info(plan)["connections"],
+                  "components": {name: {"fmu": str(d.path)} for name, d in plan.fmus.items()}})
 
 
 class SystemOutputColumns:

@@ -42,7 +42,7 @@ from typing import Any
 
 from ..outputs import check_sweep_folder
 from ..safeio import lock_output, max_unpacked_bytes
-from ..simulation import prepare
+from ..simulation import prepare, signal_units
 from .cluster import check_scheduler, dispatch_cluster
 from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
 from .figure import summary_figure
@@ -106,6 +106,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
         runs, types = plan_runs(prepared, sets, seeds, seed_parameters, identity)
         grid, algo = prepared.grid, prepared.algorithm
         package = package_of(prepared) if is_cluster(executor) else None
+        units = signal_units(prepared.plan)
     finally:
         prepared.close()
     swept_types = {name: types[name] for name in sets}
@@ -163,6 +164,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
                 bar.close()
         ordered = [{name: rows[i].get(name) for name in schema.names} for i in sorted(rows)]
         figure = summary_figure(ordered, list(sets) or (["seed"] if seeds else []),
-                                [c for m in metric_list for c in m.columns()], output / "sweep.png", scenario.name)
+                                [c for m in metric_list for c in m.columns()], output / "sweep.png", scenario.name,
+                                {name: unit for name, (unit, _) in units.items()})
         return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv, parquet=parquet, columns=schema.names,
                            figure=figure)

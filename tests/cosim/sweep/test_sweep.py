@@ -240,3 +240,39 @@ def test_the_fmus_are_checked_against_the_parents_limit_before_any_run(scenario,
     with unpack_limit(1000), pytest.raises(SetupError, match="--max-unpacked") as refused:
         sweep(scenario, {"plant.T": ["10"]}, output=tmp_path, executor="process", workers=1, stop_time=2.0)
     assert "1000 bytes" in str(refused.value) and not (tmp_path / "sweep.csv").exists()
+
+
+def test_a_one_parameter_sweep_figure_is_a_grid_with_units_and_no_band_without_repeats(scenario, tmp_path):
+    """Issue 27: six metrics of one swept parameter were six panels in a narrow column, their y
+    labels without units, and a 'min-max band' drawn through single runs."""
+    import matplotlib.image
+
+    from cosim.metrics import metric_unit
+    from cosim.sweep.figure import metric_label
+
+    result = sweep(scenario, {"plant.T": ["15", "20"]}, metrics=[METRIC], output=tmp_path, executor="serial",
+                   stop_time=5.0)
+    height, width, _ = matplotlib.image.imread(result.figure).shape
+    assert (height, width) == (round(2 * 2.3 * 110), round((3 * 3.6 + 0.8) * 110))    # 2 rows × 3 columns
+    assert metric_label("plant.y:overshoot", {}) == "overshoot of plant.y [%]"
+    assert metric_label("plant.y:IAE", {"plant.y": "m"}) == "IAE of plant.y [m·s]"
+    assert (metric_unit("ISE", "m"), metric_unit("ITAE", "K"), metric_unit("peak_error", "N"),
+            metric_unit("IAE", None)) == ("m²·s", "K·s²", "N", "s")
+
+
+def test_the_figure_draws_a_band_only_where_a_value_has_repeats():
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from cosim.sweep.figure import draw
+
+    single = [{"status": "completed", "k": k, "p.y:IAE": 1.0 + k} for k in (1, 2)]
+    bands = {}
+    for name, rows in (("single", single), ("repeated", single + [{"status": "completed", "k": 1, "p.y:IAE": 3.0}])):
+        fig = draw(rows, ["k"], ["p.y:IAE"], name, {"p.y": "m"})
+        bands[name] = sum(isinstance(c, PolyCollection) for c in fig.axes[0].collections)
+        assert fig.axes[0].get_ylabel() == "IAE of p.y [m·s]"
+        assert fig._suptitle.get_text().endswith("(one run per value)" if name == "single"
+                                                 else "(median, min-max band, every run)")
+        plt.close(fig)
+    assert bands == {"single": 0, "repeated": 1}
