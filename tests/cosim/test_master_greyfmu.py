@@ -113,7 +113,7 @@ def test_pack_then_run_the_archive_gives_the_same_result(tmp_path, pid_fopdt):
 
 def test_run_writes_csv_plot_and_metadata(tmp_path, capsys):
     csv, png = tmp_path / "r.csv", tmp_path / "r.png"
-    assert main(["run", SCENARIO, "-q", "--stop", "50", "-o", str(csv), "--plot", str(png),
+    assert main(["run", SCENARIO, "--stop", "50", "-o", str(csv), "--plot", str(png),
                  "--signals", "setpoint.y,plant.y", "controller.*"]) == 0
     out = capsys.readouterr().out
     assert str(csv) in out and str(png) in out
