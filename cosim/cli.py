@@ -280,9 +280,11 @@ def _run(args) -> int:
         for desc in prepared.plan.fmus.values():  # extracted here, so this process's later runs reuse them
             Unzipped()(desc.path)
 
+        progress = _progress(args)  # asked here: the child's stderr is the supervisor's pipe
+
         def child() -> int:
             try:
-                return _execute(args, prepared, name, output)
+                return _execute(args, prepared, name, output, progress)
             except CosimError as e:
                 return _fail(e, args.debug)
 
@@ -305,9 +307,9 @@ def _default_result(plan, name: str, parameter_sets: list[str]) -> Path:
     return Path("results") / f"{result_stem(name, parameter_sets, **where)}.csv"
 
 
-def _execute(args, prepared, name: str, output: Path) -> int:
-    """The run itself (in `cosim.supervisor`'s child): exit 0, 1 failed or timed out, 130/143
-    stopped by SIGINT/SIGTERM."""
+def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
+    """The run itself (in `cosim.supervisor`'s child, with a progress bar if ``progress``): exit 0,
+    1 failed or timed out, 130/143 stopped by SIGINT/SIGTERM."""
     from .interrupts import stop_on_signals
     from .loops import LoopSettings
     from .plots import default_panels, plot
@@ -328,7 +330,7 @@ def _execute(args, prepared, name: str, output: Path) -> int:
     try:
         with stop_on_signals() as stop, warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RuntimeWarning)  # printed as cosim's own warnings
-            result, metadata = run(prepared, output=output, progress=_progress(args), fmu_log=args.fmu_log,
+            result, metadata = run(prepared, output=output, progress=progress, fmu_log=args.fmu_log,
                                    keep=[n for panel in panels for n in panel] if args.plot is not None else [],
                                    loop_settings=settings, stop=stop, isolate=args.isolate,
                                    call_timeout=args.call_timeout, kernel=args.kernel, threads=args.threads)
