@@ -1,4 +1,4 @@
-"""``cosim``: run, validate, inspect and pack SSP systems of FMI 2.0 Co-Simulation FMUs.
+"""``cosim``: run, validate, inspect, sweep and pack SSP systems and single FMUs (FMI 2.0, 3.0; CS, ME).
 
 Exit status: 0 done, 1 the run failed, crashed or timed out (results up to the last
 good step are kept), 2 the input is wrong (nothing was run), 130/143 the run was
@@ -11,6 +11,7 @@ import math
 import os
 import sys
 import warnings
+from importlib.metadata import version
 from pathlib import Path
 
 from .errors import CosimError, OutputError, RunError, SetupError
@@ -20,6 +21,7 @@ from .safeio import parse_size, unpack_limit
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="cosim", description=__doc__.splitlines()[0])
     p.add_argument("--debug", action="store_true", help="show Python tracebacks")
+    p.add_argument("--version", action="version", version=f"cosim (greyfmu) {version('greyfmu')}")
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp):
@@ -33,11 +35,11 @@ def _parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run a system and write CSV results (and a plot)")
     common(run)
-    run.add_argument("--start", "--start-time", type=float, dest="start",
+    run.add_argument("--start", "--start-time", type=_seconds, dest="start",
                      help="start time [s] (default: DefaultExperiment or 0)")
-    run.add_argument("--stop", "--stop-time", type=float, dest="stop",
+    run.add_argument("--stop", "--stop-time", type=_seconds, dest="stop",
                      help="stop time [s] (default: DefaultExperiment; an FMU without one: start + 1)")
-    run.add_argument("--step", type=float, help="communication step [s] (default: SSD annotation; an FMU's "
+    run.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation; an FMU's "
                                                 "DefaultExperiment stepSize, else fmpy's automatic interval)")
     single_options(run)
     run.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="default: jacobi")
@@ -75,8 +77,9 @@ def _parser() -> argparse.ArgumentParser:
                           "default; the metadata says which and why), the compiled one or an error (native), "
                           "or the Python one (python); the results are the same")
     run.add_argument("--threads", type=int, default=1, metavar="N",
-                     help="threads stepping components in parallel (1; more is not implemented)")
-    run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+                     help="threads making the doSteps of each Jacobi step in parallel on the compiled kernel "
+                          "(default 1; same results; pays only for FMUs of tens of µs per step)")
+    run.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     run.add_argument("--timeout", type=float, metavar="SECONDS",
                      help="end the run after SECONDS (status 'timeout', exit 1); an FMU call still not "
                           "returned 2 s later is killed, the rows so far kept")
@@ -90,6 +93,8 @@ def _parser() -> argparse.ArgumentParser:
     validate = sub.add_parser("validate", help="check a system without running it")
     common(validate)
     validate.add_argument("--fmi-type", choices=["CoSimulation", "ModelExchange"], help=FMI_TYPE_HELP)
+    validate.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
+                          help="parameter set checked as cosim run applies it, last (repeatable)")
 
     info = sub.add_parser("info", help="list components, connections and parameters")
     common(info)
@@ -144,9 +149,9 @@ def _parser() -> argparse.ArgumentParser:
                             "e.g. plant.y:setpoint.y")
     sweep.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                        help="parameter set applied to every run before the swept values (repeatable)")
-    sweep.add_argument("--start", type=float, help="start time [s] (default: DefaultExperiment or 0)")
-    sweep.add_argument("--stop", type=float, help="stop time [s] (default: DefaultExperiment)")
-    sweep.add_argument("--step", type=float, help="communication step [s] (default: SSD annotation)")
+    sweep.add_argument("--start", type=_seconds, help="start time [s] (default: DefaultExperiment or 0)")
+    sweep.add_argument("--stop", type=_seconds, help="stop time [s] (default: DefaultExperiment)")
+    sweep.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation)")
     sweep.add_argument("--workers", type=int, metavar="N", help="processes of the local pool (default: one per core)")
     sweep.add_argument("--scheduler", metavar="ADDRESS",
                        help="run on a Dask distributed cluster (tcp://host:8786), or 'local:N' for a local "
@@ -154,8 +159,38 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--output", "-o", metavar="DIR",
                        help="folder for sweep.csv, sweep.parquet and runs/ (default: results/<name>_sweep)")
     sweep.add_argument("--force", action="store_true", help="rerun runs already done")
-    sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    sweep.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
+
+    completion = sub.add_parser("completion", help="print a shell completion script (e.g. "
+                                                   "eval \"$(cosim completion bash)\")")
+    completion.add_argument("shell", choices=["bash", "zsh", "tcsh"])
     return p
+
+
+QUIET_HELP = "no progress bar and no informational lines: errors and warnings only"
+
+
+def _seconds(text: str) -> float:
+    """An argparse type: a finite number (argparse's error names the option and the text given)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text} is not a finite number of seconds")
+    return value
+
+
+def _say(args, text: str) -> None:
+    """An informational line on stdout, which --quiet leaves out."""
+    if not getattr(args, "quiet", False):
+        print(text)
+
+
+def _progress(args) -> bool:
+    """A progress bar only where a person watches: not --quiet, and stderr a terminal (a log
+    file gets no carriage-return-separated bar)."""
+    return not args.quiet and sys.stderr.isatty()
 
 
 FMI_TYPE_HELP = "the interface of an FMU that has both (default: CoSimulation); a single .fmu only"
@@ -180,7 +215,8 @@ def main(argv: list[str] | None = None) -> int:
         limit = getattr(args, "max_unpacked", None)
         with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None):
             code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
-                    "report": _report, "compare": _compare, "sweep": _sweep}[args.command](args)
+                    "report": _report, "compare": _compare, "sweep": _sweep,
+                    "completion": _completion}[args.command](args)
         sys.stdout.flush()  # a closed pipe is reported here, not at interpreter exit
         return code
     except CosimError as e:
@@ -188,6 +224,15 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # `cosim info | head -1`: the reader has gone; end quietly, as cat does
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+
+
+def _completion(args) -> int:
+    """The shell's completion script for every subcommand and option (shtab: generated from
+    the parser itself, so it never disagrees with --help)."""
+    import shtab
+
+    print(shtab.complete(_parser(), args.shell))
+    return 0
 
 
 def _fail(e: CosimError, debug: bool) -> int:
@@ -235,9 +280,11 @@ def _run(args) -> int:
         for desc in prepared.plan.fmus.values():  # extracted here, so this process's later runs reuse them
             Unzipped()(desc.path)
 
+        progress = _progress(args)  # asked here: the child's stderr is the supervisor's pipe
+
         def child() -> int:
             try:
-                return _execute(args, prepared, name, output)
+                return _execute(args, prepared, name, output, progress)
             except CosimError as e:
                 return _fail(e, args.debug)
 
@@ -260,9 +307,9 @@ def _default_result(plan, name: str, parameter_sets: list[str]) -> Path:
     return Path("results") / f"{result_stem(name, parameter_sets, **where)}.csv"
 
 
-def _execute(args, prepared, name: str, output: Path) -> int:
-    """The run itself (in `cosim.supervisor`'s child): exit 0, 1 failed or timed out, 130/143
-    stopped by SIGINT/SIGTERM."""
+def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
+    """The run itself (in `cosim.supervisor`'s child, with a progress bar if ``progress``): exit 0,
+    1 failed or timed out, 130/143 stopped by SIGINT/SIGTERM."""
     from .interrupts import stop_on_signals
     from .loops import LoopSettings
     from .plots import default_panels, plot
@@ -277,13 +324,13 @@ def _execute(args, prepared, name: str, output: Path) -> int:
                             max_iterations=args.loop_iterations, relaxation=args.relaxation,
                             method=args.loop_method)
     grid = prepared.grid
-    print(f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
+    _say(args, f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
           f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
           f"{prepared.algorithm}")
     try:
         with stop_on_signals() as stop, warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RuntimeWarning)  # printed as cosim's own warnings
-            result, metadata = run(prepared, output=output, progress=not args.quiet, fmu_log=args.fmu_log,
+            result, metadata = run(prepared, output=output, progress=progress, fmu_log=args.fmu_log,
                                    keep=[n for panel in panels for n in panel] if args.plot is not None else [],
                                    loop_settings=settings, stop=stop, isolate=args.isolate,
                                    call_timeout=args.call_timeout, kernel=args.kernel, threads=args.threads)
@@ -296,17 +343,17 @@ def _execute(args, prepared, name: str, output: Path) -> int:
         print(f"cosim: warning: {metadata['message']}", file=sys.stderr)
     elif metadata["status"] == "terminated":
         print(f"cosim: {metadata['message']}", file=sys.stderr)
-    print(f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
+    _say(args, f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
     if stop.signum is not None:
         print(f"cosim: {metadata['message']} Results up to there kept in {output}", file=sys.stderr)
         return 1 if stop.status() == "timeout" else 128 + stop.signum
     if args.plot is not None:
         png = plot(result, panels, args.plot or output.with_suffix(".png"), scenario=name, metadata=metadata)
-        print(f"cosim: plot: {png}")
+        _say(args, f"cosim: plot: {png}")
     if args.report is not None:
         from .report import write_report
         page = write_report(output, args.report or output.with_suffix(".html"), panels=panels)
-        print(f"cosim: report: {page}")
+        _say(args, f"cosim: report: {page}")
     return 0
 
 
@@ -335,13 +382,14 @@ def _prepare_with_placeholder_grid(args):
         if args.command == "pack":
             raise SetupError("cosim pack packs an SSP scenario; an FMU alone has no SSD to pack.",
                              file=args.path, element="cosim pack")
-        return prepare_run(args.path, fmi_type=args.fmi_type)
+        return prepare_run(args.path, fmi_type=args.fmi_type, parameter_sets=getattr(args, "param_set", []))
     check_fmi_type(args.path, getattr(args, "fmi_type", None))
-    plan = validate(args.path, fmu_dirs=args.fmu_dir)
+    plan = validate(args.path, fmu_dirs=args.fmu_dir, parameter_sets=getattr(args, "param_set", []))
     experiment = plan.experiment
     try:
         return resolve_grid(plan, stop_time=(experiment.start_time or 0.0) + 1.0 if experiment.stop_time is None
-                            else None, step_size=1.0 if experiment.step_size is None else None)
+                            else None, step_size=1.0 if experiment.step_size is None else None,
+                            options={})  # placeholders: nobody gave them
     except BaseException:
         plan.close()
         raise
@@ -418,7 +466,8 @@ def _metrics(args) -> int:
 
     result = read(args.result)
     names = [n for n in result.dtype.names if n != "time"]
-    y, r = (select(names, [name])[0] for name in (args.signal, args.setpoint))
+    y, r = (select(names, [name], option=option)[0]
+            for name, option in ((args.signal, "--signal"), (args.setpoint, "--setpoint")))
     time = result["time"]
     if len(time) < 2:
         raise SetupError(f"{len(time)} sample(s): the metrics need two or more.", file=args.result)
@@ -435,7 +484,7 @@ def _metrics(args) -> int:
                         float("nan"), float("nan"))]
         rows, keys = [window], METRICS
     else:
-        disturbances = {d: result[d] for d in (select(names, [g])[0] for g in args.disturbance)}
+        disturbances = {d: result[d] for d in (select(names, [g], option="--disturbance")[0] for g in args.disturbance)}
         events = find_events(time, (r, result[r]), disturbances)
         rows, keys = event_metrics(time, result[y], result[r], events, band=args.band), EVENT_METRICS
     if args.json:
@@ -520,7 +569,7 @@ def _sweep(args) -> int:
             result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
                            parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
                            step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
-                           executor=args.scheduler or "process", workers=args.workers, progress=not args.quiet)
+                           executor=args.scheduler or "process", workers=args.workers, progress=_progress(args))
     except KeyboardInterrupt:
         table = output / "sweep.csv"
         kept = len(read_table(output / "sweep.parquet")) if table.is_file() else 0
@@ -530,7 +579,7 @@ def _sweep(args) -> int:
     for row in result.failed:
         print(f"cosim: run {row['run_id']} failed: {row['message']}", file=sys.stderr)
     _print_undefined_metrics(result.rows, args.metrics)
-    print(f"cosim: sweep: {len(result.rows)} runs ({result.ran} ran now, {result.skipped} already done and "
+    _say(args, f"cosim: sweep: {len(result.rows)} runs ({result.ran} ran now, {result.skipped} already done and "
           f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}, results in "
           f"{output / 'runs'}")
     return 1 if result.failed else 0

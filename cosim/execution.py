@@ -86,8 +86,9 @@ class Grid:
     def __post_init__(self):
         if not (math.isfinite(self.step) and self.step > 0):
             raise SetupError(f"the step size must be a positive number; got {self.step}.", element="step size")
-        if not (math.isfinite(self.start) and math.isfinite(self.stop)):
-            raise SetupError(f"start and stop times must be finite; got {self.start} and {self.stop}.")
+        for what, value in (("start time", self.start), ("stop time", self.stop)):
+            if not math.isfinite(value):
+                raise SetupError(f"the {what} must be a finite number; got {value}.", element=what)
         if self.stop <= self.start:
             raise SetupError(f"the stop time {self.stop} is not after the start time {self.start}.",
                              element="stop time")

@@ -19,8 +19,11 @@ fmu_dirs=(), signals=None, tolerances=None, rtol=1e-6, atol=1e-9, decimate=None)
 
 - ``scenario``: scenario folder, ``.ssd`` or ``.ssp`` (relative paths are taken from the
   current directory, as ``cosim run`` takes them).
-- ``reference``: the CSV's file name in the references folder, which is the ini option
-  ``cosim_references`` (default ``tests/references``) relative to the rootdir; a path
+- ``reference``: the CSV's file name in the references folder: by default beside the test
+  file, in a folder named after it (``tests/test_loop.py`` -> ``tests/test_loop/``, as
+  pytest-regressions keeps its data), or the folder the ini option ``cosim_references``
+  names, relative to the rootdir, or the folder a conftest's own ``cosim_references_dir``
+  fixture returns (this repository's tests/conftest.py: ``tests/references``); a path
   (``sub/x.csv``, ``../x.csv``, ``/abs/x.csv``) fails the test, so no test writes outside the
   folder.  References are written in one rename (`cosim.results.write`).
   Default: ``<test name>.csv`` there (parametrised tests: ``test_x[id].csv``, characters
@@ -59,7 +62,6 @@ if TYPE_CHECKING:
 
 UPDATE_OPTION = "--cosim-update-references"
 REFERENCES_INI = "cosim_references"
-DEFAULT_REFERENCES = "tests/references"
 
 #: (node id, reference path, "written" or "rewritten"), listed in the terminal summary
 _WRITTEN = pytest.StashKey[list]()
@@ -70,9 +72,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption(UPDATE_OPTION, action="store_true", default=False,
                     help="write the reference CSVs of cosim_regression from this run instead of "
                          "comparing with them (the tests pass; the summary lists the files)")
-    parser.addini(REFERENCES_INI, default=DEFAULT_REFERENCES,
-                  help="folder of cosim_regression reference CSVs, relative to the rootdir "
-                       f"(default: {DEFAULT_REFERENCES})")
+    parser.addini(REFERENCES_INI, default="",
+                  help="folder of cosim_regression reference CSVs, relative to the rootdir (default: "
+                       "beside each test file, a folder named after it: tests/test_x.py -> tests/test_x/)")
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -92,17 +94,23 @@ def _fail(message: str) -> NoReturn:
     raise pytest.fail.Exception(message, pytrace=False) from None
 
 
-def references_dir(config: pytest.Config) -> Path:
-    """The ``cosim_references`` ini folder, absolute (relative values are from the rootdir)."""
-    folder = Path(config.getini(REFERENCES_INI) or DEFAULT_REFERENCES)
-    return folder if folder.is_absolute() else config.rootpath / folder
+def references_dir(request: pytest.FixtureRequest) -> Path:
+    """The references folder of the requesting test, absolute: the ``cosim_references`` ini
+    folder (relative values are from the rootdir), else ``<test file's folder>/<its stem>``."""
+    configured = request.config.getini(REFERENCES_INI)
+    if not configured:
+        test_file = Path(request.node.path)
+        return test_file.parent / test_file.stem
+    folder = Path(configured)
+    return folder if folder.is_absolute() else request.config.rootpath / folder
 
 
 class Regression:
     """The callable the `cosim_regression` fixture returns (one per test)."""
 
-    def __init__(self, request: pytest.FixtureRequest, tmp_path: Path):
+    def __init__(self, request: pytest.FixtureRequest, tmp_path: Path, references: Path):
         self.request = request
+        self.references = references
         self.tmp_path = tmp_path
         self.update = bool(request.config.getoption(UPDATE_OPTION))
         self.used: set[Path] = set()
@@ -122,7 +130,7 @@ class Regression:
         from .metrics import check_tolerance_keys
         from .simulation import select, simulate
 
-        path = references_dir(self.request.config) / self._reference_name(reference)
+        path = self.references / self._reference_name(reference)
         if path in self.used:
             _fail(f"cosim regression: {self.request.node.nodeid} uses the reference {path} twice; pass "
                   "reference=... to give each run its own file.")
@@ -159,7 +167,7 @@ class Regression:
             return file_name(str(reference), what="the reference", element="cosim_regression(reference=...)")
         except SetupError as e:
             _fail(f"cosim regression: {self.request.node.nodeid}: {e} Give a file name in the references "
-                  f"folder ({references_dir(self.request.config)}).")
+                  f"folder ({self.references}).")
 
     def _write(self, result: np.ndarray, chosen: list[str], path: Path) -> None:
         from .results import write
@@ -201,6 +209,12 @@ class Regression:
 
 
 @pytest.fixture
-def cosim_regression(request: pytest.FixtureRequest, tmp_path: Path) -> Regression:
+def cosim_references_dir(request: pytest.FixtureRequest) -> Path:
+    """The folder of the test's reference CSVs (`references_dir`); a conftest may override it."""
+    return references_dir(request)
+
+
+@pytest.fixture
+def cosim_regression(request: pytest.FixtureRequest, tmp_path: Path, cosim_references_dir: Path) -> Regression:
     """Run a co-simulation scenario and compare it with a stored reference CSV (see `cosim.pytest_plugin`)."""
-    return Regression(request, tmp_path)
+    return Regression(request, tmp_path, Path(cosim_references_dir))

@@ -11,7 +11,7 @@ from __future__ import annotations
 import fnmatch
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -63,10 +63,13 @@ def validate(path: str | Path, *, parameter_sets: Sequence[str | Path] = (), fmu
 
 
 def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: float | None = None,
-                 step_size: float | None = None, algorithm: str | None = None) -> Prepared:
+                 step_size: float | None = None, algorithm: str | None = None,
+                 options: Mapping[str, str] | None = None) -> Prepared:
     """The time grid and algorithm of a run: the arguments given, else the SSD's default
     experiment and annotations (`cosim.structure.Experiment`); a missing stop time or step
-    size, or an unknown algorithm, is refused."""
+    size, or an unknown algorithm, is refused.  ``options``: the command-line option each
+    given argument came from, which a refused value is blamed on ("start time", "stop time",
+    "step size" -> e.g. "--stop"; default: --start, --stop and --step for those given)."""
     experiment, file = plan.experiment, plan.files.display
     start = start_time if start_time is not None else (experiment.start_time or 0.0)
     stop = stop_time if stop_time is not None else experiment.stop_time
@@ -88,10 +91,14 @@ def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: floa
         raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
     try:
         grid = Grid(start, stop, step)
-    except SetupError as e:  # name the SSD the times came from, and where the stop time is given
-        element = e.element
-        if element == "stop time":
-            element = "--stop" if stop_time is not None else "ssd:DefaultExperiment stopTime"
+    except SetupError as e:  # name the option or the SSD element the offending time came from
+        values = {"start time": start_time, "stop time": stop_time, "step size": step_size}
+        if options is None:
+            options = {"start time": "--start", "stop time": "--stop", "step size": "--step"}
+        if e.element in options and values.get(e.element) is not None:
+            raise SetupError(e.detail, element=f"{options[e.element]} {values[e.element]:g}", hint=e.hint) from None
+        element = {"stop time": "ssd:DefaultExperiment stopTime",
+                   "start time": "ssd:DefaultExperiment startTime"}.get(e.element, e.element)
         raise SetupError(e.detail, file=file, element=element, hint=e.hint) from None
     return Prepared(plan, grid, algo, source)
 
@@ -369,13 +376,14 @@ class SystemOutputColumns:
             sink.close(metadata)
 
 
-def select(names: Sequence[str], patterns: Sequence[str]) -> list[str]:
-    """Names matching any glob pattern, in the order of ``names``; an unmatched pattern is an error."""
+def select(names: Sequence[str], patterns: Sequence[str], option: str = "--signals") -> list[str]:
+    """Names matching any glob pattern, in the order of ``names``; an unmatched pattern is an error
+    naming the ``option`` it was given with."""
     chosen = []
     for pattern in patterns:
         matched = [n for n in names if fnmatch.fnmatchcase(n, pattern)]
         if not matched:
-            raise SetupError(f"no signal matches '{pattern}'.", element="--signals",
+            raise SetupError(f"no signal matches '{pattern}'.", element=option,
                              hint=did_you_mean(pattern, names) or f"Signals: {', '.join(names[:12])}.")
         chosen += [n for n in matched if n not in chosen]
     return chosen

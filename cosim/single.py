@@ -142,10 +142,13 @@ def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_fil
             plan = with_table(plan, bind_table(table, plan, component, list(structure.parameters) + extra))
         step, source = (step_size, "command line") if step_size is not None else \
             (output_interval, "--output-interval") if output_interval is not None else (None, None)
+        given = (("start time", "--start", start_time), ("stop time", "--stop", stop_time),
+                 ("step size", "--step" if step_size is not None else "--output-interval", step))
+        options = {what: option for what, option, value in given if value is not None}  # what a refusal blames
         if single:
             stop_time, step, source = _fmu_defaults(plan, start_time, stop_time, step, source)
         prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step,
-                                algorithm=algorithm)
+                                algorithm=algorithm, options=options)
         return replace(prepared, step_source=source or prepared.step_source,
                        parameter_sets=tuple(str(p) for p in parameter_sets))
     except BaseException:

@@ -35,6 +35,13 @@ def built_fmus() -> dict[str, Path]:
     return {path.stem: path for path in build_fmus()}
 
 
+@pytest.fixture
+def cosim_references_dir() -> Path:
+    """Our own regression references stay in one folder, tests/references (the plugin's default
+    is a folder beside each test file, for the users' tests)."""
+    return Path(__file__).resolve().parent / "references"
+
+
 @pytest.fixture(autouse=True, scope="session")
 def _repository_root() -> None:
     """Scenario paths in the tests (ssp/...) are relative to the repository root."""

@@ -154,8 +154,11 @@ class Run:
 def _variable(prepared: Prepared, name: str):
     """The FMU variable behind ``comp.var``, or the master's own message for an unknown name."""
     p = ParameterValue(name, "Real", 0.0, SOURCE, 0)
-    comp, var = split_system_name(prepared.plan.components, p)
-    return prepared.plan.fmus[comp].variable(var, f"--set {name}", SOURCE)
+    try:
+        comp, var = split_system_name(prepared.plan.components, p)
+        return prepared.plan.fmus[comp].variable(var, "", "")
+    except SetupError as e:  # said once, as the option: not "cosim sweep --set, --set NAME"
+        raise SetupError(e.detail, element=f"--set {name}", hint=e.hint) from None
 
 
 def _seed_parameters(prepared: Prepared, named: Sequence[str]) -> list[str]:

@@ -22,7 +22,7 @@ def _system(tmp_path, built_fmus, **kw):
 def test_run_writes_results_and_metadata(tmp_path, built_fmus, capsys):
     folder = _system(tmp_path, built_fmus, stop=2.0, step=0.5)
     out = tmp_path / "out.csv"
-    assert main(["run", str(folder), "-o", str(out), "-q"]) == 0
+    assert main(["run", str(folder), "-o", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "cosim: pair: 2 FMUs, 1 connections, t = 0..2 s, step 0.5 s (annotation org.greyfmu.simulation)" in printed
     assert f"cosim: results: {out} (5 samples; metadata {out.with_suffix('.json')})" in printed

@@ -95,3 +95,28 @@ def test_plugin_module_imports_neither_numpy_nor_fmpy(pytester):
                           "print(sorted(m for m in ('numpy', 'fmpy', 'cosim.simulation') if m in sys.modules))")
     assert result.ret == 0
     assert result.stdout.lines[-1] == "[]"
+
+
+def test_references_default_beside_the_test_file(pytester):
+    """Issue 27, item 4: without the ini option a reference lands beside the user's test file, in a folder
+    named after it (pytest-regressions' convention), not in the rootdir's tests/references."""
+    sub = pytester.mkdir("my_tests")
+    (sub / "test_mine.py").write_text(
+        "def test_loop(cosim_regression):\n"
+        f"    cosim_regression({str(SCENARIO)!r}, stop=1.0, signals=['plant.y'])\n")
+    written = pytester.runpytest_subprocess("--cosim-update-references")
+    written.assert_outcomes(passed=1)
+    assert (sub / "test_mine" / "test_loop.csv").is_file()
+    assert not (pytester.path / "tests" / "references").exists()
+    pytester.runpytest_subprocess().assert_outcomes(passed=1)
+
+
+def test_a_conftest_fixture_chooses_the_references_folder(pytester):
+    """The folder is the cosim_references_dir fixture's: a conftest overrides it (as tests/conftest.py does
+    to keep this repository's references in tests/references)."""
+    pytester.makeconftest("import pytest\n\n@pytest.fixture\ndef cosim_references_dir(tmp_path_factory):\n"
+                          "    from pathlib import Path\n    return Path.cwd() / 'kept_here'\n")
+    pytester.makepyfile(test_loop="def test_loop(cosim_regression):\n"
+                                  f"    cosim_regression({str(SCENARIO)!r}, stop=1.0, signals=['plant.y'])\n")
+    pytester.runpytest_subprocess("--cosim-update-references").assert_outcomes(passed=1)
+    assert (pytester.path / "kept_here" / "test_loop.csv").is_file()

@@ -23,7 +23,7 @@ def test_the_master_and_its_process_pool_sweeps_import_no_dask(tmp_path):
     code = ("import sys; sys.modules['dask'] = sys.modules['distributed'] = None\n"
             "from cosim.cli import main\n"
             f"sys.exit(main(['sweep', 'ssp/pid_fopdt', '--set', 'controller.Kc=6,8', '--stop', '1', "
-            f"'--workers', '2', '--output', {str(tmp_path)!r}, '--quiet']))")
+            f"'--workers', '2', '--output', {str(tmp_path)!r}]))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert "2 runs (2 ran now" in done.stdout
