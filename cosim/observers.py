@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import errno
 import functools
+import importlib.util
 import json
 import os
 import re
@@ -25,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .csvformat import format_rows
 from .errors import OutOfMemory, OutputError
 from .safeio import partial_path, write_atomic
 
@@ -87,6 +89,26 @@ class _FileSink:
         return json.dumps(metadata, indent=2, default=str) + "\n"
 
 
+def _arrow_rows(rows: np.ndarray) -> bytes:
+    """The lines of ``rows`` as Arrow's C++ CSV writer formats them."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=[str(i) for i in range(rows.shape[1])])
+    sink = pa.BufferOutputStream()
+    pcsv.write_csv(table, sink, pcsv.WriteOptions(include_header=False))
+    return sink.getvalue().to_pybytes()
+
+
+def _python_rows(rows: np.ndarray) -> bytes:
+    """The lines of ``rows`` formatted without pyarrow: the same bytes as `_arrow_rows`."""
+    return format_rows(rows).encode()
+
+
+#: the formatter of a result CSV's rows: Arrow's when pyarrow is installed, else plain Python's
+format_chunk = _arrow_rows if importlib.util.find_spec("pyarrow") is not None else _python_rows
+
+
 def csv_header(names: Sequence[str]) -> str:
     """The header line of a result CSV: each name quoted as RFC 4180 quotes a field (its ``"``
     doubled), so a name may hold commas, quotes and line breaks; `cosim.results.read` reads
@@ -97,40 +119,38 @@ def csv_header(names: Sequence[str]) -> str:
 class CsvSink(_FileSink):
     """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it.
 
-    A quoted header (`csv_header`), then one line per sample, formatted by Arrow's C++ CSV writer: each
-    float64 in the shortest decimal form that reads back to the same bits (``-0``, ``inf``,
-    ``nan`` included), which ``fmpy.util.read_csv`` reads.  Formatting a chunk in C++ (without
-    the GIL) instead of ``np.savetxt``'s Python loop over rows keeps the writer's share of a
-    long run small (benchmarks/bench_memory.py).
+    A quoted header (`csv_header`), then one line per sample: each float64 in the shortest
+    decimal form that reads back to the same bits (``-0``, ``inf``, ``nan`` included), laid out
+    as Arrow's CSV writer lays it out, which ``fmpy.util.read_csv`` reads.  With pyarrow
+    installed (``greyfmu[parquet]``) Arrow's C++ writer formats each chunk (without the GIL);
+    without it `cosim.csvformat.format_rows` writes the same bytes, several times slower per
+    value (benchmarks/bench_csv.py).
     """
 
     def __init__(self, path: str | Path):
         super().__init__(path)
         self._file = None
-        self._names: list[str] = []
 
     @_naming_the_file
     def open(self, names: list[str]) -> None:
-        import pyarrow as pa
-
-        self._file = pa.OSFile(str(self.part), "wb")
-        self._file.write(csv_header(names).encode())
-        self._file.flush()
-        self._names = names
+        self._file = open(self.part, "wb", buffering=0)
+        self._write_all(csv_header(names).encode())
 
     @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
-        import pyarrow as pa
-        import pyarrow.csv as pcsv
-
-        table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=self._names)
+        text = format_chunk(rows)
         end = self._file.tell()
         try:
-            pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
-            self._file.flush()
+            self._write_all(text)
         except OSError:  # a full disk: drop the partly written chunk, so every line left is whole
             os.truncate(self.part, end)
             raise
+
+    def _write_all(self, data: bytes) -> None:
+        """Write every byte (an unbuffered write may take part of them)."""
+        view = memoryview(data)
+        while view:
+            view = view[self._file.write(view):]
 
     @_naming_the_file
     def finish(self) -> None:

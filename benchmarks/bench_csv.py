@@ -1,0 +1,61 @@
+"""Issue 27: the cost per value of writing a result CSV, with and without pyarrow.
+
+    python benchmarks/bench_csv.py [--rows 4096] [--columns 10] [--chunks 20] [--repeat 5]
+
+Writes ``--chunks`` chunks of ``--rows`` x ``--columns`` float64 (a time column and random
+walks, like a run's signals) to a CSV through `cosim.observers.CsvSink`, once with the rows
+formatted by Arrow's C++ writer (the writer before issue 27, and the one used when pyarrow is
+installed) and once by `cosim.csvformat.format_rows` (used without pyarrow); both write the same
+bytes (tests/cosim/test_csvformat.py).  Prints the best time per value of each and their ratio.
+"""
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cosim import observers
+
+
+def chunk(rows: int, columns: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    walks = np.cumsum(rng.normal(size=(rows, columns - 1)), axis=0)
+    return np.column_stack([np.arange(rows) * 0.1, walks])
+
+
+def seconds_per_value(formatter, rows: np.ndarray, chunks: int, repeat: int) -> float:
+    """Best of ``repeat`` times writing ``chunks`` chunks, per value."""
+    observers.format_chunk = formatter
+    best = float("inf")
+    with tempfile.TemporaryDirectory() as folder:
+        for _ in range(repeat):
+            sink = observers.CsvSink(Path(folder) / "bench.csv")
+            start = time.perf_counter()
+            sink.open([f"c{i}" for i in range(rows.shape[1])])
+            for _ in range(chunks):
+                sink.write(rows)
+            sink.close({})
+            best = min(best, time.perf_counter() - start)
+    return best / (rows.size * chunks)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rows", type=int, default=4096)
+    parser.add_argument("--columns", type=int, default=10)
+    parser.add_argument("--chunks", type=int, default=20)
+    parser.add_argument("--repeat", type=int, default=5)
+    args = parser.parse_args()
+    rows = chunk(args.rows, args.columns)
+    arrow = seconds_per_value(observers._arrow_rows, rows, args.chunks, args.repeat)
+    python = seconds_per_value(observers._python_rows, rows, args.chunks, args.repeat)
+    print(f"pyarrow writer: {arrow * 1e9:.0f} ns per value")
+    print(f"python writer:  {python * 1e9:.0f} ns per value")
+    print(f"ratio python / pyarrow: {python / arrow:.2f}")
+
+
+if __name__ == "__main__":
+    main()
