@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import errno
 import functools
-import importlib.util
 import json
 import os
 import re
@@ -28,12 +27,17 @@ import numpy as np
 
 from .csvformat import format_rows
 from .errors import OutOfMemory, OutputError
+from .extras import has_pyarrow, require_pyarrow
 from .safeio import partial_path, write_atomic
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
-    """The sink for a result file: Parquet for a ``.parquet`` suffix, else CSV."""
-    return ParquetSink(path) if Path(path).suffix.lower() == ".parquet" else CsvSink(path)
+    """The sink for a result file: Parquet for a ``.parquet`` suffix (a `SetupError` naming the
+    extra to install without pyarrow), else CSV."""
+    if Path(path).suffix.lower() == ".parquet":
+        require_pyarrow("a Parquet result", file=str(path))
+        return ParquetSink(path)
+    return CsvSink(path)
 
 
 def describe_os_error(e: OSError) -> str:
@@ -106,7 +110,7 @@ def _python_rows(rows: np.ndarray) -> bytes:
 
 
 #: the formatter of a result CSV's rows: Arrow's when pyarrow is installed, else plain Python's
-format_chunk = _arrow_rows if importlib.util.find_spec("pyarrow") is not None else _python_rows
+format_chunk = _arrow_rows if has_pyarrow() else _python_rows
 
 
 def csv_header(names: Sequence[str]) -> str:
