@@ -6,10 +6,11 @@ mode): positional notation for a decimal exponent from -6 to 9 (``0.000001``, ``
 trailing ``.0``), else exponential with a signed exponent of no leading zero (``1e-7``,
 ``1.25e+10``); ``-0``, ``inf``, ``-inf`` and ``nan`` (whatever its sign) as such.
 
-The row text is made by one ``%`` formatting of the whole chunk (``repr`` of every value, in C),
-then the forms where Python's ``repr`` and Arrow differ are rewritten by regular expressions: the
-``.0`` of a whole number (every one, in C), the zero-padded exponent (``e-07``, in C), and the two
-rare ranges where one writes positional notation and the other exponential (a Python callback).
+The row text is made by one ``%`` formatting of the whole chunk (``repr`` of every value, in C);
+the values of the two ranges where ``repr`` and Arrow choose different notations (about 1e-6 and
+1e10..1e15, rare in a run's signals) are formatted one by one first (`format_float`), then two
+regular expressions rewrite what is left: the ``.0`` of a whole number and the zero-padded
+exponent (``e-07``).
 """
 from __future__ import annotations
 
@@ -19,14 +20,20 @@ import numpy as np
 
 #: decimal exponents written in positional notation (double-conversion's decimal_in_shortest_low/high)
 _POSITIONAL = range(-6, 10)
-#: ``repr`` in positional notation with 11 to 16 integer digits (exponent 10..15): Arrow writes them exponential
-_LONG_POSITIONAL = re.compile(r"(?<![^,\n])-?[1-9]\d{10,15}\.\d+(?![^,\n])")
-#: ``repr`` in exponential notation with exponent -5 or -6: Arrow writes them positional
-_SHORT_EXPONENTIAL = re.compile(r"(?<![^,\n])-?\d(?:\.\d+)?e-0[56](?![^,\n])")
+#: magnitudes where ``repr`` and Arrow choose different notations: ``repr`` writes 1e-06 and 1e-05
+#: exponential and 1e10..1e15 positional (bounds taken wide: `format_float` is right for any value)
+_DIFFERENT_NOTATION = ((1e-7, 1e-4), (1e9, 1e17))
 #: the ``.0`` of a whole number written by ``repr``
 _WHOLE = re.compile(r"\.0(?=[,\n])")
 #: ``repr``'s zero-padded exponent
 _PADDED_EXPONENT = re.compile(r"e([+-])0(?=\d)")
+
+
+class _Verbatim(str):
+    """A text that ``%r`` writes as it is."""
+
+    def __repr__(self) -> str:
+        return str(self)
 
 
 def format_float(x: float) -> str:
@@ -62,18 +69,17 @@ def _layout(digits: str, point: int) -> str:
     return f"{digits[0]}{tail}e{'+' if exponent >= 0 else '-'}{abs(exponent)}"
 
 
-def _reformat(match: re.Match) -> str:
-    return format_float(float(match.group()))
-
-
 def format_rows(rows: np.ndarray) -> str:
     """The lines of a 2-D float64 array, comma-separated, each ending in ``\\n`` (none for no rows)."""
     count, columns = rows.shape
     if count == 0 or columns == 0:
         return ""
-    line = ",".join(("%r",) * columns) + "\n"
-    text = (line * count) % tuple(rows.ravel().tolist())
-    text = _LONG_POSITIONAL.sub(_reformat, text)
-    text = _SHORT_EXPONENTIAL.sub(_reformat, text)
-    text = _WHOLE.sub("", text)
-    return _PADDED_EXPONENT.sub(r"e\1", text)
+    values = rows.ravel().tolist()
+    size = np.abs(rows.ravel())
+    other = np.zeros(len(values), dtype=bool)
+    for low, high in _DIFFERENT_NOTATION:
+        other |= (size >= low) & (size < high)
+    for i in np.flatnonzero(other).tolist():
+        values[i] = _Verbatim(format_float(values[i]))
+    text = ((",".join(("%r",) * columns) + "\n") * count) % tuple(values)
+    return _PADDED_EXPONENT.sub(r"e\1", _WHOLE.sub("", text))

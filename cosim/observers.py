@@ -127,7 +127,7 @@ class CsvSink(_FileSink):
     decimal form that reads back to the same bits (``-0``, ``inf``, ``nan`` included), laid out
     as Arrow's CSV writer lays it out, which ``fmpy.util.read_csv`` reads.  With pyarrow
     installed (``greyfmu[parquet]``) Arrow's C++ writer formats each chunk (without the GIL);
-    without it `cosim.csvformat.format_rows` writes the same bytes, several times slower per
+    without it `cosim.csvformat.format_rows` writes the same bytes, 3-5 times slower per
     value (benchmarks/bench_csv.py).
     """
 
