@@ -93,24 +93,8 @@ class _FileSink:
         return json.dumps(metadata, indent=2, default=str) + "\n"
 
 
-def _arrow_rows(rows: np.ndarray) -> bytes:
-    """The lines of ``rows`` as Arrow's C++ CSV writer formats them."""
-    import pyarrow as pa
-    import pyarrow.csv as pcsv
-
-    table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=[str(i) for i in range(rows.shape[1])])
-    sink = pa.BufferOutputStream()
-    pcsv.write_csv(table, sink, pcsv.WriteOptions(include_header=False))
-    return sink.getvalue().to_pybytes()
-
-
-def _python_rows(rows: np.ndarray) -> bytes:
-    """The lines of ``rows`` formatted without pyarrow: the same bytes as `_arrow_rows`."""
-    return format_rows(rows).encode()
-
-
-#: the formatter of a result CSV's rows: Arrow's when pyarrow is installed, else plain Python's
-format_chunk = _arrow_rows if has_pyarrow() else _python_rows
+#: whether result CSVs are formatted by Arrow's C++ writer (pyarrow installed) or by `cosim.csvformat`
+ARROW_CSV = has_pyarrow()
 
 
 def csv_header(names: Sequence[str]) -> str:
@@ -134,18 +118,30 @@ class CsvSink(_FileSink):
     def __init__(self, path: str | Path):
         super().__init__(path)
         self._file = None
+        self._arrow = ARROW_CSV
+        self._names: list[str] = []
 
     @_naming_the_file
     def open(self, names: list[str]) -> None:
-        self._file = open(self.part, "wb", buffering=0)
+        if self._arrow:   # imported now, not mid-run when memory may have run out
+            import pyarrow as pa
+
+            self._file = pa.OSFile(str(self.part), "wb")
+        else:
+            self._file = open(self.part, "wb", buffering=0)
         self._write_all(csv_header(names).encode())
+        self._file.flush()
+        self._names = names
 
     @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
-        text = format_chunk(rows)
         end = self._file.tell()
         try:
-            self._write_all(text)
+            if self._arrow:
+                self._write_arrow(rows)
+            else:
+                self._write_all(format_rows(rows).encode())
+            self._file.flush()
         except OSError:  # a full disk: drop the partly written chunk, so every line left is whole
             os.truncate(self.part, end)
             raise
@@ -155,6 +151,13 @@ class CsvSink(_FileSink):
         view = memoryview(data)
         while view:
             view = view[self._file.write(view):]
+
+    def _write_arrow(self, rows: np.ndarray) -> None:
+        import pyarrow as pa
+        import pyarrow.csv as pcsv
+
+        table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=self._names)
+        pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
 
     @_naming_the_file
     def finish(self) -> None:

@@ -4,7 +4,7 @@ import pytest
 
 from cosim import observers
 from cosim.csvformat import format_float, format_rows
-from cosim.observers import CsvSink, _arrow_rows
+from cosim.observers import CsvSink
 
 pytest.importorskip("pyarrow")
 
@@ -18,6 +18,17 @@ def _values() -> np.ndarray:
     return np.concatenate([rng.integers(0, 2**64, size=40000, dtype=np.uint64).view(np.float64), edges, special,
                            rng.normal(size=4000) * 1e-5, np.round(rng.normal(size=4000) * 1e6),
                            np.cumsum(rng.normal(size=4000))])
+
+
+def _arrow_rows(rows: np.ndarray) -> bytes:
+    """The lines Arrow's CSV writer writes for ``rows`` (the writer of a result CSV before issue 27)."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=[str(i) for i in range(rows.shape[1])])
+    sink = pa.BufferOutputStream()
+    pcsv.write_csv(table, sink, pcsv.WriteOptions(include_header=False))
+    return sink.getvalue().to_pybytes()
 
 
 def test_python_rows_equal_arrow_rows():
@@ -39,8 +50,8 @@ def test_csv_file_bytes_equal_with_and_without_pyarrow(tmp_path, monkeypatch):
     names = ["time", 'a "quoted", name', "b\nline"]
     rows = _values()[:3000].reshape(-1, 3)
     files = {}
-    for kind, formatter in (("arrow", observers._arrow_rows), ("python", observers._python_rows)):
-        monkeypatch.setattr(observers, "format_chunk", formatter)
+    for kind, arrow in (("arrow", True), ("python", False)):
+        monkeypatch.setattr(observers, "ARROW_CSV", arrow)
         sink = CsvSink(tmp_path / f"{kind}.csv")
         sink.open(names)
         sink.write(rows[:500])
