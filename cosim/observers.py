@@ -25,13 +25,19 @@ from pathlib import Path
 
 import numpy as np
 
+from .csvformat import format_rows
 from .errors import OutOfMemory, OutputError
+from .extras import has_pyarrow, require_pyarrow
 from .safeio import partial_path, write_atomic
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
-    """The sink for a result file: Parquet for a ``.parquet`` suffix, else CSV."""
-    return ParquetSink(path) if Path(path).suffix.lower() == ".parquet" else CsvSink(path)
+    """The sink for a result file: Parquet for a ``.parquet`` suffix (a `SetupError` naming the
+    extra to install without pyarrow), else CSV."""
+    if Path(path).suffix.lower() == ".parquet":
+        require_pyarrow("a Parquet result", file=str(path))
+        return ParquetSink(path)
+    return CsvSink(path)
 
 
 def describe_os_error(e: OSError) -> str:
@@ -87,6 +93,10 @@ class _FileSink:
         return json.dumps(metadata, indent=2, default=str) + "\n"
 
 
+#: whether result CSVs are formatted by Arrow's C++ writer (pyarrow installed) or by `cosim.csvformat`
+ARROW_CSV = has_pyarrow()
+
+
 def csv_header(names: Sequence[str]) -> str:
     """The header line of a result CSV: each name quoted as RFC 4180 quotes a field (its ``"``
     doubled), so a name may hold commas, quotes and line breaks; `cosim.results.read` reads
@@ -97,40 +107,57 @@ def csv_header(names: Sequence[str]) -> str:
 class CsvSink(_FileSink):
     """Writes chunks to a CSV as they come; the metadata goes to ``<name>.json`` beside it.
 
-    A quoted header (`csv_header`), then one line per sample, formatted by Arrow's C++ CSV writer: each
-    float64 in the shortest decimal form that reads back to the same bits (``-0``, ``inf``,
-    ``nan`` included), which ``fmpy.util.read_csv`` reads.  Formatting a chunk in C++ (without
-    the GIL) instead of ``np.savetxt``'s Python loop over rows keeps the writer's share of a
-    long run small (benchmarks/bench_memory.py).
+    A quoted header (`csv_header`), then one line per sample: each float64 in the shortest
+    decimal form that reads back to the same bits (``-0``, ``inf``, ``nan`` included), laid out
+    as Arrow's CSV writer lays it out, which ``fmpy.util.read_csv`` reads.  With pyarrow
+    installed (``greyfmu[parquet]``) Arrow's C++ writer formats each chunk (without the GIL);
+    without it `cosim.csvformat.format_rows` writes the same bytes, 3-5 times slower per
+    value (benchmarks/bench_csv.py).
     """
 
     def __init__(self, path: str | Path):
         super().__init__(path)
         self._file = None
+        self._arrow = ARROW_CSV
         self._names: list[str] = []
 
     @_naming_the_file
     def open(self, names: list[str]) -> None:
-        import pyarrow as pa
+        if self._arrow:   # imported now, not mid-run when memory may have run out
+            import pyarrow as pa
 
-        self._file = pa.OSFile(str(self.part), "wb")
-        self._file.write(csv_header(names).encode())
+            self._file = pa.OSFile(str(self.part), "wb")
+        else:
+            self._file = open(self.part, "wb", buffering=0)
+        self._write_all(csv_header(names).encode())
         self._file.flush()
         self._names = names
 
     @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
-        import pyarrow as pa
-        import pyarrow.csv as pcsv
-
-        table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=self._names)
         end = self._file.tell()
         try:
-            pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
+            if self._arrow:
+                self._write_arrow(rows)
+            else:
+                self._write_all(format_rows(rows).encode())
             self._file.flush()
         except OSError:  # a full disk: drop the partly written chunk, so every line left is whole
             os.truncate(self.part, end)
             raise
+
+    def _write_all(self, data: bytes) -> None:
+        """Write every byte (an unbuffered write may take part of them)."""
+        view = memoryview(data)
+        while view:
+            view = view[self._file.write(view):]
+
+    def _write_arrow(self, rows: np.ndarray) -> None:
+        import pyarrow as pa
+        import pyarrow.csv as pcsv
+
+        table = pa.Table.from_arrays(list(np.ascontiguousarray(rows.T)), names=self._names)
+        pcsv.write_csv(table, self._file, pcsv.WriteOptions(include_header=False))
 
     @_naming_the_file
     def finish(self) -> None:

@@ -17,6 +17,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from .errors import SetupError
+from .extras import require_pyarrow
 from .safeio import file_name
 from .structure import Plan
 
@@ -43,6 +44,8 @@ def check_output(path: Path, own: set[Path], *, what: str, option: str, suffixes
     suffixes = tuple(suffixes)
     if path.suffix.lower() not in suffixes:
         raise SetupError(f"{path}: a {what} name must end in {' or '.join(suffixes)}.", element=option)
+    if path.suffix.lower() == ".parquet":
+        require_pyarrow(f"a Parquet {what}", element=option)
     for target in (path, *companions):
         if target.is_dir():
             raise SetupError(f"{target} is a folder; give a file name for the {what}.", element=option)
@@ -93,6 +96,7 @@ def check_sweep_folder(path: Path, option: str = "--output") -> Path:
     if path.exists() and not path.is_dir():
         raise SetupError(f"{path} is a file; a sweep's output is a folder (for sweep.csv, sweep.parquet and "
                          "runs/). Give a folder name.", element=option)
+    require_pyarrow("a sweep (its tables sweep.parquet and sweep.csv)", element=option)
     existing = next(p for p in (path.resolve(), *path.resolve().parents) if p.exists())
     if not existing.is_dir():
         raise SetupError(f"{path}: {existing} is a file, not a folder.", element=option)

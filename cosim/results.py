@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SetupError
+from .extras import require_pyarrow
 
 
 def read(path: str | Path) -> np.ndarray:
@@ -15,6 +16,8 @@ def read(path: str | Path) -> np.ndarray:
     or unreadable file is a `SetupError` naming it."""
     if not Path(path).is_file():
         raise SetupError("no such result file.", file=str(path))
+    if Path(path).suffix.lower() == ".parquet":
+        require_pyarrow("reading a Parquet result", file=str(path))
     try:
         result = _read_parquet(path) if Path(path).suffix.lower() == ".parquet" else _read_csv(path)
     except (ValueError, IndexError, TypeError, UnicodeDecodeError) as e:  # pyarrow's ArrowInvalid is a ValueError

@@ -4,7 +4,7 @@ Debian's and Ubuntu's ``/usr/bin/python3`` link libpython statically (its symbol
 from the executable), unlike the ``python3`` the test machines put first on PATH (pyenv, with a
 shared libpython).  The FMUs' loader must recognise either as the Python already running
 (greyfmu/loader/platform.h, ``loaded_python``).  ``debian_venv`` makes a virtual environment
-from ``/usr/bin/python3`` with the project installed (editable) and what the README's first hour
+from ``/usr/bin/python3`` with the project installed (editable, with its ``parquet`` extra) and what the README's first hour
 installs, once: it is kept under build/ and reused while its stamp (this repository, that
 Python's version, pyproject.toml) is unchanged.
 """
@@ -46,7 +46,7 @@ def debian_venv() -> Path:
     if made.returncode != 0:
         raise Unavailable(f"{DEBIAN_PYTHON} -m venv failed (Debian: apt-get install python3-venv):\n{made.stderr}")
     pip = [str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check"]
-    subprocess.run(pip + ["-e", str(ROOT)], check=True)
+    subprocess.run(pip + ["-e", f"{ROOT}[parquet]"], check=True)   # the first hour's sweep needs pyarrow
     for extra in EXTRAS:
         subprocess.run(pip + list(extra), check=True)
     stamp.write_text(expected)

@@ -105,8 +105,10 @@ def newcomer(request, tmp_path_factory):
 
 def test_the_readme_has_the_first_hour_commands():
     commands = readme_commands((ROOT / "README.md").read_text())
-    assert commands[0].startswith('PY=$(command -v python3 || command -v python) && "$PY" -m venv .venv && '
-                                  '. .venv/bin/activate && ')
+    steps = [c.split("#")[0].strip() for c in commands[:5]]
+    assert steps == ['PY=$(command -v python3 || command -v python)', '"$PY" -m venv .venv', ". .venv/bin/activate",
+                     "python -m pip install -q -e .", "cosim run ssp/pid_fopdt --plot --report"]
+    assert all(len(c) <= 110 for c in commands[:5])      # issue 27: one step a line, short enough to read
     for step in ("cosim metrics", "--param-set", "ssp/pid_mass_damper", "cosim sweep", "cosim-update-references"):
         assert any(step in c for c in commands), step
 

@@ -46,6 +46,20 @@ PLATFORMS = (
 WARNINGS = ("-Wall", "-Wextra", "-Werror")
 
 
+def host_folder() -> str:
+    """The FMI binaries folder of this machine: win64 on Windows, else linux64."""
+    return "win64" if sys.platform == "win32" else "linux64"
+
+
+def _no_compiler_notice(platform: Platform) -> str:
+    """What a build without a compiler for ``platform`` says."""
+    if platform.folder != host_folder():
+        return (f"greyfmu build: no {platform.compilers[0]} on PATH: the FMUs' {platform.folder} binary is "
+                "pythonfmu's (needs Python on that host)")
+    return (f"greyfmu build: no C compiler for {platform.folder} ({', '.join(platform.compilers)}) on PATH: the "
+            f"FMUs keep pythonfmu's {platform.folder} library, which loads only in a host that already runs Python")
+
+
 class LoaderError(RuntimeError):
     """The loader could not be compiled."""
 
@@ -58,13 +72,12 @@ def compiler(platform: Platform) -> str | None:
 @functools.cache
 def loader_binary(platform: Platform) -> bytes | None:
     """The compiled loader for ``platform``, once per process; None (said once on stderr) when
-    there is no compiler for it: the FMU then keeps pythonfmu's library there."""
+    there is no compiler for it: the FMU then keeps pythonfmu's library there.  For another
+    platform than this machine's (win64 on Linux: a cross compiler few have, which matters only
+    to whoever ships the FMUs to Windows) that is one short line."""
     found = compiler(platform)
     if found is None:
-        print(f"greyfmu build: no C compiler for {platform.folder} ({', '.join(platform.compilers)}) on PATH: the "
-              f"FMUs keep pythonfmu's {platform.folder} library, which loads only in a host that already runs "
-              "Python" + (" (Windows: with python3.dll on PATH)" if platform.folder == "win64" else ""),
-              file=sys.stderr)
+        print(_no_compiler_notice(platform), file=sys.stderr)
         return None
     with tempfile.TemporaryDirectory(prefix="greyfmu-loader-") as temp:
         library = Path(temp) / f"loader{platform.suffix}"

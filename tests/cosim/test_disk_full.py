@@ -23,8 +23,12 @@ def system(tmp_path, built_fmus) -> Path:
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full")
-@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
-def test_a_result_on_a_full_device_is_named(tmp_path, system, capsys, suffix):
+@pytest.mark.parametrize("suffix, arrow", [(".csv", True), (".csv", False), (".parquet", True)])
+def test_a_result_on_a_full_device_is_named(tmp_path, system, capsys, monkeypatch, suffix, arrow):
+    """``arrow`` False: the CSV writer used without pyarrow (issue 27)."""
+    from cosim import observers
+
+    monkeypatch.setattr(observers, "ARROW_CSV", arrow)
     target = tmp_path / f"full{suffix}"
     (tmp_path / f"full{suffix}.part").symlink_to("/dev/full")  # results are written there, then renamed
     code = main(["run", str(system), "-q", "-o", str(target)])

@@ -350,11 +350,21 @@ def test_fmu_carries_only_what_it_runs(built_fmus, name):
     assert {"binaries/linux64/pythonfmu-export.so", f"binaries/linux64/{name}.so", "resources/greyfmu_target.py"} <= names
 
 
-def test_without_a_compiler_for_a_platform_the_build_says_so_and_keeps_pythonfmus_library(capsys):
+def test_without_a_compiler_for_this_platform_the_build_says_so_and_keeps_pythonfmus_library(capsys):
+    missing = dataclasses.replace(PLATFORMS[0], compilers=("no-such-cc",))
+    assert loader_binary(missing) is None
+    assert "no C compiler for linux64 (no-such-cc) on PATH: the FMUs keep pythonfmu's linux64 library" \
+        in capsys.readouterr().err
+
+
+def test_without_mingw_a_linux_build_says_one_short_line(capsys):
+    """Issue 27: a Linux user without mingw-w64 did not ask about Windows: one short line."""
     missing = dataclasses.replace(PLATFORMS[1], compilers=("no-such-mingw-gcc",))
     assert loader_binary(missing) is None
-    assert "no C compiler for win64 (no-such-mingw-gcc) on PATH: the FMUs keep pythonfmu's win64 library" \
-        in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert err == "greyfmu build: no no-such-mingw-gcc on PATH: the FMUs' win64 binary is pythonfmu's " \
+        "(needs Python on that host)\n"
+    assert len(err) < 120
 
 
 def test_a_host_with_an_fmus_resources_on_sys_path_still_imports_pythonfmus_builder(built_fmus, tmp_path):
