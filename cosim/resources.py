@@ -11,6 +11,9 @@ convention).  The file is looked for, in order:
    greyfmu registers one, so ``cosim run ssp/pid_fopdt`` builds what it needs.
    The master never imports such a package by name;
 3. in the folders given with ``--fmu-dir``.
+
+The providers are loaded only when a component's FMU is not next to the SSD (loading them
+imports their packages: tens of milliseconds of a run's fixed cost, issue 28).
 """
 from __future__ import annotations
 
@@ -33,13 +36,19 @@ def providers() -> list[Provider]:
 def locate_fmus(structure: SystemStructure, fmu_dirs: Sequence[Path] = (),
                 use_providers: bool = True) -> dict[str, Path]:
     """The FMU file of every component, by component path, or raise naming what was looked at."""
-    found_providers = providers() if use_providers else []
+    loaded: list[list[Provider]] = []
+
+    def found_providers() -> list[Provider]:
+        if not loaded:
+            loaded.append(providers() if use_providers else [])
+        return loaded[0]
+
     return {name: _locate(comp, structure, fmu_dirs, found_providers)
             for name, comp in structure.components.items()}
 
 
 def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path],
-            found_providers: list[Provider]) -> Path:
+            lazy_providers: Callable[[], list[Provider]]) -> Path:
     where = f"ssd:Component '{comp.name}' (line {comp.line})"
     if not comp.source:
         raise SetupError("the component has no source attribute naming its FMU.",
@@ -54,6 +63,7 @@ def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path
         return direct
     looked.append(str(direct))
     name = PurePosixPath(comp.source).name
+    found_providers = lazy_providers()
     for provide in found_providers:
         path = provide(name)
         if path is not None:
