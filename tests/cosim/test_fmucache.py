@@ -144,3 +144,26 @@ def test_the_size_limit_in_force_applies_to_a_cached_entry(tmp_path, c_fmus, mon
     monkeypatch.setenv("COSIM_MAX_UNPACKED_BYTES", "100")
     with pytest.raises(SetupError, match="limit"):
         unpacked(fmu, root)
+
+
+def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(tmp_path, c_fmus, monkeypatch):
+    """Loading the providers imports their packages (tens of ms of a run's fixed cost)."""
+    import cosim.resources
+    from cosim import ssp
+    from cosim.resources import locate_fmus
+
+    asked: list[str] = []
+
+    def counting_provider(name: str) -> Path | None:
+        asked.append(name)
+        return c_fmus["Lag"] if name == "Lag.fmu" else None
+
+    monkeypatch.setattr(cosim.resources, "providers", lambda: [counting_provider])
+    system = _chain(c_fmus, tmp_path / "ssp")   # m1 (VanDerPol) then b2, b3 (Lag)
+    structure = ssp.load(system)
+    assert set(locate_fmus(structure).values()) == {system / "resources" / "VanDerPol.fmu",
+                                                    system / "resources" / "Lag.fmu"}
+    assert asked == []
+    (system / "resources" / "Lag.fmu").unlink()
+    found = locate_fmus(structure)
+    assert found["b2"] == found["b3"] == c_fmus["Lag"] and asked == ["Lag.fmu"]
