@@ -18,6 +18,7 @@ from attrs import define, field as attrs_field
 from fmpy.model_description import ModelDescription, ModelVariable
 
 from .errors import SetupError, did_you_mean
+from .fmucache import passed, record_pass
 
 #: The interface the master drives an FMU through (`describe`).
 Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me", "fmi3-me"]
@@ -140,8 +141,9 @@ def describe(path: Path, where: str, file: str, implementation: str = "any") -> 
     key = (path, implementation)
     if key in _cache and _cache[key].path.stat().st_mtime == path.stat().st_mtime:
         return _cache[key]
+    schema_checked = passed(path, "FMI schema")   # validated once per content (cosim.fmucache)
     try:
-        md = fmpy.read_model_description(str(path), validate=True)
+        md = fmpy.read_model_description(str(path), validate=not schema_checked)
     except Exception as e:  # fmpy raises several types for unreadable or invalid FMUs
         raise SetupError(f"cannot read the model description of {path.name}: {e}", file=file,
                          element=where) from None
@@ -161,6 +163,8 @@ def describe(path: Path, where: str, file: str, implementation: str = "any") -> 
         if v.causality == "output" and v.name not in deps:
             deps[v.name] = list(inputs)
     desc = FMUDescription(path=path, md=md, variables=variables, output_dependencies=deps, kind=kind)
+    if not schema_checked:
+        record_pass(path, "FMI schema")
     _cache[key] = desc
     return desc
 

@@ -16,6 +16,10 @@ of milliseconds each FMU), so each FMU file content is extracted once per machin
 - entries are used read-only (their files lose their write permission); the archive checks
   ran once for that content, and the size limit in force is compared with the marker's
   ``unpacked_bytes`` each time an entry is used;
+- the checks of an FMU file that do not depend on the run (`cosim.loadable`'s archive, entity
+  and library checks, the FMI schema validation of `cosim.description`) are made once per
+  content: a check passed leaves an empty file ``verdicts/<sha256>-<check>`` (failures are
+  never kept, so their message is always fresh; `CHECKS_VERSION` is part of the name);
 - no size limit: ``rm -rf ~/.cache/cosim/fmus`` (or ``$COSIM_FMU_CACHE``) empties it at any
   time no run is starting.
 """
@@ -30,7 +34,7 @@ import tempfile
 from pathlib import Path
 
 from .errors import SetupError
-from .safeio import _alive, _size_text, check_archive, extract_archive, max_unpacked_bytes
+from .safeio import _alive, _size_text, check_archive, extract_archive, max_unpacked_bytes, write_atomic
 
 #: environment variable naming the cache folder, or "off"
 CACHE_ENV = "COSIM_FMU_CACHE"
@@ -38,6 +42,10 @@ CACHE_ENV = "COSIM_FMU_CACHE"
 MARKER = "complete.json"
 _TMP = ".tmp-"
 _TRASH = ".trash-"
+#: part of every verdict's name: raised when a cached check changes, so older verdicts are not trusted
+CHECKS_VERSION = 1
+#: the digests of the files seen by this process, by (path, size, mtime)
+_digests: dict[tuple, str] = {}
 
 
 def cache_root() -> Path | None:
@@ -58,11 +66,50 @@ def digest(path: Path) -> str:
     return h.hexdigest()
 
 
+def file_digest(path: Path) -> str:
+    """`digest` of a file, computed once per process and file version (path, size, mtime)."""
+    path = path.resolve()
+    stat_ = path.stat()
+    key = (path, stat_.st_size, stat_.st_mtime_ns)
+    if key not in _digests:
+        _digests[key] = digest(path)
+    return _digests[key]
+
+
+def _verdict(path: Path, check: str) -> Path | None:
+    """Where the pass of ``check`` on ``path`` is kept, or None (no cache, not a file)."""
+    root = cache_root()
+    if root is None or not path.is_file():
+        return None
+    tag = hashlib.sha256(f"{CHECKS_VERSION}\0{check}".encode()).hexdigest()[:16]
+    return root / "verdicts" / f"{file_digest(path)}-{tag}"
+
+
+def passed(path: Path, check: str) -> bool:
+    """Whether ``check`` (a name with what it depends on, e.g. the size limit) passed on this content before."""
+    try:
+        verdict = _verdict(path, check)
+        return verdict is not None and verdict.is_file()
+    except OSError:
+        return False
+
+
+def record_pass(path: Path, check: str) -> None:
+    """Keep that ``check`` passed on ``path``'s content (nothing when the cache cannot be written)."""
+    try:
+        verdict = _verdict(path, check)
+        if verdict is not None:
+            verdict.parent.mkdir(parents=True, exist_ok=True)
+            write_atomic(verdict, b"")
+    except OSError:
+        pass
+
+
 def unpacked(path: Path, root: Path) -> Path:
     """The folder holding the extracted FMU ``path`` in the cache ``root``, extracted now if
     no complete entry of its content exists; `SetupError` for an archive the checks refuse.
     Raises `OSError` when the cache cannot be written (the caller extracts elsewhere)."""
-    entry = root / digest(path)
+    entry = root / file_digest(path)
     for _ in range(3):   # a corrupt entry removed, or a concurrent rebuild, then tried again
         done = _complete(entry, path)
         if done is not None:
