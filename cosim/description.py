@@ -18,7 +18,6 @@ from attrs import define, field as attrs_field
 from fmpy.model_description import ModelDescription, ModelVariable
 
 from .errors import SetupError, did_you_mean
-from .fmucache import passed, record_pass
 
 #: The interface the master drives an FMU through (`describe`).
 Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me", "fmi3-me"]
@@ -133,17 +132,17 @@ def exchange_type(variable: ModelVariable) -> ExchangeType | None:
 _cache: dict[tuple[Path, str], FMUDescription] = {}
 
 
-def describe(path: Path, where: str, file: str, implementation: str = "any") -> FMUDescription:
+def describe(path: Path, where: str, file: str, implementation: str = "any", validate: bool = True) -> FMUDescription:
     """Read and check an FMU's model description; ``where``/``file`` say who refers to it and
     ``implementation`` is the SSD Component's choice of interface (SSP 1.0: any,
-    CoSimulation, ModelExchange; "any" prefers Co-Simulation when the FMU has both)."""
+    CoSimulation, ModelExchange; "any" prefers Co-Simulation when the FMU has both).
+    ``validate``: against the FMI schema (False: this content passed before, `cosim.plan`)."""
     path = path.resolve()
     key = (path, implementation)
     if key in _cache and _cache[key].path.stat().st_mtime == path.stat().st_mtime:
         return _cache[key]
-    schema_checked = passed(path, "FMI schema")   # validated once per content (cosim.fmucache)
     try:
-        md = fmpy.read_model_description(str(path), validate=not schema_checked)
+        md = fmpy.read_model_description(str(path), validate=validate)
     except Exception as e:  # fmpy raises several types for unreadable or invalid FMUs
         raise SetupError(f"cannot read the model description of {path.name}: {e}", file=file,
                          element=where) from None
@@ -163,8 +162,6 @@ def describe(path: Path, where: str, file: str, implementation: str = "any") -> 
         if v.causality == "output" and v.name not in deps:
             deps[v.name] = list(inputs)
     desc = FMUDescription(path=path, md=md, variables=variables, output_dependencies=deps, kind=kind)
-    if not schema_checked:
-        record_pass(path, "FMI schema")
     _cache[key] = desc
     return desc
 

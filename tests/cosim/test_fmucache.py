@@ -37,7 +37,8 @@ def fresh(monkeypatch):
 
 
 def _entries(root: Path) -> list[str]:
-    return sorted(p.name for p in root.iterdir()) if root.exists() else []
+    """The unpacked FMUs and temporary folders of a cache (not the verdicts of its checks)."""
+    return sorted(p.name for p in root.iterdir() if p.name != "verdicts") if root.exists() else []
 
 
 def _chain(c_fmus: dict[str, Path], folder: Path) -> Path:
@@ -171,22 +172,19 @@ def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(
 
 def test_checks_passed_are_kept_by_content_and_failures_are_not(tmp_path, c_fmus, monkeypatch):
     import cosim.loadable
-    from cosim.description import describe
-    from cosim.loadable import check_fmu_file, check_library
+    from cosim.plan import _describe
 
     root = tmp_path / "cache"
     monkeypatch.setenv("COSIM_FMU_CACHE", str(root))
     monkeypatch.setattr(cosim.loadable, "_passed", set())   # a process that checked nothing yet
     monkeypatch.setattr("cosim.description._cache", {})
     fmu = c_fmus["Lag"]
-    check_fmu_file(fmu, file="x.ssd", where="here")
-    desc = describe(fmu, "here", "x.ssd")
-    check_library(fmu, desc.md, desc.kind, file="x.ssd", where="here")
+    desc = _describe(fmu, "here", "x.ssd", "any")
     kept = sorted(p.name.split("-")[0] for p in (root / "verdicts").iterdir())
     assert kept == [digest(fmu)] * 3    # archive and entities, FMI schema, library
     monkeypatch.setattr(cosim.loadable, "_passed", set())   # another process: the verdicts are used
     monkeypatch.setattr("cosim.description._cache", {})
-    again = describe(fmu, "here", "x.ssd")
+    again = _describe(fmu, "here", "x.ssd", "any")
     assert [v.name for v in again.md.modelVariables] == [v.name for v in desc.md.modelVariables]
     with zipfile.ZipFile(fmu) as archive:   # the same FMU without its library: refused, every time
         members = {i.filename: archive.read(i) for i in archive.infolist()
@@ -194,5 +192,5 @@ def test_checks_passed_are_kept_by_content_and_failures_are_not(tmp_path, c_fmus
     broken = _zip(tmp_path / "Lag.fmu", members)
     for _ in range(2):
         with pytest.raises(SetupError, match="no binary for this platform"):
-            check_library(broken, describe(broken, "here", "x.ssd").md, "fmi2-cs", file="x.ssd", where="here")
-    assert len(list((root / "verdicts").glob(f"{digest(broken)}-*"))) == 1   # only its FMI schema pass
+            _describe(broken, "here", "x.ssd", "any")
+    assert len(list((root / "verdicts").glob(f"{digest(broken)}-*"))) == 2   # archive and schema, not library
