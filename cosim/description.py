@@ -132,16 +132,17 @@ def exchange_type(variable: ModelVariable) -> ExchangeType | None:
 _cache: dict[tuple[Path, str], FMUDescription] = {}
 
 
-def describe(path: Path, where: str, file: str, implementation: str = "any") -> FMUDescription:
+def describe(path: Path, where: str, file: str, implementation: str = "any", validate: bool = True) -> FMUDescription:
     """Read and check an FMU's model description; ``where``/``file`` say who refers to it and
     ``implementation`` is the SSD Component's choice of interface (SSP 1.0: any,
-    CoSimulation, ModelExchange; "any" prefers Co-Simulation when the FMU has both)."""
+    CoSimulation, ModelExchange; "any" prefers Co-Simulation when the FMU has both).
+    ``validate``: against the FMI schema (False: this content passed before, `cosim.plan`)."""
     path = path.resolve()
     key = (path, implementation)
     if key in _cache and _cache[key].path.stat().st_mtime == path.stat().st_mtime:
         return _cache[key]
     try:
-        md = fmpy.read_model_description(str(path), validate=True)
+        md = fmpy.read_model_description(str(path), validate=validate)
     except Exception as e:  # fmpy raises several types for unreadable or invalid FMUs
         raise SetupError(f"cannot read the model description of {path.name}: {e}", file=file,
                          element=where) from None

@@ -25,6 +25,7 @@ from pathlib import Path
 import fmpy
 
 from .errors import SetupError
+from .fmucache import passed, record_pass
 from .safeio import DOCTYPE_MARKS, check_archive, max_unpacked_bytes, parse_xml_bytes
 
 #: the functions the master calls, per interface (cosim.instances)
@@ -45,7 +46,8 @@ _MACHINES = {"x86_64": 62, "AMD64": 62, "aarch64": 183, "arm64": 183}
 _ET_DYN, _SHT_DYNSYM = 3, 11
 
 
-#: the checks passed, by what they depend on (a system of 10 000 copies of one FMU reads it once)
+#: the checks passed, by what they depend on (a system of 10 000 copies of one FMU reads it once);
+#: across processes, by content (`cosim.fmucache.passed`)
 _passed: set[tuple] = set()
 
 
@@ -57,7 +59,9 @@ def _key(path: Path, *rest) -> tuple:
 def check_fmu_file(path: Path, *, file: str, where: str) -> None:
     """What must hold before the FMU's modelDescription.xml is parsed by fmpy."""
     key = _key(path)
-    if key in _passed:
+    check = f"archive and entities, limit {key[3]}"
+    if key in _passed or passed(path, check):
+        _passed.add(key)
         return
     if not path.is_dir():
         try:
@@ -69,6 +73,7 @@ def check_fmu_file(path: Path, *, file: str, where: str) -> None:
                              element=where, hint=e.hint) from None
     _refuse_entities(path, file, where)
     _passed.add(key)
+    record_pass(path, check)
 
 
 def _refuse_entities(path: Path, file: str, where: str) -> None:
@@ -104,15 +109,19 @@ def check_library(path: Path, md, kind: str, *, file: str, where: str) -> None:
     machine, or lacks one of the functions ``kind`` needs."""
     member = library_member(md, kind)
     key = _key(path, member, kind)
-    if key in _passed:
+    check = f"library {member} {kind} on {sys.platform} {platform.machine()}, limit {key[3]}"
+    if key in _passed or passed(path, check):
+        _passed.add(key)
         return
     data = _read_member(path, member, file, where)
     if sys.platform.startswith("linux"):
-        missing = [f for f in REQUIRED[kind] if f not in _elf_exports(data, path.name, member, file, where)]
+        exports = _elf_exports(data, path.name, member, file, where)
+        missing = [f for f in REQUIRED[kind] if f not in exports]
         if missing:
             raise SetupError(f"{path.name}: {member} does not export {', '.join(missing)} (the FMI functions "
                              "this master calls); is modelIdentifier right?", file=file, element=where)
     _passed.add(key)
+    record_pass(path, check)
 
 
 def _read_member(path: Path, member: str, file: str, where: str) -> bytes:

@@ -17,6 +17,7 @@ from fmpy.model_description import ModelVariable
 from .description import FMUDescription, describe, exchange_type, unit_of
 from .errors import SetupError, did_you_mean
 from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
+from .fmucache import passed, record_pass
 from .loadable import check_fmu_file, check_library
 from .parameters import resolve_parameters
 from .routing import connector_unit, hops_map, source_view, transformations
@@ -37,10 +38,18 @@ from .structure import (
 from .units import IDENTITY, SystemUnits, fmu_units
 
 
+#: the verdict name of a model description valid against the FMI schema
+SCHEMA_CHECK = "FMI schema"
+
+
 def _describe(path: Path, where: str, file: str, implementation: str) -> FMUDescription:
-    """`cosim.description.describe`, with the checks of what run loads (`cosim.loadable`)."""
+    """`cosim.description.describe`, with the checks of what run loads (`cosim.loadable`); the
+    FMI schema validation made once per FMU content (`cosim.fmucache.passed`)."""
     check_fmu_file(path, file=file, where=where)
-    desc = describe(path, where, file, implementation)
+    schema_checked = passed(path, SCHEMA_CHECK)
+    desc = describe(path, where, file, implementation, validate=not schema_checked)
+    if not schema_checked:
+        record_pass(path, SCHEMA_CHECK)
     check_library(desc.path, desc.md, desc.kind, file=file, where=where)
     return desc
 

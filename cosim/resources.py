@@ -11,6 +11,9 @@ convention).  The file is looked for, in order:
    greyfmu registers one, so ``cosim run ssp/pid_fopdt`` builds what it needs.
    The master never imports such a package by name;
 3. in the folders given with ``--fmu-dir``.
+
+The providers are loaded only when a component's FMU is not next to the SSD (loading them
+imports their packages: tens of milliseconds of a run's fixed cost, issue 28).
 """
 from __future__ import annotations
 
@@ -33,13 +36,33 @@ def providers() -> list[Provider]:
 def locate_fmus(structure: SystemStructure, fmu_dirs: Sequence[Path] = (),
                 use_providers: bool = True) -> dict[str, Path]:
     """The FMU file of every component, by component path, or raise naming what was looked at."""
-    found_providers = providers() if use_providers else []
-    return {name: _locate(comp, structure, fmu_dirs, found_providers)
-            for name, comp in structure.components.items()}
+    asked = _Providers(use_providers)
+    return {name: _locate(comp, structure, fmu_dirs, asked) for name, comp in structure.components.items()}
 
 
-def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path],
-            found_providers: list[Provider]) -> Path:
+class _Providers:
+    """The FMU providers, loaded when the first FMU is not found next to the SSD; each file name
+    asked once (a system of many copies of one FMU checks that it is up to date once)."""
+
+    def __init__(self, use: bool):
+        self.use = use
+        self._loaded: list[Provider] | None = None
+        self._answers: dict[str, Path | None] = {}
+
+    @property
+    def loaded(self) -> list[Provider]:
+        if self._loaded is None:
+            self._loaded = providers() if self.use else []
+        return self._loaded
+
+    def provide(self, name: str) -> Path | None:
+        if name not in self._answers:
+            found = (provide(name) for provide in self.loaded)
+            self._answers[name] = next((Path(path) for path in found if path is not None), None)
+        return self._answers[name]
+
+
+def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path], asked: _Providers) -> Path:
     where = f"ssd:Component '{comp.name}' (line {comp.line})"
     if not comp.source:
         raise SetupError("the component has no source attribute naming its FMU.",
@@ -54,12 +77,11 @@ def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path
         return direct
     looked.append(str(direct))
     name = PurePosixPath(comp.source).name
-    for provide in found_providers:
-        path = provide(name)
-        if path is not None:
-            return Path(path)
-    if found_providers:
-        looked.append("the FMU providers (" + ", ".join(p.__module__ for p in found_providers) + ")")
+    provided = asked.provide(name)
+    if provided is not None:
+        return provided
+    if asked.loaded:
+        looked.append("the FMU providers (" + ", ".join(p.__module__ for p in asked.loaded) + ")")
     for d in fmu_dirs:
         candidate = Path(d) / name
         if is_file(candidate):

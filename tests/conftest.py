@@ -1,6 +1,7 @@
 """Shared fixtures."""
 
 import os
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,11 @@ from greyfmu.build import build_fmus
 # COSIM_FUZZ=nightly or `pytest --hypothesis-profile nightly`; every example must end in 5 s.
 settings.register_profile("default", max_examples=100, deadline=5000)
 settings.register_profile("nightly", max_examples=2000, deadline=5000)
+#: the tests' FMU cache (cosim.fmucache): one folder per session, shared with the processes
+#: the tests start, not the user's ~/.cache
+_FMU_CACHE = tempfile.TemporaryDirectory(prefix="cosim-test-fmu-cache-")
+os.environ.setdefault("COSIM_FMU_CACHE", _FMU_CACHE.name)
+
 if "COSIM_FUZZ" in os.environ:
     settings.load_profile(os.environ["COSIM_FUZZ"])
 

@@ -13,6 +13,7 @@ from fmpy.model_description import ModelVariable
 from ..description import FMUDescription
 from ..errors import SetupError
 from .base import InstanceBase, NativeFunctions, address, end_instance, log_line, serial_reason
+from .loading import quick
 
 #: Log messages by instance name.  fmpy's native logger proxy (which formats the printf
 #: arguments) keeps one Python logger for the whole process, so one logger dispatches, and
@@ -53,7 +54,7 @@ class FMI2Instance(InstanceBase):
     api = "fmi2"
 
     #: fmpy's class for the FMI 2.0 interface the instance drives
-    interface = FMU2Slave
+    interface = quick(FMU2Slave)
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
         super().__init__(name, desc)

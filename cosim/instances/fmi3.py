@@ -37,6 +37,7 @@ from fmpy.model_description import ModelVariable
 from ..description import ArrayElement, FMUDescription, exchange_type
 from ..errors import SetupError
 from .base import STATUS, InstanceBase, NativeFunctions, address, end_instance, log_line, serial_reason
+from .loading import quick
 
 FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR = 0, 1, 2, 3
 
@@ -80,7 +81,7 @@ class FMI3Instance(InstanceBase):
     api = "fmi3"
 
     #: fmpy's class for the FMI 3.0 interface the instance drives, and its instantiation function
-    interface = FMU3Slave
+    interface = quick(FMU3Slave)
     instantiate_function = "fmi3InstantiateCoSimulation"
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):

@@ -39,6 +39,7 @@ from fmpy.fmi3 import FMU3Model
 from ..description import FMUDescription
 from ..structure import SolverSettings
 from .base import STATUS
+from .loading import quick
 from .fmi2 import FMI2Instance
 from .fmi3 import FMI3Instance
 
@@ -224,7 +225,7 @@ class MEInstance(Integrated, FMI2Instance):
     messages and ``free`` are `FMI2Instance`'s.
     """
 
-    interface = FMU2Model
+    interface = quick(FMU2Model)
     _solver_functions = {"get_x": "fmi2GetContinuousStates", "set_x": "fmi2SetContinuousStates",
                          "get_dx": "fmi2GetDerivatives", "get_z": "fmi2GetEventIndicators",
                          "get_nominals": "fmi2GetNominalsOfContinuousStates", "set_time": "fmi2SetTime"}
@@ -266,7 +267,7 @@ class ME3Instance(Integrated, FMI3Instance):
     (FMI 3.0 §3: the same states, derivatives, event indicators and modes; the discrete-state
     iteration is fmi3UpdateDiscreteStates).  Exchange and set-up are `FMI3Instance`'s."""
 
-    interface = FMU3Model
+    interface = quick(FMU3Model)
     instantiate_function = "fmi3InstantiateModelExchange"
     _solver_functions = {"get_x": "fmi3GetContinuousStates", "set_x": "fmi3SetContinuousStates",
                          "get_dx": "fmi3GetContinuousStateDerivatives", "get_z": "fmi3GetEventIndicators",

@@ -1,17 +1,21 @@
-"""The unzip cache: each FMU file extracted once per process, checked as it is extracted."""
+"""The unzip cache: each FMU file's content extracted once per machine (`cosim.fmucache`), else
+once per process; checked as it is extracted."""
 from __future__ import annotations
 
 import os
 import tempfile
 from pathlib import Path
 
+from ..fmucache import cache_root, unpacked
 from ..journal import UNZIP_PREFIX
 from ..safeio import extract_archive, temporary_folder
 
 
 class Unzipped:
-    """Extracts each FMU file once per process (keyed by path, size and mtime), so repeated
-    runs of the same system (tests, sweeps, benchmarks) do not unzip again.  FMUs are
+    """The extracted folder of each FMU file, looked up once per process (keyed by path, size
+    and mtime): the shared cache entry of its content (`cosim.fmucache`), so runs in other
+    processes do not unzip it again; with the cache off (``COSIM_FMU_CACHE=off``) or not
+    writable, a folder of this process's own.  FMUs are
     archives from elsewhere: `cosim.safeio.extract_archive` checks member names, the
     compression ratio and the expanded size (the `--max-unpacked` limit) as it extracts."""
 
@@ -47,6 +51,13 @@ class Unzipped:
         stat = path.stat()
         key = (path, stat.st_size, stat.st_mtime_ns)
         if key not in Unzipped._dirs:
+            root = cache_root()
+            if root is not None:
+                try:
+                    Unzipped._dirs[key] = str(unpacked(path, root))
+                    return Unzipped._dirs[key]
+                except OSError:   # a read-only or full cache folder: extract for this process only
+                    pass
             if Unzipped._tmp is None:
                 Unzipped._tmp = temporary_folder(UNZIP_PREFIX)
                 Unzipped._owner = os.getpid()

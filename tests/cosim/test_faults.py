@@ -38,7 +38,7 @@ def _scenario(tmp_path: Path, faulty: Path, fault: int, fault_time: float, stop:
 
 
 def _cosim(tmp_path: Path, *argv: str) -> subprocess.Popen:
-    env = dict(os.environ, TMPDIR=str(tmp_path / "tmp"))
+    env = dict(os.environ, TMPDIR=str(tmp_path / "tmp"), COSIM_FMU_CACHE="off")  # extraction in TMPDIR
     (tmp_path / "tmp").mkdir(exist_ok=True)
     return subprocess.Popen([sys.executable, "-m", "cosim.cli", *argv], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
@@ -159,7 +159,7 @@ def test_a_journal_left_by_a_crashed_api_run_is_recovered(tmp_path, faulty):
     out = tmp_path / "api.parquet"
     code = f"import cosim; cosim.simulate({str(folder)!r}, output={str(out)!r})"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          env=dict(os.environ, TMPDIR=str(tmp_path)))
+                          env=dict(os.environ, TMPDIR=str(tmp_path), COSIM_FMU_CACHE="off"))
     assert proc.returncode == -signal.SIGABRT
     journal = journal_path(out)
     assert journal.exists()

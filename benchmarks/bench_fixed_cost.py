@@ -1,0 +1,308 @@
+"""The fixed cost of one run, by stage, next to libcosim and fmpy (issue 28).
+
+    python benchmarks/bench_fixed_cost.py [--repeat 5] [--warm 5] [--systems native pid_fopdt] [--profile]
+
+A run of two communication steps, so what is measured is what every run pays whatever its
+length: reading the SSD, checking it against the FMUs, unpacking, loading the libraries,
+instantiating, initialising, setting up the recording, writing the results (in memory here)
+and freeing.  Systems:
+
+* ``native``: 10 C FMUs (benchmarks/native_systems.py, ``chained 10``: a Van der Pol oscillator
+  then 9 direct-feedthrough ``Lag`` blocks), steps of 1 ms;
+* ``pid_fopdt``: ssp/pid_fopdt, 4 pythonfmu FMUs of ours (the FMU loader starts Python's greyfmu
+  numerics in the process), its default step.
+
+Each number is the best of ``--repeat`` fresh processes (the ``import cosim`` not counted) of
+the **first** run in the process, and, in the process that ran it, the best of ``--warm`` more
+runs (``warm``: what a sweep or a test session pays per run).  cosim is measured with an empty
+FMU cache (``COSIM_FMU_CACHE`` a new folder: every FMU unpacked) and with the cache populated
+(``unpacked``), through `cosim.simulate` itself: each stage is the time spent in the function
+that does it (exclusive of the stages it calls, timed by wrapping it):
+
+=================  ==========================================================================
+read               `cosim.ssp.load`: the SSD (and SSVs), schema-validated
+locate             `cosim.resources.locate_fmus`
+check/plan         `cosim.plan.build_plan`: the FMUs checked (`cosim.loadable`), their
+                   model descriptions read (`cosim.description`), the plan made
+unpack             `cosim.instances.Unzipped`: the FMU cache entry looked up or made
+load               `cosim.instances.open_instance`: the library loaded (dlopen) by fmpy
+instantiate        fmi2Instantiate (the instance classes' ``instantiate``)
+exec set-up        `cosim.execution.Execution`: buffers, routing, the compiled kernel's calls
+record set-up      `cosim.observers.Recorder`
+initialise         `Execution.initialize`: setup, start values, initialisation mode
+write              `Recorder.close`: the result array and metadata
+free               `Execution.close`: fmi2FreeInstance
+other              the rest of `cosim.simulate` (the grid, metadata, the lock)
+steps              `Execution.run`: the two steps (not a fixed cost)
+=================  ==========================================================================
+
+Peers, on the same systems: libcosim 0.11.2 (libcosimpy 0.0.6; ``create``: reading, unpacking,
+loading and instantiating, one C call; ``init+steps``: its first ``step(2)``, where it
+initialises; ``free``: the execution destroyed) and ``fmpy.ssp.simulate_ssp`` (fmpy 0.3.32,
+on the packed ``.ssp``: one call, which unpacks everything each time).  ``--profile`` prints
+the cProfile of a first cosim run with the FMUs unpacked.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
+
+STAGES = ("read", "locate", "check/plan", "unpack", "load", "instantiate", "exec set-up", "record set-up",
+          "initialise", "write", "free", "other")
+NATIVE_STEP = 1e-3
+
+
+# --------------------------------------------------------------------------- in the child process
+
+class Timers:
+    """Exclusive time per stage: a timed function called inside another counts for its own stage only."""
+
+    def __init__(self):
+        self.totals: dict[str, float] = {}
+        self._stack: list[list] = []
+
+    def wrap(self, stage: str, function):
+        def timed(*args, **kwargs):
+            frame = [time.perf_counter(), 0.0]
+            self._stack.append(frame)
+            try:
+                return function(*args, **kwargs)
+            finally:
+                self._stack.pop()
+                elapsed = time.perf_counter() - frame[0]
+                self.totals[stage] = self.totals.get(stage, 0.0) + elapsed - frame[1]
+                if self._stack:
+                    self._stack[-1][1] += elapsed
+        return timed
+
+
+def install(timers: Timers) -> None:
+    """Wrap the functions of each stage (the table of the module docstring)."""
+    import cosim.execution
+    import cosim.simulation
+    import cosim.ssp
+    from cosim.execution import Execution
+    from cosim.instances import FMI2Instance, FMI3Instance, ME3Instance, MEInstance, Unzipped
+    from cosim.observers import Recorder
+
+    cosim.ssp.load = timers.wrap("read", cosim.ssp.load)
+    cosim.simulation.locate_fmus = timers.wrap("locate", cosim.simulation.locate_fmus)
+    cosim.simulation.build_plan = timers.wrap("check/plan", cosim.simulation.build_plan)
+    cosim.execution.open_instance = timers.wrap("load", cosim.execution.open_instance)
+    for owner, name, stage in ((Unzipped, "__call__", "unpack"), (Execution, "__init__", "exec set-up"),
+                               (Execution, "_compile_calls", "exec set-up"), (Recorder, "__init__", "record set-up"),
+                               (Execution, "initialize", "initialise"), (Execution, "run", "steps"),
+                               (Recorder, "close", "write"), (Execution, "close", "free")):
+        setattr(owner, name, timers.wrap(stage, getattr(owner, name)))
+    for cls in (FMI2Instance, FMI3Instance, MEInstance, ME3Instance):
+        if "instantiate" in cls.__dict__:
+            setattr(cls, "instantiate", timers.wrap("instantiate", cls.__dict__["instantiate"]))
+
+
+def cosim_runs(path: str, stop: float, step: float, warm: int, profile: bool) -> dict:
+    import cosim
+
+    timers = Timers()
+    install(timers)
+    simulate = timers.wrap("total", cosim.simulate)
+
+    def once() -> dict[str, float]:
+        timers.totals = {}
+        simulate(path, stop_time=stop, step_size=step)
+        stages = dict(timers.totals)
+        stages["other"] = stages.pop("total")
+        return stages
+
+    if profile:
+        import cProfile
+        import pstats
+        profiler = cProfile.Profile()
+        profiler.enable()
+        first = once()
+        profiler.disable()
+        pstats.Stats(profiler, stream=sys.stderr).sort_stats("cumulative").print_stats(30)
+    else:
+        first = once()
+    warm_runs = [once() for _ in range(warm)]
+    return {"first": first, "warm": min(warm_runs, key=fixed) if warm_runs else first}
+
+
+def libcosim_runs(ssp: str, stop: float, step: float, warm: int) -> dict:
+    import ctypes
+
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy._internal import get_last_error_message, libcosimc, wrap_function
+
+    log_output_level(CosimLogLevel.ERROR)
+    create = wrap_function(lib=libcosimc(), funcname="cosim_ssp_fixed_step_execution_create",
+                           argtypes=[ctypes.c_char_p, ctypes.c_bool, ctypes.c_int64, ctypes.c_int64],
+                           restype=ctypes.POINTER(CosimExecution))
+
+    def once() -> dict[str, float]:
+        t0 = time.perf_counter()
+        ptr = create(str(Path(ssp).resolve()).encode(), True, 0, round(step * 1e9))
+        if not ptr:
+            raise RuntimeError(f"libcosim could not load {ssp}: {get_last_error_message()}")
+        execution = CosimExecution(CosimExecution._CosimExecution__create_key, ptr)
+        t1 = time.perf_counter()
+        if not execution.step(round(stop / step)):
+            raise RuntimeError(f"libcosim step failed: {get_last_error_message()}")
+        t2 = time.perf_counter()
+        del execution
+        t3 = time.perf_counter()
+        return {"create": t1 - t0, "init+steps": t2 - t1, "free": t3 - t2}
+
+    first = once()
+    warm_runs = [once() for _ in range(warm)]
+    return {"first": first, "warm": min(warm_runs, key=fixed) if warm_runs else first}
+
+
+def fmpy_runs(ssp: str, stop: float, step: float, warm: int) -> dict:
+    from fmpy.ssp.simulation import simulate_ssp
+
+    def once() -> dict[str, float]:
+        t0 = time.perf_counter()
+        simulate_ssp(ssp, stop_time=stop, step_size=step)
+        return {"simulate_ssp": time.perf_counter() - t0}
+
+    first = once()
+    warm_runs = [once() for _ in range(warm)]
+    return {"first": first, "warm": min(warm_runs, key=fixed) if warm_runs else first}
+
+
+def fixed(stages: dict[str, float]) -> float:
+    """A run's fixed cost: all but the steps."""
+    return sum(v for k, v in stages.items() if k != "steps")
+
+
+def child(args: argparse.Namespace) -> None:
+    runner = {"cosim": lambda: cosim_runs(args.path, args.stop, args.step, args.warm, args.profile),
+              "libcosim": lambda: libcosim_runs(args.path, args.stop, args.step, args.warm),
+              "fmpy": lambda: fmpy_runs(args.path, args.stop, args.step, args.warm)}[args.child]
+    try:
+        result = runner()
+    except Exception as e:  # a peer that cannot run the system: the reason instead of a number
+        result = {"error": f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"}
+    print("RESULT " + json.dumps(result))
+
+
+# --------------------------------------------------------------------------- the parent
+
+def systems(folder: Path) -> dict[str, dict]:
+    """Each system: the folder cosim runs, the packed .ssp the peers run, stop and step."""
+    from cosim import ssp as cosim_ssp
+    from cosim.cli import main as cosim_main
+    from native_systems import FAMILIES, build_family, native_system, write_native_system
+
+    fmus = build_family("c", folder / "fmus")
+    native = write_native_system(native_system(FAMILIES["c"], "chained", 10), fmus, folder / "native",
+                                 2 * NATIVE_STEP, NATIVE_STEP)
+    pid = ROOT / "ssp" / "pid_fopdt"
+    step = cosim_ssp.load(pid).step_size
+    out = {"native": {"path": native, "stop": 2 * NATIVE_STEP, "step": NATIVE_STEP},
+           "pid_fopdt": {"path": pid, "stop": 2 * step, "step": step}}
+    for name, system in out.items():
+        packed = folder / f"{name}.ssp"
+        if cosim_main(["pack", str(system["path"]), "-o", str(packed)]) != 0:
+            raise RuntimeError(f"cosim pack failed on {system['path']}")
+        system["ssp"] = packed
+    return out
+
+
+def spawn(kind: str, path: Path, stop: float, step: float, warm: int, env: dict, profile: bool = False) -> dict:
+    argv = [sys.executable, __file__, "--child", kind, "--path", str(path), "--stop", repr(stop),
+            "--step", repr(step), "--warm", str(warm)] + (["--profile"] if profile else [])
+    done = subprocess.run(argv, capture_output=True, text=True, env=env, cwd=ROOT)
+    if profile:
+        print(done.stderr)
+    lines = [ln for ln in done.stdout.splitlines() if ln.startswith("RESULT ")]
+    if not lines:
+        return {"error": f"exit {done.returncode}: {done.stderr.strip().splitlines()[-1:] or ''}"}
+    return json.loads(lines[-1][len("RESULT "):])
+
+
+def best(results: list[dict]) -> dict:
+    good = [r for r in results if "error" not in r]
+    if not good:
+        return results[0]
+    return {"first": min((r["first"] for r in good), key=fixed), "warm": min((r["warm"] for r in good), key=fixed)}
+
+
+def measure(system: dict, repeat: int, warm: int, folder: Path, profile: bool) -> dict[str, dict]:
+    cache = folder / "cache"
+    base = dict(os.environ, COSIM_FMU_CACHE=str(cache))
+    cases: dict[str, list] = {"cosim, FMUs not unpacked": [], "cosim, FMUs unpacked": [], "libcosim": [], "fmpy": []}
+    spawn("cosim", system["path"], system["stop"], system["step"], 0, base)   # the cache populated
+    for k in range(repeat):
+        empty = folder / f"empty{k}-{time.monotonic_ns()}"
+        cases["cosim, FMUs not unpacked"].append(
+            spawn("cosim", system["path"], system["stop"], system["step"], warm, dict(base, COSIM_FMU_CACHE=str(empty))))
+        cases["cosim, FMUs unpacked"].append(
+            spawn("cosim", system["path"], system["stop"], system["step"], warm, base))
+        cases["libcosim"].append(spawn("libcosim", system["ssp"], system["stop"], system["step"], warm, base))
+        cases["fmpy"].append(spawn("fmpy", system["ssp"], system["stop"], system["step"], warm, base))
+    if profile:
+        spawn("cosim", system["path"], system["stop"], system["step"], 0, base, profile=True)
+    return {name: best(results) for name, results in cases.items()}
+
+
+def table(name: str, measured: dict[str, dict]) -> str:
+    cosim_cases = [c for c in measured if c.startswith("cosim")]
+    columns = [(c, w) for c in cosim_cases for w in ("first", "warm")]
+    lines = [f"\n{name}: fixed cost of a 2-step run, ms (best of the fresh processes)",
+             f"  {'stage':<14}" + "".join(f"{c.split(', ')[1] + ' ' + w:>24}" for c, w in columns)]
+
+    def cell(case: str, when: str, stage: str) -> str:
+        r = measured[case]
+        return f"{'—':>24}" if "error" in r else f"{1e3 * r[when].get(stage, 0.0):>24.2f}"
+
+    for stage in STAGES:
+        lines.append(f"  {stage:<14}" + "".join(cell(c, w, stage) for c, w in columns))
+    lines.append(f"  {'= fixed':<14}" + "".join(
+        f"{'—':>24}" if "error" in measured[c] else f"{1e3 * fixed(measured[c][w]):>24.2f}" for c, w in columns))
+    lines.append(f"  {'(steps)':<14}" + "".join(
+        f"{'—':>24}" if "error" in measured[c] else f"{1e3 * measured[c][w].get('steps', 0.0):>24.2f}"
+        for c, w in columns))
+    for peer in ("libcosim", "fmpy"):
+        r = measured[peer]
+        if "error" in r:
+            lines.append(f"  {peer}: cannot run it ({r['error']})")
+            continue
+        parts = ", ".join(f"{k} {1e3 * v:.2f}" for k, v in r["first"].items())
+        lines.append(f"  {peer}: first {1e3 * fixed(r['first']):.2f} ms ({parts}); warm {1e3 * fixed(r['warm']):.2f} ms")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=5, help="fresh processes per case (best taken)")
+    parser.add_argument("--warm", type=int, default=5, help="runs after the first in each process (best taken)")
+    parser.add_argument("--systems", nargs="+", default=["native", "pid_fopdt"], choices=["native", "pid_fopdt"])
+    parser.add_argument("--profile", action="store_true", help="print the cProfile of a first run, FMUs unpacked")
+    parser.add_argument("--child", choices=["cosim", "libcosim", "fmpy"], help=argparse.SUPPRESS)
+    parser.add_argument("--path", help=argparse.SUPPRESS)
+    parser.add_argument("--stop", type=float, help=argparse.SUPPRESS)
+    parser.add_argument("--step", type=float, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        child(args)
+        return
+    with tempfile.TemporaryDirectory(prefix="bench-fixed-cost-") as tmp:
+        folder = Path(tmp)
+        built = systems(folder)
+        for name in args.systems:
+            print(table(name, measure(built[name], args.repeat, args.warm, folder / name, args.profile)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
