@@ -16,12 +16,13 @@ communication step).  This base class
   handle_py_exception calls cleanPyObject) and releases them again when the instance is freed
   (~PySlaveInstance), which frees objects still in use and crashes the host at a later garbage
   collection.  Each call pythonfmu3 makes on an instance gives one reference of each back when
-  it raises (`_GIVEN_BACK`), and the class-level FMU-state conversions never raise: the FMUs
+  it raises (`_give_back`), and the class-level FMU-state conversions never raise: the FMUs
   declare no FMU state (canGetAndSetFMUState="false"), so getting or setting one is refused.
 """
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import math
 import re
@@ -40,8 +41,12 @@ from greyfmu.forwarding import forward_warnings
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
 
 
-_GIVEN_BACK: list[object] = []
-"""One reference to the instance, its class and its log queue per call that raised (see the module docstring)."""
+def _give_back(*objects: object) -> None:
+    """One reference to each of ``objects`` that no one owns, as the one pythonfmu3 releases
+    without owning it was (a list holding them would own its references, and the objects would
+    still be freed under it)."""
+    for item in objects:
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(item))
 
 _CALLED_BY_PYTHONFMU3 = re.compile(r"(get|set)_[a-z0-9_]+|setup_experiment|enter_initialization_mode|"
                                    r"exit_initialization_mode|do_step|terminate|_get_fmu_state|_set_fmu_state")
@@ -56,7 +61,7 @@ def _given_back_when_raising(method: Callable[..., Any]) -> Callable[..., Any]:
         try:
             return method(self, *args)
         except BaseException:
-            _GIVEN_BACK.extend((self, type(self), self.log_queue))
+            _give_back(self, type(self), self.log_queue)
             raise
 
     guarded.given_back_when_raising = True

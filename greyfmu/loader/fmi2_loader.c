@@ -81,6 +81,7 @@ typedef struct {
     void *(*UnicodeFromString)(const char *);
     const char *(*UnicodeAsUTF8)(void *);
     void (*DecRef)(void *);
+    void (*IncRef)(void *);
     void (*ErrPrint)(void);
 } PythonApi;
 
@@ -256,6 +257,7 @@ static int resolve(void *library, PythonApi *api, char *problem, size_t size) {
     RESOLVE(UnicodeFromString, "PyUnicode_FromString")
     RESOLVE(UnicodeAsUTF8, "PyUnicode_AsUTF8")
     RESOLVE(DecRef, "Py_DecRef")
+    RESOLVE(IncRef, "Py_IncRef")
     RESOLVE(ErrPrint, "PyErr_Print")
 #undef RESOLVE
     return 1;
@@ -263,7 +265,7 @@ static int resolve(void *library, PythonApi *api, char *problem, size_t size) {
 
 /* Run code in a fresh namespace under the GIL; the string variable `result_name` it leaves, copied. */
 static int run_in_process(PythonApi *api, const char *code, const char *file, const char *result_name, char *result,
-                          size_t size) {
+                          size_t size, void (*inspect)(PythonApi *, void *)) {
     int gil = api->GILStateEnsure();
     void *globals = api->DictNew();
     api->DictSetItemString(globals, "__builtins__", api->EvalGetBuiltins());
@@ -280,6 +282,7 @@ static int run_in_process(PythonApi *api, const char *code, const char *file, co
         void *value = result_name ? api->DictGetItemString(globals, result_name) : NULL;
         const char *text = value ? api->UnicodeAsUTF8(value) : "";
         snprintf(result, size, "%s", text ? text : "");
+        if (inspect != NULL) inspect(api, globals);
     } else {
         api->ErrPrint();
         snprintf(result, size, "running %s inside the host process raised a Python exception (printed on stderr)", file);
@@ -318,7 +321,7 @@ static int start_python(const Interpreter *python, PythonApi *api, char *problem
         char *code = malloc(length);
         snprintf(code, length, "import sys\nsys.path[:] = %s\nsys.executable = %s\n", python->path, executable);
         char ignored[16];
-        int ok = run_in_process(api, code, "<greyfmu loader>", NULL, ignored, sizeof ignored);
+        int ok = run_in_process(api, code, "<greyfmu loader>", NULL, ignored, sizeof ignored, NULL);
         free(code);
         api->EvalSaveThread(); /* Python stays initialised; pythonfmu takes the GIL per call */
         if (!ok) {
@@ -451,7 +454,7 @@ static int ensure_loaded(char *problem, size_t size) {
     char script[PATH_MAX + 64];
     snprintf(script, sizeof script, "%s%cresources%cgreyfmu_target.py", root, SEPARATOR, SEPARATOR);
     char answer[4096];
-    run_in_process(&api, CHECK_ONCE, script, "problem", answer, sizeof answer);
+    run_in_process(&api, CHECK_ONCE, script, "problem", answer, sizeof answer, NULL);
     if (answer[0] != '\0') {
         append(problem, size, "%s", answer);
         return 0;
@@ -467,28 +470,29 @@ static int ensure_loaded(char *problem, size_t size) {
  *     once per instantiation that got as far as importing the module: after as many
  *     instantiations as the dict has holders, the dict is freed while its module still uses it
  *     and the next garbage collection crashes the host (a pytest run of 1,400 tests: segfault
- *     "Garbage-collecting" in DigitalPI).  One reference per instantiation is kept in
- *     sys.modules["greyfmu_target_checks"].released (8 bytes each); where the module was
- *     imported but the dict not released (a failure in between), one dict stays alive forever,
- *     which it does anyway as its module is in sys.modules.
+ *     "Garbage-collecting" in DigitalPI).  One reference per instantiation is given back
+ *     (Py_IncRef, owned by no one, as the released one was); where the module was imported but
+ *     the dict not released (a failure in between), the dict stays alive forever, as it does
+ *     anyway while its module is in sys.modules.
  * Runs after every forwarded fmi2Instantiate, whether it returned an instance or not. */
 static const char BALANCE_PYTHONFMU[] =
     "import os, sys\n"
-    "checks = sys.modules.get('greyfmu_target_checks')\n"
-    "if checks is None:\n"
-    "    checks = sys.modules['greyfmu_target_checks'] = type(sys)('greyfmu_target_checks')\n"
-    "    checks.passed = set()\n"
-    "if not hasattr(checks, 'released'):\n"
-    "    checks.released = []\n"
     "with open(os.path.join(os.path.dirname(__file__), 'slavemodule.txt'), encoding='utf-8') as listing:\n"
     "    module = sys.modules.get(listing.readline().strip())\n"
     "if module is not None:\n"
-    "    checks.released.append(module.__dict__)\n";
+    "    namespace = module.__dict__\n";
+
+/* The reference given back: one that no one owns, as the one pythonfmu released was (a list
+ * holding the dict would own its reference, and the dict would still be freed under it). */
+static void give_back_namespace(PythonApi *api, void *globals) {
+    void *namespace = api->DictGetItemString(globals, "namespace");
+    if (namespace != NULL) api->IncRef(namespace);
+}
 
 static void balance_pythonfmu(void) {
     char script[PATH_MAX + 64], ignored[256];
     snprintf(script, sizeof script, "%s%cgreyfmu_balance", resources, SEPARATOR);
-    run_in_process(&python_api, BALANCE_PYTHONFMU, script, NULL, ignored, sizeof ignored);
+    run_in_process(&python_api, BALANCE_PYTHONFMU, script, NULL, ignored, sizeof ignored, give_back_namespace);
 }
 
 /* ---- the exported FMI 2.0 functions, behind the guard (guard.h) ---- */
