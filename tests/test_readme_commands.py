@@ -152,7 +152,8 @@ def test_the_sweep_is_a_closed_loop_with_finite_metrics_as_the_readme_says(newco
 
 def test_the_regression_test_writes_then_checks_its_reference(newcomer):
     clone, output = newcomer
-    assert (clone / "tests" / "references" / "test_my_loop.csv").is_file()
+    assert (clone / "my_tests" / "test_my_loop" / "test_my_loop.csv").is_file()   # beside the user's test file
+    assert not (clone / "tests" / "references" / "test_my_loop.csv").exists()      # not in greyfmu's own tests
     assert len(re.findall(r"^1 passed", output, re.M)) == 2
 
 
