@@ -304,12 +304,7 @@ def _read_dictionary(el: etree._Element, base_dir: Path, display: str) -> Signal
     source = el.get("source")
     if source is not None:
         path = _source_file(source, base_dir, display, where, "signal dictionary")
-        file, tree = str(path), parse_xml(path)
-        root = tree.getroot()
-        if etree.QName(root).namespace != NS["ssb"] or etree.QName(root).localname != "SignalDictionary":
-            raise SetupError(f"the root element is not an SSP ssb:SignalDictionary (found {root.tag}).",
-                             file=file, element=f"line {root.sourceline}")
-        validate_schema(tree, "SystemStructureSignalDictionary.xsd", file, ssp2=as_ssp1(root))
+        file, root = str(path), _read_document(path, "ssb", "SignalDictionary", "SystemStructureSignalDictionary.xsd")
     else:
         file, root = display, el.find("ssb:SignalDictionary", NS)
         if root is None:
@@ -481,13 +476,7 @@ def _read_mapping(el: etree._Element, base_dir: Path, display: str) -> list[Mapp
 
 def read_ssm(path: str | Path) -> list[MappingEntry]:
     """Read an ``.ssm`` parameter mapping file (SystemStructureParameterMapping.xsd)."""
-    path = Path(path)
-    tree = parse_xml(path)
-    root = tree.getroot()
-    if etree.QName(root).namespace != NS["ssm"] or etree.QName(root).localname != "ParameterMapping":
-        raise SetupError(f"the root element is not an SSP ssm:ParameterMapping (found {root.tag}).",
-                         file=str(path), element=f"line {root.sourceline}")
-    validate_schema(tree, "SystemStructureParameterMapping.xsd", str(path), ssp2=as_ssp1(root))
+    root = _read_document(path, "ssm", "ParameterMapping", "SystemStructureParameterMapping.xsd")
     return _read_mapping_entries(root, str(path))
 
 
@@ -539,14 +528,21 @@ def _read_table(el: etree._Element, parse, display: str) -> dict:
 
 def read_ssv(path: str | Path) -> list[ParameterValue]:
     """Read an ``.ssv`` parameter set file (SystemStructureParameterValues.xsd), SSP 1.0 or 2.0 (`as_ssp1`)."""
-    path = Path(path)
-    tree = parse_xml(path)
-    root = tree.getroot()
-    if etree.QName(root).namespace != NS["ssv"] or etree.QName(root).localname != "ParameterSet":
-        raise SetupError(f"the root element is not an SSP ssv:ParameterSet (found {root.tag}).",
-                         file=str(path), element=f"line {root.sourceline}")
-    validate_schema(tree, "SystemStructureParameterValues.xsd", str(path), ssp2=as_ssp1(root))
+    root = _read_document(path, "ssv", "ParameterSet", "SystemStructureParameterValues.xsd")
     return _read_parameter_set(root, str(path))
+
+
+def _read_document(path: str | Path, prefix: str, localname: str, schema: str) -> etree._Element:
+    """The root element of an SSP file (``.ssv``, ``.ssm``, ``.ssb``), parsed as untrusted XML,
+    checked to be ``prefix:localname`` and validated against ``schema`` (SSP 1.0, or 2.0 read as
+    1.0: `as_ssp1`)."""
+    tree = parse_xml(Path(path))
+    root = tree.getroot()
+    if etree.QName(root).namespace != NS[prefix] or etree.QName(root).localname != localname:
+        raise SetupError(f"the root element is not an SSP {prefix}:{localname} (found {root.tag}).",
+                         file=str(path), element=f"line {root.sourceline}")
+    validate_schema(tree, schema, str(path), ssp2=as_ssp1(root))
+    return root
 
 
 def _read_parameter_set(pset: etree._Element, display: str) -> list[ParameterValue]:
