@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -36,17 +35,6 @@ def test_a_result_on_a_full_device_is_named(tmp_path, system, capsys, monkeypatc
     assert code == 1 and "Traceback" not in err, err
     assert f"cosim: the run failed: {target}: the results cannot be written: the disk is full " in err
     assert "Error writing bytes" not in err and err.count("cosim:") == 1
-
-
-@pytest.fixture
-def small_disk(tmp_path):
-    mount = tmp_path / "disk"
-    mount.mkdir()
-    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mount)], capture_output=True)
-    if done.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs to fill: {done.stderr.decode().strip()}")
-    yield mount
-    subprocess.run(["umount", str(mount)], check=True)
 
 
 def test_a_disk_that_fills_mid_run_is_named(system, small_disk, capsys):

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -89,17 +88,6 @@ def test_a_missing_result_folder_is_made(scenario, tmp_path):
     target = tmp_path / "new" / "deeper" / "r.csv"
     assert main(["run", str(scenario), "-q", "--stop", "1", "-o", str(target)]) == 0
     assert len(read(target)) > 1
-
-
-@pytest.fixture
-def small_disk(tmp_path):
-    mount = tmp_path / "disk"
-    mount.mkdir()
-    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mount)], capture_output=True)
-    if done.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs to fill: {done.stderr.decode().strip()}")
-    yield mount
-    subprocess.run(["umount", str(mount)], check=True)
 
 
 def test_a_full_disk_ends_the_run_cleanly_and_keeps_what_fitted(scenario, small_disk, capsys):
