@@ -58,22 +58,21 @@ def test_the_slave_module_namespace_keeps_a_reference_per_holder(built_fmus, nam
     assert surplus == [0] * 30, f"reference count minus holders after each instantiation: {surplus}"
 
 
-LOSE = textwrap.dedent(
+LOSING = textwrap.dedent(
     """
     import gc, sys
     from fmpy import extract, read_model_description
     from fmpy.fmi1 import FMICallException
-    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi{version} import FMU{version}Slave
 
     fmu = sys.argv[1]
     description = read_model_description(fmu)
     folder = extract(fmu)
     for _ in range(60):
-        slave = FMU2Slave(guid=description.guid, unzipDirectory=folder,
-                          modelIdentifier=description.coSimulation.modelIdentifier, instanceName="x")
+        slave = FMU{version}Slave(guid=description.guid, unzipDirectory=folder,
+                                  modelIdentifier=description.coSimulation.modelIdentifier, instanceName="x")
         slave.instantiate()
-        for call in (lambda: slave.deSerializeFMUstate(b"greyfmu-fmu-state-1\\nnot a pickle"),
-                     lambda: slave.setupExperiment(startTime=0.0)):
+        for call in ({calls}):
             try:
                 call()
                 print("ok")
@@ -83,6 +82,11 @@ LOSE = textwrap.dedent(
         gc.collect()
     """
 )
+"""A script that instantiates an FMU 60 times in one process, makes ``calls`` on each instance
+(printing each status, ``ok`` for fmi2OK) and frees it."""
+
+LOSE = LOSING.format(version=2, calls='lambda: slave.deSerializeFMUstate(b"greyfmu-fmu-state-1\\nnot a pickle"), '
+                                      'lambda: slave.setupExperiment(startTime=0.0)')
 
 
 def test_an_instance_lost_to_a_python_exception_is_never_released_twice(built_fmus) -> None:
@@ -100,32 +104,9 @@ def test_an_instance_lost_to_a_python_exception_is_never_released_twice(built_fm
     assert set(answers[1::2]) == {"3"}, "a call after the instance was lost was not refused with fmi2Error"
 
 
-LOSE_FMI3 = textwrap.dedent(
-    """
-    import gc, sys
-    from fmpy import extract, read_model_description
-    from fmpy.fmi1 import FMICallException
-    from fmpy.fmi3 import FMU3Slave
-
-    fmu = sys.argv[1]
-    description = read_model_description(fmu)
-    folder = extract(fmu)
-    for _ in range(60):
-        slave = FMU3Slave(guid=description.guid, unzipDirectory=folder,
-                          modelIdentifier=description.coSimulation.modelIdentifier, instanceName="x")
-        slave.instantiate()
-        for call in (lambda: slave.getFloat64([987654]), slave.getFMUState,
-                     lambda: slave.setFMUState(slave.deserializeFMUState(b"not a state"))):
-            try:
-                call()
-                print("ok")
-            except FMICallException as refused:
-                print(refused.status)
-        slave.freeInstance()
-        gc.collect()
-    print("alive", sum(type(o).__name__ == "PID3" for o in gc.get_objects()))
-    """
-)
+LOSE_FMI3 = LOSING.format(version=3, calls='lambda: slave.getFloat64([987654]), slave.getFMUState, '
+                                           'lambda: slave.setFMUState(slave.deserializeFMUState(b"not a state"))') \
+    + 'print("alive", sum(type(o).__name__ == "PID3" for o in gc.get_objects()))\n'
 
 
 def test_an_fmi3_instance_survives_calls_that_raise(tmp_path: Path) -> None:
