@@ -149,6 +149,7 @@ def _parser() -> argparse.ArgumentParser:
                             "e.g. plant.y:setpoint.y")
     sweep.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                        help="parameter set applied to every run before the swept values (repeatable)")
+    input_options(sweep)
     sweep.add_argument("--start", type=_seconds, help="start time [s] (default: DefaultExperiment or 0)")
     sweep.add_argument("--stop", type=_seconds, help="stop time [s] (default: DefaultExperiment)")
     sweep.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation)")
@@ -196,14 +197,19 @@ def _progress(args) -> bool:
 FMI_TYPE_HELP = "the interface of an FMU that has both (default: CoSimulation); a single .fmu only"
 
 
-def single_options(run: argparse.ArgumentParser) -> None:
-    """The options of `cosim.single` and `cosim.inputs`, with fmpy simulate's names."""
+def input_options(run: argparse.ArgumentParser) -> None:
+    """--start-value and --input-file (`cosim.single`, `cosim.inputs`), with fmpy simulate's names."""
     run.add_argument("--start-value", "--start-values", action="append", default=[], metavar="NAME=VALUE",
                      dest="start_values", help="start value of a parameter or input, applied after the parameter "
                      "sets: the variable's name for a single FMU, 'component.variable' in a system (repeatable)")
     run.add_argument("--input-file", metavar="CSV", help="input table: a 'time' column, then one column per input "
                      "(names as for --start-value); Reals interpolated linearly, discrete inputs held, a repeated "
                      "time is an event (fmpy's format and rules)")
+
+
+def single_options(run: argparse.ArgumentParser) -> None:
+    """The options of `cosim.single` and `cosim.inputs`, with fmpy simulate's names."""
+    input_options(run)
     run.add_argument("--output-interval", type=float, metavar="SECONDS",
                      help="communication step, at which results are recorded (fmpy's name for --step)")
     run.add_argument("--fmi-type", choices=["CoSimulation", "ModelExchange"], help=FMI_TYPE_HELP)
@@ -568,7 +574,8 @@ def _sweep(args) -> int:
             warnings.showwarning = _print_warning
             result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
                            parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
-                           step_size=args.step, fmu_dirs=args.fmu_dir, output=output,
+                           step_size=args.step, fmu_dirs=args.fmu_dir, start_values=args.start_values,
+                           input_file=args.input_file, output=output,
                            executor=args.scheduler or "process", workers=args.workers, progress=_progress(args))
     except KeyboardInterrupt:
         table = output / "sweep.csv"

@@ -42,7 +42,8 @@ from typing import Any
 
 from ..outputs import check_sweep_folder
 from ..safeio import lock_output, max_unpacked_bytes
-from ..simulation import prepare, signal_units
+from ..simulation import signal_units
+from ..single import prepare_run
 from .cluster import check_scheduler, dispatch_cluster
 from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
 from .figure import summary_figure
@@ -84,11 +85,14 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
           seed_parameters: Sequence[str] = (), metrics: Sequence[str | Metric | tuple[str, str]] = (),
           parameter_sets: Sequence[str | Path] = (), start_time: float | None = None,
           stop_time: float | None = None, step_size: float | None = None, algorithm: str | None = None,
-          fmu_dirs: Sequence[str | Path] = (), output: str | Path = "results/sweep",
+          fmu_dirs: Sequence[str | Path] = (), start_values: Sequence[str] = (),
+          input_file: str | Path | None = None, output: str | Path = "results/sweep",
           executor: Executor = "process", workers: int | None = None, force: bool = False,
           progress: bool = False) -> SweepResult:
     """Run every combination of ``sets`` (name -> values, strings parsed by the variable's type)
-    times ``seeds`` and write the results table (see the module docstring).
+    times ``seeds`` and write the results table (see the module docstring).  ``start_values``
+    (``component.variable=value``) and ``input_file`` (an input table) apply to every run as
+    `cosim run`'s --start-value and --input-file do (`cosim.single.prepare_run`).
 
     Raises `SetupError` before any run for a bad name, value, seed parameter or metric; a run
     that fails is a row with status "failed" and its message.
@@ -98,11 +102,13 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
     check_scheduler(executor)
     metric_list = [parse_metric(m) for m in metrics]
     parameter_sets = [Path(p).resolve() for p in parameter_sets]
-    prepared = prepare(scenario, start_time=start_time, stop_time=stop_time, step_size=step_size,
-                       algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs)
+    inputs = None if input_file is None else Path(input_file).resolve()
+    prepared = prepare_run(scenario, start_time=start_time, stop_time=stop_time, step_size=step_size,
+                           algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
+                           start_values=start_values, input_file=inputs)
     try:       # this prepare also builds our FMUs once, before workers could race to build them
         check_metrics(prepared, metric_list)
-        identity = identity_of(prepared, parameter_sets)
+        identity = identity_of(prepared, parameter_sets, start_values, inputs)
         runs, types = plan_runs(prepared, sets, seeds, seed_parameters, identity)
         grid, algo = prepared.grid, prepared.algorithm
         package = package_of(prepared) if is_cluster(executor) else None
@@ -138,7 +144,8 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
                               tuple(str(p) for p in [*parameter_sets, ssv.resolve()]),
                               tuple(str(Path(d).resolve()) for d in fmu_dirs), grid.start, grid.stop, grid.step,
                               algo, str((runs_dir / f"{r.run_id}.csv").resolve()), tuple(metric_list),
-                              max_unpacked_bytes()[0]))
+                              max_unpacked_bytes()[0], tuple(start_values),
+                              None if inputs is None else str(inputs)))
         skipped = len(runs) - len(tasks)
 
         bar = None

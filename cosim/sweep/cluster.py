@@ -25,7 +25,15 @@ from typing import Any
 
 from ..errors import SetupError
 from .dispatch import Task, distributed, failed_row, is_cluster
-from .shipping import Package, deliver, execute_shipped, forget_package, parameter_set_bytes, publish_package
+from .shipping import (
+    Package,
+    deliver,
+    execute_shipped,
+    forget_package,
+    input_table_bytes,
+    parameter_set_bytes,
+    publish_package,
+)
 
 #: tries of a run after its first that raised (a lost worker is rescheduled by the scheduler itself)
 RETRIES = 2
@@ -187,8 +195,8 @@ def _run(tasks: list[Task], client, shipped, done) -> list[tuple[Task, Exception
     from distributed import KilledWorker, as_completed
 
     # a run writes files, so it is never "pure" (Dask would reuse the result of an equal call)
-    futures = {client.submit(execute_shipped, task, shipped, parameter_set_bytes(task), pure=False,
-                             retries=RETRIES): task for task in tasks}
+    futures = {client.submit(execute_shipped, task, shipped, parameter_set_bytes(task), input_table_bytes(task),
+                             pure=False, retries=RETRIES): task for task in tasks}
     killed: list[tuple[Task, Exception]] = []
     try:
         for future in as_completed(list(futures)):

@@ -20,7 +20,8 @@ import numpy as np
 from ..errors import CosimError, SetupError
 from ..metrics import METRICS, step_response
 from ..safeio import unpack_limit
-from ..simulation import prepare, run
+from ..simulation import run
+from ..single import prepare_run
 from .values import Metric
 
 
@@ -39,6 +40,10 @@ class Task:
     metrics: tuple[Metric, ...]
     #: the parent's limit on what an .ssp archive may expand to (--max-unpacked), in bytes
     max_unpacked: int
+    #: ``--start-value`` texts (``component.variable=value``), applied after the parameter sets
+    start_values: tuple[str, ...] = ()
+    #: the ``--input-file`` table (`cosim.inputs`), or None
+    input_file: str | None = None
 
 
 # --------------------------------------------------------------------------- one run (in a worker)
@@ -50,9 +55,10 @@ def execute(task: Task) -> dict[str, Any]:
     result = None
     try:
         with unpack_limit(task.max_unpacked):  # the FMUs are unpacked by run(): inside the limit too
-            prepared = prepare(task.scenario, start_time=task.start, stop_time=task.stop, step_size=task.step,
-                               algorithm=task.algorithm, parameter_sets=task.parameter_sets,
-                               fmu_dirs=task.fmu_dirs)
+            prepared = prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
+                                   step_size=task.step, algorithm=task.algorithm,
+                                   parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
+                                   start_values=task.start_values, input_file=task.input_file)
             try:
                 result, metadata = run(prepared, output=task.csv)
             finally:

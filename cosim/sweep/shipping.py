@@ -111,9 +111,10 @@ def unpacked(package: Package, max_unpacked: int) -> Path:
     return folder
 
 
-def execute_shipped(task: Task, package: Package, parameter_sets: tuple[bytes, ...]) -> tuple[dict[str, Any],
-                                                                                          dict[str, bytes]]:
-    """Run ``task`` on a worker from the shipped package; the row and the run's result files."""
+def execute_shipped(task: Task, package: Package, parameter_sets: tuple[bytes, ...],
+                    input_table: bytes | None) -> tuple[dict[str, Any], dict[str, bytes]]:
+    """Run ``task`` on a worker from the shipped package (with its parameter sets' and input
+    table's contents); the row and the run's result files."""
     scenario = unpacked(package, task.max_unpacked)
     with tempfile.TemporaryDirectory(prefix=f"cosim-run-{task.run_id}-") as tmp:
         sets = []
@@ -121,8 +122,12 @@ def execute_shipped(task: Task, package: Package, parameter_sets: tuple[bytes, .
             path = Path(tmp) / f"parameters_{i}.ssv"
             path.write_bytes(data)
             sets.append(str(path))
+        table = None
+        if input_table is not None:
+            table = Path(tmp) / "inputs.csv"
+            table.write_bytes(input_table)
         here = replace(task, scenario=str(scenario), parameter_sets=tuple(sets), fmu_dirs=(),
-                       csv=str(Path(tmp) / f"{task.run_id}.csv"))
+                       csv=str(Path(tmp) / f"{task.run_id}.csv"), input_file=None if table is None else str(table))
         row = execute(here)
         files = {p.name: p.read_bytes() for p in Path(tmp).iterdir() if p.name.startswith(task.run_id)}
     return row, files
@@ -130,6 +135,11 @@ def execute_shipped(task: Task, package: Package, parameter_sets: tuple[bytes, .
 
 def parameter_set_bytes(task: Task) -> tuple[bytes, ...]:
     return tuple(Path(p).read_bytes() for p in task.parameter_sets)
+
+
+def input_table_bytes(task: Task) -> bytes | None:
+    """The ``--input-file`` table's contents, shipped to a worker that cannot read the path."""
+    return None if task.input_file is None else Path(task.input_file).read_bytes()
 
 
 def deliver(task: Task, files: dict[str, bytes]) -> None:

@@ -177,8 +177,10 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def identity_of(prepared: Prepared, parameter_sets: Sequence[Path]) -> dict:
-    """Everything outside the swept values that decides a run's result."""
+def identity_of(prepared: Prepared, parameter_sets: Sequence[Path], start_values: Sequence[str],
+                input_file: Path | None) -> dict:
+    """Everything outside the swept values that decides a run's result (with the --start-value
+    texts and the input table's contents)."""
     scenario = prepared.plan.files
     if scenario.archive is not None:
         files = {scenario.archive.name: _digest(scenario.archive)}
@@ -189,7 +191,9 @@ def identity_of(prepared: Prepared, parameter_sets: Sequence[Path]) -> dict:
     return {"scenario": files,
             "fmus": {name: [d.md.guid, _digest(d.path)] for name, d in prepared.plan.fmus.items()},
             "parameter_sets": [_digest(Path(p)) for p in parameter_sets],
-            "grid": [grid.start, grid.stop, grid.step], "algorithm": prepared.algorithm}
+            "grid": [grid.start, grid.stop, grid.step], "algorithm": prepared.algorithm,
+            **({"start_values": list(start_values)} if start_values else {}),
+            **({"input_file": _digest(input_file)} if input_file is not None else {})}
 
 
 def _run_id(identity: dict, parameters: list[ParameterValue]) -> str:
