@@ -76,3 +76,18 @@ def test_the_command_line_sweep_on_a_pool_and_the_run_id_follows_the_table(pair,
     assert len(list((out / "runs").glob("*.csv"))) == 2
     assert main([*args[:-3], "--start-value", "src.gain=2", "--output", str(out), "-q"]) == 0
     assert len(list((out / "runs").glob("*.csv"))) == 3
+
+
+def test_a_dask_cluster_gets_the_tables_contents_not_its_path(pair, tmp_path):
+    """A cluster worker may not see the parent's files: the table goes to it as bytes
+    (`cosim.sweep.shipping.execute_shipped`); the runs are the local runs bit for bit."""
+    distributed = pytest.importorskip("distributed")
+    table = tmp_path / "in.csv"
+    table.write_text(TABLE)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        result = sweep(pair, {"dst.gain": ["2"]}, start_values=["src.gain=3"], input_file=table,
+                       output=tmp_path / "out", executor=client)
+    assert [r["status"] for r in result.rows] == ["completed"]
+    ours = read(tmp_path / "out" / "runs" / f"{result.rows[0]['run_id']}.csv")
+    _assert_same(ours, _run(tmp_path, pair, table, "src.gain=3", "dst.gain=2"))
