@@ -250,6 +250,28 @@ def check_archive(path: Path, limit: int | None = None, display: str | None = No
         _check_members(display, archive.infolist(), limit, source)
 
 
+def read_member(archive: Path, name: str, display: str, element: str) -> bytes:
+    """The bytes of the file ``name`` inside the zip ``archive`` (an FMU): ``name`` is checked
+    as every archive member is (`check_member_name`: relative, no ``..``), must be a member and
+    is read up to `MAX_XML_BYTES` (it is an SSP document); errors name ``display`` and ``element``."""
+    try:
+        check_member_name(name, archive)
+    except SetupError as e:
+        raise SetupError(e.detail, file=display, element=element) from None
+    with _open(archive, str(archive)) as z:
+        member = PurePosixPath(name.replace("\\", "/")).as_posix()   # "./resources/x.ssv" is "resources/x.ssv"
+        try:
+            info = z.getinfo(member)
+        except KeyError:
+            raise SetupError(f"'{name}' is not a file in the archive {archive}.", file=display,
+                             element=element) from None
+        if info.file_size > MAX_XML_BYTES:
+            raise SetupError(f"'{name}' in {archive} is larger than {_size_text(MAX_XML_BYTES)}; refusing to read it.",
+                             file=display, element=element)
+        with z.open(info) as f:
+            return f.read(MAX_XML_BYTES + 1)
+
+
 def _open(path: Path, display: str) -> zipfile.ZipFile:
     try:
         return zipfile.ZipFile(path)

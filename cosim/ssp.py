@@ -34,7 +34,7 @@ from lxml import etree
 from .errors import SetupError
 from .flatten import flatten
 from .mapping import MappingEntry, apply_mapping
-from .safeio import extract_archive, is_file, parse_xml, temporary_folder
+from .safeio import extract_archive, is_file, parse_xml, parse_xml_bytes, read_member, temporary_folder
 from .structure import (
     Component,
     Connection,
@@ -253,7 +253,7 @@ def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSys
                              element=f"ssd:System '{name}' (line {system.sourceline})", variable=conn.name)
         connectors[conn.name] = conn
     raw = RawSystem(name=name, line=system.sourceline, connectors=connectors, components={}, systems={},
-                    connections=[], parameters=_read_bindings(system, base_dir, display))
+                    connections=[], parameters=_read_bindings(system, base_dir, display, None))
     elements = system.find("ssd:Elements", NS)
     for el in (elements if elements is not None else []):
         if not isinstance(el.tag, str):
@@ -340,7 +340,7 @@ def _read_component(el: etree._Element, base_dir: Path, display: str) -> Compone
         if conn.name in comp.connectors:
             raise SetupError(f"connector '{conn.name}' is declared twice.", file=display, element=where)
         comp.connectors[conn.name] = conn
-    comp.parameters = _read_bindings(el, base_dir, display)
+    comp.parameters = _read_bindings(el, base_dir, display, comp.source)
     comp.solver = _read_solver_annotation(el, display)
     return comp
 
@@ -407,17 +407,28 @@ def _float_attr(el: etree._Element, name: str, display: str, default: float | No
     return value
 
 
-def _read_bindings(owner: etree._Element, base_dir: Path, display: str) -> list[ParameterValue]:
+def _read_bindings(owner: etree._Element, base_dir: Path, display: str,
+                   fmu_source: str | None) -> list[ParameterValue]:
+    """The parameter values of ``owner``'s bindings; ``fmu_source`` is a component's FMU, which a
+    ``sourceBase="component"`` binding's source is relative to (None for a system)."""
     values: list[ParameterValue] = []
     for binding in owner.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         where = f"ssd:ParameterBinding (line {binding.sourceline})"
         btype = binding.get("type", PARAMETER_SET_MIME)
         if btype != PARAMETER_SET_MIME:
             raise SetupError(f"parameter binding type '{btype}' is not supported.", file=display, element=where)
-        _check_source_base(binding, display, where, ".ssv")
         prefix = binding.get("prefix", "")
         source = binding.get("source")
-        if source is not None:
+        base = binding.get("sourceBase", "SSD")
+        if base not in ("SSD", "component"):
+            raise SetupError(f"sourceBase='{base}' is not 'SSD' or 'component'.", file=display, element=where)
+        if base == "component":
+            if fmu_source is None or source is None:
+                raise SetupError("sourceBase='component' needs a source and a component (SSP 1.0: the source is "
+                                 "relative to the component's FMU).", file=display, element=where)
+            parsed = _read_ssv_in_fmu(source, _source_file(fmu_source, base_dir, display, where, "FMU"),
+                                      display, where)
+        elif source is not None:
             parsed = read_ssv(_source_file(source, base_dir, display, where, "parameter set"))
         else:
             inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
@@ -532,16 +543,30 @@ def read_ssv(path: str | Path) -> list[ParameterValue]:
     return _read_parameter_set(root, str(path))
 
 
+def _read_ssv_in_fmu(name: str, fmu: Path, display: str, where: str) -> list[ParameterValue]:
+    """The ``.ssv`` a ``sourceBase="component"`` binding names: the file ``name`` inside the
+    component's FMU archive (SSP 1.0 §5.3.3 ParameterBinding, e.g. ``resources/params.ssv``),
+    never a path outside it (`cosim.safeio.read_member`)."""
+    inner = f"{fmu}!/{name}"
+    tree = parse_xml_bytes(read_member(fmu, unquote(name), display, where), inner)
+    root = _check_root(tree, inner, "ssv", "ParameterSet", "SystemStructureParameterValues.xsd")
+    return _read_parameter_set(root, inner)
+
+
 def _read_document(path: str | Path, prefix: str, localname: str, schema: str) -> etree._Element:
-    """The root element of an SSP file (``.ssv``, ``.ssm``, ``.ssb``), parsed as untrusted XML,
-    checked to be ``prefix:localname`` and validated against ``schema`` (SSP 1.0, or 2.0 read as
-    1.0: `as_ssp1`)."""
-    tree = parse_xml(Path(path))
+    """The root element of an SSP file (``.ssv``, ``.ssm``, ``.ssb``), parsed as untrusted XML
+    (`_check_root`)."""
+    return _check_root(parse_xml(Path(path)), str(path), prefix, localname, schema)
+
+
+def _check_root(tree: etree._ElementTree, display: str, prefix: str, localname: str, schema: str) -> etree._Element:
+    """The root of ``tree``, checked to be ``prefix:localname`` and validated against ``schema``
+    (SSP 1.0, or 2.0 read as 1.0: `as_ssp1`)."""
     root = tree.getroot()
     if etree.QName(root).namespace != NS[prefix] or etree.QName(root).localname != localname:
         raise SetupError(f"the root element is not an SSP {prefix}:{localname} (found {root.tag}).",
-                         file=str(path), element=f"line {root.sourceline}")
-    validate_schema(tree, schema, str(path), ssp2=as_ssp1(root))
+                         file=display, element=f"line {root.sourceline}")
+    validate_schema(tree, schema, display, ssp2=as_ssp1(root))
     return root
 
 

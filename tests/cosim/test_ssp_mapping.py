@@ -392,3 +392,43 @@ def test_signal_dictionary_errors_name_the_element(tmp_path, fmus, capsys, chang
     assert main(["validate", str(folder)]) == 2
     err = capsys.readouterr().err
     assert "SystemStructure.ssd" in err and message in err and "Traceback" not in err
+
+
+def _component_based(tmp_path, fmus, source: str, member: str = "resources/gain.ssv"):
+    """The Gain's FMU carrying ``member`` (an .ssv), bound as SSP 1.0 §5.3.3 writes it:
+    ``source`` relative to the component's FMU (``sourceBase="component"``)."""
+    text = ssd(gain_bindings='<ssd:ParameterBindings><ssd:ParameterBinding sourceBase="component" '
+               f'source="{source}"/></ssd:ParameterBindings>')
+    folder = _system(tmp_path, fmus, text)
+    with zipfile.ZipFile(folder / "resources" / "Gain.fmu", "a") as z:
+        z.writestr(member, ssv({"k": 4.5}))
+    (folder / "resources" / "gain.ssv").write_text(ssv({"k": 99.0}))   # beside the FMU: never the one read
+    return folder
+
+
+def test_a_component_based_binding_reads_the_ssv_inside_the_fmu(tmp_path, fmus):
+    folder = _component_based(tmp_path, fmus, "resources/gain.ssv")
+    assert _gain_output(folder) == pytest.approx(3 * 4.5)
+    prepared = cosim.prepare(folder)
+    origin = {s.variable.name: s.origin for s in prepared.plan.start_values if s.component == "g"}["k"]
+    prepared.close()
+    assert "Gain.fmu!/resources/gain.ssv" in origin
+
+
+@pytest.mark.parametrize("source, message", [
+    ("../gain.ssv", "escapes the archive"),
+    ("/etc/passwd", "absolute path"),
+    ("resources/other.ssv", "is not a file in the archive"),
+])
+def test_a_component_based_source_outside_the_fmu_is_refused(tmp_path, fmus, capsys, source, message):
+    folder = _component_based(tmp_path, fmus, source)
+    assert main(["validate", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "SystemStructure.ssd" in err and "ssd:ParameterBinding (line" in err
+
+
+def test_a_component_based_binding_on_a_system_is_refused(tmp_path, fmus, capsys):
+    folder = _system(tmp_path, fmus, ssd(system_bindings='<ssd:ParameterBindings><ssd:ParameterBinding '
+                                         'sourceBase="component" source="x.ssv"/></ssd:ParameterBindings>'))
+    assert main(["validate", str(folder)]) == 2
+    assert "sourceBase='component' needs a source and a component" in capsys.readouterr().err
