@@ -8,8 +8,10 @@ FMI status above Warning, see ``kernel.c``).
 
 The library is built from ``kernel.c`` when greyfmu is installed (an optional setuptools
 extension, ``setup.py``: no Python C API, loaded here with ctypes); `library` finds it, or
-says why not.  ``COSIM_KERNEL_LIBRARY`` names another file to load (tests use a missing one
-to check the fallback).
+says why not, and refuses a library whose ``cosim_kernel_abi`` (version and structure sizes)
+differs from the ctypes mirrors below (one built before an edit of ``kernel.c``).
+``COSIM_KERNEL_LIBRARY`` names another file to load (tests use a missing or a stale one to
+check the fallback).
 """
 from __future__ import annotations
 
@@ -27,6 +29,8 @@ OP_STEP, OP_GET, OP_SET, OP_ROUTE = 0, 1, 2, 3
 #: an FMI status for Python to handle, a route whose value overflowed (its index in the status)
 KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS, KERNEL_OVERFLOW = 1, 2, 4, 8, 16, 32
 LIBRARY_ENV = "COSIM_KERNEL_LIBRARY"
+#: KERNEL_ABI_VERSION of kernel.c: the layout of the structures mirrored below
+ABI_VERSION = 1
 
 
 class _Op(ctypes.Structure):
@@ -68,6 +72,23 @@ def _library_path() -> Path | None:
     return None
 
 
+def _abi_mismatch(lib: ctypes.CDLL) -> str:
+    """How the library's structures differ from the ctypes mirrors (`cosim_kernel_abi`), or ""."""
+    try:
+        abi = lib.cosim_kernel_abi
+    except AttributeError:
+        return "it has no cosim_kernel_abi (older than the ABI check)"
+    mirrors = (_Op, _Source, _Program, _Run)
+    sizes = (ctypes.c_size_t * len(mirrors))()
+    abi.argtypes, abi.restype = [ctypes.POINTER(ctypes.c_size_t)], ctypes.c_int
+    version = abi(sizes)
+    if version != ABI_VERSION:
+        return f"ABI version {version}, expected {ABI_VERSION}"
+    wrong = [f"sizeof({m.__name__[1:]}) is {size} bytes in C, {ctypes.sizeof(m)} in ctypes"
+             for m, size in zip(mirrors, sizes) if size != ctypes.sizeof(m)]
+    return "; ".join(wrong)
+
+
 @lru_cache(maxsize=1)
 def library() -> tuple[ctypes.CDLL | None, str]:
     """The loaded kernel library, or None and why it is not available."""
@@ -79,6 +100,10 @@ def library() -> tuple[ctypes.CDLL | None, str]:
         lib = ctypes.CDLL(str(path))
     except OSError as e:
         return None, f"the compiled kernel {path} cannot be loaded: {e}"
+    mismatch = _abi_mismatch(lib)
+    if mismatch:
+        return None, f"the compiled kernel {path} does not match cosim/kernel/__init__.py: {mismatch} (a library " \
+                     f"built before kernel.c changed: reinstall greyfmu, `python -m pip install -e .`)"
     lib.cosim_run.argtypes = [ctypes.POINTER(_Program), ctypes.POINTER(_Run)]
     lib.cosim_run.restype = ctypes.c_int
     lib.cosim_watch_signals.argtypes = [ctypes.POINTER(ctypes.c_int)]

@@ -97,6 +97,24 @@ typedef struct {
     int op, status;
 } Run;
 
+/* The layout the ctypes mirrors of cosim/kernel/__init__.py declare: bump KERNEL_ABI_VERSION
+ * with any change to Op, Source, Program or Run (their sizes are checked too, so a stale
+ * library built before an edit is refused rather than read out of step). */
+#ifndef KERNEL_ABI_VERSION
+#define KERNEL_ABI_VERSION 1
+#endif
+enum { KERNEL_ABI_STRUCTS = 4 };
+
+/* The ABI version; ``sizes`` (KERNEL_ABI_STRUCTS of them) receives sizeof Op, Source, Program
+ * and Run, in that order. */
+int cosim_kernel_abi(size_t *sizes) {
+    sizes[0] = sizeof(Op);
+    sizes[1] = sizeof(Source);
+    sizes[2] = sizeof(Program);
+    sizes[3] = sizeof(Run);
+    return KERNEL_ABI_VERSION;
+}
+
 static double grid_time(const Program *p, long long k) {
     return k >= p->steps ? p->stop : p->start + (double)k * p->step;
 }

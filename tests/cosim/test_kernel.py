@@ -7,8 +7,10 @@ signal raised by an FMU mid-run, a crash with the journal on) and on every scena
 Python loop with one notice when the library cannot be loaded."""
 from __future__ import annotations
 
+import ctypes
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -20,7 +22,7 @@ import cosim
 from cfmus import build_c_fmu
 from cosim.errors import RunError, SetupError
 from cosim.interrupts import stop_on_signals
-from cosim.kernel import library
+from cosim.kernel import _Program, library
 from cosim.simulation import prepare, run
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
@@ -270,6 +272,45 @@ def test_without_the_library_auto_runs_python_with_one_notice(tmp_path, blocks):
     assert len(lines) == 2 and all(line.startswith("python | the compiled kernel ") and "missing.so cannot be "
                                    "loaded" in line and line.endswith("| 11") for line in lines), lines
     assert proc.stderr.count("running the Python stepping loop") == 1, proc.stderr
+
+
+def _stale_library(tmp_path: Path, name: str, source: str, *flags: str) -> Path:
+    """kernel.c as edited (``source``) and compiled here: a library out of step with the ctypes mirrors."""
+    c_file, library_file = tmp_path / f"{name}.c", tmp_path / f"{name}.so"
+    c_file.write_text(source)
+    subprocess.run(["cc", "-shared", "-fPIC", "-O1", "-pthread", *flags, "-o", str(library_file), str(c_file)],
+                   check=True)
+    return library_file
+
+
+@pytest.mark.parametrize("edit, expected", [
+    ("version", r"ABI version 2, expected 1"),
+    ("field", rf"sizeof\(Program\) is {ctypes.sizeof(_Program) + 8} bytes in C, {ctypes.sizeof(_Program)} in ctypes"),
+    ("no abi", r"it has no cosim_kernel_abi")])
+def test_a_stale_library_is_refused_by_its_abi(tmp_path, blocks, monkeypatch, edit, expected):
+    """A kernel library whose structures differ from the ctypes mirrors (a _kernel*.so left from
+    before an edit of kernel.c) is not used: auto runs Python and says why, native refuses."""
+    source = (ROOT / "cosim" / "kernel" / "kernel.c").read_text()
+    if edit == "field":
+        source = source.replace("    long long steps;\n} Program;", "    long long steps;\n    double added;\n} Program;")
+    if edit == "no abi":
+        source = source.replace("int cosim_kernel_abi(", "int cosim_kernel_no_abi(")
+    stale = _stale_library(tmp_path, edit.replace(" ", "_"), source,
+                           *(["-DKERNEL_ABI_VERSION=2"] if edit == "version" else []))
+    folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.1)
+    monkeypatch.setenv("COSIM_KERNEL_LIBRARY", str(stale))
+    library.cache_clear()
+    try:
+        assert library()[0] is None and re.search(expected, library()[1]), library()[1]
+        with pytest.raises(SetupError, match=f"compiled kernel cannot run this system: the compiled kernel "
+                                             f"{re.escape(str(stale))} does not match .*{expected}"):
+            _run(folder, "native")
+        result, meta, _ = _run(folder, "auto")
+        assert meta["kernel"] == "python" and re.search(expected, meta["kernel_reason"]) and len(result) == 11
+    finally:
+        monkeypatch.delenv("COSIM_KERNEL_LIBRARY")
+        library.cache_clear()
+    assert library()[0] is not None, library()[1]
 
 
 ALL_SCENARIOS = sorted(p.parent.name for p in (ROOT / "ssp").glob("*/SystemStructure.ssd"))
