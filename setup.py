@@ -1,12 +1,14 @@
-"""The compiled stepping loop (cosim/kernel/kernel.c), built when greyfmu is installed.
+"""The compiled stepping loop (cosim/kernel/kernel.c) and CSV row formatter (cosim/kernel/csvrows.c,
+with the vendored Ryu in cosim/kernel/ryu), built when greyfmu is installed.
 
 An optional extension: without a C compiler the install still succeeds and cosim runs its
-Python loop (same results, one notice).  The library uses no Python C API; cosim.kernel
-loads it with ctypes.  -ffp-contract=off keeps y * factor + offset two roundings, as NumPy's.
+Python loop (same results, one notice) and formats result CSVs in Python (same bytes, slower).
+The library uses no Python C API; cosim.kernel loads it with ctypes.  -ffp-contract=off keeps y * factor + offset two roundings, as NumPy's.
 Everything else about the package is in pyproject.toml.
 """
 from setuptools import Extension, setup
 
-setup(ext_modules=[Extension("cosim.kernel._kernel", sources=["cosim/kernel/kernel.c"], optional=True,
+setup(ext_modules=[Extension("cosim.kernel._kernel", sources=["cosim/kernel/kernel.c", "cosim/kernel/csvrows.c"],
+                             include_dirs=["cosim/kernel"], optional=True,
                              extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math", "-pthread"],
                              extra_link_args=["-pthread"])])

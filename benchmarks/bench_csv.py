@@ -3,12 +3,13 @@
     python benchmarks/bench_csv.py [--rows 4096] [--columns 10] [--chunks 20] [--repeat 5]
 
 Writes ``--chunks`` chunks of ``--rows`` x ``--columns`` float64 (a time column and random
-walks, like a run's signals) to a CSV through `cosim.observers.CsvSink`, once with the rows
-formatted by Arrow's C++ writer (the writer before issue 27, and the one used when pyarrow is
-installed) and once by `cosim.csvformat.format_rows` (used without pyarrow); both write the same
-bytes (tests/cosim/test_csvformat.py).  The two are timed ``--repeat`` times, interleaved pair by
-pair so a busy machine slows both alike; prints the best time per value of each, the median and
-spread of the pairwise ratios (Python / Arrow) and the load average before and after.
+walks, like a run's signals) to a CSV through `cosim.observers.CsvSink`, with the rows formatted
+by Arrow's C++ writer (the writer before issue 27, and the one used when pyarrow is installed),
+by `cosim.csvformat.format_rows` (used without pyarrow: C, ``cosim/kernel/csvrows.c``) and by
+its Python fallback `cosim.csvformat.format_rows_python` (no compiled kernel library); all write
+the same bytes (tests/cosim/test_csvformat.py).  The three are timed ``--repeat`` times,
+interleaved so a busy machine slows them alike; prints the best time per value of each, the
+median and spread of the ratios to Arrow and the load average before and after.
 """
 from __future__ import annotations
 
@@ -21,7 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim import observers
+from cosim import csvformat, observers
+
+#: the formatters compared: Arrow's writer, then `format_rows` (C) and its Python fallback
+WRITERS = {"pyarrow": None, "compiled": csvformat.format_rows,
+           "python": lambda rows: csvformat.format_rows_python(rows).encode()}
 
 
 def chunk(rows: int, columns: int, seed: int = 0) -> np.ndarray:
@@ -30,9 +35,10 @@ def chunk(rows: int, columns: int, seed: int = 0) -> np.ndarray:
     return np.column_stack([np.arange(rows) * 0.1, walks])
 
 
-def seconds_per_value(arrow: bool, rows: np.ndarray, chunks: int, folder: Path) -> float:
-    """The time writing ``chunks`` chunks takes, per value, with Arrow's writer or without."""
-    observers.ARROW_CSV = arrow
+def seconds_per_value(writer: str, rows: np.ndarray, chunks: int, folder: Path) -> float:
+    """The time writing ``chunks`` chunks takes, per value, with one of `WRITERS`."""
+    observers.ARROW_CSV = WRITERS[writer] is None
+    observers.format_rows = WRITERS[writer] or csvformat.format_rows
     sink = observers.CsvSink(folder / "bench.csv")
     start = time.perf_counter()
     sink.open([f"c{i}" for i in range(rows.shape[1])])
@@ -51,15 +57,17 @@ def main() -> None:
     args = parser.parse_args()
     rows = chunk(args.rows, args.columns)
     print(f"load average before: {os.getloadavg()[0]:.2f}")
-    pairs = []
+    times: dict[str, list[float]] = {w: [] for w in WRITERS}
     with tempfile.TemporaryDirectory() as folder:
         for _ in range(args.repeat):
-            pairs.append((seconds_per_value(True, rows, args.chunks, Path(folder)),
-                          seconds_per_value(False, rows, args.chunks, Path(folder))))
-    ratios = sorted(python / arrow for arrow, python in pairs)
-    print(f"pyarrow writer: {min(a for a, _ in pairs) * 1e9:.0f} ns per value (best)")
-    print(f"python writer:  {min(p for _, p in pairs) * 1e9:.0f} ns per value (best)")
-    print(f"ratio python / pyarrow: median {statistics.median(ratios):.2f} (spread {ratios[0]:.2f}-{ratios[-1]:.2f})")
+            for writer in WRITERS:
+                times[writer].append(seconds_per_value(writer, rows, args.chunks, Path(folder)))
+    for writer, seconds in times.items():
+        print(f"{writer + ' writer:':18s}{min(seconds) * 1e9:4.0f} ns per value (best)")
+    for writer in ("compiled", "python"):
+        ratios = sorted(t / a for t, a in zip(times[writer], times["pyarrow"]))
+        print(f"ratio {writer} / pyarrow: median {statistics.median(ratios):.2f} "
+              f"(spread {ratios[0]:.2f}-{ratios[-1]:.2f})")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

@@ -6,8 +6,13 @@ mode): positional notation for a decimal exponent from -6 to 9 (``0.000001``, ``
 trailing ``.0``), else exponential with a signed exponent of no leading zero (``1e-7``,
 ``1.25e+10``); ``-0``, ``inf``, ``-inf`` and ``nan`` (whatever its sign) as such.
 
-The row text is made by one ``%`` formatting of the whole chunk (``repr`` of every value, in C);
-the values of the two ranges where ``repr`` and Arrow choose different notations (about 1e-6 and
+`format_rows` formats them in C (``cosim/kernel/csvrows.c``: Ryu's shortest digits, laid out as
+here) when the compiled kernel library was built with greyfmu (`cosim.kernel.library`), else with
+`format_rows_python`, the same bytes at about 9x the cost per value (benchmarks/bench_csv.py:
+C 0.53x Arrow's writer, Python 5x).
+
+`format_rows_python` makes the row text by one ``%`` formatting of the whole chunk (``repr`` of
+every value, in C); the values of the two ranges where ``repr`` and Arrow choose different notations (about 1e-6 and
 1e10..1e15, rare in a run's signals) are formatted one by one first (`format_float`), then two
 regular expressions rewrite what is left: the ``.0`` of a whole number and the zero-padded
 exponent (``e-07``).
@@ -17,6 +22,8 @@ from __future__ import annotations
 import re
 
 import numpy as np
+
+from . import kernel
 
 #: decimal exponents written in positional notation (double-conversion's decimal_in_shortest_low/high)
 _POSITIONAL = range(-6, 10)
@@ -69,8 +76,21 @@ def _layout(digits: str, point: int) -> str:
     return f"{digits[0]}{tail}e{'+' if exponent >= 0 else '-'}{abs(exponent)}"
 
 
-def format_rows(rows: np.ndarray) -> str:
-    """The lines of a 2-D float64 array, comma-separated, each ending in ``\\n`` (none for no rows)."""
+def format_rows(rows: np.ndarray) -> bytes:
+    """The lines of a 2-D float64 array, comma-separated, each ending in ``\\n`` (none for no
+    rows), formatted in C if the kernel library is built, else by `format_rows_python`."""
+    lib, _ = kernel.library()
+    if lib is None:
+        return format_rows_python(rows).encode()
+    values = np.ascontiguousarray(rows, dtype=np.float64)
+    count, columns = values.shape
+    out = np.empty(values.size * lib.cosim_csv_value_max(), dtype=np.uint8)
+    length = lib.cosim_format_rows(values.ctypes.data, count, columns, out.ctypes.data)
+    return out[:length].tobytes()
+
+
+def format_rows_python(rows: np.ndarray) -> str:
+    """`format_rows` in Python (``repr`` of every value, rewritten to Arrow's layout)."""
     count, columns = rows.shape
     if count == 0 or columns == 0:
         return ""

@@ -111,8 +111,9 @@ class CsvSink(_FileSink):
     decimal form that reads back to the same bits (``-0``, ``inf``, ``nan`` included), laid out
     as Arrow's CSV writer lays it out, which ``fmpy.util.read_csv`` reads.  With pyarrow
     installed (``greyfmu[parquet]``) Arrow's C++ writer formats each chunk (without the GIL);
-    without it `cosim.csvformat.format_rows` writes the same bytes, 3-5 times slower per
-    value (benchmarks/bench_csv.py).
+    without it `cosim.csvformat.format_rows` writes the same bytes (in C, about half Arrow's
+    time per value; in Python without the compiled kernel library, about 5 times it:
+    benchmarks/bench_csv.py).
     """
 
     def __init__(self, path: str | Path):
@@ -140,7 +141,7 @@ class CsvSink(_FileSink):
             if self._arrow:
                 self._write_arrow(rows)
             else:
-                self._write_all(format_rows(rows).encode())
+                self._write_all(format_rows(rows))
             self._file.flush()
         except OSError:  # a full disk: drop the partly written chunk, so every line left is whole
             os.truncate(self.part, end)

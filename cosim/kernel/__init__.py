@@ -1,4 +1,5 @@
-"""The compiled stepping loop (``kernel.c``) and its ctypes binding.
+"""The compiled stepping loop (``kernel.c``) and its ctypes binding; the same library formats
+result CSV rows (``csvrows.c``, used by `cosim.csvformat`).
 
 `cosim.execution.Execution` compiles what its Python loop does at every communication
 step into a list of `Operation` (doSteps, gets, sets and routes, in the Python loop's order);
@@ -114,6 +115,10 @@ def library() -> tuple[ctypes.CDLL | None, str]:
     lib.cosim_pool_new.restype = ctypes.c_void_p
     lib.cosim_pool_free.argtypes = [ctypes.c_void_p]
     lib.cosim_pool_free.restype = None
+    lib.cosim_csv_value_max.argtypes = []
+    lib.cosim_csv_value_max.restype = ctypes.c_int
+    lib.cosim_format_rows.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_size_t, ctypes.c_void_p]
+    lib.cosim_format_rows.restype = ctypes.c_size_t
     return lib, ""
 
 

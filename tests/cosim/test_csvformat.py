@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from cosim import observers
-from cosim.csvformat import format_float, format_rows
+from cosim import kernel, observers
+from cosim.csvformat import format_float, format_rows, format_rows_python
 from cosim.observers import CsvSink
 
 pytest.importorskip("pyarrow")
@@ -31,11 +31,20 @@ def _arrow_rows(rows: np.ndarray) -> bytes:
     return sink.getvalue().to_pybytes()
 
 
+def test_compiled_rows_equal_arrow_rows():
+    assert kernel.library()[0] is not None, kernel.library()[1]   # else format_rows is the Python one
+    values = _values()
+    rows = values[: len(values) // 5 * 5].reshape(-1, 5)
+    assert format_rows(rows) == _arrow_rows(rows)
+    assert format_rows(rows[::-1, ::2]) == _arrow_rows(rows[::-1, ::2])   # not C-contiguous
+    assert format_rows(rows[:0]) == b"" and _arrow_rows(rows[:0]) == b""
+
+
 def test_python_rows_equal_arrow_rows():
     values = _values()
     rows = values[: len(values) // 5 * 5].reshape(-1, 5)
-    assert format_rows(rows).encode() == _arrow_rows(rows)
-    assert format_rows(rows[:0]) == "" and _arrow_rows(rows[:0]) == b""
+    assert format_rows_python(rows).encode() == _arrow_rows(rows)
+    assert format_rows_python(rows[:0]) == "" and _arrow_rows(rows[:0]) == b""
 
 
 @pytest.mark.parametrize("value, text", [(1.0, "1"), (-0.0, "-0"), (1e-7, "1e-7"), (1e-5, "0.00001"),
