@@ -48,6 +48,7 @@ from .instances import STATUS, Instance, Unzipped, open_instance
 from .instances.base import NativeFunctions, NativeInstance
 from .instances.fmi3 import BinaryValue
 from .instances.isolated import Isolation
+from .instances.reuse import InstancePool
 from .interrupts import StopRequest
 from .loops import LoopSettings, LoopSolver, Watched
 from .structure import Plan
@@ -251,7 +252,7 @@ class Execution:
 
     def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi", fmu_log: str = "errors",
                  loop_settings: LoopSettings | None = None, isolation: Isolation | None = None,
-                 kernel: str = "auto", threads: int = 1):
+                 kernel: str = "auto", threads: int = 1, pool: InstancePool | None = None):
         if algorithm not in ALGORITHMS:
             raise SetupError(f"unknown algorithm '{algorithm}'; choose one of {', '.join(ALGORITHMS)}.",
                              element="algorithm")
@@ -281,6 +282,8 @@ class Execution:
             warnings.warn("algebraic loop broken by one step of delay (--loops delay): "
                           + "; ".join(loop.describe() for loop in plan.algebraic_loops), RuntimeWarning, stacklevel=2)
         self.instances: dict[str, Instance] = {}
+        #: instances kept across runs (`cosim.instances.reuse`): taken from it, given back at `close`
+        self.pool = pool if isolation is None else None
         self._unzipped = Unzipped()
         self.last_time = grid.start
         self.loop_seconds = 0.0
@@ -334,6 +337,10 @@ class Execution:
     def instantiate(self) -> None:
         for name in self.order:
             desc = self.plan.fmus[name]
+            kept = self.pool.take(name, desc, self.fmu_log) if self.pool is not None else None
+            if kept is not None:
+                self.instances[name] = kept
+                continue
             opened = open_instance if self.isolation is None else self.isolation.open
             inst = opened(name, desc, self._unzipped(desc.path), self.plan.solvers.get(name))
             self.instances[name] = inst
@@ -736,7 +743,10 @@ class Execution:
         if self._native is not None:
             self._native.close()
         for inst in self.instances.values():
-            inst.free()
+            if self.pool is not None:
+                self.pool.give(inst, self.status == "completed", self.fmu_log)
+            else:
+                inst.free()
         self.instances.clear()
 
     def _component_metadata(self, name: str, d: FMUDescription) -> dict:

@@ -24,6 +24,7 @@ from .errors import ComponentLost, OutOfMemory, OutputError, RunError, SetupErro
 from .execution import ALGORITHMS, Execution, Grid
 from .instances import Unzipped
 from .instances.isolated import Isolation
+from .instances.reuse import InstancePool
 from .interrupts import StopRequest
 from .journal import Journal, journal_path
 from .observers import MemorySink, Recorder, file_sink
@@ -166,7 +167,7 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
         fmu_log: str = "errors", keep: Sequence[str] | None = None,
         loop_settings: LoopSettings | None = None, stop: StopRequest | None = None,
         journal: bool = True, isolate: bool = False, call_timeout: float | None = None,
-        kernel: str = "auto", threads: int = 1) -> tuple[np.ndarray, dict]:
+        kernel: str = "auto", threads: int = 1, pool: InstancePool | None = None) -> tuple[np.ndarray, dict]:
     """Execute a prepared system; returns the samples and the run's metadata.
 
     ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
@@ -184,6 +185,8 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     run, else the Python one, the metadata's ``kernel_reason`` saying why), "native" (refused
     with a `SetupError` naming why where it cannot) or "python"; ``threads``: the doSteps of a
     Jacobi step on that many threads of the compiled kernel (`cosim.kernel`), results bit-identical.
+    ``pool``: instances kept across runs (`cosim.instances.reuse`): the run takes its instances
+    from it where it has them and gives them back, reset, when it completes.
     """
     isolation = isolation_of(isolate, call_timeout)
     plan = prepared.plan
@@ -192,7 +195,7 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     if plan.system_outputs:
         sinks = [SystemOutputColumns(list(plan.system_outputs.values()), sinks)]
     execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, isolation,
-                          kernel, threads)
+                          kernel, threads, pool)
     recorder = None
     bar = None
     try:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from contextlib import nullcontext
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +30,7 @@ from . import ssp
 from .description import describe, exchange_type
 from .errors import SetupError
 from .flatten import flatten
-from .inputs import bind_table, connector_values, read_input_table, with_table
+from .inputs import InputTable, bind_table, connector_values, read_input_table, with_table
 from .loadable import check_fmu_file, check_library
 from .parameters import split_system_name
 from .plan import build_plan
@@ -108,17 +108,28 @@ def check_fmi_type(path: str | Path, fmi_type: str | None) -> None:
                          "implementation attribute does.", file=str(path), element="--fmi-type")
 
 
-def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_file: str | Path | None = None,
-                fmi_type: str | None = None, output_interval: float | None = None,
-                start_time: float | None = None, stop_time: float | None = None, step_size: float | None = None,
-                algorithm: str | None = None, parameter_sets: Sequence[str | Path] = (),
-                fmu_dirs: Sequence[str | Path] = (), loops: str = "iterate") -> Prepared:
-    """Read and check everything a run needs (`cosim.simulation.prepare`, plus the options of
-    this module); nothing is instantiated."""
+@dataclass
+class Scenario:
+    """A scenario read, its FMUs located, its parameter sets and input table read: what every
+    run of it shares (`load_scenario`); `prepare_scenario` makes a run's plan from it.  It owns
+    the extracted archive of an .ssp until `close`."""
+    structure: SystemStructure
+    fmu_paths: dict[str, Path]
+    single: bool
+    #: the parameter sets' values, in the order applied, and the files they came from
+    values: list[ParameterValue]
+    parameter_sets: tuple[str, ...]
+    table: InputTable | None
+
+    def close(self) -> None:
+        self.structure.close()
+
+
+def load_scenario(path: str | Path, *, fmi_type: str | None = None, parameter_sets: Sequence[str | Path] = (),
+                  fmu_dirs: Sequence[str | Path] = (), input_file: str | Path | None = None) -> Scenario:
+    """Read a system (or build one from an FMU), locate its FMUs, read ``parameter_sets`` and
+    the ``input_file`` table; nothing is checked against the FMUs yet (`prepare_scenario`)."""
     check_fmi_type(path, fmi_type)
-    if output_interval is not None and step_size is not None and output_interval != step_size:
-        raise SetupError(f"--output-interval {output_interval:g} and --step {step_size:g} differ; both are the "
-                         "communication step, at which results are recorded: give one.", element="--output-interval")
     single = is_fmu(path)
     if single:
         structure = fmu_structure(path, fmi_type)
@@ -128,32 +139,74 @@ def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_fil
     try:
         if not single:
             fmu_paths = locate_fmus(structure, [Path(d) for d in fmu_dirs])
-        extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
+        values = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
         table = read_input_table(input_file) if input_file is not None else None
-        if table is not None and not single:
-            extra += connector_values(table, structure)
-        plan = build_plan(structure, fmu_paths, extra, loops)
-        component = next(iter(plan.components)) if single else None
-        if start_values:
-            starts = [_start_value(text, plan, component) for text in start_values]
-            plan = build_plan(structure, fmu_paths, extra + starts, loops)
-            extra += starts
-        if table is not None:
-            plan = with_table(plan, bind_table(table, plan, component, list(structure.parameters) + extra))
-        step, source = (step_size, "command line") if step_size is not None else \
-            (output_interval, "--output-interval") if output_interval is not None else (None, None)
-        given = (("start time", "--start", start_time), ("stop time", "--stop", stop_time),
-                 ("step size", "--step" if step_size is not None else "--output-interval", step))
-        options = {what: option for what, option, value in given if value is not None}  # what a refusal blames
-        if single:
-            stop_time, step, source = _fmu_defaults(plan, start_time, stop_time, step, source)
-        prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step,
-                                algorithm=algorithm, options=options)
-        return replace(prepared, step_source=source or prepared.step_source,
-                       parameter_sets=tuple(str(p) for p in parameter_sets))
     except BaseException:
         structure.close()
         raise
+    return Scenario(structure, fmu_paths, single, values, tuple(str(p) for p in parameter_sets), table)
+
+
+def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_file: str | Path | None = None,
+                fmi_type: str | None = None, output_interval: float | None = None,
+                start_time: float | None = None, stop_time: float | None = None, step_size: float | None = None,
+                algorithm: str | None = None, parameter_sets: Sequence[str | Path] = (),
+                fmu_dirs: Sequence[str | Path] = (), loops: str = "iterate") -> Prepared:
+    """Read and check everything a run needs (`cosim.simulation.prepare`, plus the options of
+    this module); nothing is instantiated."""
+    check_fmi_type(path, fmi_type)
+    check_interval(output_interval, step_size)
+    scenario = load_scenario(path, fmi_type=fmi_type, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
+                             input_file=input_file)
+    try:
+        return prepare_scenario(scenario, start_values=start_values, output_interval=output_interval,
+                                start_time=start_time, stop_time=stop_time, step_size=step_size,
+                                algorithm=algorithm, loops=loops)
+    except BaseException:
+        scenario.close()
+        raise
+
+
+def check_interval(output_interval: float | None, step_size: float | None) -> None:
+    """Refuse ``--output-interval`` and ``--step`` both given and different (fmpy's name and ours)."""
+    if output_interval is not None and step_size is not None and output_interval != step_size:
+        raise SetupError(f"--output-interval {output_interval:g} and --step {step_size:g} differ; both are the "
+                         "communication step, at which results are recorded: give one.", element="--output-interval")
+
+
+def prepare_scenario(scenario: Scenario, *, parameter_sets: Sequence[str | Path] = (),
+                     start_values: Sequence[str] = (), output_interval: float | None = None,
+                     start_time: float | None = None, stop_time: float | None = None,
+                     step_size: float | None = None, algorithm: str | None = None,
+                     loops: str = "iterate") -> Prepared:
+    """The run of a loaded scenario (`load_scenario`): its plan checked against the FMUs with the
+    scenario's parameter sets, then ``parameter_sets`` (applied after them), the input table's
+    connector values and ``start_values``, on the grid resolved.  The `Prepared` shares the
+    scenario's structure: closing it closes the scenario.  (`prepare_run` refuses an
+    ``output_interval`` and ``step_size`` that differ before anything is read.)"""
+    structure, fmu_paths, single, table = scenario.structure, scenario.fmu_paths, scenario.single, scenario.table
+    extra = scenario.values + [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
+    if table is not None and not single:
+        extra += connector_values(table, structure)
+    plan = build_plan(structure, fmu_paths, extra, loops)
+    component = next(iter(plan.components)) if single else None
+    if start_values:
+        starts = [_start_value(text, plan, component) for text in start_values]
+        plan = build_plan(structure, fmu_paths, extra + starts, loops)
+        extra += starts
+    if table is not None:
+        plan = with_table(plan, bind_table(table, plan, component, list(structure.parameters) + extra))
+    step, source = (step_size, "command line") if step_size is not None else \
+        (output_interval, "--output-interval") if output_interval is not None else (None, None)
+    given = (("start time", "--start", start_time), ("stop time", "--stop", stop_time),
+             ("step size", "--step" if step_size is not None else "--output-interval", step))
+    options = {what: option for what, option, value in given if value is not None}  # what a refusal blames
+    if single:
+        stop_time, step, source = _fmu_defaults(plan, start_time, stop_time, step, source)
+    prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step,
+                            algorithm=algorithm, options=options)
+    return replace(prepared, step_source=source or prepared.step_source,
+                   parameter_sets=scenario.parameter_sets + tuple(str(p) for p in parameter_sets))
 
 
 def _fmu_defaults(plan: Plan, start_time: float | None, stop_time: float | None, step: float | None,

@@ -159,6 +159,12 @@ class InstanceBase:
     def last_messages(self) -> str:
         return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""
 
+    def reuse(self, fmu_log: str) -> None:
+        """Before a run on this instance after its reset (`cosim.instances.reuse`): forget the
+        last run's log messages and log as ``fmu_log`` asks, as after `instantiate`."""
+        self.messages.clear()
+        self.restrict_logging(fmu_log)
+
 
 
 def end_instance(inst: InstanceBase, free_instance: Callable[[], None]) -> None:

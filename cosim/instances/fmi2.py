@@ -98,6 +98,12 @@ class FMI2Instance(InstanceBase):
         self.component = self.slave.component
         self.restrict_logging(fmu_log)
 
+    def reuse(self, fmu_log: str) -> None:
+        """After fmi2Reset (`cosim.instances.base.InstanceBase.reuse`); its log messages come
+        here again (an instance of another FMU under the same name may have taken the name)."""
+        super().reuse(fmu_log)
+        _LOG_TARGETS[self.name] = self.messages
+
     def setup_experiment(self, start: float, stop: float) -> None:
         self.slave.setupExperiment(startTime=start, stopTime=stop)
 

@@ -266,6 +266,15 @@ class FMI3Instance(InstanceBase):
         else:  # fmpy's set<Type> for each FMI 3.0 type (an Enumeration is an Int64)
             getattr(self.slave, f"set{FMI3_TYPES[variable.type][0]}")(vr, [value])
 
+    def reuse(self, fmu_log: str) -> None:
+        """After fmi3Reset (`cosim.instances.base.InstanceBase.reuse`), also the experiment's times
+        and doStep's out-arguments as a new instance has them."""
+        super().reuse(fmu_log)
+        self._start, self._stop = 0.0, None
+        self._end = (None, "fmi3DoStep returned Discard")
+        for out in self._step_out:
+            out.value = type(out)().value
+
     def enter_initialization_mode(self) -> None:
         self.slave.enterInitializationMode(startTime=self._start, stopTime=self._stop)
 
