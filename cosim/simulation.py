@@ -9,6 +9,7 @@ writing them to a CSV as it goes if asked.
 from __future__ import annotations
 
 import fnmatch
+import functools
 import os
 import warnings
 from collections.abc import Mapping, Sequence
@@ -282,11 +283,19 @@ def _journal_factory(output: str | Path, plan: Plan, metadata: dict):
 def _portable(path: str | Path, *bases: Path) -> str:
     """``path`` relative to the first of ``bases`` holding it, else its file name alone: no
     absolute path of the machine that ran it in the metadata (nor in the report made from it)."""
-    path = Path(path).resolve()
+    return _portable_in(str(path), tuple(str(b) for b in bases), os.getcwd())
+
+
+@functools.lru_cache(maxsize=4096)
+def _portable_in(path: str, bases: tuple[str, ...], cwd: str) -> str:
+    """`_portable` for the working folder ``cwd``, remembered: a sweep worker's runs name the same
+    files (a run's metadata names some 25; resolving each was a tenth of a short run's fixed cost)."""
+    resolved = Path(cwd, path).resolve()
     for base in bases:
-        if path.is_relative_to(base.resolve()):
-            return path.relative_to(base.resolve()).as_posix()
-    return path.name
+        root = Path(cwd, base).resolve()
+        if resolved.is_relative_to(root):
+            return resolved.relative_to(root).as_posix()
+    return resolved.name
 
 
 def _portable_origin(origin: str, bases: Sequence[Path]) -> str:

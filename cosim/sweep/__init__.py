@@ -33,7 +33,10 @@ and each run's result files come back to this process (`.shipping`, `.cluster`).
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import sys
+import tempfile
 from collections.abc import Mapping, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -44,6 +47,7 @@ from ..outputs import check_sweep_folder
 from ..safeio import lock_output, max_unpacked_bytes
 from ..simulation import signal_units
 from ..single import prepare_run
+from .batch import BatchedTable
 from .cluster import check_scheduler, dispatch_cluster
 from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
 from .figure import summary_figure
@@ -88,11 +92,14 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
           fmu_dirs: Sequence[str | Path] = (), start_values: Sequence[str] = (),
           input_file: str | Path | None = None, output: str | Path = "results/sweep",
           executor: Executor = "process", workers: int | None = None, force: bool = False,
-          progress: bool = False) -> SweepResult:
+          progress: bool = False, run_files: bool = True, reuse: bool = True) -> SweepResult:
     """Run every combination of ``sets`` (name -> values, strings parsed by the variable's type)
     times ``seeds`` and write the results table (see the module docstring).  ``start_values``
     (``component.variable=value``) and ``input_file`` (an input table) apply to every run as
     `cosim run`'s --start-value and --input-file do (`cosim.single.prepare_run`).
+    ``run_files``: write each run's ``runs/<id>.csv``, ``.json`` and ``.ssv`` (False: the table
+    only, and a rerun reruns every run); ``reuse``: each worker keeps the scenario and the FMU
+    instances across its runs (`cosim.sweep.worker`; False: every run read and instantiated afresh).
 
     Raises `SetupError` before any run for a bad name, value, seed parameter or metric; a run
     that fails is a row with status "failed" and its message.
@@ -115,6 +122,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
         units = signal_units(prepared.plan)
     finally:
         prepared.close()
+    sweep_key = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
     swept_types = {name: types[name] for name in sets}
     schema = schema_of(swept_types, bool(seeds), metric_list)
     csv, parquet = output / "sweep.csv", output / "sweep.parquet"
@@ -122,8 +130,12 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
     with ExitStack() as locks:   # the locks a run writing either table takes: one writer per folder
         for table in (csv, parquet):
             locks.enter_context(lock_output(table))
-        runs_dir.mkdir(parents=True, exist_ok=True)
-        before = {} if force else finished_before(output, runs_dir)
+        if run_files:
+            runs_dir.mkdir(parents=True, exist_ok=True)
+        else:   # the runs' parameter sets only for the workers to read, removed after the sweep
+            output.mkdir(parents=True, exist_ok=True)
+            sets_dir = Path(locks.enter_context(tempfile.TemporaryDirectory(prefix="cosim-sweep-sets-")))
+        before = {} if force or not run_files else finished_before(output, runs_dir)
 
         rows: dict[int, dict[str, Any]] = {}          # finished rows by combination index
         fixed: dict[str, tuple[int, dict[str, Any]]] = {}   # run id -> index, swept values and seed
@@ -138,14 +150,15 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
                     old = {**old, **run_metrics(read(runs_dir / f"{r.run_id}.csv"), missing)}
                 rows[r.index] = {**old, **fixed[r.run_id][1]}
                 continue
-            ssv = runs_dir / f"{r.run_id}.ssv"
+            ssv = (runs_dir if run_files else sets_dir) / f"{r.run_id}.ssv"
             write_ssv(ssv, r.parameters, name=f"sweep run {r.run_id}")
             tasks.append(Task(r.run_id, str(scenario.resolve()),
                               tuple(str(p) for p in [*parameter_sets, ssv.resolve()]),
                               tuple(str(Path(d).resolve()) for d in fmu_dirs), grid.start, grid.stop, grid.step,
                               algo, str((runs_dir / f"{r.run_id}.csv").resolve()), tuple(metric_list),
                               max_unpacked_bytes()[0], tuple(start_values),
-                              None if inputs is None else str(inputs)))
+                              None if inputs is None else str(inputs), shared_sets=len(parameter_sets),
+                              sweep_key=sweep_key, reuse=reuse, run_files=run_files))
         skipped = len(runs) - len(tasks)
 
         bar = None
@@ -153,10 +166,11 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
             from tqdm import tqdm
             bar = tqdm(total=len(runs), initial=skipped, unit="run", desc=f"sweep {scenario.name}", file=sys.stderr)
 
+        table = BatchedTable(rows, lambda ordered: write_table(ordered, schema, csv, parquet))
+
         def finished(task: Task, row: dict[str, Any]) -> None:
             index, values = fixed[task.run_id]
-            rows[index] = {**row, **values}
-            write_table([rows[i] for i in sorted(rows)], schema, csv, parquet)
+            table.add(index, {**row, **values})
             if bar is not None:
                 bar.update()
 
@@ -167,6 +181,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
             else:
                 dispatch(tasks, executor, workers, finished)
         finally:
+            table.close()
             if bar is not None:
                 bar.close()
         ordered = [{name: rows[i].get(name) for name in schema.names} for i in sorted(rows)]

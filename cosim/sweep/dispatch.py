@@ -23,6 +23,7 @@ from ..safeio import unpack_limit
 from ..simulation import run
 from ..single import prepare_run
 from .values import Metric
+from .worker import kept_for, prepare_task, release
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,16 @@ class Task:
     start_values: tuple[str, ...] = ()
     #: the ``--input-file`` table (`cosim.inputs`), or None
     input_file: str | None = None
+    #: how many of ``parameter_sets`` (the first) every run of the sweep shares; the others are the run's own
+    shared_sets: int = 0
+    #: the digest of the sweep's identity (`cosim.sweep.values.identity_of`): what a worker keeps
+    #: across runs is kept under it (`cosim.sweep.worker`); "" keeps nothing
+    sweep_key: str = ""
+    #: the worker keeps the scenario and the instances across runs (`cosim.sweep.worker`); False:
+    #: every run read, checked and instantiated afresh
+    reuse: bool = True
+    #: write the run's result file (``csv``) and its metadata JSON; False: the table row only
+    run_files: bool = True
 
 
 # --------------------------------------------------------------------------- one run (in a worker)
@@ -53,16 +64,21 @@ def execute(task: Task) -> dict[str, Any]:
     began = time.perf_counter()
     row: dict[str, Any] = {"run_id": task.run_id, "status": "completed", "message": None}
     result = None
+    output = task.csv if task.run_files else None
     try:
         with unpack_limit(task.max_unpacked):  # the FMUs are unpacked by run(): inside the limit too
-            prepared = prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
-                                   step_size=task.step, algorithm=task.algorithm,
-                                   parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
-                                   start_values=task.start_values, input_file=task.input_file)
-            try:
-                result, metadata = run(prepared, output=task.csv)
-            finally:
-                prepared.close()
+            if task.reuse and task.sweep_key:
+                kept = kept_for(task)
+                result, metadata = run(prepare_task(task, kept), output=output, pool=kept.pool)
+            else:
+                prepared = prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
+                                       step_size=task.step, algorithm=task.algorithm,
+                                       parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
+                                       start_values=task.start_values, input_file=task.input_file)
+                try:
+                    result, metadata = run(prepared, output=output)
+                finally:
+                    prepared.close()
         if metadata["status"] == "discarded":
             row.update(status="discarded", message=metadata["message"])
     except CosimError as e:
@@ -94,12 +110,15 @@ def dispatch(tasks: list[Task], executor: Executor, workers: int | None,
     if not tasks:
         return
     if executor == "serial":
-        for task in tasks:
-            try:
-                row = execute(task)
-            except Exception as e:  # noqa: BLE001 -- as in a worker: a failed row, not a stopped sweep
-                row = failed_row(task, e)
-            done(task, row)
+        try:
+            for task in tasks:
+                try:
+                    row = execute(task)
+                except Exception as e:  # noqa: BLE001 -- as in a worker: a failed row, not a stopped sweep
+                    row = failed_row(task, e)
+                done(task, row)
+        finally:   # this process is the caller's: nothing of the sweep is kept after it
+            release()
     elif executor == "process":
         _pool_sweep(tasks, workers or os.cpu_count() or 1, done)
     elif isinstance(executor, cf.Executor):

@@ -114,23 +114,36 @@ def unpacked(package: Package, max_unpacked: int) -> Path:
 def execute_shipped(task: Task, package: Package, parameter_sets: tuple[bytes, ...],
                     input_table: bytes | None) -> tuple[dict[str, Any], dict[str, bytes]]:
     """Run ``task`` on a worker from the shipped package (with its parameter sets' and input
-    table's contents); the row and the run's result files."""
+    table's contents); the row and the run's result files.  The sweep's shared parameter sets
+    and input table are written once per content (`shared_file`), so every run of the sweep
+    names the same files and the worker keeps the scenario across them (`cosim.sweep.worker`)."""
     scenario = unpacked(package, task.max_unpacked)
     with tempfile.TemporaryDirectory(prefix=f"cosim-run-{task.run_id}-") as tmp:
-        sets = []
-        for i, data in enumerate(parameter_sets):
+        sets = [str(shared_file(package, data, ".ssv")) for data in parameter_sets[:task.shared_sets]]
+        for i, data in enumerate(parameter_sets[task.shared_sets:]):
             path = Path(tmp) / f"parameters_{i}.ssv"
             path.write_bytes(data)
             sets.append(str(path))
-        table = None
-        if input_table is not None:
-            table = Path(tmp) / "inputs.csv"
-            table.write_bytes(input_table)
+        table = None if input_table is None else shared_file(package, input_table, ".csv")
         here = replace(task, scenario=str(scenario), parameter_sets=tuple(sets), fmu_dirs=(),
                        csv=str(Path(tmp) / f"{task.run_id}.csv"), input_file=None if table is None else str(table))
         row = execute(here)
         files = {p.name: p.read_bytes() for p in Path(tmp).iterdir() if p.name.startswith(task.run_id)}
     return row, files
+
+
+def shared_file(package: Package, data: bytes, suffix: str) -> Path:
+    """``data`` as a file named by its SHA-256 beside this worker's copy of ``package``
+    (``<digest>.shared/``, removed with it by `forget`), written once: to a file of this process's
+    own, renamed into place, so workers of one machine writing it at once each leave it whole."""
+    path = cache_folder() / f"{package.digest}.shared" / f"{hashlib.sha256(data).hexdigest()}{suffix}"
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, part = tempfile.mkstemp(prefix=path.name + ".", dir=path.parent)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(part, path)
+    return path
 
 
 def parameter_set_bytes(task: Task) -> tuple[bytes, ...]:
