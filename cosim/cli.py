@@ -160,6 +160,12 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--output", "-o", metavar="DIR",
                        help="folder for sweep.csv, sweep.parquet and runs/ (default: results/<name>_sweep)")
     sweep.add_argument("--force", action="store_true", help="rerun runs already done")
+    sweep.add_argument("--no-run-files", dest="run_files", action="store_false",
+                       help="write the sweep table only, not each run's runs/<id>.csv, .json and .ssv "
+                            "(a rerun then reruns every run)")
+    sweep.add_argument("--fresh-instances", dest="reuse", action="store_false",
+                       help="read, check and instantiate every run afresh instead of keeping the scenario and "
+                            "the reset FMU instances in each worker across its runs")
     sweep.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
 
     completion = sub.add_parser("completion", help="print a shell completion script (e.g. "
@@ -575,7 +581,7 @@ def _sweep(args) -> int:
             result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
                            parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
                            step_size=args.step, fmu_dirs=args.fmu_dir, start_values=args.start_values,
-                           input_file=args.input_file, output=output,
+                           input_file=args.input_file, output=output, run_files=args.run_files, reuse=args.reuse,
                            executor=args.scheduler or "process", workers=args.workers, progress=_progress(args))
     except KeyboardInterrupt:
         table = output / "sweep.csv"
@@ -587,8 +593,8 @@ def _sweep(args) -> int:
         print(f"cosim: run {row['run_id']} failed: {row['message']}", file=sys.stderr)
     _print_undefined_metrics(result.rows, args.metrics)
     _say(args, f"cosim: sweep: {len(result.rows)} runs ({result.ran} ran now, {result.skipped} already done and "
-          f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}, results in "
-          f"{output / 'runs'}")
+          f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}"
+          + (f", results in {output / 'runs'}" if args.run_files else ""))
     return 1 if result.failed else 0
 
 

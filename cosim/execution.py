@@ -38,6 +38,7 @@ import time as _time
 import warnings
 from dataclasses import dataclass, replace
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 
@@ -284,6 +285,8 @@ class Execution:
         self.instances: dict[str, Instance] = {}
         #: instances kept across runs (`cosim.instances.reuse`): taken from it, given back at `close`
         self.pool = pool if isolation is None else None
+        #: the components whose instance came from ``pool`` (reset after an earlier run)
+        self.reused: list[str] = []
         self._unzipped = Unzipped()
         self.last_time = grid.start
         self.loop_seconds = 0.0
@@ -340,6 +343,7 @@ class Execution:
             kept = self.pool.take(name, desc, self.fmu_log) if self.pool is not None else None
             if kept is not None:
                 self.instances[name] = kept
+                self.reused.append(name)
                 continue
             opened = open_instance if self.isolation is None else self.isolation.open
             inst = opened(name, desc, self._unzipped(desc.path), self.plan.solvers.get(name))
@@ -775,6 +779,9 @@ class Execution:
             "status": self.status, "last_time": self.last_time, "message": self.message,
             "steps": self.grid.steps, "loop_seconds": self.loop_seconds,
             "components": {name: self._component_metadata(name, d) for name, d in self.plan.fmus.items()},
+            **({"reused_instances": self.reused,
+                "reset_refused": {Path(fmu).name: why for fmu, why in self.pool.refused.items()}}
+               if self.pool is not None else {}),
             "parameters": {f"{sv.component}.{sv.variable.name}": sv.value for sv in self.plan.start_values},
             "finished_at": _time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         }
