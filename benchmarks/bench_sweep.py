@@ -1,7 +1,20 @@
-"""Sweep speed-up: the same 20 runs one after the other in one process, then on a process pool.
+"""Sweep speed-up: the same 20 runs one after the other in one process, then on a process pool;
+and (``--throughput``) a sweep's throughput against its loops' (issue 28).
 
     python benchmarks/bench_sweep.py [--scenario ssp/grey_noise] [--runs 20] [--stop 10000] [--workers 2]
                                      [--dask] [--cluster]
+    python benchmarks/bench_sweep.py --throughput [--runs 200] [--steps 1000] [--workers 2] [--dask]
+
+``--throughput``: ``ssp/pid_fopdt`` swept over RUNS values of controller.Kc, STEPS steps of its
+0.1 s step each, on the local pool of WORKERS processes (``--dask``: also a Dask LocalCluster of as
+many), three ways: ``fresh`` (``reuse=False``: every run read, checked and instantiated afresh,
+the path before issue 28), ``reused`` (the default: each worker keeps the scenario and its reset
+instances, `cosim.sweep.worker`; per-run files written) and ``table only`` (``run_files=False``).
+Each prints runs/s and its wall time against the loop-only ideal: the sum of the runs' loop
+times (``loop_seconds`` of their metadata; the table-only sweep writes none, the reused sweep's
+stand in) over WORKERS, plus one start-up (the wall time of a one-run sweep on the same engine
+less its loop: the parent's preparation, a worker's spawn, imports and first instantiation).
+Target: within 2x of the ideal.
 
 Both sweeps go through `cosim.sweep.sweep` with the same scenario and seeds 1..RUNS (the
 scenario's band-limited white noise seed), so each run does the same work: prepare, run,
@@ -28,6 +41,7 @@ import json
 import math
 import multiprocessing
 import pickle
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -146,16 +160,66 @@ def shipping_overhead(scenario: str, runs: int, stop: float, folder: Path) -> tu
     return overheads[0], sum(overheads[1:]) / max(1, len(overheads) - 1), sum(walls) / len(walls)
 
 
+def _loops(out: Path) -> list[float]:
+    return [json.loads(p.read_text())["loop_seconds"] for p in (out / "runs").glob("*.json")]
+
+
+def throughput(runs: int, steps: int, workers: int, dask: bool) -> None:
+    """The ``--throughput`` benchmark (see the module docstring)."""
+    scenario = str(ROOT / "ssp" / "pid_fopdt")
+    stop = steps * 0.1
+    gains = [2.0 + 6.0 * i / max(1, runs - 1) for i in range(runs)]
+    engines = [("process", "process")] + ([("dask", f"local:{workers}")] if dask else [])
+    with tempfile.TemporaryDirectory(prefix="bench-sweep-") as tmp:
+        sweep(scenario, {"controller.Kc": gains[:1]}, stop_time=stop, output=Path(tmp) / "warm",
+              executor="serial")     # our FMUs built, the FMU cache filled: not timed
+        for label, executor in engines:
+            one = Path(tmp) / f"{label}-one"
+            began = time.perf_counter()
+            sweep(scenario, {"controller.Kc": gains[:1]}, stop_time=stop, output=one, executor=executor,
+                  workers=workers, force=True)
+            startup = time.perf_counter() - began - sum(_loops(one))
+            print(f"{label}: start-up (a one-run sweep less its loop) {startup:.2f} s")
+            loops_of: dict[str, list[float]] = {}
+            for case, options in (("fresh", dict(reuse=False)), ("reused", {}),
+                                  ("table only", dict(run_files=False))):
+                out = Path(tmp) / f"{label}-{case}"
+                began = time.perf_counter()
+                result = sweep(scenario, {"controller.Kc": gains}, stop_time=stop, output=out, executor=executor,
+                               workers=workers, force=True, **options)
+                wall = time.perf_counter() - began
+                bad = [r for r in result.rows if r["status"] != "completed"]
+                if bad:
+                    sys.exit(f"{label} {case}: {len(bad)} runs did not complete: {bad[0]['message']}")
+                loops_of[case] = _loops(out) or loops_of["reused"]
+                loops = loops_of[case]
+                ideal = sum(loops) / workers + startup
+                per_run = statistics.median(r["wall_time"] for r in result.rows)   # not a worker's first
+                print(f"{label:>8} {case:>10}: {wall:6.2f} s = {runs / wall:6.1f} runs/s; ideal {ideal:5.2f} s "
+                      f"(loops {sum(loops):.2f} s / {workers} + start-up) -> {wall / ideal:.2f}x the ideal; "
+                      f"a run {per_run * 1e3:.1f} ms in its worker (median), its loop {statistics.median(loops) * 1e3:.1f} ms")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", default=str(ROOT / "ssp" / "grey_noise"))
-    parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--runs", type=int, help="runs of the sweep (default 20; --throughput: 200)")
     parser.add_argument("--stop", type=float, default=10000.0, help="stop time [s] of each run")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--dask", action="store_true", help="also time a Dask LocalCluster")
     parser.add_argument("--cluster", action="store_true",
                         help="also time a dask scheduler and --workers dask worker processes, and the shipping")
+    parser.add_argument("--throughput", action="store_true",
+                        help="pid_fopdt runs/s: fresh instances, reused, table only, against the loops' ideal")
+    parser.add_argument("--steps", type=int, default=1000, help="--throughput: steps of each run")
     args = parser.parse_args()
+    if args.throughput:
+        print(f"machine: a CPU-bound loop in {args.workers} processes runs {machine_speedup(args.workers):.2f}x "
+              "faster than one after the other")
+        throughput(args.runs or 200, args.steps, args.workers, args.dask)
+        print(f"machine after: {machine_speedup(args.workers):.2f}x")
+        return
+    args.runs = args.runs or 20
     print(f"machine: a CPU-bound loop in {args.workers} processes runs {machine_speedup(args.workers):.2f}x "
           "faster than one after the other")
     with tempfile.TemporaryDirectory(prefix="bench-sweep-") as tmp:

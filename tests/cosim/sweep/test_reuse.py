@@ -12,6 +12,7 @@ the instances the one before left, reset; its metadata says so (``reused_instanc
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -64,6 +65,23 @@ def test_reused_instances_give_what_fresh_runs_give(family, tmp_path):
         assert (runs / f"{row['run_id']}.csv").read_bytes() == fresh, f"run {i} of {family} differs from cosim run"
     first, *later = [(runs / f"{r['run_id']}.csv").read_bytes() for r in result.rows]
     assert all(other != first for other in later)       # the swept values changed the results
+
+
+def test_fmi3_instances_are_reset_too(tmp_path):
+    """pid_fopdt with our PID built for FMI 3.0 (fmus/fmi3/PID3.py, pythonfmu3): fmi3Reset, then
+    the next run's values; each run as a fresh cosim run."""
+    folder = tmp_path / "pid3"
+    shutil.copytree(ROOT / "ssp" / "pid_fopdt", folder)
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace("resources/PID.fmu", "resources/PID3.fmu"))
+    result = sweep(folder, {"controller.Kc": [8.0345, 4.0, 6.0]}, stop_time=30.0, output=tmp_path / "sweep",
+                   executor="serial")
+    runs = tmp_path / "sweep" / "runs"
+    metas = [json.loads((runs / f"{r['run_id']}.json").read_text()) for r in result.rows]
+    assert "controller" in metas[1]["reused_instances"] and metas[1]["components"]["controller"]["interface"] == "fmi3-cs"
+    for i, row in enumerate(result.rows):
+        fresh = _fresh_run(folder, runs / f"{row['run_id']}.ssv", 30.0, [], tmp_path / f"fresh{i}.csv")
+        assert (runs / f"{row['run_id']}.csv").read_bytes() == fresh, f"run {i} differs from cosim run"
 
 
 def test_a_pool_sweep_in_any_order_equals_a_fresh_sweep_and_writes_the_table_only_when_asked(tmp_path):
