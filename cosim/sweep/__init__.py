@@ -5,10 +5,11 @@ it runs the Cartesian product of those lists (times the seeds, when given) and w
 
 - ``OUTPUT/runs/<id>.csv`` and ``<id>.json``: each run's results and metadata, exactly as
   ``cosim run`` writes them, and ``<id>.ssv``: the run's parameter values as an SSP 1.0
-  parameter set, so ``cosim run SCENARIO --param-set OUTPUT/runs/<id>.ssv`` repeats it;
+  parameter set, so ``cosim run SCENARIO --param-set OUTPUT/runs/<id>.ssv`` repeats it
+  (not with ``run_files=False``, ``--no-run-files``: the table only);
 - ``OUTPUT/sweep.csv`` and ``OUTPUT/sweep.parquet``: one row per run (id, swept values, seed,
-  status, message, wall time, the requested step metrics), rewritten as runs finish, so a
-  sweep stopped halfway keeps every finished row;
+  status, message, wall time, the requested step metrics), rewritten as runs finish (in
+  batches, `.batch`), so a sweep stopped halfway keeps every finished row;
 - ``OUTPUT/sweep.png`` (when metrics are asked for): each metric against each swept parameter,
   seeds and the other parameters as spread (`.figure`).
 
@@ -29,7 +30,9 @@ by the master's own validation (`cosim.parameters.check_values`) before the firs
 Runs go to a local process pool (``spawn`` start method: FMUs loaded in the parent are
 never forked), run serially in this process, or go to a Dask distributed cluster whose
 workers need only this package installed: the scenario is packed once and handed to them,
-and each run's result files come back to this process (`.shipping`, `.cluster`).
+and each run's result files come back to this process (`.shipping`, `.cluster`).  Each worker
+keeps the scenario and its FMU instances across its runs, reset between them (`.worker`,
+`cosim.instances.reuse`; ``reuse=False``: every run afresh), with results identical to fresh runs.
 """
 from __future__ import annotations
 
