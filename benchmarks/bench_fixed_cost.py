@@ -16,7 +16,9 @@ Each number is the best of ``--repeat`` fresh processes (the ``import cosim`` no
 the **first** run in the process, and, in the process that ran it, the best of ``--warm`` more
 runs (``warm``: what a sweep or a test session pays per run).  cosim is measured with an empty
 FMU cache (``COSIM_FMU_CACHE`` a new folder: every FMU unpacked) and with the cache populated
-(``unpacked``), through `cosim.simulate` itself: each stage is the time spent in the function
+(``unpacked``), through `cosim.simulate` itself, and (``instances reused``) as a sweep worker
+runs: the scenario read once, the instances reset and kept across runs (`cosim.instances.reuse`;
+a warm run's ``free`` is then terminate and fmi2Reset): each stage is the time spent in the function
 that does it (exclusive of the stages it calls, timed by wrapping it):
 
 =================  ==========================================================================
@@ -136,6 +138,38 @@ def cosim_runs(path: str, stop: float, step: float, warm: int, profile: bool) ->
     return {"first": first, "warm": min(warm_runs, key=fixed) if warm_runs else first}
 
 
+def reused_runs(path: str, stop: float, step: float, warm: int) -> dict:
+    """As `cosim_runs`, but as a sweep worker runs (`cosim.sweep.worker`): the scenario read and
+    located once, each run's plan made from it, the instances kept in an `InstancePool` (a warm
+    run's "free" is terminate + fmi2Reset, its "instantiate" nothing)."""
+    import cosim.single
+    from cosim.instances.reuse import InstancePool
+    from cosim.simulation import run
+
+    timers = Timers()
+    install(timers)
+    cosim.single.locate_fmus = timers.wrap("locate", cosim.single.locate_fmus)
+    cosim.single.build_plan = timers.wrap("check/plan", cosim.single.build_plan)
+    pool, kept = InstancePool(), []
+
+    def simulate() -> None:
+        if not kept:
+            kept.append(cosim.single.load_scenario(path))
+        run(cosim.single.prepare_scenario(kept[0], stop_time=stop, step_size=step), pool=pool)
+    timed = timers.wrap("total", simulate)
+
+    def once() -> dict[str, float]:
+        timers.totals = {}
+        timed()
+        stages = dict(timers.totals)
+        stages["other"] = stages.pop("total")
+        return stages
+
+    first = once()
+    warm_runs = [once() for _ in range(warm)]
+    return {"first": first, "warm": min(warm_runs, key=fixed) if warm_runs else first}
+
+
 def libcosim_runs(ssp: str, stop: float, step: float, warm: int) -> dict:
     import ctypes
 
@@ -187,6 +221,7 @@ def fixed(stages: dict[str, float]) -> float:
 
 def child(args: argparse.Namespace) -> None:
     runner = {"cosim": lambda: cosim_runs(args.path, args.stop, args.step, args.warm, args.profile),
+              "cosim-reused": lambda: reused_runs(args.path, args.stop, args.step, args.warm),
               "libcosim": lambda: libcosim_runs(args.path, args.stop, args.step, args.warm),
               "fmpy": lambda: fmpy_runs(args.path, args.stop, args.step, args.warm)}[args.child]
     try:
@@ -241,7 +276,8 @@ def best(results: list[dict]) -> dict:
 def measure(system: dict, repeat: int, warm: int, folder: Path, profile: bool) -> dict[str, dict]:
     cache = folder / "cache"
     base = dict(os.environ, COSIM_FMU_CACHE=str(cache))
-    cases: dict[str, list] = {"cosim, FMUs not unpacked": [], "cosim, FMUs unpacked": [], "libcosim": [], "fmpy": []}
+    cases: dict[str, list] = {"cosim, FMUs not unpacked": [], "cosim, FMUs unpacked": [],
+                              "cosim, instances reused": [], "libcosim": [], "fmpy": []}
     spawn("cosim", system["path"], system["stop"], system["step"], 0, base)   # the cache populated
     for k in range(repeat):
         empty = folder / f"empty{k}-{time.monotonic_ns()}"
@@ -249,6 +285,8 @@ def measure(system: dict, repeat: int, warm: int, folder: Path, profile: bool) -
             spawn("cosim", system["path"], system["stop"], system["step"], warm, dict(base, COSIM_FMU_CACHE=str(empty))))
         cases["cosim, FMUs unpacked"].append(
             spawn("cosim", system["path"], system["stop"], system["step"], warm, base))
+        cases["cosim, instances reused"].append(
+            spawn("cosim-reused", system["path"], system["stop"], system["step"], warm, base))
         cases["libcosim"].append(spawn("libcosim", system["ssp"], system["stop"], system["step"], warm, base))
         cases["fmpy"].append(spawn("fmpy", system["ssp"], system["stop"], system["step"], warm, base))
     if profile:
@@ -289,7 +327,7 @@ def main() -> None:
     parser.add_argument("--warm", type=int, default=5, help="runs after the first in each process (best taken)")
     parser.add_argument("--systems", nargs="+", default=["native", "pid_fopdt"], choices=["native", "pid_fopdt"])
     parser.add_argument("--profile", action="store_true", help="print the cProfile of a first run, FMUs unpacked")
-    parser.add_argument("--child", choices=["cosim", "libcosim", "fmpy"], help=argparse.SUPPRESS)
+    parser.add_argument("--child", choices=["cosim", "cosim-reused", "libcosim", "fmpy"], help=argparse.SUPPRESS)
     parser.add_argument("--path", help=argparse.SUPPRESS)
     parser.add_argument("--stop", type=float, help=argparse.SUPPRESS)
     parser.add_argument("--step", type=float, help=argparse.SUPPRESS)
