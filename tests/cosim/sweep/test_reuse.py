@@ -106,6 +106,21 @@ def test_a_pool_sweep_in_any_order_equals_a_fresh_sweep_and_writes_the_table_onl
     assert sorted(p.name for p in (tmp_path / "table").iterdir()) == ["sweep.csv", "sweep.parquet", "sweep.png"]
 
 
+def test_a_dask_worker_keeps_the_shipped_scenario_and_its_instances(tmp_path):
+    """On a LocalCluster the scenario is shipped: the shared files are named by content, so the
+    worker's second and third runs reuse its instances; the results are the pool's."""
+    pytest.importorskip("distributed")
+    values = {"controller.Kc": [2.0, 5.0, 8.0]}
+    scenario = ROOT / "ssp" / "pid_fopdt"
+    local = sweep(scenario, values, stop_time=20.0, output=tmp_path / "local", executor="serial", reuse=False)
+    dask = sweep(scenario, values, stop_time=20.0, output=tmp_path / "dask", executor="local:1")
+    metas = [json.loads((tmp_path / "dask" / "runs" / f"{r['run_id']}.json").read_text()) for r in dask.rows]
+    assert sorted(len(m["reused_instances"]) for m in metas) == [0, 4, 4]
+    for row in local.rows:
+        name = f"{row['run_id']}.csv"
+        assert (tmp_path / "dask" / "runs" / name).read_bytes() == (tmp_path / "local" / "runs" / name).read_bytes()
+
+
 INTEGRATOR = fmi2_description("Integrator", [("k", 0, "parameter", 1.0), ("y", 1, "output", None)], {"y": []},
                               "{5d1c6f1e-28aa-4d3b-9c61-000000000028}")
 INTEGRATOR_BODY = r"""
