@@ -13,9 +13,12 @@ Transformations (SSP 1.0 §4.5.2, Transformation Choice): ``ssc:LinearTransforma
 ``target = factor * source + offset`` on Real values, after the unit conversion (or instead of it
 with ``suppressUnitConversion="true"``): a value given in a unit keeps the transformation in
 `cosim.structure.ParameterValue.linear` until `cosim.parameters` has converted it to the
-variable's unit.  The Boolean, Integer and Enumeration mapping transformations are tables; a value
-that no ``ssc:MapEntry`` names is kept unchanged.  A transformation on a value of another type is
-refused, naming the entry.
+variable's unit.  The Boolean, Integer and Enumeration mapping transformations are tables of
+``ssc:MapEntry`` source → target values (Enumeration values by item name, mapped before the name
+is resolved to the target variable's item value); a value that no MapEntry names is refused,
+naming the file, the entry and the value (the schema gives a table no default: passing the value
+through unchanged would apply a value the mapping does not define).  A transformation on a value
+of another type is refused, naming the entry.
 """
 from __future__ import annotations
 
@@ -69,6 +72,12 @@ def transformation_element(kind: str) -> str:
     return "ssc:LinearTransformation" if kind == "Linear" else f"ssc:{kind}MappingTransformation"
 
 
+def value_text(value) -> str:
+    """A table value as the SSP files write it: ``true``/``false``, a number, an item name."""
+    return ("true" if value else "false") if isinstance(value, bool) else f"'{value}'" if isinstance(value, str) \
+        else str(value)
+
+
 def _mapped(p: ParameterValue, entry: MappingEntry) -> ParameterValue:
     mapped = replace(p, name=entry.target, mapping=entry.where(),
                      unit=None if entry.suppress_unit_conversion else p.unit)
@@ -79,7 +88,14 @@ def _mapped(p: ParameterValue, entry: MappingEntry) -> ParameterValue:
                          f"'{entry.source}' is an ssv:{p.type} ({p.file}, line {p.line}).",
                          file=entry.file, element=f"ssm:MappingEntry (line {entry.line})", variable=entry.source)
     if entry.kind != "Linear":
-        return replace(mapped, value=entry.table.get(p.value, p.value))
+        if p.value not in entry.table:
+            sources = ", ".join(value_text(v) for v in entry.table)
+            raise SetupError(f"the value {value_text(p.value)} of '{entry.source}' ({p.file}, line {p.line}) is "
+                             f"not a source of the {transformation_element(entry.kind)} (its ssc:MapEntry "
+                             f"sources: {sources}).", file=entry.file,
+                             element=f"ssm:MappingEntry '{entry.source}' -> '{entry.target}' (line {entry.line})",
+                             variable=entry.source)
+        return replace(mapped, value=entry.table[p.value])
     if mapped.unit is None:
         return replace(mapped, value=entry.factor * float(p.value) + entry.offset)
     return replace(mapped, linear=(entry.factor, entry.offset))
