@@ -2,9 +2,8 @@
 
 The reader is strict.  It checks well-formedness (with line and column), the
 SSP 1.0 XML schema (the XSDs shipped with fmpy), and refuses, with a message,
-every SSP feature this master does not implement (non-FMU components,
-Boolean/Integer/Enumeration mapping transformations on connections) instead of
-ignoring it.  Signal dictionaries and their references are read into the raw
+every SSP feature this master does not implement (non-FMU components, for one)
+instead of ignoring it.  Signal dictionaries and their references are read into the raw
 systems and wired by `cosim.flatten`.  SSP 2.0 documents (`as_ssp1`) are read as
 SSP 1.0 with the FMI 3.0 data types; what else 2.0 adds is refused by element and
 line.  Parameter mappings (``.ssm`` files and inline ``ssm:ParameterMapping``) rename and transform
@@ -48,6 +47,7 @@ from .structure import (
     SignalReference,
     SolverOptions,
     SystemStructure,
+    ValueTable,
 )
 from .units import BASE_UNITS, Unit, check_definition, make_unit
 
@@ -203,7 +203,6 @@ def _read_ssd(path: Path, display: str | None = None) -> RawStructure:
         raise SetupError("the root element is not an SSP ssd:SystemStructureDescription "
                          f"(found {root.tag}).", file=display, element=f"line {root.sourceline}")
     validate_schema(tree, "SystemStructureDescription.xsd", display, ssp2=as_ssp1(root))
-    _refuse_unsupported(root, display)
 
     system = root.find("ssd:System", NS)
     base_dir = path.parent
@@ -218,24 +217,6 @@ def _read_ssd(path: Path, display: str | None = None) -> RawStructure:
                         root=_read_system(system, base_dir, display),
                         experiment=Experiment(start, stop, step, step_source, algorithm),
                         units=read_units(root.find("ssd:Units", NS), display))
-
-
-def _refuse_unsupported(root: etree._Element, display: str) -> None:
-    """Refuse, by element and line, what the master cannot run: mapping transformations on
-    connections (the master routes values through affine maps only)."""
-    refused = [
-        (".//ssd:Connection/ssc:BooleanMappingTransformation",
-         "Boolean mapping transformations on connections are not supported"),
-        (".//ssd:Connection/ssc:IntegerMappingTransformation",
-         "Integer mapping transformations on connections are not supported"),
-        (".//ssd:Connection/ssc:EnumerationMappingTransformation",
-         "Enumeration mapping transformations on connections are not supported"),
-    ]
-    for xpath, why in refused:
-        found = root.find(xpath, NS)
-        if found is not None:
-            raise SetupError(why + ".", file=display,
-                             element=f"ssc:{etree.QName(found).localname} (line {found.sourceline})")
 
 
 def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSystem:
@@ -387,10 +368,15 @@ def _read_connection(c: etree._Element, display: str) -> Connection:
         factor = _float_attr(lt, "factor", display, default=1.0)
         offset = _float_attr(lt, "offset", display, default=0.0)
     suppress = c.get("suppressUnitConversion", "false") in ("true", "1")
+    table = None
+    for local, (kind, parse) in _TABLES.items():
+        table_el = c.find(f"ssc:{local}", NS)
+        if table_el is not None:  # the schema allows one transformation (GTransformationChoice)
+            table = ValueTable(kind, tuple(_read_table(table_el, parse, display).items()), table_el.sourceline)
     # an empty element name is the enclosing system, as an omitted one (OMSimulator writes
     # startElement="" for a system's own connector; the schema's xs:string accepts it)
     return Connection(c.get("startElement") or None, c.get("startConnector"), c.get("endElement") or None,
-                      c.get("endConnector"), factor, offset, has, suppress, line)
+                      c.get("endConnector"), factor, offset, has, suppress, line, table=table)
 
 
 def _float_attr(el: etree._Element, name: str, display: str, default: float | None = None) -> float | None:

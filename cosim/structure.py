@@ -93,6 +93,20 @@ class SolverSettings:
                 "max_step": "communication step" if self.max_step is None else self.max_step}
 
 
+@dataclass(frozen=True)
+class ValueTable:
+    """The ``ssc:BooleanMappingTransformation``, ``ssc:IntegerMappingTransformation`` or
+    ``ssc:EnumerationMappingTransformation`` of an ``ssd:Connection`` (SSP 1.0
+    SystemStructureCommon.xsd, GTransformationChoice): its ``ssc:MapEntry`` source → target
+    values, booleans, integers or item names."""
+    kind: str
+    entries: tuple[tuple[bool | int | str, bool | int | str], ...]
+    line: int
+
+    def element(self) -> str:
+        return f"ssc:{self.kind}MappingTransformation (line {self.line})"
+
+
 @dataclass
 class Connection:
     #: None, before flattening only, where the connection names a connector of its own system
@@ -109,6 +123,8 @@ class Connection:
     via: str = ""
     #: for a connection resolved through system connectors: each connection on the way (`Hop`)
     hops: tuple[Hop, ...] = ()
+    #: its Boolean, Integer or Enumeration mapping transformation, if it has one
+    table: ValueTable | None = None
 
     def describe(self) -> str:
         return (f"connection {self.start_element}.{self.start_connector} -> "
@@ -190,6 +206,8 @@ class Hop:
     offset: float
     has_transformation: bool
     suppress: bool
+    #: its Boolean, Integer or Enumeration mapping transformation, if it has one
+    table: ValueTable | None = None
 
 
 @dataclass
@@ -324,6 +342,19 @@ class Route:
     dst_var: ModelVariable
     factor: float
     offset: float
+    #: the mapping transformations on the way, composed (`cosim.maptables`); None without any
+    table: RouteTable | None = None
+
+
+@dataclass(frozen=True)
+class RouteTable:
+    """The Boolean, Integer and Enumeration mapping transformations along one route composed into
+    one table of the exchanged values (Booleans as 0 and 1, Enumerations by item value); a value
+    outside it is a `cosim.errors.RunError` naming ``elements`` (`cosim.maptables`)."""
+    mapping: dict[int, int]
+    boolean: bool
+    #: the transformations, for messages: "ssc:IntegerMappingTransformation (line 12)"
+    elements: str
 
 
 #: How the master treats an algebraic loop (`cosim.loops`): solve it by iteration at every
