@@ -22,32 +22,13 @@ of another type is refused, naming the entry.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 from .errors import SetupError, did_you_mean
-from .structure import ParameterValue
+from .structure import MappingEntry, ParameterValue
 
 #: the ssv value type each transformation applies to
 APPLIES_TO = {"Linear": "Real", "Boolean": "Boolean", "Integer": "Integer", "Enumeration": "Enumeration"}
-
-
-@dataclass(frozen=True)
-class MappingEntry:
-    """One ``ssm:MappingEntry``: ``source`` → ``target``, with an optional transformation."""
-    source: str
-    target: str
-    suppress_unit_conversion: bool
-    file: str
-    line: int
-    #: "Linear", "Boolean", "Integer", "Enumeration" (the ssc:...Transformation) or None
-    kind: str | None = None
-    factor: float = 1.0
-    offset: float = 0.0
-    #: the ssc:MapEntry table of a Boolean, Integer or Enumeration mapping transformation
-    table: dict = field(default_factory=dict)
-
-    def where(self) -> str:
-        return f"ssm:MappingEntry '{self.source}' -> '{self.target}' ({self.file}, line {self.line})"
 
 
 def apply_mapping(values: list[ParameterValue], entries: list[MappingEntry]) -> list[ParameterValue]:

@@ -128,6 +128,7 @@ def prepare_run(path: str | Path, *, start_values: Sequence[str] = (), input_fil
     try:
         if not single:
             fmu_paths = locate_fmus(structure, [Path(d) for d in fmu_dirs])
+            ssp.read_component_bindings(structure, fmu_paths)
         extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
         table = read_input_table(input_file) if input_file is not None else None
         if table is not None and not single:

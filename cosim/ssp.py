@@ -32,13 +32,15 @@ from lxml import etree
 
 from .errors import SetupError
 from .flatten import flatten
-from .mapping import MappingEntry, apply_mapping
+from .mapping import apply_mapping
 from .safeio import extract_archive, is_file, parse_xml, parse_xml_bytes, read_member, temporary_folder
 from .structure import (
     Component,
+    ComponentBinding,
     Connection,
     Connector,
     Experiment,
+    MappingEntry,
     ParameterValue,
     RawStructure,
     RawSystem,
@@ -234,7 +236,7 @@ def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSys
                              element=f"ssd:System '{name}' (line {system.sourceline})", variable=conn.name)
         connectors[conn.name] = conn
     raw = RawSystem(name=name, line=system.sourceline, connectors=connectors, components={}, systems={},
-                    connections=[], parameters=_read_bindings(system, base_dir, display, None))
+                    connections=[], parameters=_read_bindings(system, base_dir, display, None)[0])
     elements = system.find("ssd:Elements", NS)
     for el in (elements if elements is not None else []):
         if not isinstance(el.tag, str):
@@ -321,7 +323,7 @@ def _read_component(el: etree._Element, base_dir: Path, display: str) -> Compone
         if conn.name in comp.connectors:
             raise SetupError(f"connector '{conn.name}' is declared twice.", file=display, element=where)
         comp.connectors[conn.name] = conn
-    comp.parameters = _read_bindings(el, base_dir, display, comp.source)
+    comp.parameters, comp.component_bindings = _read_bindings(el, base_dir, display, comp.source)
     comp.solver = _read_solver_annotation(el, display)
     return comp
 
@@ -394,10 +396,12 @@ def _float_attr(el: etree._Element, name: str, display: str, default: float | No
 
 
 def _read_bindings(owner: etree._Element, base_dir: Path, display: str,
-                   fmu_source: str | None) -> list[ParameterValue]:
-    """The parameter values of ``owner``'s bindings; ``fmu_source`` is a component's FMU, which a
-    ``sourceBase="component"`` binding's source is relative to (None for a system)."""
+                   fmu_source: str | None) -> tuple[list[ParameterValue], tuple[ComponentBinding, ...]]:
+    """The parameter values of ``owner``'s bindings, and its ``sourceBase="component"`` ones,
+    whose source is inside the component's FMU ``fmu_source`` (None for a system, which has
+    none), to read once the FMU is located (`read_component_bindings`)."""
     values: list[ParameterValue] = []
+    pending: list[ComponentBinding] = []
     for binding in owner.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         where = f"ssd:ParameterBinding (line {binding.sourceline})"
         btype = binding.get("type", PARAMETER_SET_MIME)
@@ -408,13 +412,16 @@ def _read_bindings(owner: etree._Element, base_dir: Path, display: str,
         base = binding.get("sourceBase", "SSD")
         if base not in ("SSD", "component"):
             raise SetupError(f"sourceBase='{base}' is not 'SSD' or 'component'.", file=display, element=where)
+        mapping = binding.find("ssd:ParameterMapping", NS)
+        entries = None if mapping is None else _read_mapping(mapping, base_dir, display)
         if base == "component":
             if fmu_source is None or source is None:
                 raise SetupError("sourceBase='component' needs a source and a component (SSP 1.0: the source is "
                                  "relative to the component's FMU).", file=display, element=where)
-            parsed = _read_ssv_in_fmu(source, _source_file(fmu_source, base_dir, display, where, "FMU"),
-                                      display, where)
-        elif source is not None:
+            pending.append(ComponentBinding(source, prefix, None if entries is None else tuple(entries), len(values),
+                                            display, where))
+            continue
+        if source is not None:
             parsed = read_ssv(_source_file(source, base_dir, display, where, "parameter set"))
         else:
             inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
@@ -424,11 +431,26 @@ def _read_bindings(owner: etree._Element, base_dir: Path, display: str,
             # the SSD schema lets ssd:ParameterValues hold anything: check the inline set as an .ssv is
             validate_schema(inline, "SystemStructureParameterValues.xsd", display, ssp2=as_ssp1(inline))
             parsed = _read_parameter_set(inline, display)
-        # SSP 1.0 ParameterBinding prefix: prepended to the names of the source before any mapping
-        named = [replace(p, name=prefix + p.name) for p in parsed]
-        mapping = binding.find("ssd:ParameterMapping", NS)
-        values.extend(named if mapping is None else apply_mapping(named, _read_mapping(mapping, base_dir, display)))
-    return values
+        values.extend(_bound(parsed, prefix, entries))
+    return values, tuple(pending)
+
+
+def _bound(parsed: list[ParameterValue], prefix: str, entries) -> list[ParameterValue]:
+    """A binding's values: SSP 1.0 ParameterBinding ``prefix`` prepended to the names of the
+    source, then its mapping (`cosim.mapping.apply_mapping`), if it has one."""
+    named = [replace(p, name=prefix + p.name) for p in parsed]
+    return named if entries is None else apply_mapping(named, list(entries))
+
+
+def read_component_bindings(structure: SystemStructure, fmu_paths: dict[str, Path]) -> None:
+    """Read, in place, the ``sourceBase="component"`` bindings of each component from the FMU
+    located for it (`cosim.structure.ComponentBinding`), wherever it was found."""
+    for name, comp in structure.components.items():
+        values = list(comp.parameters)
+        for b in reversed(comp.component_bindings):
+            parsed = _read_ssv_in_fmu(b.source, fmu_paths[name], b.display, b.where)
+            values[b.position:b.position] = _bound(parsed, b.prefix, b.mapping)
+        structure.components[name] = replace(comp, parameters=values, component_bindings=())
 
 
 def _check_source_base(el: etree._Element, display: str, where: str, kind: str) -> None:

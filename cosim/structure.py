@@ -68,6 +68,45 @@ class Component:
     implementation: str = "any"
     #: the component's ``org.greyfmu.solver`` annotation, for a Model Exchange FMU
     solver: SolverOptions | None = None
+    #: its ``sourceBase="component"`` bindings, read once the FMU is located
+    component_bindings: tuple[ComponentBinding, ...] = ()
+
+
+@dataclass(frozen=True)
+class MappingEntry:
+    """One ``ssm:MappingEntry``: ``source`` → ``target``, with an optional transformation (applied by
+    `cosim.mapping`)."""
+    source: str
+    target: str
+    suppress_unit_conversion: bool
+    file: str
+    line: int
+    #: "Linear", "Boolean", "Integer", "Enumeration" (the ssc:...Transformation) or None
+    kind: str | None = None
+    factor: float = 1.0
+    offset: float = 0.0
+    #: the ssc:MapEntry table of a Boolean, Integer or Enumeration mapping transformation
+    table: dict = field(default_factory=dict)
+
+    def where(self) -> str:
+        return f"ssm:MappingEntry '{self.source}' -> '{self.target}' ({self.file}, line {self.line})"
+
+
+@dataclass(frozen=True)
+class ComponentBinding:
+    """A ``sourceBase="component"`` ParameterBinding (SSP 1.0 §5.3.3): its ``.ssv`` is a file
+    inside the component's FMU, which is known only once the FMU has been located
+    (`cosim.resources.locate_fmus`: beside the SSD, from a provider or in a ``--fmu-dir``);
+    `cosim.ssp.read_component_bindings` then reads it and inserts its values at ``position``
+    among the component's other binding values, keeping the bindings' order (later wins)."""
+    source: str
+    prefix: str
+    #: the binding's ssd:ParameterMapping entries, or None without one
+    mapping: tuple[MappingEntry, ...] | None
+    position: int
+    #: the SSD and the ssd:ParameterBinding, for messages
+    display: str
+    where: str
 
 
 @dataclass

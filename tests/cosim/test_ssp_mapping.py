@@ -507,3 +507,30 @@ def test_a_component_based_binding_on_a_system_is_refused(tmp_path, fmus, capsys
                                          'sourceBase="component" source="x.ssv"/></ssd:ParameterBindings>'))
     assert main(["validate", str(folder)]) == 2
     assert "sourceBase='component' needs a source and a component" in capsys.readouterr().err
+
+
+INLINE_K = ('<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="i"><ssv:Parameters>'
+            '<ssv:Parameter name="k"><ssv:Real value="2"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>'
+            '</ssd:ParameterValues></ssd:ParameterBinding>')
+INSIDE_K = ('<ssd:ParameterBinding sourceBase="component" source="resources/gain.ssv"><ssd:ParameterMapping>'
+            f'<ssm:ParameterMapping {SSM_NS} version="1.0"><ssm:MappingEntry source="gain" target="k"/>'
+            '</ssm:ParameterMapping></ssd:ParameterMapping></ssd:ParameterBinding>')
+
+
+@pytest.mark.parametrize("bindings, k", [(INLINE_K + INSIDE_K, 4.5), (INSIDE_K + INLINE_K, 2.0)])
+def test_a_component_based_binding_of_an_fmu_found_through_fmu_dir(tmp_path, fmus, capsys, bindings, k):
+    """The FMU is not beside the SSD but in a --fmu-dir folder: the .ssv is read from the FMU
+    found there (once located), mapped, in its place among the component's bindings (later wins)."""
+    text = ssd(gain_bindings=f"<ssd:ParameterBindings>{bindings}</ssd:ParameterBindings>")
+    folder = _system(tmp_path, {"Step.fmu": fmus["Step.fmu"]}, text.replace("resources/Gain.fmu",
+                                                                            "resources/GainInside.fmu"))
+    elsewhere = tmp_path / "fmus"
+    elsewhere.mkdir()
+    shutil.copy(fmus["Gain.fmu"], elsewhere / "GainInside.fmu")
+    with zipfile.ZipFile(elsewhere / "GainInside.fmu", "a") as z:
+        z.writestr("resources/gain.ssv", ssv({"gain": 4.5}))
+    assert float(cosim.simulate(folder, fmu_dirs=[elsewhere])["g.y"][-1]) == pytest.approx(3 * k)
+    out = tmp_path / "out.csv"
+    assert main(["run", str(folder), "-q", "--fmu-dir", str(elsewhere), "-o", str(out)]) == 0, capsys.readouterr().err
+    with pytest.raises(SetupError, match="the FMU file 'resources/GainInside.fmu' was not found"):
+        cosim.simulate(folder)
