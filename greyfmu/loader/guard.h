@@ -175,7 +175,8 @@ static int read_model(const char *folder, GuardModel *model, char *problem, size
         line = following;
     }
     if (model->variables == NULL || model->guid == NULL) {
-        append(problem, size, "%s has no GUID line (the FMU is damaged)", path);
+        append(problem, size, model->variables == NULL ? "out of memory reading %s" : "%s has no GUID line (the FMU is "
+               "damaged)", path);
         free_model(model);
         return 0;
     }

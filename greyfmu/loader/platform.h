@@ -249,11 +249,14 @@ static int is_loaded_python(void *python, const char *path) {
 
 static int library_path(char *path, size_t size) {
     Dl_info info;
-    char resolved[PATH_MAX];
-    if (!dladdr((void *)&library_path, &info) || info.dli_fname == NULL || realpath(info.dli_fname, resolved) == NULL)
+    char *resolved = NULL; /* realpath's own allocation: no PATH_MAX buffer on the host's stack */
+    if (!dladdr((void *)&library_path, &info) || info.dli_fname == NULL ||
+        (resolved = realpath(info.dli_fname, NULL)) == NULL)
         return 0;
-    snprintf(path, size, "%s", resolved);
-    return 1;
+    int fits = strlen(resolved) < size;
+    if (fits) memcpy(path, resolved, strlen(resolved) + 1);
+    free(resolved);
+    return fits;
 }
 
 static int is_directory(const char *path) {
