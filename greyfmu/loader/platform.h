@@ -12,8 +12,10 @@
 #include <string.h>
 #include <time.h>
 
+#ifndef QUERY_SECONDS /* tests build a loader with a shorter limit */
 #define QUERY_SECONDS 60
-#define OUTPUT_LIMIT (1 << 20)
+#endif
+#define OUTPUT_LIMIT (1 << 20) /* what is kept of a candidate's output; the rest is read and dropped */
 
 static void append(char *buffer, size_t size, const char *format, ...) {
     size_t used = strlen(buffer);
@@ -26,6 +28,10 @@ static void append(char *buffer, size_t size, const char *format, ...) {
 
 /* The end of run_query: the child's output in *output, or the time-out as the problem. */
 static int query_answer(char *text, int timed_out, const char *python, char **output, char *problem, size_t size) {
+    if (text == NULL) {
+        append(problem, size, "out of memory reading the answer of %s", python);
+        return 0;
+    }
     if (timed_out) {
         append(problem, size, "%s did not answer within %d s", python, QUERY_SECONDS);
         free(text);
@@ -175,6 +181,7 @@ static int run_query(const char *python, const char *script, char **output, char
 /* ------------------------------------------------------------------ Linux */
 #include <dlfcn.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <link.h>
 #include <poll.h>
@@ -286,15 +293,21 @@ static void restore_python_home(char *saved) {
     }
 }
 
+/* Seconds on CLOCK_MONOTONIC (a wall-clock change moves no deadline). */
+static double monotonic_seconds(void) {
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)now.tv_sec + (double)now.tv_nsec * 1e-9;
+}
+
 static int run_query(const char *python, const char *script, char **output, char *problem, size_t size) {
     int pipe_ends[2];
-    if (pipe(pipe_ends) != 0) {
+    if (pipe2(pipe_ends, O_CLOEXEC) != 0) { /* no other child the host starts inherits them */
         append(problem, size, "cannot create a pipe to run %s (%s)", python, strerror(errno));
         return 0;
     }
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addclose(&actions, pipe_ends[0]);
     posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDOUT_FILENO);
     posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDERR_FILENO);
     posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", 0, 0);
@@ -308,26 +321,36 @@ static int run_query(const char *python, const char *script, char **output, char
         append(problem, size, "cannot run %s (%s)", python, strerror(spawned));
         return 0;
     }
+    /* Read to the end of the output, keeping OUTPUT_LIMIT bytes; a signal interrupting poll or
+     * read (EINTR) is retried against the same monotonic deadline. */
     size_t capacity = 8192, length = 0;
-    char *text = malloc(capacity);
-    time_t deadline = time(NULL) + QUERY_SECONDS;
+    char *text = malloc(capacity), scrap[4096];
+    double deadline = monotonic_seconds() + QUERY_SECONDS;
     int timed_out = 0;
     for (;;) {
-        struct pollfd ready = {pipe_ends[0], POLLIN, 0};
-        int left = (int)(deadline - time(NULL));
-        if (left <= 0 || poll(&ready, 1, left * 1000) == 0) {
+        double left = deadline - monotonic_seconds();
+        if (left <= 0) {
             timed_out = 1;
             break;
         }
-        if (length + 4096 > capacity && capacity < OUTPUT_LIMIT) text = realloc(text, capacity *= 2);
-        ssize_t got = read(pipe_ends[0], text + length, capacity - length - 1);
+        struct pollfd ready = {pipe_ends[0], POLLIN, 0};
+        int polled = poll(&ready, 1, (int)(left * 1000) + 1);
+        if (polled < 0 && errno == EINTR) continue;
+        if (polled < 0) break;
+        if (polled == 0) continue; /* the deadline, checked above */
+        if (text != NULL && length + 4096 > capacity && capacity < OUTPUT_LIMIT) {
+            char *grown = realloc(text, capacity *= 2);
+            if (grown == NULL) free(text);
+            text = grown;
+        }
+        size_t room = text != NULL ? capacity - length - 1 : 0;
+        ssize_t got = room > 0 ? read(pipe_ends[0], text + length, room) : read(pipe_ends[0], scrap, sizeof scrap);
         if (got < 0 && errno == EINTR) continue;
         if (got <= 0) break;
-        length += (size_t)got;
-        if (length + 1 >= capacity) break;
+        if (room > 0) length += (size_t)got;
     }
     close(pipe_ends[0]);
-    text[length] = '\0';
+    if (text != NULL) text[length] = '\0';
     if (timed_out) kill(child, SIGKILL);
     int status = 0;
     while (waitpid(child, &status, 0) < 0 && errno == EINTR) {
