@@ -143,37 +143,43 @@ static int run_query(const char *python, const char *script, char **output, char
         CloseHandle(read_end);
         return 0;
     }
+    /* Read to the end of the output (the child closing its end), keeping OUTPUT_LIMIT bytes and
+     * dropping the rest, so a child writing more than the pipe holds never blocks; then wait. */
     size_t capacity = 8192, length = 0;
-    char *text = malloc(capacity);
-    DWORD deadline = GetTickCount() + QUERY_SECONDS * 1000;
-    int timed_out = 0, exited = 0;
+    char *text = malloc(capacity), scrap[4096];
+    ULONGLONG deadline = GetTickCount64() + QUERY_SECONDS * 1000ULL;
+    int timed_out = 0;
     for (;;) {
-        DWORD available = 0;
-        if (!PeekNamedPipe(read_end, NULL, 0, NULL, &available, NULL)) break; /* the child closed its end */
-        if (available > 0) {
-            if (length + available + 1 > capacity && capacity < OUTPUT_LIMIT) {
-                while (length + available + 1 > capacity && capacity < OUTPUT_LIMIT) capacity *= 2;
-                text = realloc(text, capacity);
-            }
-            DWORD got = 0;
-            DWORD want = (DWORD)(capacity - length - 1) < available ? (DWORD)(capacity - length - 1) : available;
-            if (want == 0 || !ReadFile(read_end, text + length, want, &got, NULL)) break;
-            length += got;
-            continue;
-        }
-        if (exited) break;
-        if ((int)(deadline - GetTickCount()) <= 0) {
+        if (GetTickCount64() >= deadline) { /* also for a child that writes without end */
             timed_out = 1;
             break;
         }
-        exited = WaitForSingleObject(child.hProcess, 20) == WAIT_OBJECT_0;
+        DWORD available = 0;
+        if (!PeekNamedPipe(read_end, NULL, 0, NULL, &available, NULL)) break; /* the child closed its end */
+        if (available == 0) {
+            WaitForSingleObject(child.hProcess, 20);
+            continue;
+        }
+        if (text != NULL && length + available + 1 > capacity && capacity < OUTPUT_LIMIT) {
+            while (length + available + 1 > capacity && capacity < OUTPUT_LIMIT) capacity *= 2;
+            char *grown = realloc(text, capacity);
+            if (grown == NULL) free(text);
+            text = grown;
+        }
+        size_t room = text != NULL ? capacity - length - 1 : 0;
+        char *into = room > 0 ? text + length : scrap;
+        DWORD want = (DWORD)(room > 0 ? room : sizeof scrap);
+        if (want > available) want = available;
+        DWORD got = 0;
+        if (!ReadFile(read_end, into, want, &got, NULL)) break;
+        if (into != scrap) length += got;
     }
+    CloseHandle(read_end); /* before waiting: a child still writing gets a broken pipe, not a full one */
     if (timed_out) TerminateProcess(child.hProcess, 1);
     WaitForSingleObject(child.hProcess, INFINITE);
     CloseHandle(child.hProcess);
     CloseHandle(child.hThread);
-    CloseHandle(read_end);
-    text[length] = '\0';
+    if (text != NULL) text[length] = '\0';
     return query_answer(text, timed_out, python, output, problem, size);
 }
 
