@@ -17,9 +17,12 @@
  *      limit) which prints its version, shared libpython, home and sys.path, and checks the
  *      FMU's requirements (resources/greyfmu_requirements.txt).  The first usable candidate's
  *      libpython is loaded with RTLD_GLOBAL (Windows: pythonXY.dll, then python3.dll next to it),
- *      initialised without signal handlers (Py_InitializeEx(0); on Linux with PYTHONHOME set for
- *      the call only, Windows finds the home from the DLL), given the candidate's sys.path
- *      (venv site-packages included) and sys.executable; the GIL is then released.
+ *      initialised without signal handlers (Py_InitializeEx(0); on Linux with the candidate's home
+ *      given by Py_SetPythonHome, never by setenv, which races the getenv of a multithreaded host;
+ *      Windows finds the home from the DLL), given the candidate's sys.path (venv site-packages
+ *      included) and sys.executable; the GIL is then released.  Paths pass between C and Python
+ *      as the file system's bytes (PyUnicode_DecodeFSDefault, os.fsencode), never as UTF-8: a
+ *      folder name that is not UTF-8 works or is refused, it does not crash the host.
  *   3. The same greyfmu_target.py runs inside the process (Python version >= 3.10 and the
  *      requirements; once per process, see CHECK_ONCE), then pythonfmu-export.so is loaded and
  *      every fmi2 function forwards to it.
@@ -79,7 +82,9 @@ typedef struct {
     void *(*EvalGetBuiltins)(void);
     void *(*RunStringFlags)(const char *, int, void *, void *, void *);
     void *(*UnicodeFromString)(const char *);
-    const char *(*UnicodeAsUTF8)(void *);
+    void *(*UnicodeDecodeFSDefault)(const char *);
+    void *(*UnicodeEncodeFSDefault)(void *);
+    char *(*BytesAsString)(void *);
     void (*DecRef)(void *);
     void (*IncRef)(void *);
     void (*ErrPrint)(void);
@@ -265,7 +270,9 @@ static int resolve(void *library, PythonApi *api, char *problem, size_t size) {
     RESOLVE(EvalGetBuiltins, "PyEval_GetBuiltins")
     RESOLVE(RunStringFlags, "PyRun_StringFlags")
     RESOLVE(UnicodeFromString, "PyUnicode_FromString")
-    RESOLVE(UnicodeAsUTF8, "PyUnicode_AsUTF8")
+    RESOLVE(UnicodeDecodeFSDefault, "PyUnicode_DecodeFSDefault")
+    RESOLVE(UnicodeEncodeFSDefault, "PyUnicode_EncodeFSDefault")
+    RESOLVE(BytesAsString, "PyBytes_AsString")
     RESOLVE(DecRef, "Py_DecRef")
     RESOLVE(IncRef, "Py_IncRef")
     RESOLVE(ErrPrint, "PyErr_Print")
@@ -273,43 +280,78 @@ static int resolve(void *library, PythonApi *api, char *problem, size_t size) {
     return 1;
 }
 
-/* Run code in a fresh namespace under the GIL; the string variable `result_name` it leaves, copied. */
+/* The str variable `name` of `globals` ("" if absent) as the file system's bytes, into result; 0
+ * with a Python exception set if it is not a str. */
+static int copy_result(PythonApi *api, void *globals, const char *name, char *result, size_t size) {
+    void *value = api->DictGetItemString(globals, name); /* borrowed */
+    if (value == NULL) return 1;
+    void *bytes = api->UnicodeEncodeFSDefault(value);
+    const char *text = bytes != NULL ? api->BytesAsString(bytes) : NULL;
+    if (text != NULL) snprintf(result, size, "%s", text);
+    api->DecRef(bytes); /* Py_DecRef is Py_XDECREF */
+    return text != NULL;
+}
+
+/* Run code in a fresh namespace under the GIL, `file` as its __file__ (the file system's bytes);
+ * the str variable `result_name` it leaves, copied.  0 (the exception printed on stderr, result
+ * saying so) if any step fails, Python's own calls included. */
 static int run_in_process(PythonApi *api, const char *code, const char *file, const char *result_name, char *result,
                           size_t size, void (*inspect)(PythonApi *, void *)) {
     int gil = api->GILStateEnsure();
-    void *globals = api->DictNew();
-    api->DictSetItemString(globals, "__builtins__", api->EvalGetBuiltins());
-    void *name = api->UnicodeFromString("greyfmu_target");
-    api->DictSetItemString(globals, "__name__", name);
-    api->DecRef(name);
-    void *file_name = api->UnicodeFromString(file);
-    api->DictSetItemString(globals, "__file__", file_name);
-    api->DecRef(file_name);
-    void *done = api->RunStringFlags(code, PY_FILE_INPUT, globals, globals, NULL);
-    int ok = done != NULL;
-    if (ok) {
-        api->DecRef(done);
-        void *value = result_name ? api->DictGetItemString(globals, result_name) : NULL;
-        const char *text = value ? api->UnicodeAsUTF8(value) : "";
-        snprintf(result, size, "%s", text ? text : "");
-        if (inspect != NULL) inspect(api, globals);
-    } else {
+    snprintf(result, size, "%s", "");
+    void *globals = api->DictNew(), *builtins = api->EvalGetBuiltins(); /* builtins: borrowed */
+    void *name = api->UnicodeFromString("greyfmu_target"), *file_name = api->UnicodeDecodeFSDefault(file);
+    int ok = globals != NULL && builtins != NULL && name != NULL && file_name != NULL &&
+             api->DictSetItemString(globals, "__builtins__", builtins) == 0 &&
+             api->DictSetItemString(globals, "__name__", name) == 0 &&
+             api->DictSetItemString(globals, "__file__", file_name) == 0;
+    void *done = ok ? api->RunStringFlags(code, PY_FILE_INPUT, globals, globals, NULL) : NULL;
+    ok = done != NULL && (result_name == NULL || copy_result(api, globals, result_name, result, size));
+    if (ok && inspect != NULL) inspect(api, globals);
+    if (!ok) {
         api->ErrPrint();
         snprintf(result, size, "running %s inside the host process raised a Python exception (printed on stderr)", file);
     }
+    api->DecRef(done);
+    api->DecRef(file_name);
+    api->DecRef(name);
     api->DecRef(globals);
     api->GILStateRelease(gil);
     return ok;
 }
 
-/* A Python literal of a path (the check script's sys.executable assignment). */
-static void python_literal(const char *text, char *literal, size_t size) {
-    snprintf(literal, size, "'");
-    for (const char *c = text; *c; c++) {
-        if (*c == '\\' || *c == '\'') append(literal, size, "\\");
-        append(literal, size, "%c", *c);
+/* A Python bytes literal of a path, every byte outside printable ASCII escaped (the path need not
+ * be UTF-8); `literal` holds 4 * strlen(text) + 4 bytes. */
+static void bytes_literal(const char *text, char *literal, size_t size) {
+    size_t used = (size_t)snprintf(literal, size, "b'");
+    for (const unsigned char *c = (const unsigned char *)text; *c && used + 5 < size; c++) {
+        if (*c < 0x20 || *c >= 0x7f || *c == '\\' || *c == '\'')
+            used += (size_t)snprintf(literal + used, size - used, "\\x%02x", *c);
+        else
+            literal[used++] = (char)*c;
     }
-    append(literal, size, "'");
+    snprintf(literal + used, size - used, "'");
+}
+
+/* Give the candidate's home to the Python about to start (Linux; platform.h, GIVES_PYTHON_HOME):
+ * Py_SetPythonHome, in the stable ABI of every Python 3 (deprecated since 3.11, kept in the ABI),
+ * needs a string that lives as long as the process: never freed, as Python is never finalised. */
+static int give_python_home(void *library, const char *home, char *problem, size_t size) {
+    typedef void *(*DecodeLocale)(const char *, size_t *); /* wchar_t *Py_DecodeLocale(const char *, size_t *) */
+    typedef void (*SetPythonHome)(const void *);          /* void Py_SetPythonHome(const wchar_t *) */
+    DecodeLocale decode = (DecodeLocale)library_symbol(library, "Py_DecodeLocale");
+    SetPythonHome set_home = (SetPythonHome)library_symbol(library, "Py_SetPythonHome");
+    if (decode == NULL || set_home == NULL) {
+        append(problem, size, "the loaded libpython has no %s", decode == NULL ? "Py_DecodeLocale" : "Py_SetPythonHome");
+        return 0;
+    }
+    void *wide = decode(home, NULL);
+    if (wide == NULL) {
+        append(problem, size, "cannot decode the Python home %s", home);
+        return 0;
+    }
+    set_home(wide);
+    return 1;
 }
 
 /* Start the candidate's Python in this process. */
@@ -322,15 +364,15 @@ static int start_python(const Interpreter *python, PythonApi *api, char *problem
     if (*python->stable_abi && library_open(python->stable_abi, 1, problem, size) == NULL) return 0;
     if (!resolve(library, api, problem, size)) return 0;
     if (!api->IsInitialized()) {
-        char *saved = set_python_home(python->home);
+        if (GIVES_PYTHON_HOME && !give_python_home(library, python->home, problem, size)) return 0;
         api->InitializeEx(0);
-        restore_python_home(saved);
-        size_t literal = 2 * strlen(python->executable) + 3, length = strlen(python->path) + literal + 128;
+        size_t literal = 4 * strlen(python->executable) + 4, length = strlen(python->path) + literal + 128;
         char *executable = malloc(literal), *code = malloc(length), ignored[16];
         int ok = executable != NULL && code != NULL;
         if (ok) {
-            python_literal(python->executable, executable, literal);
-            snprintf(code, length, "import sys\nsys.path[:] = %s\nsys.executable = %s\n", python->path, executable);
+            bytes_literal(python->executable, executable, literal);
+            snprintf(code, length, "import os, sys\nsys.path[:] = %s\nsys.executable = os.fsdecode(%s)\n",
+                     python->path, executable);
             ok = run_in_process(api, code, "<greyfmu loader>", NULL, ignored, sizeof ignored, NULL);
         }
         free(executable);

@@ -110,12 +110,8 @@ static int is_executable(const char *path) {
     return attributes != INVALID_FILE_ATTRIBUTES && !(attributes & FILE_ATTRIBUTE_DIRECTORY);
 }
 
-/* PYTHONHOME is not set on Windows: Python finds its home from pythonXY.dll's folder. */
-static char *set_python_home(const char *home) {
-    (void)home;
-    return NULL;
-}
-static void restore_python_home(char *saved) { (void)saved; }
+/* The home is not given on Windows: Python finds it from pythonXY.dll's folder. */
+#define GIVES_PYTHON_HOME 0
 
 static int run_query(const char *python, const char *script, char **output, char *problem, size_t size) {
     SECURITY_ATTRIBUTES inherit = {sizeof inherit, NULL, TRUE};
@@ -282,22 +278,9 @@ static int is_executable(const char *path) {
     return stat(path, &status) == 0 && S_ISREG(status.st_mode) && access(path, X_OK) == 0;
 }
 
-/* PYTHONHOME for Py_InitializeEx only: returns the previous value (malloc'ed) to restore. */
-static char *set_python_home(const char *home) {
-    const char *previous = getenv("PYTHONHOME");
-    char *saved = previous ? strdup(previous) : NULL;
-    setenv("PYTHONHOME", home, 1);
-    return saved;
-}
-
-static void restore_python_home(char *saved) {
-    if (saved) {
-        setenv("PYTHONHOME", saved, 1);
-        free(saved);
-    } else {
-        unsetenv("PYTHONHOME");
-    }
-}
+/* The candidate's home (base prefix) is given to Python before it starts (Py_SetPythonHome, not
+ * PYTHONHOME: setenv races every getenv of a multithreaded host). */
+#define GIVES_PYTHON_HOME 1
 
 /* Seconds on CLOCK_MONOTONIC (a wall-clock change moves no deadline). */
 static double monotonic_seconds(void) {
