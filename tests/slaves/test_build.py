@@ -357,6 +357,22 @@ def test_without_a_compiler_for_this_platform_the_build_says_so_and_keeps_python
         in capsys.readouterr().err
 
 
+def test_a_compiler_warning_fails_the_loader_build_only_in_our_ci(tmp_path, monkeypatch):
+    """Issue 29: -Werror only under GREYFMU_WERROR=1 (.ci/run): a user's newer compiler adding a
+    warning still builds the loader."""
+    import greyfmu.loader
+
+    warned = tmp_path / "warned.c"
+    warned.write_text("int unused_argument(int a, int b) { return a; }\n")
+    monkeypatch.setattr(greyfmu.loader, "LOADER_SOURCE", warned)
+    build = loader_binary.__wrapped__  # not the per-process cache
+    monkeypatch.delenv("GREYFMU_WERROR", raising=False)
+    assert build(PLATFORMS[0])
+    monkeypatch.setenv("GREYFMU_WERROR", "1")
+    with pytest.raises(greyfmu.loader.LoaderError, match="unused parameter"):
+        build(PLATFORMS[0])
+
+
 def test_without_mingw_a_linux_build_says_one_short_line(capsys):
     """Issue 27: a Linux user without mingw-w64 did not ask about Windows: one short line."""
     missing = dataclasses.replace(PLATFORMS[1], compilers=("no-such-mingw-gcc",))
