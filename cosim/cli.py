@@ -158,7 +158,7 @@ def _parser() -> argparse.ArgumentParser:
                        help="run on a Dask distributed cluster (tcp://host:8786), or 'local:N' for a local "
                             "Dask cluster of N worker processes")
     sweep.add_argument("--output", "-o", metavar="DIR",
-                       help="folder for sweep.csv, sweep.parquet and runs/ (default: results/<name>_sweep)")
+                       help="folder for sweep.csv, runs/ and, with pyarrow, sweep.parquet (default: results/<name>_sweep)")
     sweep.add_argument("--force", action="store_true", help="rerun runs already done")
     sweep.add_argument("--no-run-files", dest="run_files", action="store_false",
                        help="write the sweep table only, not each run's runs/<id>.csv, .json and .ssv "
@@ -585,7 +585,7 @@ def _sweep(args) -> int:
                            executor=args.scheduler or "process", workers=args.workers, progress=_progress(args))
     except KeyboardInterrupt:
         table = output / "sweep.csv"
-        kept = len(read_table(output / "sweep.parquet")) if table.is_file() else 0
+        kept = len(read_table(table)) if table.is_file() else 0
         print(f"cosim: sweep interrupted; {kept} finished runs are in {table} (run the same command "
               "again to do the rest)", file=sys.stderr)
         return 130
@@ -593,7 +593,8 @@ def _sweep(args) -> int:
         print(f"cosim: run {row['run_id']} failed: {row['message']}", file=sys.stderr)
     _print_undefined_metrics(result.rows, args.metrics)
     _say(args, f"cosim: sweep: {len(result.rows)} runs ({result.ran} ran now, {result.skipped} already done and "
-          f"skipped, {len(result.failed)} failed); table {result.csv} and {result.parquet}"
+          f"skipped, {len(result.failed)} failed); table {result.csv}"
+          f"{f' and {result.parquet}' if result.parquet else ''}"
           + (f", results in {output / 'runs'}" if args.run_files else ""))
     return 1 if result.failed else 0
 

@@ -26,8 +26,8 @@ of `cosim.kernel`, which makes the same FMI calls in the same order with the sam
 arithmetic (bit-identical results) and returns here for every status above Warning, which
 this module then handles and finishes the step with; "python" runs the loop below; "auto"
 (default) the compiled one when the library is built and every component is FMI 2.0 or 3.0
-Co-Simulation exchanging numbers with no algebraic loop to iterate, else the Python one,
-saying why (``kernel_reason``).
+Co-Simulation exchanging numbers with no algebraic loop to iterate and no connection with a
+mapping table (`cosim.maptables`), else the Python one, saying why (``kernel_reason``).
 """
 from __future__ import annotations
 
@@ -154,6 +154,10 @@ class _Typed:
         for comp in order:  # feedthrough and Gauss–Seidel route into one component at a time
             self.routes_of[comp] = [r for r in routes if r.dst == comp]
         self.routes_into = {comp: self._routing(rs, out_index, in_index) for comp, rs in self.routes_of.items()}
+        #: the routes with a mapping transformation (`cosim.maptables`) of each `routes_into` entry:
+        #: (output position, input position, route)
+        self.tables_into = {comp: [(out_index[(r.src, r.src_var.name)], in_index[(r.dst, r.dst_var.name)], r)
+                                   for r in rs if r.table is not None] for comp, rs in self.routes_of.items()}
         self.ctype = ctype
         self.integer = ctype is ctypes.c_int
 
@@ -200,6 +204,23 @@ class _Typed:
                 if len(overflowed):
                     raise self.overflow(comp, int(overflowed[0]), t)
             self.U[dst] = values
+        for i, j, r in self.tables_into[comp]:
+            self.U[j] = self._mapped(r, int(self.Y[i]), t)
+
+    @staticmethod
+    def _mapped(r, value: int, t: float) -> int:
+        """``value`` through the route's mapping transformations (`cosim.structure.RouteTable`); a
+        value that no ssc:MapEntry names is a `RunError`."""
+        table = r.table
+        key = int(value != 0) if table.boolean else value
+        if key not in table.mapping:
+            def shown(v: int) -> str:
+                return ("true" if v else "false") if table.boolean else str(v)
+            raise RunError(f"{r.src}.{r.src_var.name} = {shown(key)} at t = {t:g} is not a source value of "
+                           f"{table.elements} (its sources: {', '.join(shown(v) for v in sorted(table.mapping))}); "
+                           f"{r.dst}.{r.dst_var.name} was not given it.", time=t, component=r.dst,
+                           element=f"connection {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}")
+        return table.mapping[key]
 
     def overflow(self, comp: str | None, j: int, t: float) -> RunError:
         """The error of route ``j`` of ``routes_into[comp]`` at ``t``: its factor and offset (the
@@ -317,6 +338,11 @@ class Execution:
             return f"{' and '.join(strings)} connectors (routed by Python)"
         if self.loop_solver is not None:
             return "an algebraic loop solved by iteration (--loops iterate; cosim.loops stays in Python)"
+        tabled = [r for r in self.plan.routes if r.table is not None]
+        if tabled:
+            r = tabled[0]
+            return (f"connection {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name} maps its values through "
+                    f"{r.table.elements} (mapping tables are applied by Python, cosim.maptables)")
         return native.library()[1]
 
     @staticmethod

@@ -1,8 +1,8 @@
 """Optional dependencies (issue 27): what needs an extra of greyfmu, and the message naming it.
 
 pyarrow (``pip install 'greyfmu[parquet]'``, about 170 MB) writes and reads Parquet results and
-the sweep's tables (``sweep.parquet``, ``sweep.csv``); CSV results need nothing more, pyarrow
-only formats them faster (`cosim.observers.CsvSink`).
+a sweep's ``sweep.parquet``; CSV results and sweeps (their ``sweep.csv``, `cosim.sweep.table`)
+need nothing more, and with pyarrow are the same bytes (`cosim.observers.CsvSink`).
 """
 from __future__ import annotations
 

@@ -176,7 +176,7 @@ class _Walker:
             # component to component: cosim.plan directs and checks it against the FMUs
             self.direct.append(Connection(prefix + c.start_element, c.start_connector, prefix + c.end_element,
                                           c.end_connector, c.factor, c.offset, c.has_transformation,
-                                          c.suppress_unit_conversion, c.line))
+                                          c.suppress_unit_conversion, c.line, table=c.table))
             return
         (a, a_sends), (b, b_sends) = ends
         if a_sends is None and b_sends is None:
@@ -346,7 +346,7 @@ class _Resolver:
         for e in edges:
             (start, start_unit), (stop, stop_unit), c = end(e.src), end(e.dst), e.connection
             out.append(Hop(c.line, start, stop, start_unit, stop_unit, c.factor, c.offset, c.has_transformation,
-                           c.suppress_unit_conversion))
+                           c.suppress_unit_conversion, c.table))
         return tuple(out)
 
     def _open(self, node: Node) -> None:

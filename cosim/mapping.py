@@ -13,38 +13,22 @@ Transformations (SSP 1.0 §4.5.2, Transformation Choice): ``ssc:LinearTransforma
 ``target = factor * source + offset`` on Real values, after the unit conversion (or instead of it
 with ``suppressUnitConversion="true"``): a value given in a unit keeps the transformation in
 `cosim.structure.ParameterValue.linear` until `cosim.parameters` has converted it to the
-variable's unit.  The Boolean, Integer and Enumeration mapping transformations are tables; a value
-that no ``ssc:MapEntry`` names is kept unchanged.  A transformation on a value of another type is
-refused, naming the entry.
+variable's unit.  The Boolean, Integer and Enumeration mapping transformations are tables of
+``ssc:MapEntry`` source → target values (Enumeration values by item name, mapped before the name
+is resolved to the target variable's item value); a value that no MapEntry names is refused,
+naming the file, the entry and the value (the schema gives a table no default: passing the value
+through unchanged would apply a value the mapping does not define).  A transformation on a value
+of another type is refused, naming the entry.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 from .errors import SetupError, did_you_mean
-from .structure import ParameterValue
+from .structure import MappingEntry, ParameterValue
 
 #: the ssv value type each transformation applies to
 APPLIES_TO = {"Linear": "Real", "Boolean": "Boolean", "Integer": "Integer", "Enumeration": "Enumeration"}
-
-
-@dataclass(frozen=True)
-class MappingEntry:
-    """One ``ssm:MappingEntry``: ``source`` → ``target``, with an optional transformation."""
-    source: str
-    target: str
-    suppress_unit_conversion: bool
-    file: str
-    line: int
-    #: "Linear", "Boolean", "Integer", "Enumeration" (the ssc:...Transformation) or None
-    kind: str | None = None
-    factor: float = 1.0
-    offset: float = 0.0
-    #: the ssc:MapEntry table of a Boolean, Integer or Enumeration mapping transformation
-    table: dict = field(default_factory=dict)
-
-    def where(self) -> str:
-        return f"ssm:MappingEntry '{self.source}' -> '{self.target}' ({self.file}, line {self.line})"
 
 
 def apply_mapping(values: list[ParameterValue], entries: list[MappingEntry]) -> list[ParameterValue]:
@@ -69,6 +53,12 @@ def transformation_element(kind: str) -> str:
     return "ssc:LinearTransformation" if kind == "Linear" else f"ssc:{kind}MappingTransformation"
 
 
+def value_text(value) -> str:
+    """A table value as the SSP files write it: ``true``/``false``, a number, an item name."""
+    return ("true" if value else "false") if isinstance(value, bool) else f"'{value}'" if isinstance(value, str) \
+        else str(value)
+
+
 def _mapped(p: ParameterValue, entry: MappingEntry) -> ParameterValue:
     mapped = replace(p, name=entry.target, mapping=entry.where(),
                      unit=None if entry.suppress_unit_conversion else p.unit)
@@ -79,7 +69,14 @@ def _mapped(p: ParameterValue, entry: MappingEntry) -> ParameterValue:
                          f"'{entry.source}' is an ssv:{p.type} ({p.file}, line {p.line}).",
                          file=entry.file, element=f"ssm:MappingEntry (line {entry.line})", variable=entry.source)
     if entry.kind != "Linear":
-        return replace(mapped, value=entry.table.get(p.value, p.value))
+        if p.value not in entry.table:
+            sources = ", ".join(value_text(v) for v in entry.table)
+            raise SetupError(f"the value {value_text(p.value)} of '{entry.source}' ({p.file}, line {p.line}) is "
+                             f"not a source of the {transformation_element(entry.kind)} (its ssc:MapEntry "
+                             f"sources: {sources}).", file=entry.file,
+                             element=f"ssm:MappingEntry '{entry.source}' -> '{entry.target}' (line {entry.line})",
+                             variable=entry.source)
+        return replace(mapped, value=entry.table[p.value])
     if mapped.unit is None:
         return replace(mapped, value=entry.factor * float(p.value) + entry.offset)
     return replace(mapped, linear=(entry.factor, entry.offset))

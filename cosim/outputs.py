@@ -73,10 +73,15 @@ def result_stem(scenario: str, parameter_sets: Iterable[str | Path], *, what: st
     return "__".join(parts)
 
 
-#: what marks a folder as a sweep's: its table, written before its first run
-SWEEP_MARK = "sweep.parquet"
+#: what marks a folder as a sweep's: its table, written before its first run (with or without
+#: pyarrow), with no `RUN_AS_SWEEP_MARK` beside it
+SWEEP_MARK = "sweep.csv"
 #: the metadata of a run's result named ``sweep.csv`` or ``sweep.parquet``; a sweep writes no ``sweep.json``
 RUN_AS_SWEEP_MARK = "sweep.json"
+
+
+def _is_sweep_folder(folder: Path) -> bool:
+    return (folder / SWEEP_MARK).is_file() and not (folder / RUN_AS_SWEEP_MARK).is_file()
 
 
 def check_not_in_sweep(path: Path, option: str = "--output") -> None:
@@ -84,7 +89,7 @@ def check_not_in_sweep(path: Path, option: str = "--output") -> None:
     sweep's table or one of its runs, which the next sweep into the folder takes as done."""
     folder = path.resolve().parent
     for candidate in (folder, folder.parent) if folder.name == "runs" else (folder,):
-        if (candidate / SWEEP_MARK).is_file():
+        if _is_sweep_folder(candidate):
             raise SetupError(f"{path} is in the folder of a sweep ({candidate}, which holds {SWEEP_MARK}); a "
                              "run's results there would replace the sweep's table or runs. Choose another "
                              "folder.", element=option)
@@ -96,7 +101,6 @@ def check_sweep_folder(path: Path, option: str = "--output") -> Path:
     if path.exists() and not path.is_dir():
         raise SetupError(f"{path} is a file; a sweep's output is a folder (for sweep.csv, sweep.parquet and "
                          "runs/). Give a folder name.", element=option)
-    require_pyarrow("a sweep (its tables sweep.parquet and sweep.csv)", element=option)
     existing = next(p for p in (path.resolve(), *path.resolve().parents) if p.exists())
     if not existing.is_dir():
         raise SetupError(f"{path}: {existing} is a file, not a folder.", element=option)

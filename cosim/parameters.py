@@ -18,6 +18,7 @@ from fmpy.model_description import ModelVariable
 
 from .description import ArrayElement, FMUDescription, exchange_type, unit_of
 from .errors import SetupError, did_you_mean
+from .maptables import refuse_on_path
 from .routing import hops_map, transformations, unit_step
 from .structure import Hop, OpenConnector, ParameterValue, Plan, StartValue, SystemStructure
 from .units import IDENTITY, SystemUnits, UnitScope, conversion
@@ -54,6 +55,7 @@ def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], u
     where = (f"ssv:Parameter '{p.name}' (line {p.line}) for {comp}.{conn} through system connector "
              f"'{open_connector.path}'")
     var = fmus[comp].variable(conn, where, p.file)
+    refuse_on_path(hops, f"a value given to system connector '{open_connector.path}'", p.file, where)
     numeric = p.type in ("Real", "Integer")
     if p.linear is not None and (exchange_type(var) != "Real" or not open_connector.unit):
         if exchange_type(var) == "Real":

@@ -19,6 +19,7 @@ from .errors import SetupError, did_you_mean
 from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
 from .fmucache import passed, record_pass
 from .loadable import check_fmu_file, check_library
+from .maptables import refuse_on_path, route_table
 from .parameters import resolve_parameters
 from .routing import connector_unit, hops_map, source_view, transformations
 from .solvers import check_model_exchange, solvers_of
@@ -174,14 +175,15 @@ def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescriptio
             raise SetupError(f"input {dst}.{dv.name} is driven by two connections (the other: "
                              f"{driven[key].describe()}).", file=file, element=where, variable=dv.name)
         driven[key] = c
+        # a connection between two components is a path of one hop
+        hops = c.hops or (Hop(c.line, None, None, None, None, c.factor, c.offset, c.has_transformation,
+                              c.suppress_unit_conversion, c.table),)
         if exchange_type(sv) != "Real":
             factor, offset = c.factor, c.offset
-        else:  # a connection between two components is a path of one hop
-            hops = c.hops or (Hop(c.line, None, None, None, None, c.factor, c.offset, c.has_transformation,
-                                  c.suppress_unit_conversion),)
+        else:
             factor, offset = hops_map(structure, units, hops, source_view(structure, units, (src, sv), where),
                                        (dst, dv), where)
-        routes.append(Route(src, sv, dst, dv, factor, offset))
+        routes.append(Route(src, sv, dst, dv, factor, offset, route_table(hops, src, sv, dst, dv, file, where)))
     return routes
 
 
@@ -223,6 +225,7 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVar
             raise SetupError(f"a LinearTransformation applies to Real connections only; "
                              f"{out.component}.{out.connector} is {var.type}.", file=file, element=where,
                              variable=out.name)
+        refuse_on_path(out.hops, "the path to a root-system output connector", file, where)
         if any(f"{c}.{v.name}" == out.name for c, vs in outputs.items() for v in vs):
             raise SetupError(f"the name clashes with the component output {out.name} in the results.",
                              file=file, element=where, variable=out.name)

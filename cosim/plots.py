@@ -276,16 +276,15 @@ def near(value: float, values: np.ndarray) -> bool:
 
 def _draw_limits(ax, signal: str, values: np.ndarray, metadata: Mapping) -> None:
     """The controller output's limits as lines; one far off the signal's range (more than its
-    span beyond it) is named in the corner instead, so the signal stays readable."""
+    span beyond it) is named in the legend instead (an entry with no data: text in a corner hid
+    under the legend), so the signal stays readable."""
     for name, value in limits(signal, metadata).items():
         if near(value, values):
             ax.axhline(value, color="C3", lw=0.9, ls="-.")
             ax.annotate(plain(f"{name} = {value:g}"), (1, value), xycoords=("axes fraction", "data"),
                         xytext=(-3, 2), textcoords="offset points", ha="right", fontsize=7, color="C3")
         else:
-            ax.annotate(plain(f"{name} = {value:g} (off scale)"), (1, 0 if name.endswith("min") else 1),
-                        xycoords="axes fraction", xytext=(-3, 3 if name.endswith("min") else -9),
-                        textcoords="offset points", ha="right", fontsize=7, color="C3")
+            ax.plot([], [], color="C3", lw=0.9, ls="-.", label=plain(f"{name} = {value:g} (off scale)"))
 
 
 def figure(result: np.ndarray, panels: Sequence[Sequence[str]], *, scenario: str, metadata: Mapping | None = None):

@@ -58,6 +58,7 @@ def validate(path: str | Path, *, parameter_sets: Sequence[str | Path] = (), fmu
     try:
         extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
         fmu_paths = locate_fmus(structure, [Path(d) for d in fmu_dirs], use_providers=use_providers)
+        ssp.read_component_bindings(structure, fmu_paths)
         return build_plan(structure, fmu_paths, extra, loops)
     except BaseException:
         structure.close()

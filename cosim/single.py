@@ -139,6 +139,7 @@ def load_scenario(path: str | Path, *, fmi_type: str | None = None, parameter_se
     try:
         if not single:
             fmu_paths = locate_fmus(structure, [Path(d) for d in fmu_dirs])
+            ssp.read_component_bindings(structure, fmu_paths)
         values = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
         table = read_input_table(input_file) if input_file is not None else None
     except BaseException:

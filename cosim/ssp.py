@@ -2,9 +2,8 @@
 
 The reader is strict.  It checks well-formedness (with line and column), the
 SSP 1.0 XML schema (the XSDs shipped with fmpy), and refuses, with a message,
-every SSP feature this master does not implement (non-FMU components,
-Boolean/Integer/Enumeration mapping transformations on connections) instead of
-ignoring it.  Signal dictionaries and their references are read into the raw
+every SSP feature this master does not implement (non-FMU components, for one)
+instead of ignoring it.  Signal dictionaries and their references are read into the raw
 systems and wired by `cosim.flatten`.  SSP 2.0 documents (`as_ssp1`) are read as
 SSP 1.0 with the FMI 3.0 data types; what else 2.0 adds is refused by element and
 line.  Parameter mappings (``.ssm`` files and inline ``ssm:ParameterMapping``) rename and transform
@@ -33,13 +32,15 @@ from lxml import etree
 
 from .errors import SetupError
 from .flatten import flatten
-from .mapping import MappingEntry, apply_mapping
+from .mapping import apply_mapping
 from .safeio import extract_archive, is_file, parse_xml, parse_xml_bytes, read_member, temporary_folder
 from .structure import (
     Component,
+    ComponentBinding,
     Connection,
     Connector,
     Experiment,
+    MappingEntry,
     ParameterValue,
     RawStructure,
     RawSystem,
@@ -48,6 +49,7 @@ from .structure import (
     SignalReference,
     SolverOptions,
     SystemStructure,
+    ValueTable,
 )
 from .units import BASE_UNITS, Unit, check_definition, make_unit
 
@@ -203,7 +205,6 @@ def _read_ssd(path: Path, display: str | None = None) -> RawStructure:
         raise SetupError("the root element is not an SSP ssd:SystemStructureDescription "
                          f"(found {root.tag}).", file=display, element=f"line {root.sourceline}")
     validate_schema(tree, "SystemStructureDescription.xsd", display, ssp2=as_ssp1(root))
-    _refuse_unsupported(root, display)
 
     system = root.find("ssd:System", NS)
     base_dir = path.parent
@@ -218,24 +219,6 @@ def _read_ssd(path: Path, display: str | None = None) -> RawStructure:
                         root=_read_system(system, base_dir, display),
                         experiment=Experiment(start, stop, step, step_source, algorithm),
                         units=read_units(root.find("ssd:Units", NS), display))
-
-
-def _refuse_unsupported(root: etree._Element, display: str) -> None:
-    """Refuse, by element and line, what the master cannot run: mapping transformations on
-    connections (the master routes values through affine maps only)."""
-    refused = [
-        (".//ssd:Connection/ssc:BooleanMappingTransformation",
-         "Boolean mapping transformations on connections are not supported"),
-        (".//ssd:Connection/ssc:IntegerMappingTransformation",
-         "Integer mapping transformations on connections are not supported"),
-        (".//ssd:Connection/ssc:EnumerationMappingTransformation",
-         "Enumeration mapping transformations on connections are not supported"),
-    ]
-    for xpath, why in refused:
-        found = root.find(xpath, NS)
-        if found is not None:
-            raise SetupError(why + ".", file=display,
-                             element=f"ssc:{etree.QName(found).localname} (line {found.sourceline})")
 
 
 def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSystem:
@@ -253,7 +236,7 @@ def _read_system(system: etree._Element, base_dir: Path, display: str) -> RawSys
                              element=f"ssd:System '{name}' (line {system.sourceline})", variable=conn.name)
         connectors[conn.name] = conn
     raw = RawSystem(name=name, line=system.sourceline, connectors=connectors, components={}, systems={},
-                    connections=[], parameters=_read_bindings(system, base_dir, display, None))
+                    connections=[], parameters=_read_bindings(system, base_dir, display, None)[0])
     elements = system.find("ssd:Elements", NS)
     for el in (elements if elements is not None else []):
         if not isinstance(el.tag, str):
@@ -340,7 +323,7 @@ def _read_component(el: etree._Element, base_dir: Path, display: str) -> Compone
         if conn.name in comp.connectors:
             raise SetupError(f"connector '{conn.name}' is declared twice.", file=display, element=where)
         comp.connectors[conn.name] = conn
-    comp.parameters = _read_bindings(el, base_dir, display, comp.source)
+    comp.parameters, comp.component_bindings = _read_bindings(el, base_dir, display, comp.source)
     comp.solver = _read_solver_annotation(el, display)
     return comp
 
@@ -387,10 +370,15 @@ def _read_connection(c: etree._Element, display: str) -> Connection:
         factor = _float_attr(lt, "factor", display, default=1.0)
         offset = _float_attr(lt, "offset", display, default=0.0)
     suppress = c.get("suppressUnitConversion", "false") in ("true", "1")
+    table = None
+    for local, (kind, parse) in _TABLES.items():
+        table_el = c.find(f"ssc:{local}", NS)
+        if table_el is not None:  # the schema allows one transformation (GTransformationChoice)
+            table = ValueTable(kind, tuple(_read_table(table_el, parse, display).items()), table_el.sourceline)
     # an empty element name is the enclosing system, as an omitted one (OMSimulator writes
     # startElement="" for a system's own connector; the schema's xs:string accepts it)
     return Connection(c.get("startElement") or None, c.get("startConnector"), c.get("endElement") or None,
-                      c.get("endConnector"), factor, offset, has, suppress, line)
+                      c.get("endConnector"), factor, offset, has, suppress, line, table=table)
 
 
 def _float_attr(el: etree._Element, name: str, display: str, default: float | None = None) -> float | None:
@@ -408,10 +396,12 @@ def _float_attr(el: etree._Element, name: str, display: str, default: float | No
 
 
 def _read_bindings(owner: etree._Element, base_dir: Path, display: str,
-                   fmu_source: str | None) -> list[ParameterValue]:
-    """The parameter values of ``owner``'s bindings; ``fmu_source`` is a component's FMU, which a
-    ``sourceBase="component"`` binding's source is relative to (None for a system)."""
+                   fmu_source: str | None) -> tuple[list[ParameterValue], tuple[ComponentBinding, ...]]:
+    """The parameter values of ``owner``'s bindings, and its ``sourceBase="component"`` ones,
+    whose source is inside the component's FMU ``fmu_source`` (None for a system, which has
+    none), to read once the FMU is located (`read_component_bindings`)."""
     values: list[ParameterValue] = []
+    pending: list[ComponentBinding] = []
     for binding in owner.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         where = f"ssd:ParameterBinding (line {binding.sourceline})"
         btype = binding.get("type", PARAMETER_SET_MIME)
@@ -422,13 +412,16 @@ def _read_bindings(owner: etree._Element, base_dir: Path, display: str,
         base = binding.get("sourceBase", "SSD")
         if base not in ("SSD", "component"):
             raise SetupError(f"sourceBase='{base}' is not 'SSD' or 'component'.", file=display, element=where)
+        mapping = binding.find("ssd:ParameterMapping", NS)
+        entries = None if mapping is None else _read_mapping(mapping, base_dir, display)
         if base == "component":
             if fmu_source is None or source is None:
                 raise SetupError("sourceBase='component' needs a source and a component (SSP 1.0: the source is "
                                  "relative to the component's FMU).", file=display, element=where)
-            parsed = _read_ssv_in_fmu(source, _source_file(fmu_source, base_dir, display, where, "FMU"),
-                                      display, where)
-        elif source is not None:
+            pending.append(ComponentBinding(source, prefix, None if entries is None else tuple(entries), len(values),
+                                            display, where))
+            continue
+        if source is not None:
             parsed = read_ssv(_source_file(source, base_dir, display, where, "parameter set"))
         else:
             inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
@@ -438,11 +431,26 @@ def _read_bindings(owner: etree._Element, base_dir: Path, display: str,
             # the SSD schema lets ssd:ParameterValues hold anything: check the inline set as an .ssv is
             validate_schema(inline, "SystemStructureParameterValues.xsd", display, ssp2=as_ssp1(inline))
             parsed = _read_parameter_set(inline, display)
-        # SSP 1.0 ParameterBinding prefix: prepended to the names of the source before any mapping
-        named = [replace(p, name=prefix + p.name) for p in parsed]
-        mapping = binding.find("ssd:ParameterMapping", NS)
-        values.extend(named if mapping is None else apply_mapping(named, _read_mapping(mapping, base_dir, display)))
-    return values
+        values.extend(_bound(parsed, prefix, entries))
+    return values, tuple(pending)
+
+
+def _bound(parsed: list[ParameterValue], prefix: str, entries) -> list[ParameterValue]:
+    """A binding's values: SSP 1.0 ParameterBinding ``prefix`` prepended to the names of the
+    source, then its mapping (`cosim.mapping.apply_mapping`), if it has one."""
+    named = [replace(p, name=prefix + p.name) for p in parsed]
+    return named if entries is None else apply_mapping(named, list(entries))
+
+
+def read_component_bindings(structure: SystemStructure, fmu_paths: dict[str, Path]) -> None:
+    """Read, in place, the ``sourceBase="component"`` bindings of each component from the FMU
+    located for it (`cosim.structure.ComponentBinding`), wherever it was found."""
+    for name, comp in structure.components.items():
+        values = list(comp.parameters)
+        for b in reversed(comp.component_bindings):
+            parsed = _read_ssv_in_fmu(b.source, fmu_paths[name], b.display, b.where)
+            values[b.position:b.position] = _bound(parsed, b.prefix, b.mapping)
+        structure.components[name] = replace(comp, parameters=values, component_bindings=())
 
 
 def _check_source_base(el: etree._Element, display: str, where: str, kind: str) -> None:

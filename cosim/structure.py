@@ -68,6 +68,45 @@ class Component:
     implementation: str = "any"
     #: the component's ``org.greyfmu.solver`` annotation, for a Model Exchange FMU
     solver: SolverOptions | None = None
+    #: its ``sourceBase="component"`` bindings, read once the FMU is located
+    component_bindings: tuple[ComponentBinding, ...] = ()
+
+
+@dataclass(frozen=True)
+class MappingEntry:
+    """One ``ssm:MappingEntry``: ``source`` → ``target``, with an optional transformation (applied by
+    `cosim.mapping`)."""
+    source: str
+    target: str
+    suppress_unit_conversion: bool
+    file: str
+    line: int
+    #: "Linear", "Boolean", "Integer", "Enumeration" (the ssc:...Transformation) or None
+    kind: str | None = None
+    factor: float = 1.0
+    offset: float = 0.0
+    #: the ssc:MapEntry table of a Boolean, Integer or Enumeration mapping transformation
+    table: dict = field(default_factory=dict)
+
+    def where(self) -> str:
+        return f"ssm:MappingEntry '{self.source}' -> '{self.target}' ({self.file}, line {self.line})"
+
+
+@dataclass(frozen=True)
+class ComponentBinding:
+    """A ``sourceBase="component"`` ParameterBinding (SSP 1.0 §5.3.3): its ``.ssv`` is a file
+    inside the component's FMU, which is known only once the FMU has been located
+    (`cosim.resources.locate_fmus`: beside the SSD, from a provider or in a ``--fmu-dir``);
+    `cosim.ssp.read_component_bindings` then reads it and inserts its values at ``position``
+    among the component's other binding values, keeping the bindings' order (later wins)."""
+    source: str
+    prefix: str
+    #: the binding's ssd:ParameterMapping entries, or None without one
+    mapping: tuple[MappingEntry, ...] | None
+    position: int
+    #: the SSD and the ssd:ParameterBinding, for messages
+    display: str
+    where: str
 
 
 @dataclass
@@ -93,6 +132,20 @@ class SolverSettings:
                 "max_step": "communication step" if self.max_step is None else self.max_step}
 
 
+@dataclass(frozen=True)
+class ValueTable:
+    """The ``ssc:BooleanMappingTransformation``, ``ssc:IntegerMappingTransformation`` or
+    ``ssc:EnumerationMappingTransformation`` of an ``ssd:Connection`` (SSP 1.0
+    SystemStructureCommon.xsd, GTransformationChoice): its ``ssc:MapEntry`` source → target
+    values, booleans, integers or item names."""
+    kind: str
+    entries: tuple[tuple[bool | int | str, bool | int | str], ...]
+    line: int
+
+    def element(self) -> str:
+        return f"ssc:{self.kind}MappingTransformation (line {self.line})"
+
+
 @dataclass
 class Connection:
     #: None, before flattening only, where the connection names a connector of its own system
@@ -109,6 +162,8 @@ class Connection:
     via: str = ""
     #: for a connection resolved through system connectors: each connection on the way (`Hop`)
     hops: tuple[Hop, ...] = ()
+    #: its Boolean, Integer or Enumeration mapping transformation, if it has one
+    table: ValueTable | None = None
 
     def describe(self) -> str:
         return (f"connection {self.start_element}.{self.start_connector} -> "
@@ -190,6 +245,8 @@ class Hop:
     offset: float
     has_transformation: bool
     suppress: bool
+    #: its Boolean, Integer or Enumeration mapping transformation, if it has one
+    table: ValueTable | None = None
 
 
 @dataclass
@@ -324,6 +381,19 @@ class Route:
     dst_var: ModelVariable
     factor: float
     offset: float
+    #: the mapping transformations on the way, composed (`cosim.maptables`); None without any
+    table: RouteTable | None = None
+
+
+@dataclass(frozen=True)
+class RouteTable:
+    """The Boolean, Integer and Enumeration mapping transformations along one route composed into
+    one table of the exchanged values (Booleans as 0 and 1, Enumerations by item value); a value
+    outside it is a `cosim.errors.RunError` naming ``elements`` (`cosim.maptables`)."""
+    mapping: dict[int, int]
+    boolean: bool
+    #: the transformations, for messages: "ssc:IntegerMappingTransformation (line 12)"
+    elements: str
 
 
 #: How the master treats an algebraic loop (`cosim.loops`): solve it by iteration at every

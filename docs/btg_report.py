@@ -30,6 +30,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import cosim  # noqa: E402
+from figure_files import save_figure  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "ssp" / "btg_boiler_following"
@@ -165,7 +166,7 @@ def figure(case: Case, runs: dict[str, np.ndarray]) -> None:
     axes[0].set_title(f"{case.title} — ssp/btg_boiler_following")
     axes[-1].set_xlabel("time [s]")
     fig.tight_layout()
-    fig.savefig(FIGURES / f"btg_{case.name}.png", dpi=80)
+    save_figure(fig, FIGURES / f"btg_{case.name}.png", dpi=80)
     plt.close(fig)
 
 

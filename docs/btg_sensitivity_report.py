@@ -31,6 +31,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import cosim  # noqa: E402
+from figure_files import save_figure  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "ssp" / "btg_boiler_following"
@@ -134,7 +135,7 @@ def heat_map(results: dict[Setting, tuple[dict, dict]]) -> None:
             ax.set_ylabel("a_min")
     fig.colorbar(image, ax=axes, label="claims held (S stable on ramps, D disturbance, N noise)")
     fig.suptitle("Grey PI vs PI, thesis's PI form (no anti-windup): which of the three ch. 4 claims hold")
-    fig.savefig(FIGURE, dpi=80)
+    save_figure(fig, FIGURE, dpi=80)
     plt.close(fig)
 
 

@@ -17,6 +17,7 @@ from greyfmu.control.digital_pi import design_digital_pi, stationary_variances, 
 from greyfmu.control.digital_pi.examples import UNIT_DISC, Example, ch47, wood_berry
 from greyfmu.control.digital_pi.gain_study import Route, compare_gains
 from greyfmu.ssv import matrix_parameters, write_parameter_set
+from figure_files import save_figure
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "figures"
@@ -270,7 +271,7 @@ def figures(results: dict) -> None:
                 ax.legend(fontsize=7, ncol=2)
             fig.suptitle(f"{name}: {test} test")
             fig.tight_layout()
-            fig.savefig(FIGURES / f"{name}_{test}.png", dpi=110)
+            save_figure(fig, FIGURES / f"{name}_{test}.png", dpi=110)
             plt.close(fig)
 
 

@@ -18,6 +18,7 @@ import numpy as np  # noqa: E402
 
 import cosim  # noqa: E402
 from cosim.metrics import step_metrics  # noqa: E402
+from figure_files import save_figure  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SSP = ROOT / "ssp"
@@ -86,7 +87,7 @@ def comparison(folder: str, title: str) -> list[str]:
         ax.set(xlabel="time [s]", ylabel="y", title=f"{title.split(' —')[0]} CASE {case}")
         ax.legend()
         fig.tight_layout()
-        fig.savefig(FIGURES / f"gs_{folder[3:]}_case{case}.png", dpi=100)
+        save_figure(fig, FIGURES / f"gs_{folder[3:]}_case{case}.png", dpi=100)
         plt.close(fig)
     return lines + [""]
 
@@ -108,7 +109,7 @@ def mode_study(folder: str, title: str, variants: dict[str, tuple[str, ...]], st
         ax.legend()
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(FIGURES / f"gs_{folder[3:]}.png", dpi=80)
+    save_figure(fig, FIGURES / f"gs_{folder[3:]}.png", dpi=80)
     plt.close(fig)
     return lines + [""]
 

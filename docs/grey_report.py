@@ -24,6 +24,7 @@ os.chdir(ROOT)
 import cosim  # noqa: E402
 from cosim.metrics import step_metrics  # noqa: E402
 from greyfmu.grey import GM11  # noqa: E402
+from figure_files import save_figure  # noqa: E402
 
 FIGURES = ROOT / "docs" / "figures"
 E0 = [590.227, 615.369, 591.63, 651.777, 677.115, 699.87, 704.298, 695.565, 749.685, 816.966, 788.533, 799.5]
@@ -31,7 +32,7 @@ E0 = [590.227, 615.369, 591.63, 651.777, 677.115, 699.87, 704.298, 695.565, 749.
 
 def save(figure: plt.Figure, name: str) -> None:
     figure.tight_layout()
-    figure.savefig(FIGURES / f"grey_{name}.png", dpi=110)
+    save_figure(figure, FIGURES / f"grey_{name}.png", dpi=110)
     plt.close(figure)
     print(f"wrote docs/figures/grey_{name}.png")
 

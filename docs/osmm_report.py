@@ -32,6 +32,7 @@ from greyfmu.control import boiler_groups  # noqa: E402
 from greyfmu.plants import HeaderParameters, least_fuel_firing, steady_firing  # noqa: E402
 from cosim.ssp import ParameterValue  # noqa: E402
 from cosim.sweep import write_ssv  # noqa: E402
+from figure_files import save_figure  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FIGURES = ROOT / "docs" / "figures"
@@ -357,7 +358,7 @@ def main() -> None:
         ax.set_ylabel(f"h{j}")
         ax.legend(fontsize=7)
     axes[-1].set_xlabel("step k")
-    fig.savefig(FIGURES / "osmm_mfrls.png", dpi=110)
+    save_figure(fig, FIGURES / "osmm_mfrls.png", dpi=110)
     plt.close(fig)
 
     runs = {name: cosim.simulate(str(HEADER_SCENARIO), stop_time=4500, step_size=1.0,
@@ -409,7 +410,7 @@ def main() -> None:
         ax.legend(fontsize=7)
     axes[-1].set_xlim(1900, 4500)
     axes[-1].set_xlabel("time [s]")
-    fig.savefig(FIGURES / "osmm_header.png", dpi=110)
+    save_figure(fig, FIGURES / "osmm_header.png", dpi=110)
     plt.close(fig)
     print("\n".join(lines))
 

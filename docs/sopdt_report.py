@@ -32,6 +32,7 @@ from cosim.metrics import step_metrics  # noqa: E402
 from greyfmu.control import HorizonWarning, SOPDTPredictive, dominant_time_constant, free_response  # noqa: E402
 from greyfmu.control.scheduling import ITAE  # noqa: E402
 from greyfmu.plants import ThirdOrderPlant  # noqa: E402
+from figure_files import save_figure  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 NOMINAL, NMP, PID_LOOP = (ROOT / "ssp" / name for name in ("sopdt_nominal", "sopdt_nmp", "sopdt_pid_itae"))
@@ -375,7 +376,7 @@ def plot_study(name: str, title: str, cases: list[tuple[str, np.ndarray]]) -> No
         axis.grid(True, alpha=0.3)
         axis.axvline(LOAD_TIME, color="grey", lw=0.5)
     figure.tight_layout()
-    figure.savefig(FIGURES / f"sopdt_{name}.png", dpi=110)
+    save_figure(figure, FIGURES / f"sopdt_{name}.png", dpi=110)
     plt.close(figure)
 
 
@@ -391,7 +392,7 @@ def plot_stability(curves: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
     axis.legend(fontsize=8)
     axis.set_title("Stability of the sampled loop against X_k (ρ < 1: stable)")
     figure.tight_layout()
-    figure.savefig(FIGURES / "sopdt_stability.png", dpi=110)
+    save_figure(figure, FIGURES / "sopdt_stability.png", dpi=110)
     plt.close(figure)
 
 

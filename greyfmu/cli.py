@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from greyfmu.build import DEFAULT_OUT_DIR, BuildError, UnknownFmuError, build_fmus
+from greyfmu.loader import cross_compiler_notices
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -29,6 +30,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"greyfmu build: {error}", file=sys.stderr)
         return 1
     print(f"{len(paths)} FMU(s) in {args.out}")
+    for notice in cross_compiler_notices():
+        print(notice, file=sys.stderr)
     return 0
 
 

@@ -81,7 +81,8 @@ def run_host(host: Path, csv: Path, fmus: list[UnzippedFmu], commands: list[str]
     arguments = [str(host), str(csv), repr(start), repr(stop), repr(step)]
     for fmu in fmus:
         arguments += fmu.arguments()
-    return subprocess.run(arguments + commands, capture_output=True, text=True, timeout=timeout,
+    # surrogateescape: a path in the host's messages need not be UTF-8 (test_dropin_host.py)
+    return subprocess.run(arguments + commands, capture_output=True, text=True, errors="surrogateescape", timeout=timeout,
                           env=environment() if env is None else env, cwd=csv.parent)
 
 

@@ -46,7 +46,7 @@ def debian_venv() -> Path:
     if made.returncode != 0:
         raise Unavailable(f"{DEBIAN_PYTHON} -m venv failed (Debian: apt-get install python3-venv):\n{made.stderr}")
     pip = [str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check"]
-    subprocess.run(pip + ["-e", f"{ROOT}[parquet]"], check=True)   # the first hour's sweep needs pyarrow
+    subprocess.run(pip + ["-e", f"{ROOT}[parquet]"], check=True)   # with pyarrow, as tests/run.sh installs it
     for extra in EXTRAS:
         subprocess.run(pip + list(extra), check=True)
     stamp.write_text(expected)

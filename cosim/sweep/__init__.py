@@ -7,9 +7,10 @@ it runs the Cartesian product of those lists (times the seeds, when given) and w
   ``cosim run`` writes them, and ``<id>.ssv``: the run's parameter values as an SSP 1.0
   parameter set, so ``cosim run SCENARIO --param-set OUTPUT/runs/<id>.ssv`` repeats it
   (not with ``run_files=False``, ``--no-run-files``: the table only);
-- ``OUTPUT/sweep.csv`` and ``OUTPUT/sweep.parquet``: one row per run (id, swept values, seed,
-  status, message, wall time, the requested step metrics), rewritten as runs finish (in
-  batches, `.batch`), so a sweep stopped halfway keeps every finished row;
+- ``OUTPUT/sweep.csv`` and, with pyarrow installed (the ``parquet`` extra), ``OUTPUT/sweep.parquet``:
+  one row per run (id, swept values, seed, status, message, wall time, the requested step
+  metrics), rewritten as runs finish (in batches, `.batch`), so a sweep stopped halfway keeps
+  every finished row;
 - ``OUTPUT/sweep.png`` (when metrics are asked for): each metric against each swept parameter,
   seeds and the other parameters as spread (`.figure`).
 
@@ -78,7 +79,7 @@ class SweepResult:
     ran: int
     skipped: int
     csv: Path
-    parquet: Path
+    parquet: Path | None          # None without pyarrow (the ``parquet`` extra)
     columns: list[str] = field(default_factory=list)
     figure: Path | None = None
 
@@ -138,7 +139,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
         else:   # the runs' parameter sets only for the workers to read, removed after the sweep
             output.mkdir(parents=True, exist_ok=True)
             sets_dir = Path(locks.enter_context(tempfile.TemporaryDirectory(prefix="cosim-sweep-sets-")))
-        before = {} if force or not run_files else finished_before(output, runs_dir)
+        before = {} if force or not run_files else finished_before(output, runs_dir, schema)
 
         rows: dict[int, dict[str, Any]] = {}          # finished rows by combination index
         fixed: dict[str, tuple[int, dict[str, Any]]] = {}   # run id -> index, swept values and seed
@@ -191,5 +192,6 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
         figure = summary_figure(ordered, list(sets) or (["seed"] if seeds else []),
                                 [c for m in metric_list for c in m.columns()], output / "sweep.png", scenario.name,
                                 {name: unit for name, (unit, _) in units.items()})
-        return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv, parquet=parquet, columns=schema.names,
+        return SweepResult(ordered, ran=len(tasks), skipped=skipped, csv=csv,
+                           parquet=parquet if parquet.is_file() else None, columns=schema.names,
                            figure=figure)

@@ -17,9 +17,12 @@
  *      limit) which prints its version, shared libpython, home and sys.path, and checks the
  *      FMU's requirements (resources/greyfmu_requirements.txt).  The first usable candidate's
  *      libpython is loaded with RTLD_GLOBAL (Windows: pythonXY.dll, then python3.dll next to it),
- *      initialised without signal handlers (Py_InitializeEx(0); on Linux with PYTHONHOME set for
- *      the call only, Windows finds the home from the DLL), given the candidate's sys.path
- *      (venv site-packages included) and sys.executable; the GIL is then released.
+ *      initialised without signal handlers (Py_InitializeEx(0); on Linux with the candidate's home
+ *      given by Py_SetPythonHome, never by setenv, which races the getenv of a multithreaded host;
+ *      Windows finds the home from the DLL), given the candidate's sys.path (venv site-packages
+ *      included) and sys.executable; the GIL is then released.  Paths pass between C and Python
+ *      as the file system's bytes (PyUnicode_DecodeFSDefault, os.fsencode), never as UTF-8: a
+ *      folder name that is not UTF-8 works or is refused, it does not crash the host.
  *   3. The same greyfmu_target.py runs inside the process (Python version >= 3.10 and the
  *      requirements; once per process, see CHECK_ONCE), then pythonfmu-export.so is loaded and
  *      every fmi2 function forwards to it.
@@ -79,7 +82,9 @@ typedef struct {
     void *(*EvalGetBuiltins)(void);
     void *(*RunStringFlags)(const char *, int, void *, void *, void *);
     void *(*UnicodeFromString)(const char *);
-    const char *(*UnicodeAsUTF8)(void *);
+    void *(*UnicodeDecodeFSDefault)(const char *);
+    void *(*UnicodeEncodeFSDefault)(void *);
+    char *(*BytesAsString)(void *);
     void (*DecRef)(void *);
     void (*IncRef)(void *);
     void (*ErrPrint)(void);
@@ -137,14 +142,12 @@ static void (*real_finalizePythonInterpreter)(void);
 
 /* The FMU's root folder: this library is <root>/binaries/<platform>/<id>.<suffix>. */
 static int fmu_root(char *root, size_t size) {
-    char path[PATH_MAX];
-    if (!library_path(path, sizeof path)) return 0;
+    if (!library_path(root, size)) return 0;
     for (int level = 0; level < 3; level++) {
-        char *separator = strrchr(path, SEPARATOR);
+        char *separator = strrchr(root, SEPARATOR);
         if (separator == NULL) return 0;
         *separator = '\0';
     }
-    snprintf(root, size, "%s", path);
     return 1;
 }
 
@@ -209,13 +212,22 @@ typedef struct {
 
 /* Query a candidate interpreter; 0 with problem set if it is unusable. */
 static int query_candidate(const char *python, const char *root, Interpreter *found, char *problem, size_t size) {
-    char script[PATH_MAX + 64];
-    snprintf(script, sizeof script, "%s%cresources%cgreyfmu_target.py", root, SEPARATOR, SEPARATOR);
+    struct {
+        char script[PATH_MAX + 64], answer[4096];
+    } *scratch = malloc(sizeof *scratch); /* on the heap, as every large buffer of fmi2Instantiate */
+    if (scratch == NULL) {
+        append(problem, size, "out of memory querying %s", python);
+        return 0;
+    }
+    char *script = scratch->script, *answer = scratch->answer;
+    snprintf(script, sizeof scratch->script, "%s%cresources%cgreyfmu_target.py", root, SEPARATOR, SEPARATOR);
     char *output = NULL;
-    if (!run_query(python, script, &output, problem, size)) return 0;
-    char answer[4096];
+    if (!run_query(python, script, &output, problem, size)) {
+        free(scratch);
+        return 0;
+    }
     int ok = 0;
-    if (!query_value(output, "problem", answer, sizeof answer)) {
+    if (!query_value(output, "problem", answer, sizeof scratch->answer)) {
         append(problem, size, "%s did not run the check %s: %.600s", python, script, output);
     } else if (answer[0] != '\0') {
         append(problem, size, "%s", answer);
@@ -229,12 +241,15 @@ static int query_candidate(const char *python, const char *root, Interpreter *fo
             if ((found->path = malloc(length + 1)) != NULL) {
                 memcpy(found->path, line + 13, length);
                 found->path[length] = '\0';
+            } else {
+                append(problem, size, "out of memory reading the answer of %s", python);
             }
         }
         ok = found->path != NULL;
     }
     if (!ok && !*problem) append(problem, size, "%s gave an incomplete answer to %s: %.600s", python, script, output);
     free(output);
+    free(scratch);
     return ok;
 }
 
@@ -255,7 +270,9 @@ static int resolve(void *library, PythonApi *api, char *problem, size_t size) {
     RESOLVE(EvalGetBuiltins, "PyEval_GetBuiltins")
     RESOLVE(RunStringFlags, "PyRun_StringFlags")
     RESOLVE(UnicodeFromString, "PyUnicode_FromString")
-    RESOLVE(UnicodeAsUTF8, "PyUnicode_AsUTF8")
+    RESOLVE(UnicodeDecodeFSDefault, "PyUnicode_DecodeFSDefault")
+    RESOLVE(UnicodeEncodeFSDefault, "PyUnicode_EncodeFSDefault")
+    RESOLVE(BytesAsString, "PyBytes_AsString")
     RESOLVE(DecRef, "Py_DecRef")
     RESOLVE(IncRef, "Py_IncRef")
     RESOLVE(ErrPrint, "PyErr_Print")
@@ -263,43 +280,78 @@ static int resolve(void *library, PythonApi *api, char *problem, size_t size) {
     return 1;
 }
 
-/* Run code in a fresh namespace under the GIL; the string variable `result_name` it leaves, copied. */
+/* The str variable `name` of `globals` ("" if absent) as the file system's bytes, into result; 0
+ * with a Python exception set if it is not a str. */
+static int copy_result(PythonApi *api, void *globals, const char *name, char *result, size_t size) {
+    void *value = api->DictGetItemString(globals, name); /* borrowed */
+    if (value == NULL) return 1;
+    void *bytes = api->UnicodeEncodeFSDefault(value);
+    const char *text = bytes != NULL ? api->BytesAsString(bytes) : NULL;
+    if (text != NULL) snprintf(result, size, "%s", text);
+    api->DecRef(bytes); /* Py_DecRef is Py_XDECREF */
+    return text != NULL;
+}
+
+/* Run code in a fresh namespace under the GIL, `file` as its __file__ (the file system's bytes);
+ * the str variable `result_name` it leaves, copied.  0 (the exception printed on stderr, result
+ * saying so) if any step fails, Python's own calls included. */
 static int run_in_process(PythonApi *api, const char *code, const char *file, const char *result_name, char *result,
                           size_t size, void (*inspect)(PythonApi *, void *)) {
     int gil = api->GILStateEnsure();
-    void *globals = api->DictNew();
-    api->DictSetItemString(globals, "__builtins__", api->EvalGetBuiltins());
-    void *name = api->UnicodeFromString("greyfmu_target");
-    api->DictSetItemString(globals, "__name__", name);
-    api->DecRef(name);
-    void *file_name = api->UnicodeFromString(file);
-    api->DictSetItemString(globals, "__file__", file_name);
-    api->DecRef(file_name);
-    void *done = api->RunStringFlags(code, PY_FILE_INPUT, globals, globals, NULL);
-    int ok = done != NULL;
-    if (ok) {
-        api->DecRef(done);
-        void *value = result_name ? api->DictGetItemString(globals, result_name) : NULL;
-        const char *text = value ? api->UnicodeAsUTF8(value) : "";
-        snprintf(result, size, "%s", text ? text : "");
-        if (inspect != NULL) inspect(api, globals);
-    } else {
+    snprintf(result, size, "%s", "");
+    void *globals = api->DictNew(), *builtins = api->EvalGetBuiltins(); /* builtins: borrowed */
+    void *name = api->UnicodeFromString("greyfmu_target"), *file_name = api->UnicodeDecodeFSDefault(file);
+    int ok = globals != NULL && builtins != NULL && name != NULL && file_name != NULL &&
+             api->DictSetItemString(globals, "__builtins__", builtins) == 0 &&
+             api->DictSetItemString(globals, "__name__", name) == 0 &&
+             api->DictSetItemString(globals, "__file__", file_name) == 0;
+    void *done = ok ? api->RunStringFlags(code, PY_FILE_INPUT, globals, globals, NULL) : NULL;
+    ok = done != NULL && (result_name == NULL || copy_result(api, globals, result_name, result, size));
+    if (ok && inspect != NULL) inspect(api, globals);
+    if (!ok) {
         api->ErrPrint();
         snprintf(result, size, "running %s inside the host process raised a Python exception (printed on stderr)", file);
     }
+    api->DecRef(done);
+    api->DecRef(file_name);
+    api->DecRef(name);
     api->DecRef(globals);
     api->GILStateRelease(gil);
     return ok;
 }
 
-/* A Python literal of a path (the check script's sys.executable assignment). */
-static void python_literal(const char *text, char *literal, size_t size) {
-    snprintf(literal, size, "'");
-    for (const char *c = text; *c; c++) {
-        if (*c == '\\' || *c == '\'') append(literal, size, "\\");
-        append(literal, size, "%c", *c);
+/* A Python bytes literal of a path, every byte outside printable ASCII escaped (the path need not
+ * be UTF-8); `literal` holds 4 * strlen(text) + 4 bytes. */
+static void bytes_literal(const char *text, char *literal, size_t size) {
+    size_t used = (size_t)snprintf(literal, size, "b'");
+    for (const unsigned char *c = (const unsigned char *)text; *c && used + 5 < size; c++) {
+        if (*c < 0x20 || *c >= 0x7f || *c == '\\' || *c == '\'')
+            used += (size_t)snprintf(literal + used, size - used, "\\x%02x", *c);
+        else
+            literal[used++] = (char)*c;
     }
-    append(literal, size, "'");
+    snprintf(literal + used, size - used, "'");
+}
+
+/* Give the candidate's home to the Python about to start (Linux; platform.h, GIVES_PYTHON_HOME):
+ * Py_SetPythonHome, in the stable ABI of every Python 3 (deprecated since 3.11, kept in the ABI),
+ * needs a string that lives as long as the process: never freed, as Python is never finalised. */
+static int give_python_home(void *library, const char *home, char *problem, size_t size) {
+    typedef void *(*DecodeLocale)(const char *, size_t *); /* wchar_t *Py_DecodeLocale(const char *, size_t *) */
+    typedef void (*SetPythonHome)(const void *);          /* void Py_SetPythonHome(const wchar_t *) */
+    DecodeLocale decode = (DecodeLocale)library_symbol(library, "Py_DecodeLocale");
+    SetPythonHome set_home = (SetPythonHome)library_symbol(library, "Py_SetPythonHome");
+    if (decode == NULL || set_home == NULL) {
+        append(problem, size, "the loaded libpython has no %s", decode == NULL ? "Py_DecodeLocale" : "Py_SetPythonHome");
+        return 0;
+    }
+    void *wide = decode(home, NULL);
+    if (wide == NULL) {
+        append(problem, size, "cannot decode the Python home %s", home);
+        return 0;
+    }
+    set_home(wide);
+    return 1;
 }
 
 /* Start the candidate's Python in this process. */
@@ -312,16 +364,18 @@ static int start_python(const Interpreter *python, PythonApi *api, char *problem
     if (*python->stable_abi && library_open(python->stable_abi, 1, problem, size) == NULL) return 0;
     if (!resolve(library, api, problem, size)) return 0;
     if (!api->IsInitialized()) {
-        char *saved = set_python_home(python->home);
+        if (GIVES_PYTHON_HOME && !give_python_home(library, python->home, problem, size)) return 0;
         api->InitializeEx(0);
-        restore_python_home(saved);
-        char executable[2 * PATH_MAX];
-        python_literal(python->executable, executable, sizeof executable);
-        size_t length = strlen(python->path) + strlen(executable) + 128;
-        char *code = malloc(length);
-        snprintf(code, length, "import sys\nsys.path[:] = %s\nsys.executable = %s\n", python->path, executable);
-        char ignored[16];
-        int ok = run_in_process(api, code, "<greyfmu loader>", NULL, ignored, sizeof ignored, NULL);
+        size_t literal = 4 * strlen(python->executable) + 4, length = strlen(python->path) + literal + 128;
+        char *executable = malloc(literal), *code = malloc(length), ignored[16];
+        int ok = executable != NULL && code != NULL;
+        if (ok) {
+            bytes_literal(python->executable, executable, literal);
+            snprintf(code, length, "import os, sys\nsys.path[:] = %s\nsys.executable = os.fsdecode(%s)\n",
+                     python->path, executable);
+            ok = run_in_process(api, code, "<greyfmu loader>", NULL, ignored, sizeof ignored, NULL);
+        }
+        free(executable);
         free(code);
         api->EvalSaveThread(); /* Python stays initialised; pythonfmu takes the GIL per call */
         if (!ok) {
@@ -333,6 +387,40 @@ static int start_python(const Interpreter *python, PythonApi *api, char *problem
 }
 
 
+/* The buffers of ensure_python, on the heap (a host may call fmi2Instantiate on a small stack). */
+typedef struct {
+    char candidates[3][PATH_MAX];
+    const char *origin[3];
+    char file[PATH_MAX + 64];
+    char tried[8192];
+    char why[4096];
+    Interpreter found;
+} Search;
+
+/* The candidates, in the loader's order (see the top comment); their number. */
+static int find_candidates(const char *root, Search *search) {
+    int count = 0;
+    const char *chosen = getenv("GREYFMU_PYTHON");
+    if (chosen != NULL && *chosen) {
+        snprintf(search->candidates[count], PATH_MAX, "%s", chosen);
+        search->origin[count++] = "GREYFMU_PYTHON";
+        return count;
+    }
+    snprintf(search->file, sizeof search->file, "%s%cresources%cgreyfmu_build_python.txt", root, SEPARATOR,
+             SEPARATOR);
+    char *built_by = read_file(search->file);
+    if (built_by != NULL) {
+        built_by[strcspn(built_by, "\r\n")] = '\0';
+        if (is_executable(built_by)) {
+            snprintf(search->candidates[count], PATH_MAX, "%s", built_by);
+            search->origin[count++] = "the interpreter that built the FMU";
+        }
+        free(built_by);
+    }
+    if (python_on_path(search->candidates[count], PATH_MAX)) search->origin[count++] = PYTHON_ON_PATH " on PATH";
+    return count;
+}
+
 /* Find, load and initialise a Python in this process, unless it already runs one.  Never a second
  * libpython: one already loaded but not initialised is initialised, if it is the candidate's. */
 static int ensure_python(const char *root, PythonApi *api, char *problem, size_t size) {
@@ -341,55 +429,40 @@ static int ensure_python(const char *root, PythonApi *api, char *problem, size_t
         if (!resolve(host_python, api, problem, size)) return 0;
         if (api->IsInitialized()) return 1;
     }
-
-    char candidates[3][PATH_MAX];
-    const char *origin[3];
-    int count = 0;
-    const char *chosen = getenv("GREYFMU_PYTHON");
-    if (chosen != NULL && *chosen) {
-        snprintf(candidates[count], PATH_MAX, "%s", chosen);
-        origin[count++] = "GREYFMU_PYTHON";
-    } else {
-        char file[PATH_MAX + 64];
-        snprintf(file, sizeof file, "%s%cresources%cgreyfmu_build_python.txt", root, SEPARATOR, SEPARATOR);
-        char *built_by = read_file(file);
-        if (built_by != NULL) {
-            built_by[strcspn(built_by, "\r\n")] = '\0';
-            if (is_executable(built_by)) {
-                snprintf(candidates[count], PATH_MAX, "%s", built_by);
-                origin[count++] = "the interpreter that built the FMU";
-            }
-            free(built_by);
-        }
-        if (python_on_path(candidates[count], PATH_MAX)) origin[count++] = PYTHON_ON_PATH " on PATH";
-    }
-    if (count == 0) {
-        append(problem, size, "no Python found: GREYFMU_PYTHON is not set, the interpreter that built the FMU is not on "
-                              "this machine and there is no " PYTHON_ON_PATH " on PATH");
+    Search *search = calloc(1, sizeof *search);
+    if (search == NULL) {
+        append(problem, size, "out of memory looking for a Python");
         return 0;
     }
-    char tried[8192] = "";
-    for (int i = 0; i < count; i++) {
-        if (!is_executable(candidates[i])) {
-            append(tried, sizeof tried, "%s%s (%s) is not an executable file", *tried ? "; " : "", candidates[i],
-                   origin[i]);
+    int count = find_candidates(root, search), ok = 0, chosen = 0;
+    if (count == 0)
+        append(problem, size, "no Python found: GREYFMU_PYTHON is not set, the interpreter that built the FMU is not on "
+                              "this machine and there is no " PYTHON_ON_PATH " on PATH");
+    for (int i = 0; i < count && !chosen; i++) {
+        const char *candidate = search->candidates[i];
+        if (!is_executable(candidate)) {
+            append(search->tried, sizeof search->tried, "%s%s (%s) is not an executable file",
+                   *search->tried ? "; " : "", candidate, search->origin[i]);
             continue;
         }
-        Interpreter found = {.path = NULL};
-        char why[4096] = "";
-        if (query_candidate(candidates[i], root, &found, why, sizeof why)) {
-            int ok = host_python == NULL || is_loaded_python(host_python, found.libpython);
-            if (!ok)
-                append(problem, size, "this process already has a libpython, not initialised, that is not %s's (%s): "
-                       "set GREYFMU_PYTHON to the Python of the host's libpython", found.executable, found.libpython);
-            ok = ok && start_python(&found, api, problem, size);
-            free(found.path);
-            return ok;
+        Interpreter *found = &search->found;
+        search->why[0] = '\0';
+        if (!query_candidate(candidate, root, found, search->why, sizeof search->why)) {
+            append(search->tried, sizeof search->tried, "%s%s (%s): %s", *search->tried ? "; " : "", candidate,
+                   search->origin[i], search->why);
+            continue;
         }
-        append(tried, sizeof tried, "%s%s (%s): %s", *tried ? "; " : "", candidates[i], origin[i], why);
+        chosen = 1;
+        ok = host_python == NULL || is_loaded_python(host_python, found->libpython);
+        if (!ok)
+            append(problem, size, "this process already has a libpython, not initialised, that is not %s's (%s): "
+                   "set GREYFMU_PYTHON to the Python of the host's libpython", found->executable, found->libpython);
+        ok = ok && start_python(found, api, problem, size);
+        free(found->path);
     }
-    append(problem, size, "no usable Python: %s", tried);
-    return 0;
+    if (count > 0 && !chosen) append(problem, size, "no usable Python: %s", search->tried);
+    free(search);
+    return ok;
 }
 
 static void release_pythonfmu_state(void) {
@@ -444,25 +517,31 @@ static const char CHECK_ONCE[] =
 
 static int ensure_loaded(char *problem, size_t size) {
     if (pythonfmu_library != NULL) return 1;
-    char root[PATH_MAX];
-    if (!fmu_root(root, sizeof root)) {
-        append(problem, size, "cannot locate the FMU's folder from its binary");
+    struct {
+        char root[PATH_MAX], script[PATH_MAX + 64], answer[4096];
+    } *scratch = malloc(sizeof *scratch);
+    if (scratch == NULL) {
+        append(problem, size, "out of memory loading the FMU's Python");
         return 0;
     }
+    char *root = scratch->root, *answer = scratch->answer;
     PythonApi api;
-    if (!ensure_python(root, &api, problem, size)) return 0;
-    char script[PATH_MAX + 64];
-    snprintf(script, sizeof script, "%s%cresources%cgreyfmu_target.py", root, SEPARATOR, SEPARATOR);
-    char answer[4096];
-    run_in_process(&api, CHECK_ONCE, script, "problem", answer, sizeof answer, NULL);
-    if (answer[0] != '\0') {
-        append(problem, size, "%s", answer);
-        return 0;
+    int ok = fmu_root(root, sizeof scratch->root);
+    if (!ok) append(problem, size, "cannot locate the FMU's folder from its binary");
+    ok = ok && ensure_python(root, &api, problem, size);
+    if (ok) {
+        snprintf(scratch->script, sizeof scratch->script, "%s%cresources%cgreyfmu_target.py", root, SEPARATOR,
+                 SEPARATOR);
+        run_in_process(&api, CHECK_ONCE, scratch->script, "problem", answer, sizeof scratch->answer, NULL);
+        if (answer[0] != '\0') append(problem, size, "%s", answer);
+        ok = answer[0] == '\0' && load_pythonfmu(root, problem, size);
     }
-    if (!load_pythonfmu(root, problem, size)) return 0;
-    python_api = api;
-    snprintf(resources, sizeof resources, "%s%cresources", root, SEPARATOR);
-    return 1;
+    if (ok) {
+        python_api = api;
+        snprintf(resources, sizeof resources, "%s%cresources", root, SEPARATOR);
+    }
+    free(scratch);
+    return ok;
 }
 
 /* Gives back the reference pythonfmu 0.7.0's fmi2Instantiate takes from the process at each call
@@ -490,9 +569,14 @@ static void give_back_namespace(PythonApi *api, void *globals) {
 }
 
 static void balance_pythonfmu(void) {
-    char script[PATH_MAX + 64], ignored[256];
-    snprintf(script, sizeof script, "%s%cgreyfmu_balance", resources, SEPARATOR);
+    char *script = malloc(sizeof resources + 32), ignored[16];
+    if (script == NULL) {
+        fprintf(stderr, "greyfmu: out of memory giving back pythonfmu's reference after fmi2Instantiate\n");
+        return;
+    }
+    snprintf(script, sizeof resources + 32, "%s%cgreyfmu_balance", resources, SEPARATOR);
     run_in_process(&python_api, BALANCE_PYTHONFMU, script, NULL, ignored, sizeof ignored, give_back_namespace);
+    free(script);
 }
 
 /* ---- the exported FMI 2.0 functions, behind the guard (guard.h) ---- */
@@ -505,12 +589,17 @@ EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
 /* An instantiation refused before there is an instance: one line through the host's logger. */
 static fmi2Component refuse_instance(const fmi2CallbackFunctions *functions, fmi2String name, const char *format, ...) {
-    char text[16384];
-    va_list args;
-    va_start(args, format);
-    vsnprintf(text, sizeof text, format, args);
-    va_end(args);
-    functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError", "%s", text);
+    enum { TEXT = 16384 };
+    char *text = malloc(TEXT);
+    if (text != NULL) {
+        va_list args;
+        va_start(args, format);
+        vsnprintf(text, TEXT, format, args);
+        va_end(args);
+    }
+    functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError", "%s",
+                      text != NULL ? text : "fmi2Instantiate: refused, and out of memory to say why");
+    free(text);
     return NULL;
 }
 
@@ -524,23 +613,37 @@ static GuardedInstance *new_instance(fmi2String name, fmi2Type type, fmi2String 
     if (type != fmi2CoSimulation)
         return refuse_instance(functions, name, "fmi2Instantiate: fmuType = %d: this FMU is Co-Simulation only "
                                "(fmi2CoSimulation = 1), it has no Model Exchange interface", (int)type);
-    char root[PATH_MAX], problem[4096] = "";
-    if (!fmu_root(root, sizeof root))
-        return refuse_instance(functions, name, "fmi2Instantiate: cannot locate the FMU's folder from its binary");
-    char own[PATH_MAX + 16];
-    snprintf(own, sizeof own, "%s%cresources", root, SEPARATOR);
+    struct {
+        char root[PATH_MAX], own[PATH_MAX + 16], problem[4096];
+    } *scratch = calloc(1, sizeof *scratch);
     GuardedInstance *in = calloc(1, sizeof *in);
-    if (in == NULL) return refuse_instance(functions, name, "fmi2Instantiate: out of memory");
-    int fallback = 0, ok = resource_folder(location, root, folder, size, &fallback, problem, sizeof problem);
+    if (scratch == NULL || in == NULL) {
+        free(scratch);
+        free(in);
+        return refuse_instance(functions, name, "fmi2Instantiate: out of memory");
+    }
+    char *root = scratch->root, *own = scratch->own, *problem = scratch->problem;
+    if (!fmu_root(root, sizeof scratch->root)) {
+        free(scratch);
+        free(in);
+        return refuse_instance(functions, name, "fmi2Instantiate: cannot locate the FMU's folder from its binary");
+    }
+    snprintf(own, sizeof scratch->own, "%s%cresources", root, SEPARATOR);
+    int fallback = 0, ok = resource_folder(location, root, folder, size, &fallback, problem, sizeof scratch->problem);
     if (!ok) {
         refuse_instance(functions, name, "fmi2Instantiate: fmuResourceLocation '%s' %s", location, problem);
-    } else if (!read_model(own, &in->model, problem, sizeof problem) &&
-               !read_model(folder, &in->model, problem, sizeof problem)) { /* fmpy may extract only resources/ */
+    } else if (!read_model(own, &in->model, problem, sizeof scratch->problem) &&
+               !read_model(folder, &in->model, problem, sizeof scratch->problem)) { /* fmpy may extract only resources/ */
         refuse_instance(functions, name, "fmi2Instantiate: %s", problem);
         ok = 0;
     } else if (guid == NULL || strcmp(guid, in->model.guid) != 0) {
         refuse_instance(functions, name, "fmi2Instantiate: fmuGUID %s%s%s is not this FMU's GUID %s",
                         guid ? "'" : "", guid ? guid : "NULL", guid ? "'" : "", in->model.guid);
+        ok = 0;
+    }
+    free(scratch);
+    if (ok && (in->name = strdup(name)) == NULL) {
+        refuse_instance(functions, name, "fmi2Instantiate: out of memory");
         ok = 0;
     }
     if (!ok) {
@@ -551,7 +654,6 @@ static GuardedInstance *new_instance(fmi2String name, fmi2Type type, fmi2String 
     if (fallback)
         functions->logger(functions->componentEnvironment, name, fmi2Warning, "logStatusWarning", "%s",
                           "fmi2Instantiate: fmuResourceLocation is NULL or empty: using the FMU's own resources folder");
-    in->name = strdup(name);
     in->host = *functions;
     in->forwarded = *functions;
     in->forwarded.logger = guard_logger;
@@ -576,23 +678,34 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
                 functions == NULL ? "functions (the callbacks)" : "functions->logger");
         return NULL;
     }
-    char folder[PATH_MAX + 16];
+    /* Every buffer on the heap: a host may call from a thread with a small stack (pythonfmu and
+     * Python then have it nearly all; tests/slaves/test_loader_stack.py). */
+    struct {
+        char folder[PATH_MAX + 16], problem[16384];
+    } *scratch = calloc(1, sizeof *scratch);
+    if (scratch == NULL)
+        return refuse_instance(functions, instanceName ? instanceName : "", "fmi2Instantiate: out of memory");
+    char *folder = scratch->folder, *problem = scratch->problem;
     GuardedInstance *in =
-        new_instance(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, folder, sizeof folder);
-    if (in == NULL) return NULL;
-    char problem[16384] = "";
+        new_instance(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, folder, sizeof scratch->folder);
+    if (in == NULL) {
+        free(scratch);
+        return NULL;
+    }
     lock(&load_lock);
-    int loaded = ensure_loaded(problem, sizeof problem);
+    int loaded = ensure_loaded(problem, sizeof scratch->problem);
     unlock(&load_lock);
     if (!loaded) {
         refuse_instance(functions, instanceName, "greyfmu: %s", problem);
         free_guarded(in);
+        free(scratch);
         return NULL;
     }
     typedef fmi2Component (*Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
                                          fmi2Boolean, fmi2Boolean);
     in->real = ((Instantiate)real_fmi2Instantiate)(instanceName, fmuType, fmuGUID, folder, &in->forwarded, visible,
                                                    loggingOn);
+    free(scratch);
     balance_pythonfmu();
     if (in->real == NULL) {
         free_guarded(in);

@@ -78,6 +78,12 @@ def check(query):
     return ""
 
 
+def loader_bytes(text):
+    """``text`` as the loader's C strings hold it: POSIX, the file system's bytes (os.fsencode: a
+    path need not be UTF-8); Windows, the ANSI code page of its ...A functions."""
+    return os.fsencode(text) if os.name != "nt" else text.encode("mbcs", "replace")
+
+
 problem = check(query=__name__ == "__main__")
 
 if __name__ == "__main__":
@@ -85,5 +91,5 @@ if __name__ == "__main__":
                        ("libpython", shared_libpython() or ""), ("stable_abi", stable_abi_library()),
                        ("home", sys.base_prefix if sys.base_prefix == sys.base_exec_prefix
                         else sys.base_prefix + os.pathsep + sys.base_exec_prefix),
-                       ("path", repr([entry for entry in sys.path if os.path.abspath(entry) != HERE]))]:
-        print("greyfmu-{}={}".format(key, value.replace("\n", " ")))
+                       ("path", ascii([entry for entry in sys.path if os.path.abspath(entry) != HERE]))]:
+        sys.stdout.buffer.write(b"greyfmu-" + key.encode("ascii") + b"=" + loader_bytes(value.replace("\n", " ")) + b"\n")

@@ -175,7 +175,8 @@ static int read_model(const char *folder, GuardModel *model, char *problem, size
         line = following;
     }
     if (model->variables == NULL || model->guid == NULL) {
-        append(problem, size, "%s has no GUID line (the FMU is damaged)", path);
+        append(problem, size, model->variables == NULL ? "out of memory reading %s" : "%s has no GUID line (the FMU is "
+               "damaged)", path);
         free_model(model);
         return 0;
     }
@@ -380,6 +381,27 @@ static int decode_path(const char *encoded, char *folder, size_t size, char *pro
 
 static int has_drive(const char *path) { return isalpha((unsigned char)path[0]) && path[1] == ':'; }
 
+/* Whether text is well-formed UTF-8 (RFC 3629: no overlong forms, surrogates or code points past
+ * U+10FFFF).  pythonfmu 0.7.0 decodes the resources folder it is given as UTF-8 and crashes the
+ * host on one that is not (PySlaveInstance::handle_py_exception), so such a folder is refused. */
+static int is_utf8(const char *text) {
+    const unsigned char *c = (const unsigned char *)text;
+    while (*c) {
+        int follow = *c < 0x80 ? 0 : (*c >= 0xC2 && *c <= 0xDF) ? 1 : (*c >= 0xE0 && *c <= 0xEF) ? 2
+                   : (*c >= 0xF0 && *c <= 0xF4) ? 3 : -1;
+        if (follow < 0) return 0;
+        unsigned int low = 0x80, high = 0xBF; /* the second byte's range */
+        if (*c == 0xE0) low = 0xA0;
+        if (*c == 0xED) high = 0x9F;
+        if (*c == 0xF0) low = 0x90;
+        if (*c == 0xF4) high = 0x8F;
+        for (int i = 1; i <= follow; i++)
+            if (c[i] < (i == 1 ? low : 0x80) || c[i] > (i == 1 ? high : 0xBF)) return 0;
+        c += 1 + follow;
+    }
+    return 1;
+}
+
 /* The resources folder a fmuResourceLocation names, as the plain path pythonfmu uses:
  * file:/path, file:///path, file://localhost/path (percent-encoded), or a plain path; NULL or
  * empty: the FMU's own resources folder (*fallback set).  0 with problem set otherwise. */
@@ -417,6 +439,11 @@ static int resource_folder(const char *location, const char *root, char *folder,
     while (length > 1 && (folder[length - 1] == '/' || folder[length - 1] == '\\')) folder[--length] = '\0';
     if (!is_directory(folder)) {
         append(problem, psize, "is the folder %s, which does not exist", folder);
+        return 0;
+    }
+    if (!is_utf8(folder)) {
+        append(problem, psize, "is the folder %s, whose path is not UTF-8 text, which pythonfmu 0.7.0 needs: move the "
+               "FMU's files to a folder whose path is UTF-8", folder);
         return 0;
     }
     char module[PATH_MAX + 64];

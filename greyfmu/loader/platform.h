@@ -12,8 +12,10 @@
 #include <string.h>
 #include <time.h>
 
+#ifndef QUERY_SECONDS /* tests build a loader with a shorter limit */
 #define QUERY_SECONDS 60
-#define OUTPUT_LIMIT (1 << 20)
+#endif
+#define OUTPUT_LIMIT (1 << 20) /* what is kept of a candidate's output; the rest is read and dropped */
 
 static void append(char *buffer, size_t size, const char *format, ...) {
     size_t used = strlen(buffer);
@@ -26,6 +28,10 @@ static void append(char *buffer, size_t size, const char *format, ...) {
 
 /* The end of run_query: the child's output in *output, or the time-out as the problem. */
 static int query_answer(char *text, int timed_out, const char *python, char **output, char *problem, size_t size) {
+    if (text == NULL) {
+        append(problem, size, "out of memory reading the answer of %s", python);
+        return 0;
+    }
     if (timed_out) {
         append(problem, size, "%s did not answer within %d s", python, QUERY_SECONDS);
         free(text);
@@ -104,12 +110,8 @@ static int is_executable(const char *path) {
     return attributes != INVALID_FILE_ATTRIBUTES && !(attributes & FILE_ATTRIBUTE_DIRECTORY);
 }
 
-/* PYTHONHOME is not set on Windows: Python finds its home from pythonXY.dll's folder. */
-static char *set_python_home(const char *home) {
-    (void)home;
-    return NULL;
-}
-static void restore_python_home(char *saved) { (void)saved; }
+/* The home is not given on Windows: Python finds it from pythonXY.dll's folder. */
+#define GIVES_PYTHON_HOME 0
 
 static int run_query(const char *python, const char *script, char **output, char *problem, size_t size) {
     SECURITY_ATTRIBUTES inherit = {sizeof inherit, NULL, TRUE};
@@ -137,37 +139,43 @@ static int run_query(const char *python, const char *script, char **output, char
         CloseHandle(read_end);
         return 0;
     }
+    /* Read to the end of the output (the child closing its end), keeping OUTPUT_LIMIT bytes and
+     * dropping the rest, so a child writing more than the pipe holds never blocks; then wait. */
     size_t capacity = 8192, length = 0;
-    char *text = malloc(capacity);
-    DWORD deadline = GetTickCount() + QUERY_SECONDS * 1000;
-    int timed_out = 0, exited = 0;
+    char *text = malloc(capacity), scrap[4096];
+    ULONGLONG deadline = GetTickCount64() + QUERY_SECONDS * 1000ULL;
+    int timed_out = 0;
     for (;;) {
-        DWORD available = 0;
-        if (!PeekNamedPipe(read_end, NULL, 0, NULL, &available, NULL)) break; /* the child closed its end */
-        if (available > 0) {
-            if (length + available + 1 > capacity && capacity < OUTPUT_LIMIT) {
-                while (length + available + 1 > capacity && capacity < OUTPUT_LIMIT) capacity *= 2;
-                text = realloc(text, capacity);
-            }
-            DWORD got = 0;
-            DWORD want = (DWORD)(capacity - length - 1) < available ? (DWORD)(capacity - length - 1) : available;
-            if (want == 0 || !ReadFile(read_end, text + length, want, &got, NULL)) break;
-            length += got;
-            continue;
-        }
-        if (exited) break;
-        if ((int)(deadline - GetTickCount()) <= 0) {
+        if (GetTickCount64() >= deadline) { /* also for a child that writes without end */
             timed_out = 1;
             break;
         }
-        exited = WaitForSingleObject(child.hProcess, 20) == WAIT_OBJECT_0;
+        DWORD available = 0;
+        if (!PeekNamedPipe(read_end, NULL, 0, NULL, &available, NULL)) break; /* the child closed its end */
+        if (available == 0) {
+            WaitForSingleObject(child.hProcess, 20);
+            continue;
+        }
+        if (text != NULL && length + available + 1 > capacity && capacity < OUTPUT_LIMIT) {
+            while (length + available + 1 > capacity && capacity < OUTPUT_LIMIT) capacity *= 2;
+            char *grown = realloc(text, capacity);
+            if (grown == NULL) free(text);
+            text = grown;
+        }
+        size_t room = text != NULL ? capacity - length - 1 : 0;
+        char *into = room > 0 ? text + length : scrap;
+        DWORD want = (DWORD)(room > 0 ? room : sizeof scrap);
+        if (want > available) want = available;
+        DWORD got = 0;
+        if (!ReadFile(read_end, into, want, &got, NULL)) break;
+        if (into != scrap) length += got;
     }
+    CloseHandle(read_end); /* before waiting: a child still writing gets a broken pipe, not a full one */
     if (timed_out) TerminateProcess(child.hProcess, 1);
     WaitForSingleObject(child.hProcess, INFINITE);
     CloseHandle(child.hProcess);
     CloseHandle(child.hThread);
-    CloseHandle(read_end);
-    text[length] = '\0';
+    if (text != NULL) text[length] = '\0';
     return query_answer(text, timed_out, python, output, problem, size);
 }
 
@@ -175,6 +183,7 @@ static int run_query(const char *python, const char *script, char **output, char
 /* ------------------------------------------------------------------ Linux */
 #include <dlfcn.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <link.h>
 #include <poll.h>
@@ -249,11 +258,14 @@ static int is_loaded_python(void *python, const char *path) {
 
 static int library_path(char *path, size_t size) {
     Dl_info info;
-    char resolved[PATH_MAX];
-    if (!dladdr((void *)&library_path, &info) || info.dli_fname == NULL || realpath(info.dli_fname, resolved) == NULL)
+    char *resolved = NULL; /* realpath's own allocation: no PATH_MAX buffer on the host's stack */
+    if (!dladdr((void *)&library_path, &info) || info.dli_fname == NULL ||
+        (resolved = realpath(info.dli_fname, NULL)) == NULL)
         return 0;
-    snprintf(path, size, "%s", resolved);
-    return 1;
+    int fits = strlen(resolved) < size;
+    if (fits) memcpy(path, resolved, strlen(resolved) + 1);
+    free(resolved);
+    return fits;
 }
 
 static int is_directory(const char *path) {
@@ -266,32 +278,25 @@ static int is_executable(const char *path) {
     return stat(path, &status) == 0 && S_ISREG(status.st_mode) && access(path, X_OK) == 0;
 }
 
-/* PYTHONHOME for Py_InitializeEx only: returns the previous value (malloc'ed) to restore. */
-static char *set_python_home(const char *home) {
-    const char *previous = getenv("PYTHONHOME");
-    char *saved = previous ? strdup(previous) : NULL;
-    setenv("PYTHONHOME", home, 1);
-    return saved;
-}
+/* The candidate's home (base prefix) is given to Python before it starts (Py_SetPythonHome, not
+ * PYTHONHOME: setenv races every getenv of a multithreaded host). */
+#define GIVES_PYTHON_HOME 1
 
-static void restore_python_home(char *saved) {
-    if (saved) {
-        setenv("PYTHONHOME", saved, 1);
-        free(saved);
-    } else {
-        unsetenv("PYTHONHOME");
-    }
+/* Seconds on CLOCK_MONOTONIC (a wall-clock change moves no deadline). */
+static double monotonic_seconds(void) {
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)now.tv_sec + (double)now.tv_nsec * 1e-9;
 }
 
 static int run_query(const char *python, const char *script, char **output, char *problem, size_t size) {
     int pipe_ends[2];
-    if (pipe(pipe_ends) != 0) {
+    if (pipe2(pipe_ends, O_CLOEXEC) != 0) { /* no other child the host starts inherits them */
         append(problem, size, "cannot create a pipe to run %s (%s)", python, strerror(errno));
         return 0;
     }
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addclose(&actions, pipe_ends[0]);
     posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDOUT_FILENO);
     posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDERR_FILENO);
     posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", 0, 0);
@@ -305,26 +310,36 @@ static int run_query(const char *python, const char *script, char **output, char
         append(problem, size, "cannot run %s (%s)", python, strerror(spawned));
         return 0;
     }
+    /* Read to the end of the output, keeping OUTPUT_LIMIT bytes; a signal interrupting poll or
+     * read (EINTR) is retried against the same monotonic deadline. */
     size_t capacity = 8192, length = 0;
-    char *text = malloc(capacity);
-    time_t deadline = time(NULL) + QUERY_SECONDS;
+    char *text = malloc(capacity), scrap[4096];
+    double deadline = monotonic_seconds() + QUERY_SECONDS;
     int timed_out = 0;
     for (;;) {
-        struct pollfd ready = {pipe_ends[0], POLLIN, 0};
-        int left = (int)(deadline - time(NULL));
-        if (left <= 0 || poll(&ready, 1, left * 1000) == 0) {
+        double left = deadline - monotonic_seconds();
+        if (left <= 0) {
             timed_out = 1;
             break;
         }
-        if (length + 4096 > capacity && capacity < OUTPUT_LIMIT) text = realloc(text, capacity *= 2);
-        ssize_t got = read(pipe_ends[0], text + length, capacity - length - 1);
+        struct pollfd ready = {pipe_ends[0], POLLIN, 0};
+        int polled = poll(&ready, 1, (int)(left * 1000) + 1);
+        if (polled < 0 && errno == EINTR) continue;
+        if (polled < 0) break;
+        if (polled == 0) continue; /* the deadline, checked above */
+        if (text != NULL && length + 4096 > capacity && capacity < OUTPUT_LIMIT) {
+            char *grown = realloc(text, capacity *= 2);
+            if (grown == NULL) free(text);
+            text = grown;
+        }
+        size_t room = text != NULL ? capacity - length - 1 : 0;
+        ssize_t got = room > 0 ? read(pipe_ends[0], text + length, room) : read(pipe_ends[0], scrap, sizeof scrap);
         if (got < 0 && errno == EINTR) continue;
         if (got <= 0) break;
-        length += (size_t)got;
-        if (length + 1 >= capacity) break;
+        if (room > 0) length += (size_t)got;
     }
     close(pipe_ends[0]);
-    text[length] = '\0';
+    if (text != NULL) text[length] = '\0';
     if (timed_out) kill(child, SIGKILL);
     int status = 0;
     while (waitpid(child, &status, 0) < 0 && errno == EINTR) {

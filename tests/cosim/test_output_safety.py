@@ -257,7 +257,7 @@ def test_a_sweep_holds_its_tables_and_its_folder_is_its_own(scenario, tmp_path, 
     assert not list(out.glob("*.lock")) and not list(out.rglob("*.part"))
     for target in (out / "sweep.csv", out / "other.csv", out / "runs" / "x.csv"):
         err = _refused(capsys, "run", str(scenario), "--stop", STOP, "-q", "-o", str(target))
-        assert f"{target} is in the folder of a sweep ({out}, which holds sweep.parquet)" in err
+        assert f"{target} is in the folder of a sweep ({out}, which holds sweep.csv)" in err
     assert (out / "sweep.csv").read_bytes() == table and not (out / "other.csv").exists()
 
 

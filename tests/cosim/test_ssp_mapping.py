@@ -15,6 +15,7 @@ import cosim
 from cosim import ssp
 from cosim.cli import main
 from cosim.errors import SetupError
+from tablefmus import VARIABLES as TABLE_VARIABLES, build_tables_fmu
 
 SSD_NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
           'xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" '
@@ -197,42 +198,116 @@ def test_mapped_value_with_a_unit_for_a_system_connector(tmp_path, fmus):
     assert "mapped by ssm:MappingEntry 'delay' -> 'r'" in str(err.value)
 
 
-def test_integer_mapping_transformation_reaches_the_fmu(tmp_path, fmus):
-    """An ssv:Integer through an ssc:IntegerMappingTransformation (table, unmapped values kept) to the
-    Gain's Real k (an Integer value is accepted for a Real variable)."""
+def test_integer_mapping_transformation_to_a_real_variable(tmp_path, fmus):
+    """An ssv:Integer through an ssc:IntegerMappingTransformation to the Gain's Real k (an Integer
+    value is accepted for a Real variable)."""
     table = ('<ssc:IntegerMappingTransformation><ssc:MapEntry source="1" target="5"/>'
              '<ssc:MapEntry source="2" target="6"/></ssc:IntegerMappingTransformation>')
     folder = _system(tmp_path, fmus, ssd(gain_bindings=binding("gain.ssv", '<ssd:ParameterMapping source="g.ssm"/>')),
                      gain__ssv=ssv({"mode": 2}, kind="Integer"),
                      g__ssm=ssm(f'<ssm:MappingEntry source="mode" target="k">{table}</ssm:MappingEntry>'))
     assert _gain_output(folder) == pytest.approx(3 * 6)
-    (folder / "gain.ssv").write_text(ssv({"mode": 4}, kind="Integer"))  # not in the table: kept
-    assert _gain_output(folder) == pytest.approx(3 * 4)
 
 
-def test_boolean_and_enumeration_mapping_tables(tmp_path):
-    """Boolean and Enumeration tables as read (none of our FMUs has such a variable): mapped values
-    replaced, others kept."""
+def tables_ssd(bindings: str) -> str:
+    """One ``Tables`` FMU (tests/tablefmus.py) ``m``, its connectors declared, with ``bindings``."""
+    connectors = "".join(f'<ssd:Connector name="{name}" kind="{causality}"><ssc:{kind}'
+                         + (' name="Level"/>' if kind == "Enumeration" else "/>") + "</ssd:Connector>"
+                         for name, _, kind, causality in TABLE_VARIABLES if causality != "input")
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<ssd:SystemStructureDescription {SSD_NS} version="1.0" '
+            'name="tables"><ssd:System name="root"><ssd:Elements>'
+            f'<ssd:Component name="m" source="resources/Tables.fmu"><ssd:Connectors>{connectors}</ssd:Connectors>'
+            f'{bindings}</ssd:Component></ssd:Elements></ssd:System>'
+            '<ssd:Enumerations><ssc:Enumeration name="Level"><ssc:Item name="low" value="1"/>'
+            '<ssc:Item name="mid" value="2"/><ssc:Item name="high" value="3"/></ssc:Enumeration></ssd:Enumerations>'
+            f'<ssd:DefaultExperiment startTime="0" stopTime="0.3">{STEP}</ssd:DefaultExperiment>'
+            '</ssd:SystemStructureDescription>\n')
+
+
+#: a parameter set in another tool's names and values (Mode 1/2, Enabled, Speed slow/fast) and the
+#: .ssm that maps it onto Tables' count, on and level, as SSP 1.0 writes mapping tables
+OTHER_TOOL_SSV = (f'<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet {SSV_NS} version="1.0" name="other">'
+                  '<ssv:Parameters>'
+                  '<ssv:Parameter name="Mode"><ssv:Integer value="{mode}"/></ssv:Parameter>'
+                  '<ssv:Parameter name="Enabled"><ssv:Boolean value="{enabled}"/></ssv:Parameter>'
+                  '<ssv:Parameter name="Speed"><ssv:Enumeration value="{speed}"/></ssv:Parameter>'
+                  '</ssv:Parameters></ssv:ParameterSet>\n')
+TABLES_SSM = ssm(
+    '<ssm:MappingEntry source="Mode" target="count"><ssc:IntegerMappingTransformation>'
+    '<ssc:MapEntry source="1" target="10"/><ssc:MapEntry source="2" target="20"/>'
+    '</ssc:IntegerMappingTransformation></ssm:MappingEntry>'
+    '<ssm:MappingEntry source="Enabled" target="on"><ssc:BooleanMappingTransformation>'
+    '<ssc:MapEntry source="true" target="false"/><ssc:MapEntry source="false" target="true"/>'
+    '</ssc:BooleanMappingTransformation></ssm:MappingEntry>'
+    '<ssm:MappingEntry source="Speed" target="level"><ssc:EnumerationMappingTransformation>'
+    '<ssc:MapEntry source="slow" target="low"/><ssc:MapEntry source="fast" target="high"/>'
+    '</ssc:EnumerationMappingTransformation></ssm:MappingEntry>')
+
+
+@pytest.fixture(scope="module")
+def tables_fmu(tmp_path_factory):
+    return build_tables_fmu(tmp_path_factory.mktemp("tables"))
+
+
+def _tables_system(tmp_path, fmu, **values) -> object:
+    folder = tmp_path / "tables"
+    (folder / "resources").mkdir(parents=True, exist_ok=True)
+    shutil.copy(fmu, folder / "resources" / "Tables.fmu")
+    (folder / "SystemStructure.ssd").write_text(tables_ssd(binding("other.ssv",
+                                                 '<ssd:ParameterMapping source="tables.ssm"/>')))
+    (folder / "other.ssv").write_text(OTHER_TOOL_SSV.format(**values))
+    (folder / "tables.ssm").write_text(TABLES_SSM)
+    return folder
+
+
+@pytest.mark.parametrize("mode, enabled, speed, count, on, level", [
+    (2, "true", "fast", 20, 0, 3),
+    (1, "false", "slow", 10, 1, 1),
+])
+def test_integer_boolean_enumeration_tables_reach_the_fmu(tmp_path, tables_fmu, mode, enabled, speed, count, on,
+                                                          level):
+    """SSP 1.0 ssc:IntegerMappingTransformation, ssc:BooleanMappingTransformation and
+    ssc:EnumerationMappingTransformation (by item name) in a .ssm: the FMU reports the mapped
+    values of its Integer, Boolean and Enumeration parameters."""
+    res = cosim.simulate(_tables_system(tmp_path, tables_fmu, mode=mode, enabled=enabled, speed=speed))
+    assert list(res["m.count_out"]) == [count] * 4
+    assert list(res["m.on_out"]) == [on] * 4
+    assert list(res["m.level_out"]) == [level] * 4
+    assert list(res["m.n"]) == [count + k for k in range(4)]
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"mode": 3, "enabled": "true", "speed": "fast"},
+     "ssm:MappingEntry 'Mode' -> 'count' (line 2), variable 'Mode': the value 3 of 'Mode'"),
+    ({"mode": 1, "enabled": "true", "speed": "medium"},
+     "ssm:MappingEntry 'Speed' -> 'level' (line 2), variable 'Speed': the value 'medium' of 'Speed'"),
+])
+def test_a_value_no_map_entry_names_is_refused(tmp_path, tables_fmu, capsys, values, message):
+    folder = _tables_system(tmp_path, tables_fmu, **values)
+    assert main(["run", str(folder), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "tables.ssm" in err and message in err and "is not a source of the ssc:" in err
+    assert "Traceback" not in err
+
+
+def test_boolean_and_enumeration_tables_as_read(tmp_path):
+    """Boolean and Enumeration tables as read: the mapped values replace the values of the set."""
     (tmp_path / "b.ssv").write_text(
         f'<ssv:ParameterSet {SSV_NS} version="1.0" name="b"><ssv:Parameters>'
         '<ssv:Parameter name="on"><ssv:Boolean value="true"/></ssv:Parameter>'
         '<ssv:Parameter name="mode"><ssv:Enumeration value="fast"/></ssv:Parameter>'
-        '<ssv:Parameter name="other"><ssv:Enumeration value="slow"/></ssv:Parameter>'
         '</ssv:Parameters></ssv:ParameterSet>')
     (tmp_path / "b.ssm").write_text(ssm(
         '<ssm:MappingEntry source="on" target="c.enabled"><ssc:BooleanMappingTransformation>'
         '<ssc:MapEntry source="true" target="false"/></ssc:BooleanMappingTransformation></ssm:MappingEntry>'
         '<ssm:MappingEntry source="mode" target="c.mode"><ssc:EnumerationMappingTransformation>'
-        '<ssc:MapEntry source="fast" target="Quick"/></ssc:EnumerationMappingTransformation></ssm:MappingEntry>'
-        '<ssm:MappingEntry source="other" target="c.other"><ssc:EnumerationMappingTransformation>'
         '<ssc:MapEntry source="fast" target="Quick"/></ssc:EnumerationMappingTransformation></ssm:MappingEntry>'))
     text = (f'<ssd:SystemStructureDescription {SSD_NS} version="1.0" name="x"><ssd:System name="root">'
             + binding("b.ssv", '<ssd:ParameterMapping source="b.ssm"/>')
             + '</ssd:System></ssd:SystemStructureDescription>')
     (tmp_path / "SystemStructure.ssd").write_text(text)
     raw = ssp.read(tmp_path)
-    assert [(p.name, p.value) for p in raw.root.parameters] == [
-        ("c.enabled", False), ("c.mode", "Quick"), ("c.other", "slow")]
+    assert [(p.name, p.value) for p in raw.root.parameters] == [("c.enabled", False), ("c.mode", "Quick")]
 
 
 @pytest.mark.parametrize("entry, message", [
@@ -432,3 +507,30 @@ def test_a_component_based_binding_on_a_system_is_refused(tmp_path, fmus, capsys
                                          'sourceBase="component" source="x.ssv"/></ssd:ParameterBindings>'))
     assert main(["validate", str(folder)]) == 2
     assert "sourceBase='component' needs a source and a component" in capsys.readouterr().err
+
+
+INLINE_K = ('<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="i"><ssv:Parameters>'
+            '<ssv:Parameter name="k"><ssv:Real value="2"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>'
+            '</ssd:ParameterValues></ssd:ParameterBinding>')
+INSIDE_K = ('<ssd:ParameterBinding sourceBase="component" source="resources/gain.ssv"><ssd:ParameterMapping>'
+            f'<ssm:ParameterMapping {SSM_NS} version="1.0"><ssm:MappingEntry source="gain" target="k"/>'
+            '</ssm:ParameterMapping></ssd:ParameterMapping></ssd:ParameterBinding>')
+
+
+@pytest.mark.parametrize("bindings, k", [(INLINE_K + INSIDE_K, 4.5), (INSIDE_K + INLINE_K, 2.0)])
+def test_a_component_based_binding_of_an_fmu_found_through_fmu_dir(tmp_path, fmus, capsys, bindings, k):
+    """The FMU is not beside the SSD but in a --fmu-dir folder: the .ssv is read from the FMU
+    found there (once located), mapped, in its place among the component's bindings (later wins)."""
+    text = ssd(gain_bindings=f"<ssd:ParameterBindings>{bindings}</ssd:ParameterBindings>")
+    folder = _system(tmp_path, {"Step.fmu": fmus["Step.fmu"]}, text.replace("resources/Gain.fmu",
+                                                                            "resources/GainInside.fmu"))
+    elsewhere = tmp_path / "fmus"
+    elsewhere.mkdir()
+    shutil.copy(fmus["Gain.fmu"], elsewhere / "GainInside.fmu")
+    with zipfile.ZipFile(elsewhere / "GainInside.fmu", "a") as z:
+        z.writestr("resources/gain.ssv", ssv({"gain": 4.5}))
+    assert float(cosim.simulate(folder, fmu_dirs=[elsewhere])["g.y"][-1]) == pytest.approx(3 * k)
+    out = tmp_path / "out.csv"
+    assert main(["run", str(folder), "-q", "--fmu-dir", str(elsewhere), "-o", str(out)]) == 0, capsys.readouterr().err
+    with pytest.raises(SetupError, match="the FMU file 'resources/GainInside.fmu' was not found"):
+        cosim.simulate(folder)

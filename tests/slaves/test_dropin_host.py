@@ -7,7 +7,9 @@ fmu-manipulation-toolbox container (a C++ host) under fmpy.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -148,6 +150,35 @@ def test_then_python3_on_path(host, built_fmus, tmp_path):
                          env=environment(GREYFMU_PYTHON=None, PATH=str(bin_dir)))
     assert completed.returncode == 1
     assert f"{bin_dir / 'python3'} (python3 on PATH): " in completed.stderr and "cannot import numpy" in completed.stderr
+
+
+NOT_UTF8 = os.fsdecode(b"caf\xe9")  # Latin-1 "cafe" with an acute accent: not UTF-8
+
+
+def test_a_candidate_python_whose_path_is_not_utf8_runs(host, built_fmus, tmp_path):
+    """Issue 29: the interpreter, its home and sys.path pass from the query to Python inside the
+    host as the file system's bytes (before, as UTF-8 text)."""
+    import numpy
+    import scipy
+
+    packages = {str(Path(module.__file__).parents[1]) for module in (numpy, scipy)}
+    made = make_venv(tmp_path / "venv", *sorted(packages)).parents[1]  # venv cannot write its scripts there
+    (tmp_path / NOT_UTF8).mkdir()
+    python = made.rename(tmp_path / NOT_UTF8 / "venv") / "bin" / "python"
+    completed = instantiate_pid(host, built_fmus, tmp_path / "run", GREYFMU_PYTHON=str(python))
+    assert completed.returncode == 0, completed.stderr
+    assert "python-after-instantiate: yes" in completed.stdout
+
+
+def test_an_fmu_in_a_folder_whose_path_is_not_utf8_is_refused_not_a_crash(host, built_fmus, tmp_path):
+    """Issue 29: pythonfmu 0.7.0 crashed the host (SIGSEGV) on a resources folder that is not
+    UTF-8; the guard refuses it with one line, before Python starts."""
+    fmu = unzip(built_fmus["PID"], tmp_path / "PID")  # (fmpy cannot read it there)
+    fmu = dataclasses.replace(fmu, folder=fmu.folder.rename(tmp_path / NOT_UTF8))
+    completed = run_host(host, tmp_path / "out.csv", [fmu], [], 0.0, 1.0, 0.1)
+    assert completed.returncode == 1, completed.stderr
+    assert completed.stderr.count("whose path is not UTF-8 text, which pythonfmu 0.7.0 needs") == 1
+    assert "fmi2Instantiate of instance 0 returned NULL" in completed.stderr
 
 
 def test_target_check_refuses_a_python_older_than_3_10(tmp_path):

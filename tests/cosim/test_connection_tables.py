@@ -1,0 +1,188 @@
+"""SSP 1.0 mapping transformations on connections (SystemStructureCommon.xsd GTransformationChoice:
+ssc:BooleanMappingTransformation, ssc:IntegerMappingTransformation,
+ssc:EnumerationMappingTransformation as children of ssd:Connection), written as the standard
+writes them, between two ``Tables`` C FMUs (tests/tablefmus.py): ``a``'s outputs change at every
+step, ``b`` echoes its inputs, so ``b``'s echoes show the mapped values."""
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+import cosim
+from cosim.cli import main
+from cosim.errors import RunError, SetupError
+from cosim.simulation import prepare, run
+from tablefmus import LEVELS, VARIABLES, build_tables_fmu
+
+NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
+      'xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"')
+STEP = ('<ssd:Annotations><ssc:Annotation type="org.greyfmu.simulation"><greyfmu:Simulation '
+        'xmlns:greyfmu="urn:greyfmu:ssp:simulation:1.0" stepSize="0.1"/></ssc:Annotation></ssd:Annotations>')
+
+INTEGER = ('<ssc:IntegerMappingTransformation>'
+           + "".join(f'<ssc:MapEntry source="{n}" target="{10 * n}"/>' for n in range(1, 5))
+           + '</ssc:IntegerMappingTransformation>')
+BOOLEAN = ('<ssc:BooleanMappingTransformation><ssc:MapEntry source="false" target="true"/>'
+           '<ssc:MapEntry source="true" target="false"/></ssc:BooleanMappingTransformation>')
+ENUMERATION = ('<ssc:EnumerationMappingTransformation><ssc:MapEntry source="low" target="high"/>'
+               '<ssc:MapEntry source="mid" target="low"/><ssc:MapEntry source="high" target="mid"/>'
+               '</ssc:EnumerationMappingTransformation>')
+
+
+def _connectors() -> str:
+    """Every input and output connector of Tables, typed (Enumerations naming their type ``Level``)."""
+    return "".join(f'<ssd:Connector name="{name}" kind="{causality}"><ssc:{kind}'
+                   + (' name="Level"/>' if kind == "Enumeration" else "/>") + "</ssd:Connector>"
+                   for name, _, kind, causality in VARIABLES if causality != "parameter")
+
+
+def _end(kind: str, path: str) -> str:
+    """``startElement``/``startConnector`` (``kind`` "start") of ``element.connector``, or of a
+    connector of the enclosing system (no element)."""
+    element, connector = path.rsplit(".", 1) if "." in path else ("", path)
+    return (f' {kind}Element="{element}"' if element else "") + f' {kind}Connector="{connector}"'
+
+
+def _connection(start: str, end: str, transformation: str) -> str:
+    return f"<ssd:Connection{_end('start', start)}{_end('end', end)}>{transformation}</ssd:Connection>"
+
+
+def _component(name: str) -> str:
+    return (f'<ssd:Component name="{name}" source="resources/Tables.fmu"><ssd:Connectors>{_connectors()}'
+            '</ssd:Connectors></ssd:Component>')
+
+
+def _ssd(body: str) -> str:
+    items = "".join(f'<ssc:Item name="{n}" value="{v}"/>' for n, v in LEVELS.items())
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<ssd:SystemStructureDescription {NS} version="1.0" '
+            f'name="tables"><ssd:System name="root">{body}</ssd:System>'
+            f'<ssd:Enumerations><ssc:Enumeration name="Level">{items}</ssc:Enumeration></ssd:Enumerations>'
+            f'<ssd:DefaultExperiment startTime="0" stopTime="0.3">{STEP}</ssd:DefaultExperiment>'
+            '</ssd:SystemStructureDescription>\n')
+
+
+def flat_ssd(integer: str = INTEGER, boolean: str = BOOLEAN, enumeration: str = ENUMERATION) -> str:
+    links = (_connection("a.n", "b.n_in", integer) + _connection("a.flag", "b.flag_in", boolean)
+             + _connection("a.mode", "b.mode_in", enumeration))
+    return _ssd(f"<ssd:Elements>{_component('a')}{_component('b')}</ssd:Elements>"
+                f"<ssd:Connections>{links}</ssd:Connections>")
+
+
+@pytest.fixture(scope="module")
+def tables_fmu(tmp_path_factory):
+    return build_tables_fmu(tmp_path_factory.mktemp("tables"))
+
+
+def _system(tmp_path, fmu, text: str):
+    folder = tmp_path / "sys"
+    (folder / "resources").mkdir(parents=True, exist_ok=True)
+    shutil.copy(fmu, folder / "resources" / "Tables.fmu")
+    (folder / "SystemStructure.ssd").write_text(text)
+    return folder
+
+
+def _run(folder, kernel: str):
+    prepared = prepare(folder)
+    try:
+        return run(prepared, kernel=kernel, journal=False)
+    finally:
+        prepared.close()
+
+
+#: a.n = 1 + k, a.flag = k odd, a.mode = k mod 3 + 1 (low, mid, high, low) at the 4 points
+N, FLAG, MODE = [1, 2, 3, 4], [0, 1, 0, 1], [1, 2, 3, 1]
+
+
+def test_integer_boolean_enumeration_tables_on_connections(tmp_path, tables_fmu):
+    """Each table maps the value on its connection; the Enumeration one by item name (low → high,
+    mid → low, high → mid).  The compiled kernel does not apply tables: under "auto" the Python
+    loop runs and says why, with the same values; "native" refuses, naming the connection."""
+    folder = _system(tmp_path, tables_fmu, flat_ssd())
+    res, meta = _run(folder, "auto")
+    assert list(res["a.n"]) == N and list(res["a.flag"]) == FLAG and list(res["a.mode"]) == MODE
+    assert list(res["b.n_echo"]) == [10 * n for n in N]
+    assert list(res["b.flag_echo"]) == [1 - f for f in FLAG]
+    assert list(res["b.mode_echo"]) == [{1: 3, 2: 1, 3: 2}[m] for m in MODE]
+    assert meta["kernel"] == "python"
+    assert meta["kernel_reason"] == ("connection a.n -> b.n_in maps its values through "
+                                     "ssc:IntegerMappingTransformation (line 2) (mapping tables are applied by "
+                                     "Python, cosim.maptables)")
+    python, _ = _run(folder, "python")
+    for name in res.dtype.names:
+        np.testing.assert_array_equal(python[name], res[name], err_msg=name)
+    with pytest.raises(SetupError, match=r"compiled kernel cannot run this system: connection a.n -> b.n_in maps its "
+                                         r"values through ssc:IntegerMappingTransformation"):
+        _run(folder, "native")
+
+
+def test_tables_compose_through_a_system_connector(tmp_path, tables_fmu):
+    """a.n → sub.nin (n + 1) → b.n_in (10·value): the tables of the two connections composed,
+    in the order of the path."""
+    first = ('<ssc:IntegerMappingTransformation>'
+             + "".join(f'<ssc:MapEntry source="{n}" target="{n + 1}"/>' for n in range(1, 5))
+             + '</ssc:IntegerMappingTransformation>')
+    second = ('<ssc:IntegerMappingTransformation>'
+              + "".join(f'<ssc:MapEntry source="{n}" target="{10 * n}"/>' for n in range(2, 6))
+              + '</ssc:IntegerMappingTransformation>')
+    sub = ('<ssd:System name="sub"><ssd:Connectors><ssd:Connector name="nin" kind="input"><ssc:Integer/>'
+           f'</ssd:Connector></ssd:Connectors><ssd:Elements>{_component("b")}</ssd:Elements>'
+           f'<ssd:Connections>{_connection("nin", "b.n_in", second)}</ssd:Connections></ssd:System>')
+    text = _ssd(f"<ssd:Elements>{_component('a')}{sub}</ssd:Elements>"
+                f"<ssd:Connections>{_connection('a.n', 'sub.nin', first)}</ssd:Connections>")
+    res = cosim.simulate(_system(tmp_path, tables_fmu, text))
+    assert list(res["sub.b.n_echo"]) == [10 * (n + 1) for n in N]
+
+
+def test_a_value_no_map_entry_names_stops_the_run(tmp_path, tables_fmu):
+    """a.n = 3 at t = 0.2 has no MapEntry: the run ends there, naming the transformation and the value."""
+    partial = ('<ssc:IntegerMappingTransformation><ssc:MapEntry source="1" target="10"/>'
+               '<ssc:MapEntry source="2" target="20"/></ssc:IntegerMappingTransformation>')
+    folder = _system(tmp_path, tables_fmu, flat_ssd(integer=partial))
+    with pytest.raises(RunError, match=r"connection a.n -> b.n_in: a.n = 3 at t = 0.2 is not a source value of "
+                                       r"ssc:IntegerMappingTransformation \(line 2\) \(its sources: 1, 2\)") as err:
+        cosim.simulate(folder)
+    assert err.value.time == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(integer=BOOLEAN), "ssc:BooleanMappingTransformation applies to Boolean connections; a.n -> b.n_in is "
+                            "Integer"),
+    (dict(boolean=INTEGER), "ssc:IntegerMappingTransformation applies to Integer and Enumeration connections; "
+                            "a.flag -> b.flag_in is Boolean"),
+    (dict(integer=ENUMERATION), "ssc:EnumerationMappingTransformation maps item names; a.n is Integer"),
+    (dict(enumeration=ENUMERATION.replace('"mid"', '"medium"')),
+     "ssc:MapEntry 'medium' -> 'low': 'medium' is not an item of a.mode's type Level (items: low, mid, high)"),
+])
+def test_table_errors_name_the_connection_and_transformation(tmp_path, tables_fmu, capsys, change, message):
+    folder = _system(tmp_path, tables_fmu, flat_ssd(**change))
+    assert main(["validate", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "SystemStructure.ssd" in err and "MappingTransformation (line 2)" in err, err
+    assert "Traceback" not in err
+
+
+def test_a_table_on_the_way_to_a_root_output_connector_is_refused(tmp_path, tables_fmu, capsys):
+    text = _ssd('<ssd:Connectors><ssd:Connector name="out" kind="output"><ssc:Integer/></ssd:Connector>'
+                f'</ssd:Connectors><ssd:Elements>{_component("a")}</ssd:Elements>'
+                f'<ssd:Connections>{_connection("a.n", "out", INTEGER)}</ssd:Connections>')
+    assert main(["validate", str(_system(tmp_path, tables_fmu, text))]) == 2
+    err = capsys.readouterr().err
+    assert "ssc:IntegerMappingTransformation (line 2) on the connection at line 2" in err
+    assert "not on the path to a root-system output connector" in err
+
+
+def test_a_table_after_a_system_connector_given_a_value_is_refused(tmp_path, tables_fmu, capsys):
+    binding = ('<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>'
+               '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
+               'version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="nin"><ssv:Integer value="2"/>'
+               '</ssv:Parameter></ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding>'
+               '</ssd:ParameterBindings>')
+    text = _ssd('<ssd:Connectors><ssd:Connector name="nin" kind="input"><ssc:Integer/></ssd:Connector>'
+                f'</ssd:Connectors>{binding}<ssd:Elements>{_component("b")}</ssd:Elements>'
+                f'<ssd:Connections>{_connection("nin", "b.n_in", INTEGER)}</ssd:Connections>')
+    assert main(["validate", str(_system(tmp_path, tables_fmu, text))]) == 2
+    err = capsys.readouterr().err
+    assert "ssc:IntegerMappingTransformation (line 2) on the connection at line 2" in err
+    assert "not on a value given to system connector 'nin'" in err and "ssv:Parameter 'nin'" in err, err
