@@ -103,7 +103,7 @@ def test_a_pool_sweep_in_any_order_equals_a_fresh_sweep_and_writes_the_table_onl
     reused_meta = [json.loads((tmp_path / "reused" / "runs" / f"{r['run_id']}.json").read_text()) for r in reused.rows]
     assert sum(bool(m["reused_instances"]) for m in reused_meta) >= len(values["controller.Kc"]) - 2   # 2 workers
     assert not (tmp_path / "table" / "runs").exists()
-    assert sorted(p.name for p in (tmp_path / "table").iterdir()) == ["sweep.csv", "sweep.parquet", "sweep.png"]
+    assert {p.name for p in (tmp_path / "table").iterdir()} - {"sweep.parquet"} == {"sweep.csv", "sweep.png"}
 
 
 def test_a_dask_worker_keeps_the_shipped_scenario_and_its_instances(tmp_path):
