@@ -41,6 +41,7 @@ class BatchedTable:
     def add(self, index: int, row: dict[str, Any]) -> None:
         """A finished run's row: written now, or soon (see the module docstring)."""
         with self._lock:
+            self._raise_failed()
             self.rows[index] = row
             self._pending = True
             if time.perf_counter() - self._last_end >= self._spacing * self._last_duration:
@@ -71,10 +72,13 @@ class BatchedTable:
             except BaseException as e:  # noqa: BLE001 -- not lost on the timer's thread: raised in the sweep's
                 self._error = e
 
-    def _flush(self) -> None:
+    def _raise_failed(self) -> None:
         if self._error is not None:
             error, self._error = self._error, None
             raise error
+
+    def _flush(self) -> None:
+        self._raise_failed()
         if not self._pending:
             return
         began = time.perf_counter()
