@@ -17,7 +17,18 @@ communication step).  This base class
   (~PySlaveInstance), which frees objects still in use and crashes the host at a later garbage
   collection.  Each call pythonfmu3 makes on an instance gives one reference of each back when
   it raises (`_give_back`), and the class-level FMU-state conversions never raise: the FMUs
-  declare no FMU state (canGetAndSetFMUState="false"), so getting or setting one is refused.
+  declare no FMU state (canGetAndSetFMUState="false"), so getting or setting one is refused;
+- keeps a host alive at exit: pythonfmu3 0.3.4's library (binaries/x86_64-linux/<model>.so) holds
+  its interpreter state in a static std::shared_ptr whose destructor (registered with
+  __cxa_atexit when the library is loaded) frees it at exit, after which the library's
+  destructor function onLibraryUnload (.fini_array, run later by _dl_fini) calls
+  finalizePythonInterpreter on the freed block and decrements a word in it: valgrind shows the
+  invalid read and write in finalizePythonInterpreter in every process that loaded the FMU, and
+  glibc aborts ("corrupted double-linked list") when the block was reused.  The same bug as
+  pythonfmu 0.7.0's, which greyfmu/loader/fmi2_loader.c answers the same way: the library's
+  exported finalizePythonInterpreter, which empties the pointer, is registered as an exit
+  handler after the library was loaded (`_finalize_before_exit`), so it runs before the static
+  destructor and both later releases find the pointer empty.
 """
 
 from __future__ import annotations
@@ -25,9 +36,12 @@ from __future__ import annotations
 import ctypes
 import functools
 import math
+import os
 import re
+import sys
 from abc import abstractmethod
 from collections.abc import Callable
+from pathlib import Path
 from contextlib import AbstractContextManager
 from enum import IntEnum
 from typing import Any, ClassVar
@@ -47,6 +61,39 @@ def _give_back(*objects: object) -> None:
     still be freed under it)."""
     for item in objects:
         ctypes.pythonapi.Py_IncRef(ctypes.py_object(item))
+
+_FINALIZED_BEFORE_EXIT: dict[str, ctypes.CDLL] = {}
+"""The pythonfmu3 libraries whose finalizePythonInterpreter is registered to run at exit, by
+path; each handle is kept for the life of the process, so the library is never unloaded under
+its exit handler."""
+
+
+def _finalize_before_exit(resources: str) -> str | None:
+    """Register the finalizePythonInterpreter of the FMU library next to ``resources`` (Linux:
+    ``binaries/x86_64-linux/*.so``) as an exit handler, once per library and process (see the
+    module docstring); the reason it could not be registered, or None."""
+    if not sys.platform.startswith("linux"):
+        return None  # the Windows DLL's statics are released by DLL_PROCESS_DETACH in one order
+    folder = Path(resources).parent / "binaries" / "x86_64-linux"
+    libraries = sorted(folder.glob("*.so"))
+    if len(libraries) != 1:
+        return f"{folder}: expected one FMU library, found {len(libraries)}"
+    path = os.path.realpath(libraries[0])
+    if path in _FINALIZED_BEFORE_EXIT:
+        return None
+    try:
+        library = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
+        finalize = ctypes.cast(library.finalizePythonInterpreter, ctypes.c_void_p).value
+    except (OSError, AttributeError) as error:
+        return f"{path}: finalizePythonInterpreter not found in the loaded library ({error})"
+    register = ctypes.CDLL(None).__cxa_atexit
+    register.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+    register.restype = ctypes.c_int
+    if register(finalize, None, None) != 0:
+        return f"{path}: __cxa_atexit refused finalizePythonInterpreter"
+    _FINALIZED_BEFORE_EXIT[path] = library
+    return None
+
 
 _CALLED_BY_PYTHONFMU3 = re.compile(r"(get|set)_[a-z0-9_]+|setup_experiment|enter_initialization_mode|"
                                    r"exit_initialization_mode|do_step|terminate|_get_fmu_state|_set_fmu_state")
@@ -121,6 +168,9 @@ class GreyfmuSlave3(Fmi3Slave):
         """Parameter name -> the IntEnum of each Enumeration parameter (``greyfmu build`` describes its items)."""
         self.register_variable(Float64("time", causality=Fmi3Causality.independent, variability=Fmi3Variability.continuous,
                                        description="Simulation time"))
+        if self.resources is not None and (why := _finalize_before_exit(self.resources)) is not None:
+            self.log(f"{self.instance_name}: the host may crash at exit (pythonfmu3 0.3.4 releases its state "
+                     f"twice there): {why}", Fmi3Status.warning)
 
     def parameter(self, name: str, start: float | int, description: str, unit: str | None = None) -> None:
         """Declare a fixed parameter (an ``int`` start makes it Int32, an ``IntEnum`` member an

@@ -204,6 +204,31 @@ def test_a_windows_python_without_numpy_is_refused_with_one_message(windows_pyth
     assert "cannot import numpy" in completed.stderr and "fmi2Instantiate of instance 0 returned NULL" in completed.stderr
 
 
+CHATTY_CANDIDATE = r"""
+#include <stdio.h>
+#include <string.h>
+int main(void) { /* a candidate Python whose answer is 3 MiB of noise */
+    static char line[1024];
+    memset(line, 'x', sizeof line - 1);
+    for (int i = 0; i < 3 * 1024; i++) fputs(line, stdout);
+    return 0;
+}
+"""
+
+
+def test_a_candidate_printing_more_than_a_mebibyte_is_refused_not_a_hang(wine, windows_host, built_fmus, tmp_path):
+    """Issue 29: the loader reads the candidate's output to its end (keeping 1 MiB); before, it
+    stopped reading at 1 MiB and waited for a child blocked on the full pipe, for ever."""
+    source, candidate = tmp_path / "chatty.c", tmp_path / "chatty.exe"
+    source.write_text(CHATTY_CANDIDATE)
+    subprocess.run([MINGW, "-O1", "-Wall", "-Werror", "-o", str(candidate), str(source)], check=True)
+    fmu = unzip(built_fmus["PID"], tmp_path / "PID")
+    completed = run_wine(windows_host, tmp_path / "out.csv", [fmu], [], GREYFMU_PYTHON=windows_path(candidate))
+    assert completed.returncode == 1, completed.stdout + completed.stderr[-2000:]
+    assert f"{windows_path(candidate)} did not run the check" in completed.stderr
+    assert "fmi2Instantiate of instance 0 returned NULL" in completed.stderr
+
+
 def test_the_guard_answers_a_hostile_windows_host_as_on_linux(windows_python, built_fmus, tmp_path):
     """tests/hostile_host.c built with mingw-w64 and run under Wine on PID: every case (resource
     URIs with a drive letter, file:/Z:/..., percent-encoded, a plain Z:\\ path included) gives
