@@ -1,17 +1,18 @@
 """Build the test-only FMUs of tests/fmus/ with pythonfmu (real FMUs, not mocks), and the
-FMI 3.0 ones of tests/fmus/fmi3/ with pythonfmu3 (`build_test_fmus3`)."""
+FMI 3.0 ones of tests/fmus/fmi3/ with pythonfmu3 (`build_test_fmus3`); `edited_copy` needs
+neither, so pythonfmu is imported only by the builders (tests/cosim runs without it)."""
 from __future__ import annotations
 
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-from pythonfmu.builder import FmuBuilder
-
 HERE = Path(__file__).parent / "fmus"
 
 
 def build_test_fmus(dest: Path) -> dict[str, Path]:
+    from pythonfmu.builder import FmuBuilder
+
     dest.mkdir(parents=True, exist_ok=True)
     return {script.stem: Path(FmuBuilder.build_FMU(script, dest=dest, needsExecutionTool="false"))
             for script in sorted(HERE.glob("*.py"))}
