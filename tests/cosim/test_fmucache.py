@@ -3,7 +3,6 @@ between concurrent processes, a new entry for new content, a broken entry rebuil
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import zipfile
 from pathlib import Path
@@ -62,34 +61,6 @@ def test_a_cached_fmu_gives_the_results_of_a_fresh_unpack(tmp_path, c_fmus, fres
     for result in (first, again):
         assert result.dtype.names == fresh_result.dtype.names
         assert all(np.array_equal(result[n], fresh_result[n]) for n in result.dtype.names)
-
-
-_RACE = """
-import sys, time
-from pathlib import Path
-from cosim.fmucache import unpacked
-go = Path(sys.argv[3])
-while not go.exists():
-    time.sleep(0.001)
-print(unpacked(Path(sys.argv[1]), Path(sys.argv[2])))
-"""
-
-
-def test_concurrent_processes_populating_the_cache_make_one_complete_entry(tmp_path, built_fmus):
-    fmu, root, go = built_fmus["PID"], tmp_path / "cache", tmp_path / "go"
-    procs = [subprocess.Popen([sys.executable, "-c", _RACE, str(fmu), str(root), str(go)], stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True, cwd=ROOT) for _ in range(4)]
-    go.touch()
-    outs = [p.communicate(timeout=120) for p in procs]
-    assert [p.returncode for p in procs] == [0] * 4, [err for _, err in outs]
-    entry = root / digest(fmu)
-    assert {out.strip() for out, _ in outs} == {str(entry / "fmu")}
-    assert _entries(root) == [entry.name]    # no temporary folder left behind
-    assert (entry / MARKER).is_file()
-    with zipfile.ZipFile(fmu) as archive:
-        for info in archive.infolist():
-            if not info.is_dir():
-                assert (entry / "fmu" / info.filename).read_bytes() == archive.read(info), info.filename
 
 
 def _zip(path: Path, members: dict[str, bytes]) -> Path:

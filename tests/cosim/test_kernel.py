@@ -24,7 +24,6 @@ from cosim.errors import RunError, SetupError
 from cosim.interrupts import stop_on_signals
 from cosim.kernel import _Program, library
 from cosim.simulation import prepare, run
-from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 
 ROOT = Path(__file__).parents[2]
@@ -249,12 +248,6 @@ def test_native_refuses_what_it_cannot_run(tmp_path, blocks):
     assert_same(python[0], auto[0])
 
 
-def test_native_refuses_model_exchange_before_instantiation():
-    with pytest.raises(SetupError, match=r"component '\w+' is Model Exchange"):
-        cosim.simulate(ROOT / "ssp" / "pid_mass_damper_me", stop_time=0.1, kernel="native",
-                       fmu_dirs=[gemseo_fmu_dir()])
-
-
 def test_without_the_library_auto_runs_python_with_one_notice(tmp_path, blocks):
     folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.1)
     script = (f"import warnings, cosim\nfrom cosim.simulation import prepare, run\n"
@@ -313,47 +306,6 @@ def test_a_stale_library_is_refused_by_its_abi(tmp_path, blocks, monkeypatch, ed
     assert library()[0] is not None, library()[1]
 
 
-ALL_SCENARIOS = sorted(p.parent.name for p in (ROOT / "ssp").glob("*/SystemStructure.ssd"))
-#: one scenario of each family in the default suite (a pythonfmu run costs ~1 s of instantiation);
-#: COSIM_KERNEL_SCENARIOS=all runs every one (all passed when the kernel was written)
-FAMILIES = {"btg_boiler_following", "dpi_wood_berry", "grey_sim33", "gs_sim2_1", "osmm_mfrls", "pid_fopdt",
-            "pid_mass_damper", "pid_mass_damper_me", "sopdt_nmp", "units_demo"}
-SCENARIOS = ALL_SCENARIOS if os.environ.get("COSIM_KERNEL_SCENARIOS") == "all" else \
-    [s for s in ALL_SCENARIOS if s in FAMILIES]
-
-
-def test_the_default_scenarios_exist():
-    assert FAMILIES <= set(ALL_SCENARIOS)
-
-
-@pytest.mark.parametrize("scenario, parameter_sets", [(s, ()) for s in SCENARIOS]
-                         + [("pid_fopdt", ("pi_only.ssv",)), ("grey_sim33", ("ph40.ssv",))])
-def test_scenarios_run_the_same_in_both_loops(scenario, parameter_sets):
-    """A scenario of ssp/ (pythonfmu FMUs, and OpenModelica's from gemseo-fmu) for 100 steps,
-    both loops, sample by sample."""
-    folder, fmu_dirs = ROOT / "ssp" / scenario, [gemseo_fmu_dir()]
-    sets = [folder / p for p in parameter_sets]
-    step = prepare(folder, fmu_dirs=fmu_dirs)
-    try:
-        stop = step.grid.start + 100 * step.grid.step
-    finally:
-        step.close()
-    results = {}
-    for kernel in ("python", "auto"):
-        prepared = prepare(folder, stop_time=stop, fmu_dirs=fmu_dirs, parameter_sets=sets)
-        try:
-            results[kernel] = run(prepared, kernel=kernel)
-        finally:
-            prepared.close()
-    assert_same(results["python"][0], results["auto"][0])
-    meta = results["auto"][1]
-    kinds = {c["interface"] for c in meta["components"].values()}
-    if kinds <= {"fmi2-cs", "fmi3-cs"} and (meta["algebraic_loops"] or {}).get("mode") != "iterate":
-        assert meta["kernel"] == "native", meta.get("kernel_reason")
-    else:
-        assert meta["kernel"] == "python" and meta["kernel_reason"]
-
-
 @pytest.mark.parametrize("parameters", [{}, {"b1": {"fail_time": 0.985, "fail_status": 2, "terminate": 1}},
                                         {"b2": {"fail_time": 0.5, "fail_status": 3}}])
 def test_threads_step_in_parallel_bit_identical(tmp_path, blocks, parameters):
@@ -366,21 +318,6 @@ def test_threads_step_in_parallel_bit_identical(tmp_path, blocks, parameters):
         assert python[1][key] == threaded[1][key], key
     assert python[2] == threaded[2]
     assert threaded[1]["threads"] == 2 and threaded[1]["parallel_components"] == ["b0", "b1", "b2", "b3"]
-
-
-def test_threads_keep_pythonfmu_components_serial_and_refuse_gauss_seidel(tmp_path):
-    folder = ROOT / "ssp" / "pid_fopdt"
-    python, threaded = _run(folder, "python", tmp_path), None
-    prepared = prepare(folder, stop_time=1.0)
-    try:
-        threaded = run(prepared, threads=2)
-        with pytest.raises(SetupError, match=r"--threads 2 steps components in parallel within a Jacobi step"):
-            run(prepare(folder, stop_time=1.0, algorithm="gauss-seidel"), threads=2)
-    finally:
-        prepared.close()
-    assert threaded[1]["parallel_components"] == []
-    assert all("pythonfmu FMU" in why for why in threaded[1]["serial_components"].values())
-    assert_same(threaded[0], python[0][:len(threaded[0])])
 
 
 def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, monkeypatch):

@@ -74,18 +74,6 @@ def test_compare_cli_exit_codes(tmp_path, capsys):
     assert "time grids differ" in capsys.readouterr().err
 
 
-def test_metrics_cli_on_a_real_run(tmp_path, capsys):
-    csv = tmp_path / "r.csv"
-    assert main(["run", "ssp/pid_fopdt", "-q", "-o", str(csv), "--stop", "150"]) == 0
-    capsys.readouterr()
-    assert main(["metrics", str(csv), "--signal", "plant.y", "--setpoint", "setpoint.y", "--json"]) == 0
-    import json
-    m, = json.loads(capsys.readouterr().out)       # one event: the set-point step at 10 s
-    assert 30 < m["overshoot"] < 37 and 0 < m["settling_time"] < 140
-    assert main(["metrics", str(csv), "--signal", "plant.yy", "--setpoint", "setpoint.y"]) == 2
-    assert "no signal matches 'plant.yy'" in capsys.readouterr().err
-
-
 def test_compare_function_names_missing_signals():
     t, y, r = first_order(stop=1.0)
     a = np.empty(len(t), dtype=[("time", float), ("plant.y", float)])

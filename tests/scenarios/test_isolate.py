@@ -26,8 +26,8 @@ from cfmus import build_c_fmu
 from cosim.errors import ComponentLost
 from cosim.results import read
 from ssdgen import ssd_text, write_system
-from test_fmi_types import BYTES3, BYTES3_BODY, MODES2, MODES2_BODY, OUTPUTS3, TYPES3, TYPES3_BODY
 from testfmus import build_test_fmus
+from typefmus import BYTES3, BYTES3_BODY, MODES2, MODES2_BODY, OUTPUTS3, TYPES3, TYPES3_BODY
 
 
 

@@ -1,0 +1,37 @@
+"""The tests of tests/cosim/test_archive_confinement.py that need pythonfmu: they run our FMUs (fmus/, greyfmu build) or the scenarios of ssp/."""
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from cosim import ssp
+from cosim.errors import SetupError
+from cosim.resources import locate_fmus
+
+
+SSD = Path("ssp/pid_fopdt/SystemStructure.ssd")
+
+
+def _archive(tmp_path: Path, old: str, new: str, extra: dict[str, str] | None = None) -> Path:
+    text = SSD.read_text()
+    assert old in text
+    path = tmp_path / "x.ssp"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("SystemStructure.ssd", text.replace(old, new, 1))
+        for name, content in (extra or {}).items():
+            z.writestr(name, content)
+    return path
+
+
+@pytest.mark.parametrize("source", ["../../../../etc/passwd", "file:///etc/passwd", "/etc/passwd"])
+def test_fmu_source_outside_the_archive_is_refused(tmp_path, source, built_fmus):
+    ssv = {"controller.ssv": (SSD.parent / "controller.ssv").read_text()}
+    path = _archive(tmp_path, 'source="resources/PID.fmu"', f'source="{source}"', ssv)
+    structure = ssp.load(path)
+    try:
+        with pytest.raises(SetupError) as err:
+            locate_fmus(structure)
+    finally:
+        structure.close()
+    text = str(err.value)
+    assert "points outside the .ssp archive" in text and str(path) in text and "controller" in text
