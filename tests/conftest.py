@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
-# Hypothesis profiles (tests/cosim/test_fuzz.py scales its example counts by max_examples: 500 fuzz
+# Hypothesis profiles (tests/scenarios/test_fuzz.py scales its example counts by max_examples: 500 fuzz
 # examples in all by default, 10 000 in the nightly run).  Select the nightly size with
 # COSIM_FUZZ=nightly or `pytest --hypothesis-profile nightly`; every example must end in 5 s.
 settings.register_profile("default", max_examples=100, deadline=5000)

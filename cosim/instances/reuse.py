@@ -19,7 +19,7 @@ it afresh.
 What a reset cannot cover is state outside the instance: a library's global variables, a
 pythonfmu slave's module or class attributes.  Fresh instances in one process share those
 too (a library is loaded once per process), so a sweep of fresh instances in a worker depends
-on them the same way; the sweep's equality tests (tests/cosim/sweep/test_reuse.py) compare
+on them the same way; the sweep's equality tests (tests/scenarios/sweep/test_reuse.py) compare
 reused instances with `cosim run`s in fresh processes on every scenario family of ssp/.
 """
 from __future__ import annotations

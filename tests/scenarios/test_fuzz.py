@@ -568,7 +568,7 @@ def test_fmus_inside_an_archive_are_checked_too(tmp_path, built_fmus):
     ssp.load(_scenario_archive(tmp_path / "good.ssp", fmus)).close()    # real FMUs pass the checks
 
     # a member that is no zip archive is refused by the component that uses it, naming both
-    # (tests/cosim/test_master_errors.py::test_an_unusable_fmu_in_an_ssp_archive_names_its_component)
+    # (tests/scenarios/test_master_errors.py::test_an_unusable_fmu_in_an_ssp_archive_names_its_component)
     broken = dict(fmus, **{sources[0]: b"MZ not a zip"})
     ssp.load(_scenario_archive(tmp_path / "broken.ssp", broken)).close()
 

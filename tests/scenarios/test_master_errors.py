@@ -126,7 +126,7 @@ def test_fmu_with_an_empty_guid(tmp_path, fmus, capsys):
 
 
 def test_fmi3_connector_of_an_unsupported_type_is_refused(tmp_path, fmus, capsys):
-    """FMI 3.0 FMUs run beside FMI 2.0 ones (tests/cosim/instances/test_fmi3.py); a Clock port
+    """FMI 3.0 FMUs run beside FMI 2.0 ones (tests/scenarios/instances/test_fmi3.py); a Clock port
     (FMU3Model's Int64 input declared a Clock here) has no exchange type."""
     from testfmus import edited_copy
 
@@ -192,7 +192,7 @@ def test_no_step_size_anywhere(tmp_path, fmus, capsys):
 
 
 def test_unsupported_features_are_refused_at_any_depth(tmp_path, fmus, capsys):
-    """Nested systems are flattened (tests/cosim/test_nested.py); what is still not implemented is
+    """Nested systems are flattened (tests/scenarios/test_nested.py); what is still not implemented is
     refused inside them as on the root, naming the line."""
     folder = _ramp_plant(tmp_path, fmus, [("src", "out", "plant", "f")])
     ssd = folder / "SystemStructure.ssd"

@@ -7,7 +7,7 @@ conversion is suppressed).  A path src → system connector → dst is two conne
 system connector's unit is a real stop on the way.  A system connector without a unit is
 transparent: it carries the unit of what drives it.
 
-The runs use the UnitSource/UnitSink FMUs of tests/cosim/test_units.py: src.y_i = a_i + t (y1 starts
+The runs use the UnitSource/UnitSink FMUs of tests/scenarios/test_units.py: src.y_i = a_i + t (y1 starts
 at 20 degC), read back from the results; dst's outputs v_i echo its inputs, in its own unit, as
 the FMU received them.
 """

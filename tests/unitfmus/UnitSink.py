@@ -1,6 +1,6 @@
 """Test-only FMU for unit conversion: three Real inputs u_i passed through to outputs v_i = u_i.
 
-The units of u_i and v_i are written into the model description by tests/cosim/test_units.py, so the
+The units of u_i and v_i are written into the model description by tests/scenarios/test_units.py, so the
 values an FMU receives, in its own unit, can be read back from it.
 """
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real

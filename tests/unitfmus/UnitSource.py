@@ -1,6 +1,6 @@
 """Test-only FMU for unit conversion: three Real outputs y_i = a_i + b·t.
 
-The units of y_i and a_i are written into the model description by tests/cosim/test_units.py
+The units of y_i and a_i are written into the model description by tests/scenarios/test_units.py
 (pythonfmu 0.7.0 variables cannot declare one), so one build serves every unit combination.
 """
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
