@@ -1,7 +1,7 @@
 """SSP 1.0 parameter mappings (.ssm files and inline ssm:ParameterMapping), SSP 2.0 documents and
 signal dictionaries, on small systems written as the standard's examples write them.
 
-Each system is a Step FMU ``src`` (stepping at t = 0 to ``final``) feeding a Gain FMU ``g``
+Each system is a Step FMU ``src`` (the C twins of ours, tests/stepgain_fmus.py) (stepping at t = 0 to ``final``) feeding a Gain FMU ``g``
 (``y = k * u``): the value the Gain really got is read back from the results, ``g.y = k * final``.
 """
 from __future__ import annotations
@@ -15,6 +15,7 @@ import cosim
 from cosim import ssp
 from cosim.cli import main
 from cosim.errors import SetupError
+from stepgain_fmus import build_step_and_gain
 from tablefmus import VARIABLES as TABLE_VARIABLES, build_tables_fmu
 
 SSD_NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
@@ -77,8 +78,8 @@ def binding(source: str = "", mapping: str = "", prefix: str = "", inline: str =
 
 
 @pytest.fixture(scope="module")
-def fmus(built_fmus):
-    return {"Step.fmu": built_fmus["Step"], "Gain.fmu": built_fmus["Gain"]}
+def fmus(tmp_path_factory):
+    return build_step_and_gain(tmp_path_factory.mktemp("stepgain"))
 
 
 def _system(tmp_path, fmus, text: str, **files: str):
@@ -518,9 +519,11 @@ INSIDE_K = ('<ssd:ParameterBinding sourceBase="component" source="resources/gain
 
 
 @pytest.mark.parametrize("bindings, k", [(INLINE_K + INSIDE_K, 4.5), (INSIDE_K + INLINE_K, 2.0)])
-def test_a_component_based_binding_of_an_fmu_found_through_fmu_dir(tmp_path, fmus, capsys, bindings, k):
+def test_a_component_based_binding_of_an_fmu_found_through_fmu_dir(tmp_path, fmus, capsys, monkeypatch, bindings, k):
     """The FMU is not beside the SSD but in a --fmu-dir folder: the .ssv is read from the FMU
-    found there (once located), mapped, in its place among the component's bindings (later wins)."""
+    found there (once located), mapped, in its place among the component's bindings (later wins).
+    The FMU providers are switched off: GainInside is no FMU of theirs (and greyfmu's needs pythonfmu)."""
+    monkeypatch.setattr(cosim.resources, "providers", list)
     text = ssd(gain_bindings=f"<ssd:ParameterBindings>{bindings}</ssd:ParameterBindings>")
     folder = _system(tmp_path, {"Step.fmu": fmus["Step.fmu"]}, text.replace("resources/Gain.fmu",
                                                                             "resources/GainInside.fmu"))
