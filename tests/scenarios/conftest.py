@@ -1,4 +1,4 @@
-"""Fixtures of the master's tests."""
+"""Fixtures of the master tests of tests/scenarios (small_disk: test_outputs.py, test_disk_full.py)."""
 import subprocess
 
 import pytest
