@@ -1,6 +1,7 @@
 """Shared fixtures."""
 
 import os
+import subprocess
 import tempfile
 from pathlib import Path
 
@@ -40,6 +41,28 @@ def built_fmus() -> dict[str, Path]:
     from greyfmu.build import build_fmus
 
     return {path.stem: path for path in build_fmus()}
+
+
+@pytest.fixture(scope="session")
+def step_gain(tmp_path_factory) -> dict[str, Path]:
+    """The C twins of our Step and Gain FMUs (tests/stepgain_fmus.py), by name: the master's
+    tests that need "some" source and gain run without pythonfmu."""
+    from stepgain_fmus import build_step_and_gain
+
+    return {Path(name).stem: path for name, path in build_step_and_gain(tmp_path_factory.mktemp("stepgain")).items()}
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 1 MB tmpfs to fill (skipped where it cannot be mounted, e.g. without root):
+    tests/cosim/test_disk_full.py, tests/scenarios/test_outputs.py."""
+    mount = tmp_path / "disk"
+    mount.mkdir()
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mount)], capture_output=True)
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs to fill: {done.stderr.decode().strip()}")
+    yield mount
+    subprocess.run(["umount", str(mount)], check=True)
 
 
 @pytest.fixture

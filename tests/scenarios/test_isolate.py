@@ -215,7 +215,7 @@ def test_c_fmus_of_fmi2_and_fmi3_isolated_equal_in_process(tmp_path, fmus):
     gathered through scratch buffers), Boolean, Float32, Binary (pointers), FMI 2.0 Enumeration,
     String (pythonfmu Labels), with feedthrough settling; and an FMI 3.0 Model Exchange ball
     integrated in its process."""
-    ball = _sibling("instances/test_model_exchange_fmi3.py")
+    ball = _sibling("../cosim/instances/test_model_exchange_fmi3.py")
     c = tmp_path / "c"
     files = {"Types3.fmu": build_c_fmu(c, "Types3", TYPES3, TYPES3_BODY, "3.0"),
              "Modes2.fmu": build_c_fmu(c, "Modes2", MODES2, MODES2_BODY, "2.0"),

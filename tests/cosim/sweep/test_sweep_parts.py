@@ -7,9 +7,10 @@ import pytest
 from cosim import ssp
 from cosim.errors import SetupError
 from cosim.structure import ParameterValue
-from cosim.sweep import read_table, write_ssv
+from cosim.sweep import read_table, sweep, write_ssv
 from cosim.sweep.table import schema_of, write_table
 from cosim.sweep.values import Metric, parse_metric, typed_values
+from ssdgen import ssd_text, write_system
 
 
 def test_values_take_the_type_of_their_variable():
@@ -40,3 +41,16 @@ def test_the_table_keeps_the_types_of_its_columns(tmp_path):
     write_table(rows, schema, tmp_path / "sweep.csv", tmp_path / "sweep.parquet")
     assert read_table(tmp_path / "sweep.parquet") == rows
     assert (tmp_path / "sweep.csv").read_text().splitlines()[0].startswith('"run_id","g.k","g.n","seed"')
+
+
+def test_a_rerun_computes_a_new_metric_from_the_kept_results(tmp_path, step_gain):
+    text = ssd_text("pair", {"step": ("Step.fmu", {"y": "output"}), "gain": ("Gain.fmu", {"u": "input",
+                                                                                        "y": "output"})},
+                    [("step", "y", "gain", "u")], stop=4.0, step=0.1, parameters={"step": {"t_step": 1.0}})
+    folder = write_system(tmp_path / "pair", {"Step.fmu": step_gain["Step"], "Gain.fmu": step_gain["Gain"]}, text)
+    first = sweep(folder, {"gain.k": ["1", "2"]}, output=tmp_path / "out", executor="serial")
+    again = sweep(folder, {"gain.k": ["1", "2"]}, metrics=["gain.y:step.y"], output=tmp_path / "out",
+                  executor="serial")
+    assert (first.ran, again.ran, again.skipped) == (2, 0, 2)
+    overshoot = [row["gain.y:overshoot"] for row in again.rows]
+    assert overshoot[0] == pytest.approx(0.0, abs=1e-9) and overshoot[1] == pytest.approx(100.0)
