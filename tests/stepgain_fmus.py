@@ -1,6 +1,6 @@
 """C twins of our Step and Gain FMUs (fmus/Step.py, fmus/Gain.py) for the master's tests
-(tests/cfmus.py): the same variables, value references, causalities, start values and units,
-so a system written for ours runs on these without pythonfmu.
+(tests/cfmus.py): the same variables, value references, descriptions, causalities, start values
+and units, so a system written for ours runs on these without pythonfmu.
 
 Step: y = initial before t_step, final from t_step on, at the FMU's current time (after
 initialisation y(t0), after do_step(t, h) y(t + h)).  Gain: y = k * u (direct feedthrough).
@@ -17,13 +17,13 @@ STEP = """<?xml version="1.0" encoding="UTF-8"?>
   <UnitDefinitions><Unit name="s"><BaseUnit s="1"/></Unit></UnitDefinitions>
   <DefaultExperiment startTime="0.0" stopTime="100.0" stepSize="0.1"/>
   <ModelVariables>
-    <ScalarVariable name="t_step" valueReference="0" causality="parameter" variability="fixed">
+    <ScalarVariable name="t_step" valueReference="0" description="Step time" causality="parameter" variability="fixed">
       <Real start="1" unit="s"/></ScalarVariable>
-    <ScalarVariable name="initial" valueReference="1" causality="parameter" variability="fixed">
+    <ScalarVariable name="initial" valueReference="1" description="Output before the step" causality="parameter" variability="fixed">
       <Real start="0"/></ScalarVariable>
-    <ScalarVariable name="final" valueReference="2" causality="parameter" variability="fixed">
+    <ScalarVariable name="final" valueReference="2" description="Output from the step time on" causality="parameter" variability="fixed">
       <Real start="1"/></ScalarVariable>
-    <ScalarVariable name="y" valueReference="3" causality="output" variability="discrete" initial="exact">
+    <ScalarVariable name="y" valueReference="3" description="Step output" causality="output" variability="discrete" initial="exact">
       <Real start="0"/></ScalarVariable>
   </ModelVariables>
   <ModelStructure><Outputs><Unknown index="4" dependencies=""/></Outputs></ModelStructure>
@@ -40,11 +40,11 @@ GAIN = """<?xml version="1.0" encoding="UTF-8"?>
   <CoSimulation modelIdentifier="Gain" canHandleVariableCommunicationStepSize="true"/>
   <DefaultExperiment startTime="0.0" stopTime="100.0" stepSize="0.1"/>
   <ModelVariables>
-    <ScalarVariable name="k" valueReference="0" causality="parameter" variability="fixed">
+    <ScalarVariable name="k" valueReference="0" description="Gain" causality="parameter" variability="fixed">
       <Real start="1"/></ScalarVariable>
-    <ScalarVariable name="u" valueReference="1" causality="input" variability="continuous">
+    <ScalarVariable name="u" valueReference="1" description="Input" causality="input" variability="continuous">
       <Real start="0"/></ScalarVariable>
-    <ScalarVariable name="y" valueReference="2" causality="output" variability="continuous" initial="exact">
+    <ScalarVariable name="y" valueReference="2" description="k times the input" causality="output" variability="continuous" initial="exact">
       <Real start="0"/></ScalarVariable>
   </ModelVariables>
   <ModelStructure><Outputs><Unknown index="3" dependencies="2"/></Outputs></ModelStructure>
