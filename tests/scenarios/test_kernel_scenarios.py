@@ -1,4 +1,5 @@
-"""The tests of tests/cosim/test_kernel.py that need pythonfmu: they run our FMUs (fmus/, greyfmu build) or the scenarios of ssp/."""
+"""The tests of tests/cosim/test_kernel.py that need pythonfmu (issue 29): they run our FMUs
+(fmus/, greyfmu build), the scenarios of ssp/ or the pythonfmu FMUs of tests/fmus/."""
 from __future__ import annotations
 
 import json
