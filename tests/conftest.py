@@ -44,12 +44,12 @@ def built_fmus() -> dict[str, Path]:
 
 
 @pytest.fixture(scope="session")
-def step_gain(tmp_path_factory) -> dict[str, Path]:
-    """The C twins of our Step and Gain FMUs (tests/stepgain_fmus.py), by name: the master's
-    tests that need "some" source and gain run without pythonfmu."""
-    from stepgain_fmus import build_step_and_gain
+def twin_fmus(tmp_path_factory) -> dict[str, Path]:
+    """The C twins of our Step, Gain and FirstOrderFilter FMUs (tests/twin_fmus.py), by name: the
+    master's tests that need "some" source, gain or lag run without pythonfmu."""
+    from twin_fmus import build_twins
 
-    return {Path(name).stem: path for name, path in build_step_and_gain(tmp_path_factory.mktemp("stepgain")).items()}
+    return {Path(name).stem: path for name, path in build_twins(tmp_path_factory.mktemp("twins")).items()}
 
 
 @pytest.fixture

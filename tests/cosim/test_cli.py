@@ -14,13 +14,13 @@ COMPONENTS = {"step": ("Step.fmu", {"y": "output"}), "gain": ("Gain.fmu", {"u": 
 CONNECTIONS = [("step", "y", "gain", "u")]
 
 
-def _system(tmp_path, step_gain, **kw):
+def _system(tmp_path, twin_fmus, **kw):
     text = ssd_text("pair", COMPONENTS, CONNECTIONS, parameters={"gain": {"k": 4.0}}, **kw)
-    return write_system(tmp_path / "pair", {"Step.fmu": step_gain["Step"], "Gain.fmu": step_gain["Gain"]}, text)
+    return write_system(tmp_path / "pair", {"Step.fmu": twin_fmus["Step"], "Gain.fmu": twin_fmus["Gain"]}, text)
 
 
-def test_run_writes_results_and_metadata(tmp_path, step_gain, capsys):
-    folder = _system(tmp_path, step_gain, stop=2.0, step=0.5)
+def test_run_writes_results_and_metadata(tmp_path, twin_fmus, capsys):
+    folder = _system(tmp_path, twin_fmus, stop=2.0, step=0.5)
     out = tmp_path / "out.csv"
     assert main(["run", str(folder), "-o", str(out)]) == 0
     printed = capsys.readouterr().out
@@ -30,49 +30,49 @@ def test_run_writes_results_and_metadata(tmp_path, step_gain, capsys):
     assert list(result.dtype.names) == ["time", "step.y", "gain.u", "gain.y"] and result["gain.y"][-1] == 4.0
 
 
-def test_validate_without_a_step_in_the_ssd_says_so(tmp_path, step_gain, capsys):
+def test_validate_without_a_step_in_the_ssd_says_so(tmp_path, twin_fmus, capsys):
     """It checks a placeholder grid but reports what the SSD gives, not the placeholder (issue 21,
     item 4: it printed "step 1 s (command line)", a step nobody gave, while run refuses the file)."""
-    folder = _system(tmp_path, step_gain, step=None)
+    folder = _system(tmp_path, twin_fmus, step=None)
     assert main(["validate", str(folder)]) == 0
     assert (f"cosim: {folder}: valid — 2 FMUs, 1 connections, 1 parameter values; stop 1 s; "
             "no step size in the SSD (run needs --step)" in capsys.readouterr().out)
     assert main(["run", str(folder), "-o", str(tmp_path / "o.csv"), "-q"]) == 2
     assert "no step size" in capsys.readouterr().err
-    folder = _system(tmp_path, step_gain, step=0.25)
+    folder = _system(tmp_path, twin_fmus, step=0.25)
     assert main(["validate", str(folder)]) == 0
     assert "step 0.25 s (annotation org.greyfmu.simulation)" in capsys.readouterr().out
 
 
-def test_validate_refuses_a_step_size_that_is_not_positive(tmp_path, step_gain, capsys):
-    folder = _system(tmp_path, step_gain, step=-0.1)
+def test_validate_refuses_a_step_size_that_is_not_positive(tmp_path, twin_fmus, capsys):
+    folder = _system(tmp_path, twin_fmus, step=-0.1)
     assert main(["validate", str(folder)]) == 2
     assert "the step size must be a positive number; got -0.1" in capsys.readouterr().err
 
 
-def test_run_without_a_step_says_how_to_give_one(tmp_path, step_gain, capsys):
-    assert main(["run", str(_system(tmp_path, step_gain, step=None)), "-q"]) == 2
+def test_run_without_a_step_says_how_to_give_one(tmp_path, twin_fmus, capsys):
+    assert main(["run", str(_system(tmp_path, twin_fmus, step=None)), "-q"]) == 2
     assert "no step size: pass --step" in capsys.readouterr().err
 
 
-def test_info_lists_components_connections_and_parameters(tmp_path, step_gain, capsys):
-    assert main(["info", str(_system(tmp_path, step_gain))]) == 0
+def test_info_lists_components_connections_and_parameters(tmp_path, twin_fmus, capsys):
+    assert main(["info", str(_system(tmp_path, twin_fmus))]) == 0
     printed = capsys.readouterr().out
     for line in ("system 'pair'", "  gain: Gain.fmu (FMI 2.0", '    interface fmi2-cs (implementation="any")',
                  "  step.y -> gain.u", "  gain.k = 4.0", "direct feedthrough resolved at each step in the order: gain"):
         assert line in printed
 
 
-def test_pack_makes_an_archive_that_validates(tmp_path, step_gain, capsys):
+def test_pack_makes_an_archive_that_validates(tmp_path, twin_fmus, capsys):
     archive = tmp_path / "pair.ssp"
-    assert main(["pack", str(_system(tmp_path, step_gain)), "-o", str(archive)]) == 0
+    assert main(["pack", str(_system(tmp_path, twin_fmus)), "-o", str(archive)]) == 0
     with zipfile.ZipFile(archive) as z:
         assert sorted(z.namelist()) == ["SystemStructure.ssd", "resources/Gain.fmu", "resources/Step.fmu"]
     assert main(["validate", str(archive)]) == 0
     assert "valid — 2 FMUs" in capsys.readouterr().out
 
 
-def test_pack_types_every_component_for_omsimulator(tmp_path, step_gain):
+def test_pack_types_every_component_for_omsimulator(tmp_path, twin_fmus):
     """OMSimulator reads only Components with type="application/x-fmu-sharedlibrary" (issue 21,
     item 5): pack writes it where the SSD omits it and changes nothing else; the archive runs
     as the folder does."""
@@ -80,7 +80,7 @@ def test_pack_types_every_component_for_omsimulator(tmp_path, step_gain):
 
     import cosim
 
-    folder = _system(tmp_path, step_gain, stop=1.0, step=0.5)
+    folder = _system(tmp_path, twin_fmus, stop=1.0, step=0.5)
     archive = tmp_path / "pair.ssp"
     assert main(["pack", str(folder), "-o", str(archive)]) == 0
     with zipfile.ZipFile(archive) as z:
@@ -101,15 +101,15 @@ def test_pack_types_every_component_for_omsimulator(tmp_path, step_gain):
     (["sweep", "{folder}", "--seeds", "1..2", "--workers", "0"], "--workers 0: give at least 1"),
     (["run", "{folder}", "--signals", "nothing*", "--plot", "x.png", "-q"], "no signal matches 'nothing*'"),
 ])
-def test_wrong_arguments_exit_2_before_anything_runs(tmp_path, step_gain, capsys, argv, message):
-    folder = _system(tmp_path, step_gain)
+def test_wrong_arguments_exit_2_before_anything_runs(tmp_path, twin_fmus, capsys, argv, message):
+    folder = _system(tmp_path, twin_fmus)
     assert main([a.format(folder=folder) for a in argv]) == 2
     assert message in capsys.readouterr().err
 
 
-def test_validate_with_only_a_start_time_invents_no_stop(tmp_path, step_gain, capsys):
+def test_validate_with_only_a_start_time_invents_no_stop(tmp_path, twin_fmus, capsys):
     """<ssd:DefaultExperiment startTime="5.0"/> (issue 21, item 7): no stop time is reported or checked."""
-    folder = _system(tmp_path, step_gain, step=None)
+    folder = _system(tmp_path, twin_fmus, step=None)
     ssd = folder / "SystemStructure.ssd"
     ssd.write_text(ssd.read_text().replace('startTime="0" stopTime="1.0"', 'startTime="5.0"'))
     assert main(["validate", str(folder)]) == 0

@@ -77,9 +77,9 @@ def test_completion_script_knows_subcommands_and_options(shell, marker, capsys):
     assert marker in script and "--loop-tolerance" in script and "sweep" in script and "--param-set" in script
 
 
-def _pair(tmp_path, step_gain, **kw) -> Path:
+def _pair(tmp_path, twin_fmus, **kw) -> Path:
     text = ssd_text("pair", COMPONENTS, [("step", "y", "gain", "u")], parameters={"gain": {"k": 4.0}}, **kw)
-    return write_system(tmp_path / "pair", {"Step.fmu": step_gain["Step"], "Gain.fmu": step_gain["Gain"]}, text)
+    return write_system(tmp_path / "pair", {"Step.fmu": twin_fmus["Step"], "Gain.fmu": twin_fmus["Gain"]}, text)
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -87,23 +87,23 @@ def _pair(tmp_path, step_gain, **kw) -> Path:
     (["--start", "3", "--stop", "2"], "cosim: error: --stop 2: the stop time 2.0 is not after the start time 3.0."),
     (["--step", "1e-300", "--start", "1e300", "--stop", "2e300"], "cosim: error: --step 1e-300: the step size"),
 ])
-def test_a_command_line_time_is_blamed_on_its_option_not_on_the_ssd(tmp_path, step_gain, capsys, argv, message):
-    folder = _pair(tmp_path, step_gain, stop=2.0, step=0.5)
+def test_a_command_line_time_is_blamed_on_its_option_not_on_the_ssd(tmp_path, twin_fmus, capsys, argv, message):
+    folder = _pair(tmp_path, twin_fmus, stop=2.0, step=0.5)
     assert main(["run", str(folder), "-o", str(tmp_path / "o.csv"), *argv]) == 2
     err = capsys.readouterr().err
     assert err.startswith(message) and "SystemStructure.ssd" not in err, err
 
 
-def test_a_non_finite_command_line_time_is_refused_with_the_text_given(tmp_path, step_gain, capsys):
-    folder = _pair(tmp_path, step_gain, stop=2.0, step=0.5)
+def test_a_non_finite_command_line_time_is_refused_with_the_text_given(tmp_path, twin_fmus, capsys):
+    folder = _pair(tmp_path, twin_fmus, stop=2.0, step=0.5)
     with pytest.raises(SystemExit) as done:
         main(["run", str(folder), "--stop", "1e400"])
     assert done.value.code == 2
     assert "argument --stop/--stop-time: 1e400 is not a finite number of seconds" in capsys.readouterr().err
 
 
-def test_an_ssd_time_is_still_blamed_on_the_ssd(tmp_path, step_gain, capsys):
-    folder = _pair(tmp_path, step_gain, stop=2.0, step=0.5)
+def test_an_ssd_time_is_still_blamed_on_the_ssd(tmp_path, twin_fmus, capsys):
+    folder = _pair(tmp_path, twin_fmus, stop=2.0, step=0.5)
     ssd = folder / "SystemStructure.ssd"
     ssd.write_text(ssd.read_text().replace('stopTime="2.0"', 'stopTime="-1"'))
     assert main(["run", str(folder), "-o", str(tmp_path / "o.csv")]) == 2
@@ -114,15 +114,15 @@ def test_an_ssd_time_is_still_blamed_on_the_ssd(tmp_path, step_gain, capsys):
     ("nope.k=1,2", "cosim: error: --set nope.k: system-level parameter 'nope.k' does not start with a component"),
     ("gain.nope=1,2", "cosim: error: --set gain.nope: the FMU Gain.fmu has no variable 'nope'."),
 ])
-def test_sweep_set_errors_name_the_option_once(tmp_path, step_gain, capsys, value, message):
-    folder = _pair(tmp_path, step_gain, stop=2.0, step=0.5)
+def test_sweep_set_errors_name_the_option_once(tmp_path, twin_fmus, capsys, value, message):
+    folder = _pair(tmp_path, twin_fmus, stop=2.0, step=0.5)
     assert main(["sweep", str(folder), "--set", value, "-o", str(tmp_path / "sw")]) == 2
     err = capsys.readouterr().err
     assert err.startswith(message) and "--set, --set" not in err and "cosim sweep --set" not in err, err
 
 
-def test_metrics_suggestions_name_the_option_given(tmp_path, step_gain, capsys):
-    folder = _pair(tmp_path, step_gain, stop=2.0, step=0.5)
+def test_metrics_suggestions_name_the_option_given(tmp_path, twin_fmus, capsys):
+    folder = _pair(tmp_path, twin_fmus, stop=2.0, step=0.5)
     out = tmp_path / "o.csv"
     assert main(["run", str(folder), "-o", str(out)]) == 0
     for option in ("--signal", "--setpoint"):
@@ -132,8 +132,8 @@ def test_metrics_suggestions_name_the_option_given(tmp_path, step_gain, capsys):
         assert err.startswith(f"cosim: error: {option}: no signal matches 'gain.yy'. Did you mean 'gain.y'"), err
 
 
-def test_validate_takes_parameter_sets(tmp_path, step_gain, capsys):
-    folder = _pair(tmp_path, step_gain, stop=2.0, step=0.5)
+def test_validate_takes_parameter_sets(tmp_path, twin_fmus, capsys):
+    folder = _pair(tmp_path, twin_fmus, stop=2.0, step=0.5)
     ssv = tmp_path / "bad.ssv"
     ssv.write_text('<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet version="1.0" name="bad" '
                    'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">'
@@ -147,8 +147,8 @@ def test_validate_takes_parameter_sets(tmp_path, step_gain, capsys):
     assert "valid — 2 FMUs, 1 connections, 1 parameter values" in capsys.readouterr().out   # gain.k replaced
 
 
-def test_quiet_prints_nothing_but_errors_and_warnings(tmp_path, step_gain, capsys):
-    folder = _pair(tmp_path, step_gain, stop=2.0, step=0.5)
+def test_quiet_prints_nothing_but_errors_and_warnings(tmp_path, twin_fmus, capsys):
+    folder = _pair(tmp_path, twin_fmus, stop=2.0, step=0.5)
     assert main(["run", str(folder), "-o", str(tmp_path / "o.csv"), "--quiet", "--plot"]) == 0
     assert (tmp_path / "o.png").is_file()
     assert capsys.readouterr() == ("", "")
@@ -159,9 +159,9 @@ def test_quiet_prints_nothing_but_errors_and_warnings(tmp_path, step_gain, capsy
     assert "cosim: results:" in capsys.readouterr().out      # without --quiet, it says what it wrote
 
 
-def test_no_progress_bar_in_a_log_file(tmp_path, step_gain):
+def test_no_progress_bar_in_a_log_file(tmp_path, twin_fmus):
     """stderr a file, not a terminal: no tqdm bar (its '\\r'-separated frames) even on a long run."""
-    folder = _pair(tmp_path, step_gain, stop=60.0, step=0.001)   # 60 000 steps: a few s, past tqdm's 1 s delay
+    folder = _pair(tmp_path, twin_fmus, stop=60.0, step=0.001)   # 60 000 steps: a few s, past tqdm's 1 s delay
     log = tmp_path / "log.txt"
     with log.open("w") as err:
         done = subprocess.run([sys.executable, "-m", "cosim.cli", "run", str(folder), "-o", str(tmp_path / "o.csv"),
@@ -170,6 +170,6 @@ def test_no_progress_bar_in_a_log_file(tmp_path, step_gain):
     assert "\r" not in log.read_text() and "step/s" not in log.read_text()
 
 
-def test_a_single_fmus_output_interval_is_blamed_on_that_option(tmp_path, step_gain, capsys):
-    assert main(["run", str(step_gain["Gain"]), "--output-interval", "-1", "-o", str(tmp_path / "o.csv")]) == 2
+def test_a_single_fmus_output_interval_is_blamed_on_that_option(tmp_path, twin_fmus, capsys):
+    assert main(["run", str(twin_fmus["Gain"]), "--output-interval", "-1", "-o", str(tmp_path / "o.csv")]) == 2
     assert capsys.readouterr().err.startswith("cosim: error: --output-interval -1: the step size must be a positive")

@@ -15,10 +15,10 @@ from ssdgen import ssd_text, write_system
 
 
 @pytest.fixture
-def system(tmp_path, step_gain) -> Path:
+def system(tmp_path, twin_fmus) -> Path:
     components = {"step": ("Step.fmu", {"y": "output"}), "gain": ("Gain.fmu", {"u": "input", "y": "output"})}
     text = ssd_text("pair", components, [("step", "y", "gain", "u")], stop=2.0, step=0.5)
-    return write_system(tmp_path / "pair", {"Step.fmu": step_gain["Step"], "Gain.fmu": step_gain["Gain"]}, text)
+    return write_system(tmp_path / "pair", {"Step.fmu": twin_fmus["Step"], "Gain.fmu": twin_fmus["Gain"]}, text)
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full")

@@ -50,50 +50,50 @@ def _value(name: str, value: float) -> str:
     return f'<ssv:Parameter name="{name}"><ssv:Real value="{value}"/></ssv:Parameter>'
 
 
-def _folder(tmp_path, step_gain, text: str):
+def _folder(tmp_path, twin_fmus, text: str):
     folder = tmp_path / "oms"
     (folder / "resources").mkdir(parents=True)
-    (folder / "resources" / "Gain.fmu").write_bytes(step_gain["Gain"].read_bytes())
+    (folder / "resources" / "Gain.fmu").write_bytes(twin_fmus["Gain"].read_bytes())
     (folder / "SystemStructure.ssd").write_text(text)
     return folder
 
 
-def _archive(tmp_path, step_gain, text: str):
+def _archive(tmp_path, twin_fmus, text: str):
     ssp = tmp_path / "oms.ssp"
     with zipfile.ZipFile(ssp, "w") as z:
         z.writestr("SystemStructure.ssd", text)
-        z.write(step_gain["Gain"], "resources/Gain.fmu")
+        z.write(twin_fmus["Gain"], "resources/Gain.fmu")
     return ssp
 
 
-def test_empty_start_element_is_the_enclosing_system(tmp_path, step_gain):
+def test_empty_start_element_is_the_enclosing_system(tmp_path, twin_fmus):
     """OMSimulator writes startElement="" / endElement="" for the system's own connectors."""
     text = _ssd(_connector("Input", "input") + _connector("Output", "output"), _value("Input", 2.0),
                 '<ssd:Connection startElement="" startConnector="Input" endElement="gain" endConnector="u"/>'
                 '<ssd:Connection startElement="gain" startConnector="y" endElement="" endConnector="Output"/>')
-    res = cosim.simulate(_folder(tmp_path, step_gain, text))
+    res = cosim.simulate(_folder(tmp_path, twin_fmus, text))
     np.testing.assert_array_equal(res["gain.u"], 2.0)
     np.testing.assert_array_equal(res["Output"], 6.0)
 
 
-def test_a_value_for_a_root_connector_that_feeds_nothing_is_accepted(tmp_path, step_gain):
+def test_a_value_for_a_root_connector_that_feeds_nothing_is_accepted(tmp_path, twin_fmus):
     """OMSimulator's root ssd:Connector Input_cref with a root .ssv value, wired to nothing."""
     text = _ssd(_connector("Input_cref", "input") + _connector("Output", "output"), _value("Input_cref", 5.0),
                 '<ssd:Connection startElement="gain" startConnector="y" endElement="" endConnector="Output"/>')
-    res = cosim.simulate(_folder(tmp_path, step_gain, text))
+    res = cosim.simulate(_folder(tmp_path, twin_fmus, text))
     np.testing.assert_array_equal(res["Output"], 0.0)        # gain.u keeps its start value 0
     assert "Input_cref" not in res.dtype.names
     # a name that is neither a component's variable nor a system connector is still refused
     text = _ssd(_connector("Input_cref", "input"), _value("Input_crf", 5.0), "")
     with pytest.raises(SetupError, match="'Input_crf' does not start with a component name"):
-        cosim.simulate(_folder(tmp_path / "b", step_gain, text))
+        cosim.simulate(_folder(tmp_path / "b", twin_fmus, text))
 
 
-def test_errors_inside_an_ssp_name_the_archive(tmp_path, step_gain):
+def test_errors_inside_an_ssp_name_the_archive(tmp_path, twin_fmus):
     """Errors found after unpacking name oms.ssp!SystemStructure.ssd, not the deleted temporary folder."""
     text = _ssd("", "", '<ssd:Connection startElement="gain" startConnector="y" endElement="nowhere" '
                 'endConnector="u"/>')
-    ssp = _archive(tmp_path, step_gain, text)
+    ssp = _archive(tmp_path, twin_fmus, text)
     with pytest.raises(SetupError) as refused:
         cosim.simulate(ssp)
     message = str(refused.value)
@@ -102,5 +102,5 @@ def test_errors_inside_an_ssp_name_the_archive(tmp_path, step_gain):
     no_step = _ssd("", "", "", experiment='<ssd:DefaultExperiment startTime="0" stopTime="1"/>')
     (tmp_path / "b").mkdir()
     with pytest.raises(SetupError, match="no step size") as refused:
-        cosim.simulate(_archive(tmp_path / "b", step_gain, no_step))
+        cosim.simulate(_archive(tmp_path / "b", twin_fmus, no_step))
     assert "oms.ssp!SystemStructure.ssd" in str(refused.value) and "cosim-ssp-" not in str(refused.value)

@@ -18,14 +18,14 @@ DESCRIPTIONS = ["cost $\\frac{1}{2$ per unit", "price in $ only", "$x^{$"]
 
 
 @pytest.mark.parametrize("description", DESCRIPTIONS)
-def test_plot_and_report_show_dollar_signs_literally(tmp_path, step_gain, capsys, description):
-    gain = edited_copy(step_gain["Gain"], tmp_path / "fmus" / "Gain.fmu",
+def test_plot_and_report_show_dollar_signs_literally(tmp_path, twin_fmus, capsys, description):
+    gain = edited_copy(twin_fmus["Gain"], tmp_path / "fmus" / "Gain.fmu",
                        lambda text: text.replace('description="k times the input"',
                                                  f'description="{description}"'))
     text = ssd_text("dollars $a$b$", {"step": ("Step.fmu", {"y": "output"}),
                                       "gain": ("Gain.fmu", {"u": "input", "y": "output"})},
                     [("step", "y", "gain", "u")], stop=2.0, step=0.5)
-    folder = write_system(tmp_path / "sys", {"Step.fmu": step_gain["Step"], "Gain.fmu": gain}, text)
+    folder = write_system(tmp_path / "sys", {"Step.fmu": twin_fmus["Step"], "Gain.fmu": gain}, text)
     out = tmp_path / "out.csv"
     code = main(["run", str(folder), "-q", "-o", str(out), "--plot", "--report", "--signals", "gain.y"])
     err = capsys.readouterr().err

@@ -1,8 +1,9 @@
 """SSP 1.0 parameter mappings (.ssm files and inline ssm:ParameterMapping), SSP 2.0 documents and
 signal dictionaries, on small systems written as the standard's examples write them.
 
-Each system is a Step FMU ``src`` (the C twins of ours, tests/stepgain_fmus.py) (stepping at t = 0 to ``final``) feeding a Gain FMU ``g``
-(``y = k * u``): the value the Gain really got is read back from the results, ``g.y = k * final``.
+Each system is a Step FMU ``src`` (stepping at t = 0 to ``final``) feeding a Gain FMU ``g``
+(``y = k * u``), the C twins of ours (tests/twin_fmus.py): the value the Gain really got is
+read back from the results, ``g.y = k * final``.
 """
 from __future__ import annotations
 
@@ -15,7 +16,6 @@ import cosim
 from cosim import ssp
 from cosim.cli import main
 from cosim.errors import SetupError
-from stepgain_fmus import build_step_and_gain
 from tablefmus import VARIABLES as TABLE_VARIABLES, build_tables_fmu
 
 SSD_NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
@@ -78,8 +78,8 @@ def binding(source: str = "", mapping: str = "", prefix: str = "", inline: str =
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    return build_step_and_gain(tmp_path_factory.mktemp("stepgain"))
+def fmus(twin_fmus):
+    return {"Step.fmu": twin_fmus["Step"], "Gain.fmu": twin_fmus["Gain"]}
 
 
 def _system(tmp_path, fmus, text: str, **files: str):

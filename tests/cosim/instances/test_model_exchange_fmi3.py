@@ -77,13 +77,13 @@ def test_fmi3_model_exchange_ball_bounces_like_fmpy(tmp_path, ball):
     assert np.sum(np.diff(np.sign(ours["ball.v"])) > 0) >= 3     # several bounces: state events handled
 
 
-def test_fmi3_model_exchange_input_from_an_fmi2_fmu(tmp_path, ball, step_gain):
+def test_fmi3_model_exchange_input_from_an_fmi2_fmu(tmp_path, ball, twin_fmus):
     """lift from the FMI 2.0 Step: 0 until t = 0.2, then 9.81 (the ball floats at the speed it had,
     −9.81·0.2, an input event at t = 0.2)."""
     comps = {"s": ("Step.fmu", {"y": "output"}), "ball": ("Ball3.fmu", {"lift": "input", "h": "output", "v": "output"})}
     text = ssd_text("ball", comps, [("s", "y", "ball", "lift")], stop=0.5, step=H,
                     parameters={"s": {"t_step": 0.2, "initial": 0.0, "final": 9.81}})
-    res = cosim.simulate(write_system(tmp_path / "s", {"Ball3.fmu": ball, "Step.fmu": step_gain["Step"]}, text))
+    res = cosim.simulate(write_system(tmp_path / "s", {"Ball3.fmu": ball, "Step.fmu": twin_fmus["Step"]}, text))
     after = res["time"] > 0.2 + 1e-9
     np.testing.assert_allclose(res["ball.v"][after], -9.81 * 0.2, rtol=0, atol=1e-6)
     np.testing.assert_allclose(res["ball.h"][after], 1 - 9.81 * 0.2 ** 2 / 2 - 9.81 * 0.2 * (res["time"][after] - 0.2),

@@ -43,11 +43,11 @@ def test_the_table_keeps_the_types_of_its_columns(tmp_path):
     assert (tmp_path / "sweep.csv").read_text().splitlines()[0].startswith('"run_id","g.k","g.n","seed"')
 
 
-def test_a_rerun_computes_a_new_metric_from_the_kept_results(tmp_path, step_gain):
+def test_a_rerun_computes_a_new_metric_from_the_kept_results(tmp_path, twin_fmus):
     text = ssd_text("pair", {"step": ("Step.fmu", {"y": "output"}), "gain": ("Gain.fmu", {"u": "input",
                                                                                         "y": "output"})},
                     [("step", "y", "gain", "u")], stop=4.0, step=0.1, parameters={"step": {"t_step": 1.0}})
-    folder = write_system(tmp_path / "pair", {"Step.fmu": step_gain["Step"], "Gain.fmu": step_gain["Gain"]}, text)
+    folder = write_system(tmp_path / "pair", {"Step.fmu": twin_fmus["Step"], "Gain.fmu": twin_fmus["Gain"]}, text)
     first = sweep(folder, {"gain.k": ["1", "2"]}, output=tmp_path / "out", executor="serial")
     again = sweep(folder, {"gain.k": ["1", "2"]}, metrics=["gain.y:step.y"], output=tmp_path / "out",
                   executor="serial")

@@ -1,6 +1,7 @@
 """The Plan as the one product of validation (cosim.plan, cosim.simulation.validate and
-resolve_grid): built from small real FMUs (greyfmu's Step, Gain and FirstOrderFilter),
-changing nothing it is given, and holding everything a run, a pack and a sweep need."""
+resolve_grid): built from small real FMUs (the C twins of greyfmu's Step, Gain and
+FirstOrderFilter, tests/twin_fmus.py), changing nothing it is given, and holding everything a
+run, a pack and a sweep need."""
 from __future__ import annotations
 
 import copy
@@ -27,11 +28,11 @@ CONNECTIONS = [("step", "y", "gain", "u", 2.0, 0.5), ("gain", "y", "lag", "u")]
 
 
 @pytest.fixture
-def chain(tmp_path, built_fmus):
+def chain(tmp_path, twin_fmus):
     """step -> (x2 + 0.5) -> gain (k = 3) -> lag; the SSD lists lag first."""
     text = ssd_text("chain", COMPONENTS, CONNECTIONS, stop=2.0, step=0.1,
                     parameters={"step": {"t_step": 0.5}, "gain": {"k": 3.0}, "lag": {"T": 0.2}})
-    files = {f: built_fmus[f.removesuffix(".fmu")] for f, _ in COMPONENTS.values()}
+    files = {f: twin_fmus[f.removesuffix(".fmu")] for f, _ in COMPONENTS.values()}
     return write_system(tmp_path / "chain", files, text)
 
 
@@ -94,9 +95,9 @@ def test_resolve_grid_takes_the_arguments_then_the_ssd(chain):
         plan.close()
 
 
-def test_resolve_grid_refuses_what_the_ssd_does_not_give(tmp_path, built_fmus):
+def test_resolve_grid_refuses_what_the_ssd_does_not_give(tmp_path, twin_fmus):
     text = ssd_text("nostep", {"step": ("Step.fmu", {"y": "output"})}, [], step=None)
-    plan = validate(write_system(tmp_path / "nostep", {"Step.fmu": built_fmus["Step"]}, text), use_providers=False)
+    plan = validate(write_system(tmp_path / "nostep", {"Step.fmu": twin_fmus["Step"]}, text), use_providers=False)
     try:
         assert plan.experiment.step_size is None
         with pytest.raises(SetupError, match="no step size: pass --step"):
