@@ -9,14 +9,12 @@ import tracemalloc
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from pythonfmu.builder import FmuBuilder
 
 import cosim
 from cosim.cli import main
 from cosim.observers import CsvSink, MemorySink, ParquetSink, Recorder, file_sink
 from cosim.results import read
 from ssdgen import ssd_text, write_system
-from testfmus import HERE as TEST_FMU_SOURCES
 
 NAMES = ["time", "a.y", "b.u", "b.y"]
 METADATA = {"algorithm": "jacobi", "status": "completed", "steps": 7, "nested": {"x": [1, 2]}}
@@ -85,44 +83,13 @@ def test_memory_sink_keeps_only_the_columns_asked_for():
         MemorySink(keep=["b.z"]).open(NAMES)
 
 
-@pytest.fixture(scope="module")
-def failing_fmu(tmp_path_factory):
-    return FmuBuilder.build_FMU(TEST_FMU_SOURCES / "Failing.py", dest=tmp_path_factory.mktemp("failing"),
-                                needsExecutionTool="false")
-
-
-@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
-def test_a_run_failing_half_way_leaves_its_rows_readable(tmp_path, built_fmus, failing_fmu, suffix, capsys):
-    """Failing.fmu refuses the step from t = 5 s (fmi2Fatal); 5001 rows, more than one 4096-row chunk."""
-    components = {"f": ("Failing.fmu", {"u": "input", "y": "output"}),
-                  "lag": ("FirstOrderFilter.fmu", {"u": "input", "y": "output"})}
-    text = ssd_text("failing", components, [("f", "y", "lag", "u")], stop=10.0, step=0.001,
-                    parameters={"f": {"fail_time": 5.0}})
-    folder = write_system(tmp_path / "sys", {"Failing.fmu": failing_fmu,
-                                             "FirstOrderFilter.fmu": built_fmus["FirstOrderFilter"]}, text)
-    output = tmp_path / f"out{suffix}"
-    assert main(["run", str(folder), "-q", "-o", str(output)]) == 1
-    assert "fmi2DoStep returned Fatal at t = 5" in capsys.readouterr().err
-    if suffix == ".csv":
-        result = read(output)
-        time, y = result["time"], result["f.y"]
-    else:
-        parquet = pq.ParquetFile(output)
-        assert parquet.metadata.num_row_groups == 2
-        table = parquet.read()
-        time, y = table.column("time").to_numpy(), table.column("f.y").to_numpy()
-        assert json.loads(pq.read_metadata(output).metadata[b"cosim"])["status"] == "failed"
-    assert len(time) == 5001 and time[-1] == pytest.approx(5.0) and y[-1] == pytest.approx(5.0)
-    assert json.loads(output.with_suffix(".json").read_text())["status"] == "failed"
-
-
-def test_run_output_and_api_results_agree_in_both_formats(tmp_path, built_fmus):
+def test_run_output_and_api_results_agree_in_both_formats(tmp_path, twin_fmus):
     components = {"src": ("Step.fmu", {"y": "output"}),
                   "lag": ("FirstOrderFilter.fmu", {"u": "input", "y": "output"})}
     text = ssd_text("lag", components, [("src", "y", "lag", "u")], stop=2.0, step=0.01,
                     parameters={"src": {"t_step": 0.5}})
-    folder = write_system(tmp_path / "sys", {"Step.fmu": built_fmus["Step"],
-                                             "FirstOrderFilter.fmu": built_fmus["FirstOrderFilter"]}, text)
+    folder = write_system(tmp_path / "sys", {"Step.fmu": twin_fmus["Step"],
+                                             "FirstOrderFilter.fmu": twin_fmus["FirstOrderFilter"]}, text)
     result = cosim.simulate(folder, output=tmp_path / "r.parquet")
     cosim.simulate(folder, output=tmp_path / "r.csv")
     table = pq.read_table(tmp_path / "r.parquet")
@@ -134,15 +101,15 @@ def test_run_output_and_api_results_agree_in_both_formats(tmp_path, built_fmus):
         assert_bitwise_equal(read(tmp_path / "r.parquet")[name], result[name])
 
 
-def test_metrics_and_compare_read_parquet_as_csv(tmp_path, built_fmus, capsys):
+def test_metrics_and_compare_read_parquet_as_csv(tmp_path, twin_fmus, capsys):
     """`cosim metrics` gives the same numbers on the Parquet and the CSV of one run, `cosim
     compare` finds them equal, and `results.write` round-trips both formats bit for bit."""
     components = {"src": ("Step.fmu", {"y": "output"}),
                   "lag": ("FirstOrderFilter.fmu", {"u": "input", "y": "output"})}
     text = ssd_text("lag", components, [("src", "y", "lag", "u")], stop=20.0, step=0.01,
                     parameters={"src": {"t_step": 1.0}, "lag": {"T": 2.0}})
-    folder = write_system(tmp_path / "sys", {"Step.fmu": built_fmus["Step"],
-                                             "FirstOrderFilter.fmu": built_fmus["FirstOrderFilter"]}, text)
+    folder = write_system(tmp_path / "sys", {"Step.fmu": twin_fmus["Step"],
+                                             "FirstOrderFilter.fmu": twin_fmus["FirstOrderFilter"]}, text)
     result = cosim.simulate(folder, output=tmp_path / "r.parquet")
     cosim.simulate(folder, output=tmp_path / "r.csv")
     capsys.readouterr()
