@@ -1,10 +1,11 @@
-"""C twins of our Step, Gain and FirstOrderFilter FMUs (fmus/Step.py, fmus/Gain.py,
-fmus/FirstOrderFilter.py) for the master's tests
+"""C twins of our Step, Gain, Sum and FirstOrderFilter FMUs (fmus/Step.py, fmus/Gain.py,
+fmus/Sum.py, fmus/FirstOrderFilter.py) for the master's tests
 (tests/cfmus.py): the same variables, value references, descriptions, causalities, start values
 and units, so a system written for ours runs on these without pythonfmu.
 
 Step: y = initial before t_step, final from t_step on, at the FMU's current time (after
-initialisation y(t0), after do_step(t, h) y(t + h)).  Gain: y = k * u (direct feedthrough).
+initialisation y(t0), after do_step(t, h) y(t + h)).  Gain: y = k * u; Sum: y = k1 u1 + k2 u2 +
+k3 u3 (both direct feedthrough).
 FirstOrderFilter: T dy/dt + y = K u integrated exactly with u held over the step,
 y(t + h) = K u + (y(t) - K u) exp(-h / T), y(t0) = y0 (greyfmu.signals.FirstOrderFilter).
 """
@@ -59,6 +60,35 @@ static void calculate(S *s) { s->r[2] = s->r[0] * s->r[1]; }
 static int step(S *s, double t, double h) { return 0; }
 """
 
+SUM = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="Sum" guid="{5e0c0000-0000-4000-8000-0000000000a4}">
+  <CoSimulation modelIdentifier="Sum" canHandleVariableCommunicationStepSize="true"/>
+  <DefaultExperiment startTime="0.0" stopTime="100.0" stepSize="0.1"/>
+  <ModelVariables>
+    <ScalarVariable name="k1" valueReference="0" description="Weight of u1" causality="parameter"
+      variability="fixed"><Real start="1"/></ScalarVariable>
+    <ScalarVariable name="k2" valueReference="1" description="Weight of u2" causality="parameter"
+      variability="fixed"><Real start="1"/></ScalarVariable>
+    <ScalarVariable name="k3" valueReference="2" description="Weight of u3" causality="parameter"
+      variability="fixed"><Real start="1"/></ScalarVariable>
+    <ScalarVariable name="u1" valueReference="3" description="First input" causality="input"
+      variability="continuous"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="u2" valueReference="4" description="Second input" causality="input"
+      variability="continuous"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="u3" valueReference="5" description="Third input" causality="input"
+      variability="continuous"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="y" valueReference="6" description="Weighted sum of the inputs" causality="output"
+      variability="continuous" initial="exact"><Real start="0"/></ScalarVariable>
+  </ModelVariables>
+  <ModelStructure><Outputs><Unknown index="7" dependencies="4 5 6"/></Outputs></ModelStructure>
+</fmiModelDescription>
+"""
+SUM_BODY = """
+static void start(S *s) { s->r[0] = 1; s->r[1] = 1; s->r[2] = 1; }
+static void calculate(S *s) { s->r[6] = s->r[0] * s->r[3] + s->r[1] * s->r[4] + s->r[2] * s->r[5]; }
+static int step(S *s, double t, double h) { return 0; }
+"""
+
 FILTER = """<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="FirstOrderFilter" guid="{5e0c0000-0000-4000-8000-0000000000a3}">
   <CoSimulation modelIdentifier="FirstOrderFilter" canHandleVariableCommunicationStepSize="true"/>
@@ -92,6 +122,7 @@ static int step(S *s, double t, double h) {
 
 
 def build_twins(dest: Path) -> dict[str, Path]:
-    """``dest/Step.fmu``, ``dest/Gain.fmu`` and ``dest/FirstOrderFilter.fmu``, by file name."""
+    """``dest/Step.fmu``, ``Gain.fmu``, ``Sum.fmu`` and ``FirstOrderFilter.fmu``, by file name."""
     return {"Step.fmu": build_c_fmu(dest, "Step", STEP, STEP_BODY), "Gain.fmu": build_c_fmu(dest, "Gain", GAIN, GAIN_BODY),
+            "Sum.fmu": build_c_fmu(dest, "Sum", SUM, SUM_BODY),
             "FirstOrderFilter.fmu": build_c_fmu(dest, "FirstOrderFilter", FILTER, FILTER_BODY)}

@@ -34,7 +34,7 @@ def test_a_block_read_before_its_place_or_fed_after_it_keeps_its_calls():
 
 
 @pytest.fixture
-def feedthrough_loop(tmp_path, built_fmus):
+def feedthrough_loop(tmp_path, twin_fmus):
     """Step -> Sum(+ feedback) -> Gain -> Gain -> FirstOrderFilter -> back into the Sum."""
     components = {"r": ("Step.fmu", {"y": "output"}),
                   "sum": ("Sum.fmu", {"u1": "input", "u2": "input", "y": "output"}),
@@ -46,8 +46,8 @@ def feedthrough_loop(tmp_path, built_fmus):
     text = ssd_text("loop", components, connections, stop=5.0, step=0.01,
                     parameters={"r": {"t_step": 0.5}, "sum": {"k2": -1.0}, "g1": {"k": 2.0}, "g2": {"k": 1.5},
                                 "lag": {"T": 0.7}})
-    return write_system(tmp_path / "sys", {n: built_fmus[n] for n in ("Step", "Sum", "Gain", "FirstOrderFilter")},
-                        text)
+    fmus = {f"{n}.fmu": twin_fmus[n] for n in ("Step", "Sum", "Gain", "FirstOrderFilter")}
+    return write_system(tmp_path / "sys", fmus, text)
 
 
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
