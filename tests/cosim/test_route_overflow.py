@@ -15,21 +15,23 @@ from cosim.results import read
 from cosim.simulation import prepare, run
 from ssdgen import ssd_text, write_system
 
-COMPONENTS = {"step": ("Step.fmu", {"y": "output"}), "plant": ("FOPDT.fmu", {"u": "input", "y": "output"})}
+#: the C twins of our Step and FirstOrderFilter (tests/twin_fmus.py); the plant only receives u
+COMPONENTS = {"step": ("Step.fmu", {"y": "output"}), "plant": ("FirstOrderFilter.fmu", {"u": "input", "y": "output"})}
 
 
-def _system(tmp_path, built_fmus, factor: float = 10.0):
+def _system(tmp_path, twin_fmus, factor: float = 10.0):
     text = ssd_text("overflow", COMPONENTS, [("step", "y", "plant", "u", factor, 0.0)], stop=3.0, step=0.5,
                     parameters={"step": {"t_step": 1.0, "final": 1e308}})
-    return write_system(tmp_path / "sys", {"Step.fmu": built_fmus["Step"], "FOPDT.fmu": built_fmus["FOPDT"]}, text)
+    fmus = {"Step.fmu": twin_fmus["Step"], "FirstOrderFilter.fmu": twin_fmus["FirstOrderFilter"]}
+    return write_system(tmp_path / "sys", fmus, text)
 
 
 KERNELS = ["python"] + (["native"] if library()[0] is not None else [])
 
 
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
-def test_an_overflowing_connection_fails_naming_it_in_both_loops(tmp_path, built_fmus, algorithm):
-    folder = _system(tmp_path, built_fmus)
+def test_an_overflowing_connection_fails_naming_it_in_both_loops(tmp_path, twin_fmus, algorithm):
+    folder = _system(tmp_path, twin_fmus)
     outcomes = {}
     for kernel in KERNELS:
         out = tmp_path / f"{kernel}.csv"
@@ -52,8 +54,8 @@ def test_an_overflowing_connection_fails_naming_it_in_both_loops(tmp_path, built
     assert len(set(outcomes.values())) == 1  # the compiled loop: the same error, rows and metadata
 
 
-def test_cosim_run_exits_1_naming_the_connection(tmp_path, built_fmus, capsys):
-    folder = _system(tmp_path, built_fmus)
+def test_cosim_run_exits_1_naming_the_connection(tmp_path, twin_fmus, capsys):
+    folder = _system(tmp_path, twin_fmus)
     out = tmp_path / "out.csv"
     assert main(["run", str(folder), "-q", "-o", str(out)]) == 1
     err = capsys.readouterr().err
@@ -62,8 +64,8 @@ def test_cosim_run_exits_1_naming_the_connection(tmp_path, built_fmus, capsys):
     assert json.loads(out.with_suffix(".json").read_text())["status"] == "failed"
 
 
-def test_a_factor_that_stays_finite_runs(tmp_path, built_fmus):
-    prepared = prepare(_system(tmp_path, built_fmus, factor=1.5))
+def test_a_factor_that_stays_finite_runs(tmp_path, twin_fmus):
+    prepared = prepare(_system(tmp_path, twin_fmus, factor=1.5))
     try:
         result, meta = run(prepared)
     finally:
