@@ -14,7 +14,7 @@ import warnings
 from importlib.metadata import version
 from pathlib import Path
 
-from .errors import CosimError, OutputError, RunError, SetupError
+from .errors import CosimError, RunError, SetupError
 from .safeio import parse_size, unpack_limit
 
 
@@ -248,14 +248,13 @@ def _completion(args) -> int:
 
 
 def _fail(e: CosimError, debug: bool) -> int:
-    """One paragraph on stderr and the exit status: 1 for a failed run, 2 for bad input."""
+    """One paragraph on stderr, and the exit status of the error's code (`Errc.exit_status`: 1
+    for a failed run, 2 for input that cannot be run)."""
     if debug:
         raise e
-    if isinstance(e, (RunError, OutputError)):
-        print(f"cosim: the run failed: {e}", file=sys.stderr)
-        return 1
-    print(f"cosim: error: {e}", file=sys.stderr)
-    return 2
+    print(f"cosim: the run failed ({e.code.value}): {e}" if e.code.run_failed else f"cosim: error: {e}",
+          file=sys.stderr)
+    return e.code.exit_status
 
 
 def _run(args) -> int:

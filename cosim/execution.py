@@ -313,6 +313,8 @@ class Execution:
         self.loop_seconds = 0.0
         self.status = "not started"
         self.message = ""
+        self.error: str | None = None
+        """The `cosim.errors.Errc` value of the error that ended the run, None otherwise."""
         self.kernel_requested = kernel
         self.threads = threads
         #: with threads: the components whose doSteps run in parallel, and why the others do not
@@ -802,7 +804,7 @@ class Execution:
             "feedthrough_sequence": self.plan.feedthrough_sequence,
             "algebraic_loops": self._loop_metadata(),
             "start_time": self.grid.start, "stop_time": self.grid.stop, "step_size": self.grid.step,
-            "status": self.status, "last_time": self.last_time, "message": self.message,
+            "status": self.status, "last_time": self.last_time, "message": self.message, "error": self.error,
             "steps": self.grid.steps, "loop_seconds": self.loop_seconds,
             "components": {name: self._component_metadata(name, d) for name, d in self.plan.fmus.items()},
             **({"reused_instances": self.reused,

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import ssp
 from .description import unit_of
-from .errors import ComponentLost, OutOfMemory, OutputError, RunError, SetupError, did_you_mean
+from .errors import ComponentLost, CosimError, OutOfMemory, OutputError, RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
 from .instances import Unzipped
 from .instances.isolated import Isolation
@@ -215,6 +215,7 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     except BaseException as e:
         error = _out_of_memory(e, output, execution, recorder, memory)
         execution.status = error.outcome if isinstance(error, ComponentLost) else "failed"
+        execution.error = error.code.value if isinstance(error, CosimError) else None
         execution.message = (str(error) if isinstance(error, (RunError, OutputError))
                              else f"{type(error).__name__}: {error}")
         if recorder is not None:
