@@ -687,9 +687,7 @@ class Execution:
         h = t_next - t
         if op.kind != native.OP_STEP:  # a get or set above Warning: raises
             self._check(status, op.component, t_next if op.at_step_end else t, op.what())
-        inst = self.instances[op.component]
-        if op.api == 3:
-            status = inst.step_outcome(t, h, status)
+        status = self.instances[op.component].step_outcome(t, h, status)
         ended: list[tuple[str, str]] = []
         if status and self._step_status(status, op.component, t, h, ended):
             return True
@@ -702,7 +700,7 @@ class Execution:
                 name, do_step, c = steppers[position]
                 if self.threads > 1:  # stepped already, in the parallel phase: its status
                     s = self._native.statuses[position]
-                    s = self.instances[name].step_outcome(t, h, s) if self.instances[name].api == "fmi3" else s
+                    s = self.instances[name].step_outcome(t, h, s)
                 else:
                     s = do_step(c, t, h, 1)
                 if s and self._step_status(s, name, t, h, ended):
