@@ -605,6 +605,7 @@ def _print_warning(message, *_) -> None:
 
 def _print_undefined_metrics(rows, metrics: list[str]) -> None:
     """For each metric column with undefined values: in how many runs, and the first run's reason."""
+    from .metrics import reasons_of
     from .sweep import parse_metric
 
     done = [row for row in rows if row.get("status") != "failed"]
@@ -612,11 +613,9 @@ def _print_undefined_metrics(rows, metrics: list[str]) -> None:
         for column in m.columns():
             missing = [row for row in done if row.get(column) is None or row[column] != row[column]]
             if missing:
-                key = column.rsplit(":", 1)[1]
-                why = [part.split(": ", 1)[1] for part in (missing[0].get(m.reason_column()) or "").split("; ")
-                       if part.startswith(f"{key}: ")]
+                why = reasons_of(missing[0].get(m.reason_column())).get(column.rsplit(":", 1)[1])
                 print(f"cosim: {column} undefined in {len(missing)} of {len(done)} runs"
-                      + (f" (run {missing[0]['run_id']}: {why[0]})" if why else ""), file=sys.stderr)
+                      + (f" (run {missing[0]['run_id']}: {why})" if why else ""), file=sys.stderr)
 
 
 if __name__ == "__main__":
