@@ -36,7 +36,7 @@ from .loops import LoopSettings
 from .structure import LoopMode, Plan, RecordedOutput
 
 
-@dataclass
+@dataclass(frozen=True)
 class Prepared:
     """A validated plan on a resolved grid: what `run` executes."""
     plan: Plan

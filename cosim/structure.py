@@ -370,7 +370,7 @@ class SystemStructure:
 
 # --------------------------------------------------------------------------- validated (cosim.plan)
 
-@dataclass
+@dataclass(frozen=True)
 class Route:
     """One connection, resolved: output (src) to input (dst); ``factor``/``offset`` map the
     source FMU's value to the destination FMU's value: the unit conversion and the
@@ -424,7 +424,7 @@ class AlgebraicLoop:
         return " -> ".join(f"{c}.{v} ({k}put)" for k, c, v in self.path)
 
 
-@dataclass
+@dataclass(frozen=True)
 class StartValue:
     component: str
     variable: ModelVariable
@@ -446,7 +446,7 @@ class RecordedOutput:
     unit: str | None
 
 
-@dataclass
+@dataclass(frozen=True)
 class Plan:
     """Everything a run needs, checked against the FMUs (`cosim.plan.build_plan`): execution,
     recording, packing and sweeps take what they need from here."""
