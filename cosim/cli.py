@@ -220,8 +220,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         limit = getattr(args, "max_unpacked", None)
         with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None), warnings.catch_warnings():
-            warnings.simplefilter("always", RuntimeWarning)  # cosim's own warnings (an undriven root output)
-            warnings.showwarning = _print_warning            # one line each, as they come
+            # cosim's own warnings (an undriven root output): one line each, as they come, a repeated
+            # one once (a plan built again for --start-value warns again)
+            warnings.simplefilter("default", RuntimeWarning)
+            warnings.showwarning = _print_warning
             code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
                     "report": _report, "compare": _compare, "sweep": _sweep,
                     "completion": _completion}[args.command](args)

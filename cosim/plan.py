@@ -271,9 +271,9 @@ def _undriven_output(structure: SystemStructure, out: SystemOutput, where: str,
         value = float(p.value)
         if p.linear is not None:  # a mapping's LinearTransformation (SSP 1.0 MappingEntry)
             value = p.linear[0] * value + p.linear[1]
-        origin = f"{p.file}:{p.line}" + (f", mapped by {p.mapping}" if p.mapping else "")
-    held = f"the value {value:g} of ssv:Parameter (line {given[-1].line}) in {given[-1].file}" if given else \
-        "NaN (no ParameterBinding gives it a value)"
+        origin = f"{p.file}:{p.line}" if p.line else p.file  # line 0: --start-value
+        origin += f", mapped by {p.mapping}" if p.mapping else ""
+    held = f"the value {value:g} from {origin}" if origin else "NaN (no ParameterBinding gives it a value)"
     warnings.warn(f"{file}, {where}, variable '{out.name}': no component output drives this output connector "
                   f"({out.undriven}); SSP 1.0 allows it, its column holds {held} in every row.",
                   RuntimeWarning, stacklevel=2)

@@ -86,7 +86,7 @@ def test_validate_accepts_undriven_root_outputs_with_one_warning_each(clock, tmp
     held, free, via = warned
     assert held.startswith(f"cosim: warning: {ssd_file}, ssd:Connector 'held' of the root system "
                            f"(line {line['held']}), variable 'held'")
-    assert f"the value 2.5 of ssv:Parameter (line {line_of(text, '<ssv:Parameter')}) in {ssd_file}" in held
+    assert f"the value 2.5 from {ssd_file}:{line_of(text, '<ssv:Parameter')} in every row" in held
     assert f"'free' of the root system (line {line['free']})" in free and "NaN" in free
     assert f"'via' of the root system (line {line['via']})" in via
     assert "fed only by 'sub.y', which no connection drives" in via
@@ -112,6 +112,17 @@ def test_run_writes_the_value_or_nan_in_every_row_and_names_them_in_the_metadata
         "free": {"line": line_of(text, 'name="free"'), "value": None, "origin": None},
         "via": {"line": line_of(text, 'name="via"'), "value": None, "origin": None}}
     assert meta["system_outputs"]["t_out"] == "1 * clock.t + 0"
+
+
+def test_a_start_value_on_the_command_line_replaces_the_binding_and_warns_once(clock, tmp_path, capsys):
+    folder = write_system(tmp_path / "s", {"Clock.fmu": clock}, ssd(True))
+    out = tmp_path / "r.csv"
+    assert main(["run", str(folder), "-o", str(out), "--quiet", "--start-value", "held=7"]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "'held'" in line]
+    assert len(warned) == 1 and "the value 7 from --start-value" in warned[0]
+    np.testing.assert_array_equal(np.genfromtxt(out, delimiter=",", names=True)["held"], np.full(5, 7.0))
+    assert json.loads(out.with_suffix(".json").read_text())["undriven_system_outputs"]["held"]["origin"] \
+        == "--start-value"
 
 
 def test_a_driven_root_output_is_recorded_as_before_without_warning(clock, tmp_path):
