@@ -225,7 +225,11 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         limit = getattr(args, "max_unpacked", None)
-        with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None):
+        with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None), warnings.catch_warnings():
+            # cosim's own warnings (an undriven root output): one line each, as they come, a repeated
+            # one once (a plan built again for --start-value warns again)
+            warnings.simplefilter("default", RuntimeWarning)
+            warnings.showwarning = _print_warning
             code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
                     "report": _report, "compare": _compare, "sweep": _sweep,
                     "completion": _completion}[args.command](args)
@@ -418,7 +422,8 @@ def _info(args) -> int:
         _print_system(hierarchy, 1)
         for o in plan.system_outputs.values():
             tf = f" (x{o.factor:g} {o.offset:+g})" if (o.factor, o.offset) != (1.0, 0.0) else ""
-            print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}")
+            print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}" if o.component is not None
+                  else f"  recorded: {o.name} = {o.offset:g} (undriven: a constant)")
     print("components:")
     for name, desc in plan.fmus.items():
         print(f"  {name}: {desc.path.name} (FMI {desc.md.fmiVersion}, {desc.md.generationTool}, "
