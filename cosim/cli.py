@@ -14,7 +14,7 @@ import warnings
 from importlib.metadata import version
 from pathlib import Path
 
-from .errors import CosimError, OutputError, RunError, SetupError
+from .errors import CosimError, RunError, SetupError
 from .safeio import parse_size, unpack_limit
 
 
@@ -225,7 +225,11 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         limit = getattr(args, "max_unpacked", None)
-        with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None):
+        with unpack_limit(parse_size(limit, "--max-unpacked") if limit else None), warnings.catch_warnings():
+            # cosim's own warnings (an undriven root output): one line each, as they come, a repeated
+            # one once (a plan built again for --start-value warns again)
+            warnings.simplefilter("default", RuntimeWarning)
+            warnings.showwarning = _print_warning
             code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
                     "report": _report, "compare": _compare, "sweep": _sweep,
                     "completion": _completion}[args.command](args)
@@ -248,14 +252,13 @@ def _completion(args) -> int:
 
 
 def _fail(e: CosimError, debug: bool) -> int:
-    """One paragraph on stderr and the exit status: 1 for a failed run, 2 for bad input."""
+    """One paragraph on stderr, and the exit status of the error's code (`Errc.exit_status`: 1
+    for a failed run, 2 for input that cannot be run)."""
     if debug:
         raise e
-    if isinstance(e, (RunError, OutputError)):
-        print(f"cosim: the run failed: {e}", file=sys.stderr)
-        return 1
-    print(f"cosim: error: {e}", file=sys.stderr)
-    return 2
+    print(f"cosim: the run failed ({e.code.value}): {e}" if e.code.run_failed else f"cosim: error: {e}",
+          file=sys.stderr)
+    return e.code.exit_status
 
 
 def _run(args) -> int:
@@ -419,7 +422,8 @@ def _info(args) -> int:
         _print_system(hierarchy, 1)
         for o in plan.system_outputs.values():
             tf = f" (x{o.factor:g} {o.offset:+g})" if (o.factor, o.offset) != (1.0, 0.0) else ""
-            print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}")
+            print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}" if o.component is not None
+                  else f"  recorded: {o.name} = {o.offset:g} (undriven: a constant)")
     print("components:")
     for name, desc in plan.fmus.items():
         print(f"  {name}: {desc.path.name} (FMI {desc.md.fmiVersion}, {desc.md.generationTool}, "
@@ -606,6 +610,7 @@ def _print_warning(message, *_) -> None:
 
 def _print_undefined_metrics(rows, metrics: list[str]) -> None:
     """For each metric column with undefined values: in how many runs, and the first run's reason."""
+    from .metrics import reasons_of
     from .sweep import parse_metric
 
     done = [row for row in rows if row.get("status") != "failed"]
@@ -613,11 +618,9 @@ def _print_undefined_metrics(rows, metrics: list[str]) -> None:
         for column in m.columns():
             missing = [row for row in done if row.get(column) is None or row[column] != row[column]]
             if missing:
-                key = column.rsplit(":", 1)[1]
-                why = [part.split(": ", 1)[1] for part in (missing[0].get(m.reason_column()) or "").split("; ")
-                       if part.startswith(f"{key}: ")]
+                why = reasons_of(missing[0].get(m.reason_column())).get(column.rsplit(":", 1)[1])
                 print(f"cosim: {column} undefined in {len(missing)} of {len(done)} runs"
-                      + (f" (run {missing[0]['run_id']}: {why[0]})" if why else ""), file=sys.stderr)
+                      + (f" (run {missing[0]['run_id']}: {why})" if why else ""), file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -4,11 +4,54 @@
 options); the CLI turns it into one paragraph and exit status 2.  `RunError` is
 raised while stepping; the results written up to the last good step are kept.
 `OutputError` is a result file that could not be written during the run (exit 1).
+
+Every error carries an `Errc` code, on the model of libcosim's ``cosim::errc``
+(libcosim/include/cosim/error.hpp): the CLI's exit status and wording, the sweep table's
+``error`` column and the pytest plugin's report branch on the code, never on the class or
+the message.
 """
 from __future__ import annotations
 
 import difflib
+import enum
 from collections.abc import Iterable
+
+
+class Errc(str, enum.Enum):
+    """What kind of failure an error is (libcosim's errc: invalid_system_structure,
+    model_error, ... ); the value is what the sweep table and JSON write."""
+
+    invalid_system = "invalid_system"
+    """The SSP, an FMU, a parameter set, an input table or an option cannot be run as given."""
+    model_error = "model_error"
+    """An FMU returned an error or fatal status, or a non-finite value, while the system ran."""
+    component_crashed = "component_crashed"
+    """An isolated component's process died during an FMU call (``--isolate``)."""
+    component_timeout = "component_timeout"
+    """An isolated component did not answer an FMU call within the call timeout."""
+    output_error = "output_error"
+    """A result file could not be written during the run (a full disk)."""
+    out_of_memory = "out_of_memory"
+    """The process ran out of memory during the run."""
+    run_process_lost = "run_process_lost"
+    """The process running the system died or was stopped (a crash inside an FMU, ``--timeout``,
+    a supervisor that died): the rows journaled before it are recovered (`cosim.journal`)."""
+    worker_lost = "worker_lost"
+    """A sweep's worker process died during the run (BrokenProcessPool, Dask's KilledWorker)."""
+    unexpected = "unexpected"
+    """An exception that is not cosim's (a bug, or a failure of the sweep's machinery); the
+    message names its type."""
+
+    @property
+    def run_failed(self) -> bool:
+        """The run started and failed (results up to the last good step kept), as opposed to
+        input that could not be run at all."""
+        return self is not Errc.invalid_system
+
+    @property
+    def exit_status(self) -> int:
+        """The CLI's exit status: 1 for a run that failed, 2 for input that cannot be run."""
+        return 1 if self.run_failed else 2
 
 
 #: Longest message shown (characters); the middle of a longer one is cut.
@@ -17,6 +60,8 @@ MAX_MESSAGE = 4000
 
 class CosimError(Exception):
     """Base class: a message built from where the problem is and what was expected."""
+
+    code: Errc = Errc.invalid_system
 
     def __init__(self, message: str, *, file: str | None = None, element: str | None = None,
                  variable: str | None = None, hint: str | None = None):
@@ -51,6 +96,8 @@ class SetupError(CosimError):
 class RunError(CosimError):
     """An FMU failed while the system was running."""
 
+    code = Errc.model_error
+
     def __init__(self, message: str, *, time: float, component: str, status: int | None = None,
                  **kwargs):
         self.time = time
@@ -66,6 +113,7 @@ class ComponentLost(RunError):
 
     def __init__(self, message: str, *, outcome: str, **kwargs):
         self.outcome = outcome
+        self.code = Errc.component_crashed if outcome == "crashed" else Errc.component_timeout
         super().__init__(message, **kwargs)
 
 
@@ -73,10 +121,14 @@ class OutputError(CosimError):
     """A result file could not be written during the run (a full disk): the run ends, the rows
     written before stay readable."""
 
+    code = Errc.output_error
+
 
 class OutOfMemory(OutputError):
     """The process ran out of memory during the run (its address space, ``ulimit -v``, or the
     machine's): the run ends, the rows written before stay readable in the result file."""
+
+    code = Errc.out_of_memory
 
 
 def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:

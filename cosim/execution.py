@@ -313,6 +313,8 @@ class Execution:
         self.loop_seconds = 0.0
         self.status = "not started"
         self.message = ""
+        self.error: str | None = None
+        """The `cosim.errors.Errc` value of the error that ended the run, None otherwise."""
         self.kernel_requested = kernel
         self.threads = threads
         #: with threads: the components whose doSteps run in parallel, and why the others do not
@@ -685,9 +687,7 @@ class Execution:
         h = t_next - t
         if op.kind != native.OP_STEP:  # a get or set above Warning: raises
             self._check(status, op.component, t_next if op.at_step_end else t, op.what())
-        inst = self.instances[op.component]
-        if op.api == 3:
-            status = inst.step_outcome(t, h, status)
+        status = self.instances[op.component].step_outcome(t, h, status)
         ended: list[tuple[str, str]] = []
         if status and self._step_status(status, op.component, t, h, ended):
             return True
@@ -700,7 +700,7 @@ class Execution:
                 name, do_step, c = steppers[position]
                 if self.threads > 1:  # stepped already, in the parallel phase: its status
                     s = self._native.statuses[position]
-                    s = self.instances[name].step_outcome(t, h, s) if self.instances[name].api == "fmi3" else s
+                    s = self.instances[name].step_outcome(t, h, s)
                 else:
                     s = do_step(c, t, h, 1)
                 if s and self._step_status(s, name, t, h, ended):
@@ -802,7 +802,7 @@ class Execution:
             "feedthrough_sequence": self.plan.feedthrough_sequence,
             "algebraic_loops": self._loop_metadata(),
             "start_time": self.grid.start, "stop_time": self.grid.stop, "step_size": self.grid.step,
-            "status": self.status, "last_time": self.last_time, "message": self.message,
+            "status": self.status, "last_time": self.last_time, "message": self.message, "error": self.error,
             "steps": self.grid.steps, "loop_seconds": self.loop_seconds,
             "components": {name: self._component_metadata(name, d) for name, d in self.plan.fmus.items()},
             **({"reused_instances": self.reused,

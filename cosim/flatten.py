@@ -30,7 +30,12 @@ System connectors are handled explicitly, never dropped:
   like a connection) — a constant input.  Without a value it is refused
   (`cosim.parameters.bind_system_connectors`, run when all parameter sets are known);
 * root ``output`` connectors are recorded under their own name as an alias of the
-  component output driving them (`SystemOutput`); an undriven one is refused;
+  component output driving them (`SystemOutput`).  One that no component output drives
+  (no connection, or only undriven outputs of nested systems) is accepted, as SSP 1.0
+  requires no connector to be connected (and OMSimulator and fmpy.ssp accept it): it is
+  recorded as a constant, its ParameterBinding value or NaN, with a warning
+  (`cosim.plan`); one fed by an undriven system input is refused (give the value to the
+  output itself);
 * unconnected connectors, and outputs of a nested system that feed nothing,
   have no effect, like an unconnected connector of a component; a value for one
   is accepted and has no effect either (an `OpenConnector` without sinks).
@@ -275,6 +280,8 @@ class _Resolver:
             self.fanout[e.src].append(e)
         self.system_outputs: dict[str, SystemOutput] = {}
         self.open_connectors: dict[str, OpenConnector] = {}
+        #: root outputs fed only by undriven outputs of nested systems (`_open`)
+        self.fed_undriven: dict[str, SystemOutput] = {}
 
     def routes(self) -> list[Connection]:
         self._check_no_loops()
@@ -292,9 +299,10 @@ class _Resolver:
                 self.open_connectors[node_name(node)] = OpenConnector(node_name(node), conn.kind, conn.line, [],
                                                                       conn.unit)
             if root_output and node not in self.driver:
-                raise SetupError(f"output connector '{node[2]}' of the root system is not driven by any "
-                                 "connection.", file=self.file, element=f"ssd:Connector (line {conn.line})",
-                                 variable=node[2], hint="Connect a component output to it, or remove it.")
+                self.system_outputs[node[2]] = SystemOutput(node[2], None, None, conn.line,
+                                                            undriven="no connection drives it", declared=conn)
+            elif root_output and node[2] in self.fed_undriven:
+                self.system_outputs[node[2]] = self.fed_undriven[node[2]]
         return routes
 
     def _check_no_loops(self) -> None:
@@ -360,6 +368,12 @@ class _Resolver:
                 sinks.append((e.dst[1], e.dst[2], self._hops(path)))
                 continue
             if e.dst[1] == "" and self.walker.system_connectors[e.dst].kind == "output":
+                if conn.kind == "output":  # an undriven output of a nested system: as if unconnected
+                    root = self.walker.system_connectors[e.dst]
+                    self.fed_undriven[e.dst[2]] = SystemOutput(
+                        e.dst[2], None, None, root.line, self._hops(path), declared=root,
+                        undriven=f"it is fed only by '{node_name(node)}', which no connection drives")
+                    continue
                 raise SetupError(f"root output connector '{e.dst[2]}' is fed by '{node_name(node)}', which no "
                                  "component drives; only component outputs can be recorded.", file=self.file,
                                  element=f"ssd:Connection (line {e.connection.line})", variable=e.dst[2])

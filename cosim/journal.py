@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import Errc
+
 MAGIC = b"COSIMJ01"
 _HEADER = 40
 SUFFIX = ".journal"
@@ -124,7 +126,7 @@ def recover(path: str | Path, status: str = "crashed", message: str = "") -> tup
     if len(rows):
         sink.write(rows)
     metadata = dict(header.get("metadata", {}))
-    metadata.update(status=status, message=message, samples=len(rows),
+    metadata.update(status=status, message=message, error=Errc.run_process_lost.value, samples=len(rows),
                     last_time=float(rows[-1, 0]) if len(rows) else None)
     sink.close(metadata)
     Path(path).unlink()

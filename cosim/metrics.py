@@ -63,7 +63,8 @@ class Response:
     undefined: dict[str, str] = field(default_factory=dict)
 
     def reasons(self) -> str:
-        """The reasons in one line (empty when every metric is defined)."""
+        """The reasons in one line (empty when every metric is defined), as a sweep table's
+        ``undefined(SIGNAL)`` column holds them; `reasons_of` reads them back."""
         return "; ".join(f"{k}: {v}" for k, v in self.undefined.items())
 
     def grouped(self) -> list[tuple[list[str], str]]:
@@ -72,6 +73,17 @@ class Response:
         for key, why in self.undefined.items():
             groups.setdefault(why, []).append(key)
         return [(keys, why) for why, keys in groups.items()]
+
+
+_REASON_KEY = re.compile(rf"(?:^|; )({'|'.join(EVENT_METRICS)}): ")
+
+
+def reasons_of(line: str | None) -> dict[str, str]:
+    """The mapping metric -> reason that `Response.reasons` wrote as ``line``: split only before
+    a metric's name, so a reason that contains "; " or ": " stays whole."""
+    keys = list(_REASON_KEY.finditer(line or ""))
+    return {key.group(1): line[key.end():after.start() if after else len(line)]
+            for key, after in zip(keys, keys[1:] + [None])}
 
 
 def _window(time: np.ndarray, arrays: Sequence[np.ndarray], t1: float | None):

@@ -98,12 +98,16 @@ def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescri
     (`cosim.structure.OpenConnector`), taken along each path hop by hop (`_through_hops`).
 
     An open connector that gets no value is refused, naming it and what it feeds; a value for
-    a connector that a connection drives is refused.
+    a connector that a connection drives is refused.  A value for a root output connector that
+    no component drives is its recorded constant (`cosim.plan`), not a value for an FMU.
     """
     open_connectors, driven, file = structure.open_connectors, structure.driven_connectors, structure.display
+    undriven = {name for name, o in structure.system_outputs.items() if o.component is None}
     out: list[ParameterValue] = []
     bound: set[str] = set()
     for p in values:
+        if p.name in undriven:
+            continue
         if p.name in driven:
             raise SetupError(f"'{p.name}' is a system connector driven by a connection; it cannot also be "
                              "given a value.", file=p.file, element=p.element(),

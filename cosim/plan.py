@@ -9,6 +9,8 @@ ModelStructure are refused).
 """
 from __future__ import annotations
 
+import math
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -34,6 +36,7 @@ from .structure import (
     RecordedOutput,
     Route,
     ScenarioFiles,
+    SystemOutput,
     SystemStructure,
 )
 from .units import IDENTITY, SystemUnits, fmu_units
@@ -73,7 +76,7 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
     outputs, inputs = _check_connectors(structure, fmus, units)
     routes = _check_connections(structure, fmus, units)
     start_values = resolve_parameters(structure, fmus, list(extra_parameters), units)
-    system_outputs = _system_outputs(structure, outputs, units)
+    system_outputs = _system_outputs(structure, outputs, units, [*structure.parameters, *extra_parameters])
     recorded_units = _recorded_units(structure, outputs, inputs, system_outputs)
     dependencies = {name: desc.output_dependencies for name, desc in fmus.items()}
     output_names = {c: [v.name for v in vs] for c, vs in outputs.items()}
@@ -207,16 +210,20 @@ def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], eleme
 
 
 def _system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
-                    units: SystemUnits) -> dict[str, RecordedOutput]:
+                    units: SystemUnits, values: Sequence[ParameterValue]) -> dict[str, RecordedOutput]:
     """Each root-system output connector is an alias of a recorded component output (cosim.flatten).
 
     A Real one is recorded as the root connector's value: the output, read in its FMU's unit,
     taken hop by hop to the root connector's unit (`cosim.routing.hops_map`; the connector's own
-    unit if it declares one, else the unit carried along the path)."""
+    unit if it declares one, else the unit carried along the path).  An undriven one is a
+    constant (`_undriven_output`)."""
     file = structure.display
     recorded: dict[str, RecordedOutput] = {}
     for out in structure.system_outputs.values():
         where = f"ssd:Connector '{out.name}' of the root system (line {out.line})"
+        if out.component is None:
+            recorded[out.name] = _undriven_output(structure, out, where, values)
+            continue
         var = next((v for v in outputs[out.component] if v.name == out.connector), None)
         if var is None:
             raise SetupError(f"it is driven by {out.component}.{out.connector}, which is not an output "
@@ -237,6 +244,40 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVar
         unit = declared[-1] if declared else _unit(structure, out.component, var)
         recorded[out.name] = RecordedOutput(out.name, out.component, out.connector, factor, offset, unit)
     return recorded
+
+
+def _undriven_output(structure: SystemStructure, out: SystemOutput, where: str,
+                     values: Sequence[ParameterValue]) -> RecordedOutput:
+    """A root output connector that no component output drives: SSP 1.0 requires no connector
+    to be connected, so it is accepted, with a warning naming it.  Its column holds, in every
+    row, the value a ParameterBinding (or a parameter set given to the run) gives the connector
+    by its name (the last one, as for parameters), else NaN: SSP 1.0 connectors have no start
+    value of their own (``ssc:Real`` has only a ``unit``), and a ParameterBinding is how an SSD
+    gives a system connector a value (`cosim.parameters.bind_system_connectors`)."""
+    file, declared = structure.display, out.declared
+    unit = declared.unit if declared is not None else None
+    given = [p for p in values if p.name == out.name]
+    value, origin = math.nan, None
+    if given:
+        p = given[-1]
+        if isinstance(p.value, str):
+            raise SetupError(f"the value '{p.value}' of undriven root output '{out.name}' is not a number; its "
+                             "column holds numbers only.", file=p.file, element=p.element(), variable=out.name)
+        if p.unit is not None and p.unit != unit:
+            raise SetupError(f"the value of undriven root output '{out.name}' is given in '{p.unit}', its "
+                             f"connector's unit is {repr(unit) if unit else 'not declared'}.", file=p.file,
+                             element=p.element(), variable=out.name,
+                             hint="Give the value in the connector's unit (no conversion is made).")
+        value = float(p.value)
+        if p.linear is not None:  # a mapping's LinearTransformation (SSP 1.0 MappingEntry)
+            value = p.linear[0] * value + p.linear[1]
+        origin = f"{p.file}:{p.line}" if p.line else p.file  # line 0: --start-value
+        origin += f", mapped by {p.mapping}" if p.mapping else ""
+    held = f"the value {value:g} from {origin}" if origin else "NaN (no ParameterBinding gives it a value)"
+    warnings.warn(f"{file}, {where}, variable '{out.name}': no component output drives this output connector "
+                  f"({out.undriven}); SSP 1.0 allows it, its column holds {held} in every row.",
+                  RuntimeWarning, stacklevel=2)
+    return RecordedOutput(out.name, None, None, 0.0, value, unit, line=out.line, origin=origin)
 
 
 # --------------------------------------------------------------------------- recording

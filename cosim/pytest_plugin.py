@@ -147,7 +147,8 @@ class Regression:
             check_tolerance_keys(tolerances or {}, chosen)
         except CosimError as e:
             kept = f"; candidate {candidate_csv}" if candidate_csv.exists() else ""   # samples so far, if any
-            _fail(f"cosim regression: {scenario} (reference {path}{kept}): {e}")
+            what = "the candidate run failed" if e.code.run_failed else "the scenario cannot be run"
+            _fail(f"cosim regression: {scenario} (reference {path}{kept}): {what} ({e.code.value}): {e}")
         sampled = result[::int(decimate)] if decimate else result
         if self.update:
             self._write(sampled, chosen, path)

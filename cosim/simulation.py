@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import fnmatch
 import functools
+import math
 import os
 import warnings
 from collections.abc import Mapping, Sequence
@@ -21,7 +22,7 @@ import numpy as np
 
 from . import ssp
 from .description import unit_of
-from .errors import ComponentLost, OutOfMemory, OutputError, RunError, SetupError, did_you_mean
+from .errors import ComponentLost, CosimError, OutOfMemory, OutputError, RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
 from .instances import Unzipped
 from .instances.isolated import Isolation
@@ -36,7 +37,7 @@ from .loops import LoopSettings
 from .structure import LoopMode, Plan, RecordedOutput
 
 
-@dataclass
+@dataclass(frozen=True)
 class Prepared:
     """A validated plan on a resolved grid: what `run` executes."""
     plan: Plan
@@ -215,6 +216,7 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     except BaseException as e:
         error = _out_of_memory(e, output, execution, recorder, memory)
         execution.status = error.outcome if isinstance(error, ComponentLost) else "failed"
+        execution.error = error.code.value if isinstance(error, CosimError) else None
         execution.message = (str(error) if isinstance(error, (RunError, OutputError))
                              else f"{type(error).__name__}: {error}")
         if recorder is not None:
@@ -272,7 +274,7 @@ def _journal_factory(output: str | Path, plan: Plan, metadata: dict):
     """The `cosim.observers.Recorder`'s journal for ``output``: the header holds what
     `cosim.journal.recover` needs to write the result files without the plan."""
     def create(names: list[str], permutation: list[int], columns: int, chunk_rows: int) -> Journal:
-        derived = [{"name": o.name, "column": names.index(f"{o.component}.{o.connector}"),
+        derived = [{"name": o.name, "column": names.index(o.source),
                     "factor": o.factor, "offset": o.offset} for o in plan.system_outputs.values()]
         header = {"output": str(Path(output).resolve()), "names": names, "permutation": permutation,
                   "derived": derived, "metadata": metadata,
@@ -321,7 +323,13 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
     meta["root_system"] = plan.system_name
     if plan.system_outputs:
         meta["system_outputs"] = {o.name: f"{o.factor:.17g} * {o.component}.{o.connector} + {o.offset:.17g}"
+                                  if o.component is not None else "undriven"
                                   for o in plan.system_outputs.values()}
+        undriven = {o.name: {"line": o.line, "value": None if math.isnan(o.offset) else o.offset,
+                             "origin": _portable_origin(o.origin, named) if o.origin else None}
+                    for o in plan.system_outputs.values() if o.component is None}
+        if undriven:  # root output connectors no component drives: a constant column (value None: NaN)
+            meta["undriven_system_outputs"] = undriven
     meta["isolation"] = execution.isolation.metadata() if execution.isolation is not None else None
     meta["step_size_source"] = prepared.step_source
     meta["units"] = plan.units
@@ -363,7 +371,8 @@ class SystemOutputColumns:
     """A sink wrapper that appends the root system's output connectors to every chunk.
 
     Each is ``factor · (the driving component output's column) + offset``
-    (`cosim.structure.RecordedOutput`), computed per chunk, not in the stepping loop.
+    (`cosim.structure.RecordedOutput`; an undriven one: 0 · time + its constant), computed per
+    chunk, not in the stepping loop.
     """
 
     def __init__(self, outputs: list[RecordedOutput], sinks: list):
@@ -374,7 +383,7 @@ class SystemOutputColumns:
         self.offset = np.array([o.offset for o in outputs])
 
     def open(self, names: list[str]) -> None:
-        self.columns = np.array([names.index(f"{o.component}.{o.connector}") for o in self.outputs],
+        self.columns = np.array([names.index(o.source) for o in self.outputs],
                                 dtype=np.intp)
         for sink in self.sinks:
             sink.open(names + [o.name for o in self.outputs])

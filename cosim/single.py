@@ -18,6 +18,7 @@ a system it is ``component.variable``.
 """
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, replace
@@ -189,7 +190,10 @@ def prepare_scenario(scenario: Scenario, *, parameter_sets: Sequence[str | Path]
     extra = scenario.values + [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
     if table is not None and not single:
         extra += connector_values(table, structure)
-    plan = build_plan(structure, fmu_paths, extra, loops)
+    with warnings.catch_warnings():
+        if start_values:  # this plan only types them; the one built with them warns (cosim.plan)
+            warnings.simplefilter("ignore", RuntimeWarning)
+        plan = build_plan(structure, fmu_paths, extra, loops)
     component = next(iter(plan.components)) if single else None
     if start_values:
         starts = [_start_value(text, plan, component) for text in start_values]
@@ -239,7 +243,9 @@ def _start_value(text: str, plan: Plan, single: str | None) -> ParameterValue:
         var_name = name if name in desc.variables or not name.startswith(single + ".") else name[len(single) + 1:]
         var = desc.variable(var_name, f"component '{single}'", f"{START_SOURCE} {text}")
         full = f"{single}.{var_name}"
-    elif name in plan.structure.open_connectors:  # a value for an undriven system connector
+    elif name in plan.structure.open_connectors or (name in plan.system_outputs
+                                                    and plan.system_outputs[name].component is None):
+        # a value for an undriven system connector (an undriven root output: its recorded constant)
         return ParameterValue(name, "Real", typed_values(raw.strip(), "Real", name, START_SOURCE)[0], START_SOURCE, 0)
     else:
         comp, var_name = split_system_name(plan.components, ParameterValue(name, "Real", 0.0, START_SOURCE, 0))

@@ -253,12 +253,17 @@ class Hop:
 class SystemOutput:
     """A root-system output connector: an alias of the component output that drives it
     through ``hops``; `cosim.plan` composes them, with the unit conversions, into the
-    plan's `RecordedOutput`."""
+    plan's `RecordedOutput`.  ``component`` and ``connector`` are None for one that no
+    component output drives (SSP 1.0 does not require a system connector to be connected):
+    ``undriven`` says why, and its column is constant (`cosim.plan`)."""
     name: str
-    component: str
-    connector: str
+    component: str | None
+    connector: str | None
     line: int
     hops: tuple[Hop, ...] = ()
+    #: an undriven one: why, and its ssd:Connector (type and unit of its value)
+    undriven: str = ""
+    declared: Connector | None = None
 
 
 @dataclass
@@ -370,7 +375,7 @@ class SystemStructure:
 
 # --------------------------------------------------------------------------- validated (cosim.plan)
 
-@dataclass
+@dataclass(frozen=True)
 class Route:
     """One connection, resolved: output (src) to input (dst); ``factor``/``offset`` map the
     source FMU's value to the destination FMU's value: the unit conversion and the
@@ -424,7 +429,7 @@ class AlgebraicLoop:
         return " -> ".join(f"{c}.{v} ({k}put)" for k, c, v in self.path)
 
 
-@dataclass
+@dataclass(frozen=True)
 class StartValue:
     component: str
     variable: ModelVariable
@@ -436,17 +441,30 @@ class StartValue:
 class RecordedOutput:
     """A root-system output connector as recorded: ``factor·component.connector + offset``,
     the per-hop composition of unit conversions and LinearTransformations from the FMU
-    variable's unit to the root connector's (`cosim.routing.hops_map`)."""
+    variable's unit to the root connector's (`cosim.routing.hops_map`).
+
+    An undriven one (``component`` None) is ``0·time + offset``: the constant its
+    ParameterBinding value gives, else NaN, in every row (`cosim.plan`), through the same
+    per-chunk arithmetic as the others (`source`)."""
     name: str
-    component: str
-    connector: str
+    component: str | None
+    connector: str | None
     factor: float
     offset: float
     #: the last unit a system connector declares on the way, else the source's
     unit: str | None
+    #: an undriven one: the line of its ssd:Connector, and where its value comes from
+    #: (``FILE:LINE`` of the ssv:Parameter; None: no value, NaN)
+    line: int | None = None
+    origin: str | None = None
+
+    @property
+    def source(self) -> str:
+        """The recorded column it is computed from: the driving component output, or ``time``."""
+        return "time" if self.component is None else f"{self.component}.{self.connector}"
 
 
-@dataclass
+@dataclass(frozen=True)
 class Plan:
     """Everything a run needs, checked against the FMUs (`cosim.plan.build_plan`): execution,
     recording, packing and sweeps take what they need from here."""

@@ -45,7 +45,9 @@ class Instance(Protocol):
       after an Error/Fatal, else None), ``messages``;
     * ``instantiate``, ``setup_experiment``, ``set_start``, ``enter_initialization_mode``,
       ``exit_initialization_mode``, ``free`` (these raise on a status above Warning);
-    * ``step_end``: after ``do_step`` returned Discard, how far the FMU's outputs are valid.
+    * ``step_end``: after ``do_step`` returned Discard, how far the FMU's outputs are valid;
+    * ``step_outcome``: the post-step of a doStep made outside ``do_step`` (by the compiled loop,
+      `cosim.kernel`), which turns its raw status into the one ``do_step`` would have returned.
     """
     name: str
     desc: FMUDescription
@@ -66,6 +68,12 @@ class Instance(Protocol):
     def step_end(self, t: float, h: float) -> tuple[float | None, str]:
         """After ``do_step(t, h)`` ended the run (returned Discard): the time up to which the
         FMU's outputs are valid (None when it does not say) and what the FMU reported."""
+        ...
+
+    def step_outcome(self, t: float, h: float, status: int) -> int:
+        """The status ``do_step(t, h)`` returns, from the ``status`` of a doStep(t, h) the
+        compiled loop made with this instance's C functions (FMI 3.0: read from the out-arguments
+        the FMU wrote; FMI 2.0: ``status`` itself)."""
         ...
 
     def enter_initialization_mode(self) -> None: ...
@@ -155,6 +163,10 @@ class InstanceBase:
         status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
         if fmu_log == "errors" and status_categories:
             self.slave.setDebugLogging(True, status_categories)
+
+    def step_outcome(self, t: float, h: float, status: int) -> int:
+        """FMI 2.0's fmi2DoStep has no out-arguments: its status is the outcome (`Instance`)."""
+        return status
 
     def last_messages(self) -> str:
         return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""

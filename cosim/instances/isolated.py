@@ -301,6 +301,11 @@ class IsolatedInstance:
     def set_start(self, variable, value) -> None:
         self._remote("set_start", f"{self.api}Set (start value of {variable.name})", variable, value)
 
+    def step_outcome(self, t: float, h: float, status: int) -> int:
+        """The component's process applied its own post-step (`Instance.step_outcome`) before it
+        answered: ``status`` is the outcome."""
+        return status
+
     def step_end(self, t: float, h: float) -> tuple[float | None, str]:
         return self._remote("step_end", f"{self.api}DoStep's status", t, h)
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import CosimError, SetupError
+from ..errors import CosimError, Errc, SetupError
 from ..metrics import METRICS, step_response
 from ..safeio import unpack_limit
 from ..simulation import run
@@ -62,7 +62,7 @@ class Task:
 def execute(task: Task) -> dict[str, Any]:
     """Run one combination (in a worker process) and return its table row (without the swept values)."""
     began = time.perf_counter()
-    row: dict[str, Any] = {"run_id": task.run_id, "status": "completed", "message": None}
+    row: dict[str, Any] = {"run_id": task.run_id, "status": "completed", "message": None, "error": None}
     result = None
     output = task.csv if task.run_files else None
     try:
@@ -82,7 +82,7 @@ def execute(task: Task) -> dict[str, Any]:
         if metadata["status"] == "discarded":
             row.update(status="discarded", message=metadata["message"])
     except CosimError as e:
-        row.update(status="failed", message=str(e))
+        row.update(status="failed", message=str(e), error=e.code.value)
     row["wall_time"] = time.perf_counter() - began
     row.update(run_metrics(result, task.metrics))
     return row
@@ -227,6 +227,10 @@ def _execute_marked(task: Task, marks: str) -> dict[str, Any]:
 
 
 def failed_row(task: Task, error: Exception) -> dict[str, Any]:
+    """The table row of a run whose worker raised ``error`` or died (its code: `Errc`)."""
+    code = (error.code if isinstance(error, CosimError) else
+            Errc.worker_lost if type(error).__name__ in ("BrokenProcessPool", "KilledWorker") else Errc.unexpected)
     return {"run_id": task.run_id, "status": "failed", "message": f"{type(error).__name__}: {error}",
+            "error": code.value,
             "wall_time": None, **run_metrics(None, task.metrics)}
 

@@ -49,7 +49,7 @@ def schema_of(swept: Mapping[str, str], seeded: bool, metrics: Sequence[Metric])
     columns = [("run_id", "string")]
     columns += [(name, _TYPES[t]) for name, t in swept.items()]
     columns += [("seed", "int64")] if seeded else []
-    columns += [("status", "string"), ("message", "string"), ("wall_time", "float64")]
+    columns += [("status", "string"), ("message", "string"), ("error", "string"), ("wall_time", "float64")]
     columns += [(c, "float64") for m in metrics for c in m.columns()]
     columns += [(m.reason_column(), "string") for m in metrics]
     return Schema(tuple(columns))

@@ -33,7 +33,7 @@ def test_a_result_on_a_full_device_is_named(tmp_path, system, capsys, monkeypatc
     code = main(["run", str(system), "-q", "-o", str(target)])
     err = capsys.readouterr().err
     assert code == 1 and "Traceback" not in err, err
-    assert f"cosim: the run failed: {target}: the results cannot be written: the disk is full " in err
+    assert f"cosim: the run failed (output_error): {target}: the results cannot be written: the disk is full " in err
     assert "Error writing bytes" not in err and err.count("cosim:") == 1
 
 
@@ -42,7 +42,7 @@ def test_a_disk_that_fills_mid_run_is_named(system, small_disk, capsys):
     code = main(["run", str(system), "-q", "--stop", "100000", "--step", "0.1", "-o", str(target)])
     err = capsys.readouterr().err
     assert code == 1 and "Traceback" not in err, err
-    failed = re.search(r"cosim: the run failed: (\S+): writing the results failed after (\d+) rows: the disk is full "
+    failed = re.search(r"cosim: the run failed \(output_error\): (\S+): writing the results failed after (\d+) rows: the disk is full "
                        r"\(No space left on device\)", err)
     assert failed, err
     assert Path(failed.group(1)) in (target, small_disk / "r.csv.journal")  # whichever could not grow first

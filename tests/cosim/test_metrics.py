@@ -127,3 +127,17 @@ def test_compare_cli_per_signal_tolerances(tmp_path, capsys):
     assert "plant.y: first at t = 0 s: value 0.001, reference 0, |diff| 0.001 > 0.0001" in capsys.readouterr().out
     assert main(["compare", a, c, "--tolerance", "plant.y=1e-3"]) == 2
     assert "not GLOB=RTOL,ATOL" in capsys.readouterr().err
+
+
+def test_the_reasons_line_reads_back_as_the_mapping_it_was_written_from():
+    """A sweep table's undefined(SIGNAL) column (`Response.reasons`) reads back as the mapping
+    (`reasons_of`), also when a reason holds "; " or ": " or a line break, as the CLI's summary
+    of undefined metrics needs (it split the line at every "; " before)."""
+    from cosim.metrics import Response, reasons_of
+
+    undefined = {"overshoot": "the response never passes the set-point; it stays below: 0.4",
+                 "settling_time": "the response is still outside ±2 %\nof the step at 140 s",
+                 "rise_time": "it never reaches 90 %"}
+    line = Response(values={}, undefined=undefined).reasons()
+    assert reasons_of(line) == undefined
+    assert reasons_of("") == {} and reasons_of(None) == {}

@@ -61,6 +61,7 @@ def test_a_crashing_fmu_loses_no_row(tmp_path, faulty, fault, killer):
     assert list(res["f.y"]) == pytest.approx([0.5 * k for k in range(11)])
     meta = json.loads(csv.with_suffix(".json").read_text())
     assert meta["status"] == "crashed" and killer in meta["message"] and meta["last_time"] == 5.0
+    assert meta["error"] == "run_process_lost"
     assert meta["samples"] == 11 and meta["components"]["f"]["fmu"].endswith("Faulty.fmu")
     assert not csv.with_name("out.csv.journal").exists()
     assert _leftovers(tmp_path) == []  # the child's cosim-fmu-* folder is removed by the parent
@@ -262,7 +263,7 @@ def test_running_out_of_memory_is_one_message_naming_the_result(tmp_path, faulty
     proc = _cosim(tmp_path, "run", str(folder), "-q", "-o", str(csv))
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 1 and "Traceback" not in err and "Error" not in err, err
-    found = re.fullmatch(rf"cosim: the run failed: {re.escape(str(csv))}: the process ran out of memory \(its "
+    found = re.fullmatch(rf"cosim: the run failed \(out_of_memory\): {re.escape(str(csv))}: the process ran out of memory \(its "
                          r"address space: see ulimit -v\) at t = (\S+); the (\d+) rows recorded before are "
                          r"kept\.\n", err)
     assert found, err

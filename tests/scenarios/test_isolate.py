@@ -90,6 +90,7 @@ def test_a_crashing_component_is_named_its_rows_kept_and_its_process_reaped(tmp_
     assert list(read(out)["g.y"]) == pytest.approx([0.5 * k for k in range(11)])  # the other one too
     meta = json.loads(out.with_suffix(".json").read_text())
     assert meta["status"] == "crashed" and meta["message"] == str(e) and meta["last_time"] == 5.0
+    assert e.code.value == meta["error"] == "component_crashed"
     assert meta["isolation"] == {"call_timeout": None}
     assert meta["kernel"] == "python" and meta["kernel_reason"] == "component 'f' runs in a process of its own (--isolate)"
     assert not out.with_name("out.csv.journal").exists()
@@ -108,6 +109,7 @@ def test_a_hung_call_ends_after_the_call_timeout(tmp_path, fmus):
     assert 0.5 <= elapsed < 5  # the hang is an hour
     meta = json.loads((tmp_path / "out.json").read_text())
     assert meta["status"] == "timeout" and meta["last_time"] == 3.0 and meta["isolation"]["call_timeout"] == 0.5
+    assert meta["error"] == "component_timeout"
     assert list(read(tmp_path / "out.csv")["time"]) == pytest.approx([0, 0.5, 1, 1.5, 2, 2.5, 3])
     assert _children() <= before
 

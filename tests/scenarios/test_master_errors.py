@@ -214,7 +214,7 @@ def test_fmu_failing_mid_run_keeps_results(tmp_path, fmus, capsys):
     csv = tmp_path / "out.csv"
     code = main(["run", str(folder), "-q", "-o", str(csv)])
     err = capsys.readouterr().err
-    assert code == 1 and "Traceback" not in err
+    assert code == 1 and "Traceback" not in err and "cosim: the run failed (model_error): " in err
     assert "component 'f' (Failing.fmu)" in err and "fmi2DoStep returned Fatal at t = 0.25" in err
     assert "refusing the step from t = 0.25" in err and "results up to the last good step kept in" in err
     from cosim.results import read
@@ -223,7 +223,7 @@ def test_fmu_failing_mid_run_keeps_results(tmp_path, fmus, capsys):
     assert res["f.y"][-1] == pytest.approx(0.25)
     import json
     meta = json.loads(csv.with_suffix(".json").read_text())
-    assert meta["status"] == "failed" and meta["last_time"] == pytest.approx(0.25)
+    assert meta["status"] == "failed" and meta["last_time"] == pytest.approx(0.25) and meta["error"] == "model_error"
 
 
 def test_discard_ends_the_run_cleanly_at_the_last_good_time(tmp_path, fmus, capsys):
@@ -237,7 +237,8 @@ def test_discard_ends_the_run_cleanly_at_the_last_good_time(tmp_path, fmus, caps
     from cosim.results import read
     assert list(read(csv)["time"]) == pytest.approx([0, 0.1, 0.2, 0.3])
     import json
-    assert json.loads(csv.with_suffix(".json").read_text())["status"] == "discarded"
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    assert meta["status"] == "discarded" and meta["error"] is None  # a discard is not an error
 
 
 def test_api_failure_carries_partial_results(tmp_path, fmus):

@@ -35,7 +35,7 @@ def test_a_runs_parameter_set_reads_back_as_written(tmp_path):
 
 def test_the_table_keeps_the_types_of_its_columns(tmp_path):
     schema = schema_of({"g.k": "Real", "g.n": "Integer"}, True, [Metric("y", "r")])
-    rows = [{"run_id": "a", "g.k": 1.5, "g.n": 2, "seed": 7, "status": "completed", "message": None,
+    rows = [{"run_id": "a", "g.k": 1.5, "g.n": 2, "seed": 7, "status": "completed", "message": None, "error": None,
              "wall_time": 0.1, **{c: 1.0 for c in Metric("y", "r").columns()},
              Metric("y", "r").reason_column(): "settling_time: the signal never settles"}]
     write_table(rows, schema, tmp_path / "sweep.csv", tmp_path / "sweep.parquet")

@@ -69,7 +69,7 @@ def test_a_real_sweep_schema_with_metrics_matches_arrow(tmp_path):
              **{c: 1e-7 * k for k, c in enumerate(metric.columns())},
              metric.reason_column(): "settling_time: the response is still outside ±2 %\nat 140 s"},
             {"run_id": "0a1b", "c.Kc": 6.0, "c.mode": 1, "c.on": False, "c.name": "", "seed": 2, "status": "failed",
-             "message": "plant: fmi2DoStep returned fmi2Error at t = 3.0", "wall_time": 0.02}]
+             "message": "plant: fmi2DoStep returned fmi2Error at t = 3.0", "error": "model_error", "wall_time": 0.02}]
     assert csv_text(rows, schema) == _arrow_csv(rows, schema)
 
 

@@ -33,7 +33,7 @@ def test_an_fmu_that_aborts_its_process_fails_only_its_own_run(aborting, tmp_pat
     result = sweep(aborting, {"crash.abort_time": times}, output=tmp_path, executor="process", workers=2)
     by_time = {r["crash.abort_time"]: r for r in result.rows}
     assert len(by_time) == 5
-    assert by_time[0.5]["status"] == "failed"
+    assert by_time[0.5]["status"] == "failed" and by_time[0.5]["error"] == "worker_lost"
     assert "the worker process died during this run, and again when it was rerun alone" in by_time[0.5]["message"]
     assert all(by_time[t]["status"] == "completed" for t in (1e9, 2e9, 3e9, 4e9))
     assert len(read_table(tmp_path / "sweep.parquet")) == 5

@@ -167,7 +167,8 @@ def test_a_refused_value_is_a_failed_row_and_the_others_complete(scenario, tmp_p
     rows = read_table(tmp_path / "sweep.parquet")
     by_t = {r["plant.T"]: r for r in rows}
     assert by_t[20.0]["status"] == "completed" and not math.isnan(by_t[20.0]["plant.y:IAE"])
-    assert by_t[0.0]["status"] == "failed"
+    assert by_t[0.0]["status"] == "failed" and by_t[0.0]["error"] == "model_error"
+    assert by_t[20.0]["error"] is None
     assert "time constant T must be a finite number > 0" in by_t[0.0]["message"]
     assert by_t[0.0]["plant.y:IAE"] is None
     assert "failed" in capsys.readouterr().err
