@@ -29,8 +29,18 @@ from .structure import Component, SystemStructure
 Provider = Callable[[str], "Path | None"]
 
 
-def providers() -> list[Provider]:
-    return [ep.load() for ep in entry_points(group="cosim.fmu_providers")]
+def providers() -> tuple[list[Provider], list[str]]:
+    """The FMU providers registered under ``cosim.fmu_providers`` that load, and for each one that
+    does not (greyfmu's without pythonfmu installed) what it is and why, for the message of an FMU
+    not found: a provider that cannot be imported does not stop a run whose FMUs are elsewhere."""
+    loaded: list[Provider] = []
+    broken: list[str] = []
+    for ep in entry_points(group="cosim.fmu_providers"):
+        try:
+            loaded.append(ep.load())
+        except ImportError as e:
+            broken.append(f"{ep.value} (not loaded: {e})")
+    return loaded, broken
 
 
 def locate_fmus(structure: SystemStructure, fmu_dirs: Sequence[Path] = (),
@@ -47,12 +57,13 @@ class _Providers:
     def __init__(self, use: bool):
         self.use = use
         self._loaded: list[Provider] | None = None
+        self.broken: list[str] = []
         self._answers: dict[str, Path | None] = {}
 
     @property
     def loaded(self) -> list[Provider]:
         if self._loaded is None:
-            self._loaded = providers() if self.use else []
+            self._loaded, self.broken = providers() if self.use else ([], [])
         return self._loaded
 
     def provide(self, name: str) -> Path | None:
@@ -80,8 +91,8 @@ def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path
     provided = asked.provide(name)
     if provided is not None:
         return provided
-    if asked.loaded:
-        looked.append("the FMU providers (" + ", ".join(p.__module__ for p in asked.loaded) + ")")
+    if asked.loaded or asked.broken:
+        looked.append("the FMU providers (" + ", ".join([p.__module__ for p in asked.loaded] + asked.broken) + ")")
     for d in fmu_dirs:
         candidate = Path(d) / name
         if is_file(candidate):

@@ -59,3 +59,23 @@ def test_tests_cosim_pass_without_pythonfmu(tmp_path):
     assert done.returncode == 0, tail
     counts = {what: int(n) for n, what in re.findall(r"(\d+) (passed|skipped|failed|errors?)\b", done.stdout)}
     assert counts.get("passed", 0) + counts.get("skipped", 0) >= AT_LEAST, tail
+
+
+def test_a_provider_that_cannot_be_imported_is_named_not_raised(tmp_path, twin_fmus):
+    """Without pythonfmu, greyfmu's FMU provider (the entry point greyfmu.build:provide_fmu)
+    cannot be imported: an FMU not beside the SSD was a raw ImportError traceback, even when
+    --fmu-dir holds it.  Now the run finds it in --fmu-dir, and an FMU found nowhere is the usual
+    "not found" naming the provider and why it is not loaded (exit 2)."""
+    from ssdgen import ssd_text, write_system
+
+    folder = write_system(tmp_path / "sys", {}, ssd_text("t", {"g": ("Gain.fmu", {"u": "input", "y": "output"})}, []))
+    env = _blocked_env(tmp_path)
+    missing = subprocess.run([sys.executable, "-m", "cosim.cli", "validate", str(folder)], cwd=ROOT, env=env,
+                             capture_output=True, text=True, timeout=120)
+    assert missing.returncode == 2 and "Traceback" not in missing.stderr, missing.stderr
+    assert "was not found" in missing.stderr
+    assert "greyfmu.build:provide_fmu (not loaded: greyfmu.build is blocked" in missing.stderr, missing.stderr
+    found = subprocess.run([sys.executable, "-m", "cosim.cli", "validate", str(folder), "--fmu-dir",
+                            str(twin_fmus["Gain"].parent)], cwd=ROOT, env=env, capture_output=True, text=True,
+                           timeout=120)
+    assert found.returncode == 0, found.stderr

@@ -130,7 +130,7 @@ def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(
         asked.append(name)
         return c_fmus["Lag"] if name == "Lag.fmu" else None
 
-    monkeypatch.setattr(cosim.resources, "providers", lambda: [counting_provider])
+    monkeypatch.setattr(cosim.resources, "providers", lambda: ([counting_provider], []))
     system = _chain(c_fmus, tmp_path / "ssp")   # m1 (VanDerPol) then b2, b3 (Lag)
     structure = ssp.load(system)
     assert set(locate_fmus(structure).values()) == {system / "resources" / "VanDerPol.fmu",

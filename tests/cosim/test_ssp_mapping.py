@@ -523,7 +523,7 @@ def test_a_component_based_binding_of_an_fmu_found_through_fmu_dir(tmp_path, fmu
     """The FMU is not beside the SSD but in a --fmu-dir folder: the .ssv is read from the FMU
     found there (once located), mapped, in its place among the component's bindings (later wins).
     The FMU providers are switched off: GainInside is no FMU of theirs (and greyfmu's needs pythonfmu)."""
-    monkeypatch.setattr(cosim.resources, "providers", list)
+    monkeypatch.setattr(cosim.resources, "providers", lambda: ([], []))
     text = ssd(gain_bindings=f"<ssd:ParameterBindings>{bindings}</ssd:ParameterBindings>")
     folder = _system(tmp_path, {"Step.fmu": fmus["Step.fmu"]}, text.replace("resources/Gain.fmu",
                                                                             "resources/GainInside.fmu"))

@@ -289,7 +289,7 @@ def fmus_in_resources(workspace, built_fmus, monkeypatch) -> Path:
         link = workspace / scenario.name / "resources"
         if not link.exists():
             link.symlink_to(fmu_dir, target_is_directory=True)
-    monkeypatch.setattr(cosim.resources, "providers", list)
+    monkeypatch.setattr(cosim.resources, "providers", lambda: ([], []))
     return workspace
 
 
