@@ -426,8 +426,8 @@ def _info(args) -> int:
                   else f"  recorded: {o.name} = {o.offset:g} (undriven: a constant)")
     print("components:")
     for name, desc in plan.fmus.items():
-        print(f"  {name}: {desc.path.name} (FMI {desc.md.fmiVersion}, {desc.md.generationTool}, "
-              f"GUID {desc.md.guid})")
+        print(f"  {name}: {desc.path.name} (FMI {desc.fmi_version}, {desc.generation_tool}, "
+              f"GUID {desc.guid})")
         solver = plan.solvers.get(name)
         print(f"    interface {desc.kind} (implementation=\"{plan.components[name].implementation}\")"
               + (f", integrated by the master: {solver.method}, rtol {solver.rtol:g}, max step "

@@ -166,7 +166,7 @@ class _Typed:
         slices = {}
         i = 0
         for comp in order:
-            vrs = [v.valueReference for c, v in pairs if c == comp]
+            vrs = [v.vr for c, v in pairs if c == comp]
             slices[comp] = (i, len(vrs), (ctypes.c_uint * max(1, len(vrs)))(*vrs))
             i += len(vrs)
         return slices
@@ -780,7 +780,7 @@ class Execution:
         self.instances.clear()
 
     def _component_metadata(self, name: str, d: FMUDescription) -> dict:
-        meta = {"fmu": str(d.path), "guid": d.md.guid, "generation_tool": d.md.generationTool, "interface": d.kind}
+        meta = {"fmu": str(d.path), "guid": d.guid, "generation_tool": d.generation_tool, "interface": d.kind}
         if d.kind in ("fmi2-me", "fmi3-me"):  # integrated by the master (cosim.instances.me)
             meta["solver"] = self.plan.solvers[name].as_dict()
         return meta

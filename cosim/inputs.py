@@ -35,9 +35,8 @@ from math import isclose
 from pathlib import Path
 
 import numpy as np
-from fmpy.model_description import ModelVariable
 
-from .description import exchange_type
+from .description import Variable, exchange_type
 from .errors import SetupError, did_you_mean
 from .parameters import bind_system_connectors
 from .structure import ParameterValue, Plan, SystemStructure
@@ -126,7 +125,7 @@ class Target:
     connector's transformations and unit conversions where the column names one)."""
     column: int
     component: str
-    variable: ModelVariable
+    variable: Variable
     values: np.ndarray
 
     @property
@@ -242,7 +241,7 @@ def _not_a_connector(plan: Plan, name: str, where: dict) -> None:
 
 
 def _through_connector(plan: Plan, table: InputTable, column: int,
-                       bindings: Sequence[ParameterValue]) -> list[tuple[str, ModelVariable, np.ndarray]]:
+                       bindings: Sequence[ParameterValue]) -> list[tuple[str, Variable, np.ndarray]]:
     """The inputs an undriven system connector feeds and the column's values as each gets them:
     the connector's transformations and unit conversions (affine) taken as a value there is
     (`cosim.parameters.bind_system_connectors`), from the images of 0 and 1."""
@@ -263,7 +262,7 @@ def _through_connector(plan: Plan, table: InputTable, column: int,
     return fed
 
 
-def _check_values(table: InputTable, column: int, var: ModelVariable, values: np.ndarray, where: dict) -> None:
+def _check_values(table: InputTable, column: int, var: Variable, values: np.ndarray, where: dict) -> None:
     kind = exchange_type(var)
     if kind == "Integer":
         bad = np.flatnonzero(values != np.round(values))

@@ -96,18 +96,17 @@ def _refuse_entities(path: Path, file: str, where: str) -> None:
             raise SetupError(e.detail, file=file, element=f"{where}, {display}", hint=e.hint) from None
 
 
-def library_member(md, kind: str) -> str:
-    """The library's path inside the FMU for this platform and interface."""
-    fmi3 = kind.startswith("fmi3")
-    interface = md.modelExchange if kind.endswith("-me") else md.coSimulation
-    folder = fmpy.platform_tuple if fmi3 else fmpy.platform
-    return f"binaries/{folder}/{interface.modelIdentifier}{fmpy.sharedLibraryExtension}"
+def library_member(model_identifier: str, kind: str) -> str:
+    """The library's path inside the FMU for this platform and interface (``model_identifier``:
+    that interface's modelIdentifier)."""
+    folder = fmpy.platform_tuple if kind.startswith("fmi3") else fmpy.platform
+    return f"binaries/{folder}/{model_identifier}{fmpy.sharedLibraryExtension}"
 
 
-def check_library(path: Path, md, kind: str, *, file: str, where: str) -> None:
+def check_library(path: Path, model_identifier: str, kind: str, *, file: str, where: str) -> None:
     """Refuse an FMU whose library for this platform is missing, not a shared object of this
     machine, or lacks one of the functions ``kind`` needs."""
-    member = library_member(md, kind)
+    member = library_member(model_identifier, kind)
     key = _key(path, member, kind)
     check = f"library {member} {kind} on {sys.platform} {platform.machine()}, limit {key[3]}"
     if key in _passed or passed(path, check):

@@ -16,7 +16,7 @@ given a value are refused (`refuse_on_path`).
 """
 from __future__ import annotations
 
-from .description import ModelVariable, exchange_type
+from .description import Variable, exchange_type
 from .errors import SetupError
 from .structure import Hop, RouteTable, ValueTable
 
@@ -24,7 +24,7 @@ from .structure import Hop, RouteTable, ValueTable
 APPLIES_TO = {"Boolean": "Boolean", "Integer": "Integer", "Enumeration": "Integer"}
 
 
-def route_table(hops: tuple[Hop, ...], src: str, sv: ModelVariable, dst: str, dv: ModelVariable, file: str,
+def route_table(hops: tuple[Hop, ...], src: str, sv: Variable, dst: str, dv: Variable, file: str,
                 where: str) -> RouteTable | None:
     """The mapping transformations of ``hops`` from ``src.sv`` to ``dst.dv`` composed, or None
     when no hop has one."""
@@ -48,7 +48,7 @@ def refuse_on_path(hops: tuple[Hop, ...], what: str, file: str, element: str) ->
                              file=file, element=element)
 
 
-def _values(table: ValueTable, src: str, sv: ModelVariable, dst: str, dv: ModelVariable, file: str,
+def _values(table: ValueTable, src: str, sv: Variable, dst: str, dv: Variable, file: str,
             where: str) -> dict[int, int]:
     """One table as exchanged values: Booleans as 0/1, item names as their values."""
     element = f"{where}, {table.element()}"
@@ -68,13 +68,13 @@ def _values(table: ValueTable, src: str, sv: ModelVariable, dst: str, dv: ModelV
         for name, items, comp, var in ((s, source_items, src, sv), (t, target_items, dst, dv)):
             if name not in items:
                 raise SetupError(f"ssc:MapEntry '{s}' -> '{t}': '{name}' is not an item of {comp}.{var.name}'s type "
-                                 f"{var.declaredType.name} (items: {', '.join(items)}).", file=file, element=element)
+                                 f"{var.declared_type.name} (items: {', '.join(items)}).", file=file, element=element)
         out[source_items[s]] = target_items[t]
     return out
 
 
-def _items(comp: str, var: ModelVariable, file: str, element: str) -> dict[str, int]:
-    items = {item.name: int(item.value) for item in (var.declaredType.items if var.declaredType else [])}
+def _items(comp: str, var: Variable, file: str, element: str) -> dict[str, int]:
+    items = dict(var.declared_type.items if var.declared_type else ())
     if var.type != "Enumeration" or not items:
         raise SetupError(f"ssc:EnumerationMappingTransformation maps item names; {comp}.{var.name} is {var.type} "
                          "without enumeration items.", file=file, element=element)

@@ -14,9 +14,8 @@ import math
 from collections.abc import Collection, Sequence
 from dataclasses import replace
 
-from fmpy.model_description import ModelVariable
 
-from .description import ArrayElement, FMUDescription, exchange_type, unit_of
+from .description import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
 from .errors import SetupError, did_you_mean
 from .maptables import refuse_on_path
 from .routing import hops_map, transformations, unit_step
@@ -177,7 +176,7 @@ def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue
     resolved[(comp, var_name)] = StartValue(comp, var, value, origin)
 
 
-def _pending_linear(p: ParameterValue, var: ModelVariable) -> ParameterValue:
+def _pending_linear(p: ParameterValue, var: Variable) -> ParameterValue:
     """``p`` with its mapping's LinearTransformation applied now where no unit conversion comes
     first (the variable is not Real, or has no unit or the value's own): the transformation then
     acts on the value as given, and the value is coerced to the variable's type afterwards."""
@@ -186,7 +185,7 @@ def _pending_linear(p: ParameterValue, var: ModelVariable) -> ParameterValue:
     return replace(p, value=p.linear[0] * float(p.value) + p.linear[1], linear=None)
 
 
-def _check_number(value: float | int, var: ModelVariable, desc: FMUDescription, p: ParameterValue,
+def _check_number(value: float | int, var: Variable, desc: FMUDescription, p: ParameterValue,
                   where: str) -> None:
     """A Real must be finite (NaN would pass any min/max test, FMI 2.0 §2.2.7 has no NaN start
     value) and an Integer must fit the C int of fmi2Integer / fmi3Int32."""
@@ -198,7 +197,7 @@ def _check_number(value: float | int, var: ModelVariable, desc: FMUDescription, 
                          f"C int) in {desc.path.name}.", file=p.file, element=where, variable=var.name)
 
 
-def _convert_value(p: ParameterValue, var: ModelVariable, comp: str, value: float, where: str,
+def _convert_value(p: ParameterValue, var: Variable, comp: str, value: float, where: str,
                    units: SystemUnits) -> float:
     """A value given in another unit (``ssv:Real unit``), in the FMU variable's unit: FMUs are
     set in their own units (FMI 2.0 §2.2.7).  A value whose unit is not given, or a variable
@@ -211,7 +210,7 @@ def _convert_value(p: ParameterValue, var: ModelVariable, comp: str, value: floa
     return a * value + b
 
 
-def _coerce(p: ParameterValue, var: ModelVariable, where: str):
+def _coerce(p: ParameterValue, var: Variable, where: str):
     kind = exchange_type(var)
     if kind is None or var.dimensions or isinstance(var, ArrayElement):
         what = "arrays and their elements" if kind is not None else f"{var.type} variables"
@@ -232,13 +231,13 @@ def _coerce(p: ParameterValue, var: ModelVariable, where: str):
                      element=where, variable=var.name)
 
 
-def _enumeration_item(p: ParameterValue, var: ModelVariable, where: str) -> int:
+def _enumeration_item(p: ParameterValue, var: Variable, where: str) -> int:
     """The value of the item an ``ssv:Enumeration`` names, in the variable's declared type."""
-    items = {item.name: int(item.value) for item in (var.declaredType.items if var.declaredType else [])}
+    items = dict(var.declared_type.items if var.declared_type else ())
     if var.type != "Enumeration" or not items:
         raise SetupError(f"an Enumeration value ('{p.value}') is given for a {var.type} variable.", file=p.file,
                          element=where, variable=var.name)
     if p.value not in items:
-        raise SetupError(f"'{p.value}' is not an item of {var.declaredType.name} (items: {', '.join(items)}).",
+        raise SetupError(f"'{p.value}' is not an item of {var.declared_type.name} (items: {', '.join(items)}).",
                          file=p.file, element=where, variable=var.name, hint=did_you_mean(p.value, items))
     return items[p.value]

@@ -14,9 +14,8 @@ import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from fmpy.model_description import ModelVariable
 
-from .description import FMUDescription, describe, exchange_type, unit_of
+from .description import FMUDescription, Variable, describe, exchange_type, unit_of
 from .errors import SetupError, did_you_mean
 from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
 from .fmucache import passed, record_pass
@@ -54,7 +53,7 @@ def _describe(path: Path, where: str, file: str, implementation: str) -> FMUDesc
     desc = describe(path, where, file, implementation, validate=not schema_checked)
     if not schema_checked:
         record_pass(path, SCHEMA_CHECK)
-    check_library(desc.path, desc.md, desc.kind, file=file, where=where)
+    check_library(desc.path, desc.model_identifier, desc.kind, file=file, where=where)
     return desc
 
 
@@ -71,7 +70,7 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
                             comp.implementation)
             for name, comp in structure.components.items()}
     check_model_exchange(structure, fmus)
-    units = SystemUnits(structure.units, {name: fmu_units(desc.md.unitDefinitions, desc.path.name)
+    units = SystemUnits(structure.units, {name: fmu_units(desc.unit_definitions, desc.path.name)
                                           for name, desc in fmus.items()}, file)
     outputs, inputs = _check_connectors(structure, fmus, units)
     routes = _check_connections(structure, fmus, units)
@@ -105,8 +104,8 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
 
 def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
     file = structure.display
-    outputs: dict[str, list[ModelVariable]] = {}
-    inputs: dict[str, list[ModelVariable]] = {}
+    outputs: dict[str, list[Variable]] = {}
+    inputs: dict[str, list[Variable]] = {}
     for name, comp in structure.components.items():
         desc = fmus[name]
         outputs[name], inputs[name] = [], []
@@ -131,7 +130,7 @@ def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription
     return outputs, inputs
 
 
-def _check_exchangeable(desc: FMUDescription, var: ModelVariable, where: str, file: str) -> None:
+def _check_exchangeable(desc: FMUDescription, var: Variable, where: str, file: str) -> None:
     """Refuse a connector the exchange cannot carry: a type without an exchange type
     (`cosim.description.exchange_type`) or a whole FMI 3.0 array (SSP 1.0 connectors are scalars;
     one element is named as ``vector[1]``, see `FMUDescription.variable`)."""
@@ -191,7 +190,7 @@ def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescriptio
 
 
 def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], element: str, connector: str,
-              where: str) -> ModelVariable:
+              where: str) -> Variable:
     file = structure.display
     if element not in structure.components:
         raise SetupError(f"unknown component '{element}'.", file=file, element=where,
@@ -209,7 +208,7 @@ def _endpoint(structure: SystemStructure, fmus: dict[str, FMUDescription], eleme
     return fmus[element].variable(connector, where, file)
 
 
-def _system_outputs(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
+def _system_outputs(structure: SystemStructure, outputs: dict[str, list[Variable]],
                     units: SystemUnits, values: Sequence[ParameterValue]) -> dict[str, RecordedOutput]:
     """Each root-system output connector is an alias of a recorded component output (cosim.flatten).
 
@@ -282,8 +281,8 @@ def _undriven_output(structure: SystemStructure, out: SystemOutput, where: str,
 
 # --------------------------------------------------------------------------- recording
 
-def _columns(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
-             inputs: dict[str, list[ModelVariable]]) -> list[str]:
+def _columns(structure: SystemStructure, outputs: dict[str, list[Variable]],
+             inputs: dict[str, list[Variable]]) -> list[str]:
     """The recorded connectors component by component in SSD order, connectors as each component
     lists them: every output and input but String and Binary ones (exchanged, not recorded)."""
     columns = []
@@ -293,15 +292,15 @@ def _columns(structure: SystemStructure, outputs: dict[str, list[ModelVariable]]
     return columns
 
 
-def _recorded_units(structure: SystemStructure, outputs: dict[str, list[ModelVariable]],
-                    inputs: dict[str, list[ModelVariable]],
+def _recorded_units(structure: SystemStructure, outputs: dict[str, list[Variable]],
+                    inputs: dict[str, list[Variable]],
                     system_outputs: dict[str, RecordedOutput]) -> dict[str, str | None]:
     units = {f"{comp}.{v.name}": _unit(structure, comp, v) for comp in outputs for v in outputs[comp] + inputs[comp]}
     units.update({name: out.unit for name, out in system_outputs.items()})
     return units
 
 
-def _unit(structure: SystemStructure, comp: str, var: ModelVariable) -> str | None:
+def _unit(structure: SystemStructure, comp: str, var: Variable) -> str | None:
     """A recorded connector's unit: its FMU variable's own (values are recorded as the FMU
     computes or receives them, after any unit conversion of the connection), else the unit the
     SSD connector gives a variable without one (`cosim.routing.connector_unit`); None: no unit."""

@@ -8,14 +8,13 @@ scopes are `cosim.units`.
 """
 from __future__ import annotations
 
-from fmpy.model_description import ModelVariable
 
-from .description import unit_of
+from .description import Variable, unit_of
 from .structure import Hop, SystemStructure
 from .units import IDENTITY, Affine, SystemUnits, UnitScope, check_agree, conversion, then
 
 
-def connector_unit(units: SystemUnits, comp: str, var: ModelVariable, declared: str | None, where: str,
+def connector_unit(units: SystemUnits, comp: str, var: Variable, declared: str | None, where: str,
                     file: str) -> tuple[str | None, UnitScope, Affine, Affine]:
     """A Real connector's unit, where its name is looked up, and the maps from the FMU variable's
     unit to the connector's unit and back.
@@ -57,7 +56,7 @@ def unit_step(start: tuple[str | None, UnitScope], end: tuple[str | None, UnitSc
                       **where, hint=hint)
 
 
-def source_view(structure: SystemStructure, units: SystemUnits, source: tuple[str, ModelVariable],
+def source_view(structure: SystemStructure, units: SystemUnits, source: tuple[str, Variable],
                  where: str) -> tuple[str | None, UnitScope, Affine, str]:
     """A component output as the start of a path: its connector's unit, where that is looked up,
     the map from the FMU's value to the connector's, and its name."""
@@ -68,7 +67,7 @@ def source_view(structure: SystemStructure, units: SystemUnits, source: tuple[st
 
 
 def hops_map(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, ...],
-              start: tuple[str | None, UnitScope, Affine, str], target: tuple[str, ModelVariable] | None,
+              start: tuple[str | None, UnitScope, Affine, str], target: tuple[str, Variable] | None,
               where: str) -> Affine:
     """The affine map along a path through system connectors (`cosim.flatten`): from the value
     at its start (``start``: the unit, where it is looked up, the map from the value given to

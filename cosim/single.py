@@ -69,17 +69,15 @@ def fmu_structure(path: str | Path, fmi_type: str | None = None) -> SystemStruct
     where = "the FMU given"
     check_fmu_file(fmu, file=str(fmu), where=where)   # what build_plan checks, named as the user gave it
     desc = describe(fmu, where, str(fmu), implementation)
-    check_library(desc.path, desc.md, desc.kind, file=str(fmu), where=where)
-    md = desc.md
-    interface = md.coSimulation if desc.kind.endswith("cs") else md.modelExchange
-    name = interface.modelIdentifier
-    connectors = {v.name: Connector(v.name, v.causality, None, None, 0) for v in md.modelVariables
+    check_library(desc.path, desc.model_identifier, desc.kind, file=str(fmu), where=where)
+    name = desc.model_identifier
+    connectors = {v.name: Connector(v.name, v.causality, None, None, 0) for v in desc.variables.values()
                   if v.causality in ("input", "output") and exchange_type(v) is not None and not v.dimensions}
     component = Component(name, fmu.name, 0, connectors, implementation=implementation)
-    e = md.defaultExperiment
-    start = float(e.startTime) if e is not None and e.startTime is not None else None
-    stop = float(e.stopTime) if e is not None and e.stopTime is not None else None
-    step = float(e.stepSize) if e is not None and e.stepSize is not None else None
+    e = desc.default_experiment
+    start = float(e.start_time) if e is not None and e.start_time is not None else None
+    stop = float(e.stop_time) if e is not None and e.stop_time is not None else None
+    step = float(e.step_size) if e is not None and e.step_size is not None else None
     outputs = [c for c in connectors.values() if c.kind == "output"]
     aliases = {c.name: Connector(c.name, "output", None, None, 0) for c in outputs}
     wires = [Connection(name, c.name, None, c.name, 1.0, 0.0, False, False, 0) for c in outputs]

@@ -15,7 +15,7 @@ def solver_settings(desc: FMUDescription, options: SolverOptions | None = None) 
     DefaultExperiment tolerance, else 1e-6; absolute tolerances are rtol × the states' nominal
     values (as fmpy does).  The largest internal step is the annotation's maxStep (capped at the
     communication step), else the communication step."""
-    experiment = desc.md.defaultExperiment
+    experiment = desc.default_experiment
     tolerance = experiment.tolerance if experiment is not None and experiment.tolerance else None
     rtol = float(tolerance) if tolerance else DEFAULT_RTOL
     if options is not None and options.rtol is not None:
@@ -45,7 +45,7 @@ def check_model_exchange(structure: SystemStructure, fmus: dict[str, FMUDescript
                              hint='Add implementation="ModelExchange" to the component or remove the annotation.')
         if desc.kind not in MODEL_EXCHANGE:
             continue
-        discrete = [v.name for v in desc.md.modelVariables if v.causality == "input" and v.variability != "continuous"]
+        discrete = [v.name for v in desc.variables.values() if v.causality == "input" and v.variability != "continuous"]
         if discrete:
             raise SetupError(f"{desc.path.name} runs through its Model Exchange interface and has discrete-time "
                              f"inputs ({', '.join(discrete)}), which FMI 2.0 lets an importer set only in Event Mode "

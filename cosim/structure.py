@@ -16,9 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from fmpy.model_description import ModelVariable
 
-from .description import FMUDescription, exchange_type
+from .description import FMUDescription, Variable, exchange_type
 from .units import SystemUnits, Unit
 
 
@@ -381,9 +380,9 @@ class Route:
     source FMU's value to the destination FMU's value: the unit conversion and the
     LinearTransformation composed (see `cosim.routing.hops_map`)."""
     src: str
-    src_var: ModelVariable
+    src_var: Variable
     dst: str
-    dst_var: ModelVariable
+    dst_var: Variable
     factor: float
     offset: float
     #: the mapping transformations on the way, composed (`cosim.maptables`); None without any
@@ -432,7 +431,7 @@ class AlgebraicLoop:
 @dataclass(frozen=True)
 class StartValue:
     component: str
-    variable: ModelVariable
+    variable: Variable
     value: float | int | bool | str
     origin: str
 
@@ -484,8 +483,8 @@ class Plan:
     routes: list[Route]
     start_values: list[StartValue]
     #: per component, the connector variables recorded and exchanged, in SSD order
-    outputs: dict[str, list[ModelVariable]]
-    inputs: dict[str, list[ModelVariable]]
+    outputs: dict[str, list[Variable]]
+    inputs: dict[str, list[Variable]]
     #: components whose outputs must be re-read after their inputs are set at a
     #: communication point (direct feedthrough), in dependency order; may repeat.  With
     #: ``loop_mode`` "iterate" it includes the components of algebraic loops (the sweep the
@@ -519,7 +518,7 @@ class Plan:
         """The result names of the recorded outputs (the root system's output connectors last)
         and inputs: every connector but String and Binary ones, which are exchanged, not recorded
         (`cosim.execution.Execution.recorder_sources`)."""
-        def names(group: dict[str, list[ModelVariable]]) -> list[str]:
+        def names(group: dict[str, list[Variable]]) -> list[str]:
             return [f"{c}.{v.name}" for c, vs in group.items() for v in vs
                     if exchange_type(v) not in ("String", "Binary")]
         return names(self.outputs) + list(self.system_outputs), names(self.inputs)

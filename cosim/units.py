@@ -112,17 +112,25 @@ def _builtin() -> dict[str, Unit]:
 BUILTIN: dict[str, Unit] = _builtin()
 
 
-def fmu_units(unit_definitions: Iterable, source: str) -> dict[str, Unit]:
-    """The units of an FMU's ``UnitDefinitions`` (fmpy's ``ModelDescription.unitDefinitions``);
+@dataclass(frozen=True)
+class UnitDefinition:
+    """One ``UnitDefinitions/Unit`` (FMI 2.0 §2.2.2): its BaseUnit's exponents in the order of
+    `BASE_UNITS`, factor and offset (``base`` None: the Unit has no BaseUnit)."""
+    name: str
+    base: tuple[int, ...] | None
+    factor: float = 1.0
+    offset: float = 0.0
+
+
+def fmu_units(unit_definitions: Iterable[UnitDefinition], source: str) -> dict[str, Unit]:
+    """The units of an FMU's ``UnitDefinitions`` (`cosim.description.FMUDescription.unit_definitions`);
     a Unit without a BaseUnit is dimensionless with factor 1 (FMI 2.0 §2.2.2)."""
     units = {}
     for u in unit_definitions:
-        b = u.baseUnit
-        if b is None:
+        if u.base is None:
             units[u.name] = make_unit(u.name, source)
         else:
-            units[u.name] = Unit(u.name, tuple(int(getattr(b, n)) for n in BASE_UNITS), float(b.factor),
-                                 float(b.offset), source)
+            units[u.name] = Unit(u.name, u.base, u.factor, u.offset, source)
         check_definition(units[u.name], file=source, element=f"UnitDefinitions/Unit '{u.name}'")
     return units
 

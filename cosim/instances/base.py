@@ -17,9 +17,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
-from fmpy.model_description import ModelVariable
 
-from ..description import ExchangeType, FMUDescription
+from ..description import ExchangeType, FMUDescription, Variable
 from ..errors import SetupError
 from .pythonfmu_state import release_pythonfmu_state
 
@@ -63,7 +62,7 @@ class Instance(Protocol):
 
     def setup_experiment(self, start: float, stop: float) -> None: ...
 
-    def set_start(self, variable: ModelVariable, value: float | int | bool | str) -> None: ...
+    def set_start(self, variable: Variable, value: float | int | bool | str) -> None: ...
 
     def step_end(self, t: float, h: float) -> tuple[float | None, str]:
         """After ``do_step(t, h)`` ended the run (returned Discard): the time up to which the
@@ -108,11 +107,10 @@ def serial_reason(inst: InstanceBase) -> str:
     §4.2.1: the FMU may keep global state), or it is a pythonfmu FMU (its library exports
     ``finalizePythonInterpreter``, or, behind our drop-in loader, its generationTool says
     PythonFMU), whose Python do_step holds the GIL: nothing to gain."""
-    cs = inst.desc.md.coSimulation
-    if cs is not None and cs.canBeInstantiatedOnlyOncePerProcess:
+    if inst.desc.instantiated_once_per_process:
         return f"component '{inst.name}' says canBeInstantiatedOnlyOncePerProcess"
     if hasattr(inst.slave.dll, "finalizePythonInterpreter") \
-            or (inst.desc.md.generationTool or "").lower().startswith("pythonfmu"):
+            or (inst.desc.generation_tool or "").lower().startswith("pythonfmu"):
         return f"component '{inst.name}' is a pythonfmu FMU (its Python do_step holds the GIL)"
     return ""
 
@@ -160,7 +158,7 @@ class InstanceBase:
 
     def restrict_logging(self, fmu_log: str) -> None:
         """After instantiation: with "errors", only the FMU's logStatus* categories."""
-        status_categories = [c.name for c in self.desc.md.logCategories if c.name.startswith("logStatus")]
+        status_categories = [c for c in self.desc.log_categories if c.startswith("logStatus")]
         if fmu_log == "errors" and status_categories:
             self.slave.setDebugLogging(True, status_categories)
 

@@ -8,9 +8,8 @@ import ctypes
 import fmpy
 from fmpy.fmi2 import (FMU2Slave, printLogMessage, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-from fmpy.model_description import ModelVariable
 
-from ..description import FMUDescription
+from ..description import FMUDescription, Variable
 from ..errors import SetupError
 from .base import InstanceBase, NativeFunctions, address, end_instance, log_line, serial_reason
 from .loading import quick
@@ -58,8 +57,7 @@ class FMI2Instance(InstanceBase):
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
         super().__init__(name, desc)
-        md = desc.md
-        self.slave = self.interface(guid=md.guid, unzipDirectory=unzip_dir,
+        self.slave = self.interface(guid=desc.guid, unzipDirectory=unzip_dir,
                                     modelIdentifier=desc.model_identifier, instanceName=name)
         _LOG_TARGETS[name] = self.messages
         raw = self.slave._functions
@@ -93,7 +91,7 @@ class FMI2Instance(InstanceBase):
         try:
             self.slave.instantiate(callbacks=_callbacks(), loggingOn=logging_on)
         except Exception as e:
-            raise SetupError(f"fmi2Instantiate failed for {self.desc.path.name} (GUID {self.desc.md.guid}): {e}."
+            raise SetupError(f"fmi2Instantiate failed for {self.desc.path.name} (GUID {self.desc.guid}): {e}."
                              + self.last_messages(), element=f"component '{self.name}'") from None
         self.component = self.slave.component
         self.restrict_logging(fmu_log)
@@ -107,9 +105,9 @@ class FMI2Instance(InstanceBase):
     def setup_experiment(self, start: float, stop: float) -> None:
         self.slave.setupExperiment(startTime=start, stopTime=stop)
 
-    def set_start(self, variable: ModelVariable, value: float | int | bool | str) -> None:
+    def set_start(self, variable: Variable, value: float | int | bool | str) -> None:
         """Set a parameter or start value before initialisation (FMI 2.0 §2.2.7)."""
-        vr = [variable.valueReference]
+        vr = [variable.vr]
         if variable.type == "String":  # fmpy's setString encodes to UTF-8 itself
             self.slave.setString(vr, [str(value)])
         else:  # an Enumeration is set as an Integer (FMI 2.0 §2.2.3)

@@ -32,9 +32,8 @@ from collections.abc import Callable
 
 import numpy as np
 from fmpy.fmi3 import FMU3Slave, fmi3Binary
-from fmpy.model_description import ModelVariable
 
-from ..description import ArrayElement, FMUDescription, exchange_type
+from ..description import ArrayElement, FMUDescription, Variable, exchange_type
 from ..errors import SetupError
 from .base import STATUS, InstanceBase, NativeFunctions, address, end_instance, log_line, serial_reason
 from .loading import quick
@@ -86,11 +85,11 @@ class FMI3Instance(InstanceBase):
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str):
         super().__init__(name, desc)
-        self.slave = self.interface(guid=desc.md.guid, unzipDirectory=unzip_dir,
+        self.slave = self.interface(guid=desc.guid, unzipDirectory=unzip_dir,
                                     modelIdentifier=desc.model_identifier, instanceName=name)
         self._start, self._stop = 0.0, None
         self._end: tuple[float | None, str] = (None, "fmi3DoStep returned Discard")
-        self._by_reference = {v.valueReference: v for v in desc.md.modelVariables}
+        self._by_reference = {v.vr: v for v in desc.variables.values()}
         #: fmi3DoStep's out-arguments: eventHandlingNeeded, terminateSimulation, earlyReturn, lastSuccessfulTime
         self._step_out = (ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double())
         raw = self.slave._functions
@@ -152,7 +151,7 @@ class FMI3Instance(InstanceBase):
         return (FMI3_FUNCTIONS[type_name][1] is ctypes.c_bool
                 or any(exchange_type(e.array) == type_name for e in self.desc.elements.values())
                 or any(exchange_type(v) == type_name and FMI3_TYPES[v.type][0] != native
-                       for v in self.desc.md.modelVariables))
+                       for v in self.desc.variables.values()))
 
     def _get_adapter(self, type_name: str) -> Adapter:
         suffix, ctype = FMI3_FUNCTIONS[type_name]
@@ -249,7 +248,7 @@ class FMI3Instance(InstanceBase):
             self.slave.instantiate(loggingOn=logging_on, logMessage=self._log)
         except Exception as e:
             raise SetupError(f"{self.instantiate_function} failed for {self.desc.path.name} (instantiation "
-                             f"token {self.desc.md.guid}): {e}." + self.last_messages(),
+                             f"token {self.desc.guid}): {e}." + self.last_messages(),
                              element=f"component '{self.name}'") from None
         self.component = self.slave.component
         self.restrict_logging(fmu_log)
@@ -258,9 +257,9 @@ class FMI3Instance(InstanceBase):
         """Kept for `enter_initialization_mode`: FMI 3.0 has no fmi3SetupExperiment."""
         self._start, self._stop = start, stop
 
-    def set_start(self, variable: ModelVariable, value: float | int | bool | str) -> None:
+    def set_start(self, variable: Variable, value: float | int | bool | str) -> None:
         """Set a parameter or start value before initialisation (FMI 3.0 §2.2.6.2)."""
-        vr = [variable.valueReference]
+        vr = [variable.vr]
         if variable.type == "String":
             self.slave.setString(vr, [str(value)])
         else:  # fmpy's set<Type> for each FMI 3.0 type (an Enumeration is an Int64)
@@ -298,7 +297,7 @@ class _Gather:
     A plan serves one pair of caller arrays (value references, values), as the execution
     passes the same ones at every call; it keeps them, so their ``id`` keys it safely."""
 
-    def __init__(self, vrs, n: int, values, elements: dict[int, ArrayElement], variables: dict[int, ModelVariable],
+    def __init__(self, vrs, n: int, values, elements: dict[int, ArrayElement], variables: dict[int, Variable],
                  functions: dict, type_name: str):
         self.caller = (vrs, values)
         self.out = np.ctypeslib.as_array(values, shape=(n,))
@@ -306,7 +305,7 @@ class _Gather:
         for i, vr in enumerate(vrs[:n]):
             element = elements.get(vr)
             var = element.array if element is not None else variables[vr]
-            real_vr, size, index = (var.valueReference, element.size, element.index) if element is not None \
+            real_vr, size, index = (var.vr, element.size, element.index) if element is not None \
                 else (vr, 1, 0)
             suffix, ctype = FMI3_TYPES[var.type]
             group = groups.get(suffix)

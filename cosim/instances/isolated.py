@@ -78,7 +78,7 @@ class IsolatedInstance:
         self.failed: str | None = None
         self.call_timeout = call_timeout
         self._time = 0.0  # the time of the last call, for messages
-        capacity = SLOTS_PER_VALUE * (len(desc.md.modelVariables) + len(desc.elements))
+        capacity = SLOTS_PER_VALUE * (len(desc.variables) + len(desc.elements))
         self._size = -(-(STATUS_BYTES + capacity * VALUE_BYTES) // mmap.PAGESIZE) * mmap.PAGESIZE
         self._shared = mmap.mmap(-1, self._size)  # anonymous and shared: inherited by the fork
         self._anchor = ctypes.c_char.from_buffer(self._shared)

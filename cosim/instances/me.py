@@ -71,13 +71,12 @@ class Integrated:
 
     def __init__(self, name: str, desc: FMUDescription, unzip_dir: str, settings: SolverSettings):
         super().__init__(name, desc, unzip_dir)  # the FMI 2.0 or FMI 3.0 instance (next in the MRO)
-        md = desc.md
         self.settings = settings
         self._raw = self.slave._functions
-        self._nx = md.numberOfContinuousStates
-        self._nz = md.numberOfEventIndicators
-        self._needs_completed_step = bool(md.modelExchange.needsCompletedIntegratorStep)
-        inputs = [v.valueReference for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")]
+        self._nx = desc.continuous_states
+        self._nz = desc.event_indicators
+        self._needs_completed_step = desc.needs_completed_integrator_step
+        inputs = [v.vr for v in desc.variables.values() if v.causality == "input" and v.type in ("Real", "Float64")]
         self._input_vrs = (ctypes.c_uint * max(1, len(inputs)))(*inputs)
         self._n_inputs = len(inputs)
         self._inputs = (ctypes.c_double * max(1, len(inputs)))()

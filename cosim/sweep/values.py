@@ -189,7 +189,7 @@ def identity_of(prepared: Prepared, parameter_sets: Sequence[Path], start_values
                  if p.suffix.lower() in (".ssd", ".ssv") and p.is_file()}
     grid = prepared.grid
     return {"scenario": files,
-            "fmus": {name: [d.md.guid, _digest(d.path)] for name, d in prepared.plan.fmus.items()},
+            "fmus": {name: [d.guid, _digest(d.path)] for name, d in prepared.plan.fmus.items()},
             "parameter_sets": [_digest(Path(p)) for p in parameter_sets],
             "grid": [grid.start, grid.stop, grid.step], "algorithm": prepared.algorithm,
             **({"start_values": list(start_values)} if start_values else {}),
