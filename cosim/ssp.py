@@ -316,16 +316,16 @@ def _read_component(el: etree._Element, base_dir: Path, display: str) -> Compone
     if ctype != FMU_MIME:
         raise SetupError(f"component type '{ctype}' is not supported; only FMUs ({FMU_MIME}).",
                          file=display, element=where)
-    comp = Component(name=name, source=el.get("source"), line=el.sourceline,
-                     implementation=el.get("implementation", "any"))
+    connectors: dict[str, Connector] = {}
     for c in el.iterfind("ssd:Connectors/ssd:Connector", NS):
         conn = _read_connector(c)
-        if conn.name in comp.connectors:
+        if conn.name in connectors:
             raise SetupError(f"connector '{conn.name}' is declared twice.", file=display, element=where)
-        comp.connectors[conn.name] = conn
-    comp.parameters, comp.component_bindings = _read_bindings(el, base_dir, display, comp.source)
-    comp.solver = _read_solver_annotation(el, display)
-    return comp
+        connectors[conn.name] = conn
+    parameters, bindings = _read_bindings(el, base_dir, display, el.get("source"))
+    return Component(name=name, source=el.get("source"), line=el.sourceline, connectors=connectors,
+                     parameters=parameters, implementation=el.get("implementation", "any"),
+                     solver=_read_solver_annotation(el, display), component_bindings=bindings)
 
 
 def _read_solver_annotation(component: etree._Element, display: str) -> SolverOptions | None:

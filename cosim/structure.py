@@ -55,8 +55,9 @@ class ParameterValue:
         return f"ssv:Parameter (line {self.line})" + (f", mapped by {self.mapping}" if self.mapping else "")
 
 
-@dataclass
+@dataclass(frozen=True)
 class Component:
+    """One ``ssd:Component`` (SSP 1.0): an FMU, its connectors and its parameter bindings' values."""
     name: str
     source: str
     line: int
