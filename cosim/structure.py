@@ -368,9 +368,16 @@ class SystemStructure:
         return display_name(self.ssd_file, self.archive)
 
     def close(self) -> None:
+        """Remove the extraction folder of an .ssp archive, if this copy owns it."""
         if self._tmp is not None:
             self._tmp.cleanup()
             self._tmp = None
+
+    def __getstate__(self) -> dict:
+        """Pickled without the extraction folder: a copy in another process (a sweep's worker,
+        `cosim.sweep.dispatch.Task.prepared`) reads the archive's files where the process that
+        extracted them keeps them, and never removes them."""
+        return {**self.__dict__, "_tmp": None}
 
 
 # --------------------------------------------------------------------------- validated (cosim.plan)

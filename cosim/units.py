@@ -184,6 +184,10 @@ class SystemUnits:
         for comp, table in fmu_tables.items():
             check_agree(ssd_units, table, file=file, element=f"ssd:Units and the FMU of component '{comp}'")
 
+    def __eq__(self, other: object) -> bool:
+        """The same tables (a `cosim.structure.Plan` compares by value, as after a pickle round trip)."""
+        return isinstance(other, SystemUnits) and (self.ssd, self.fmu) == (other.ssd, other.fmu)
+
     def for_variable(self, comp: str) -> UnitScope:
         """Where the unit of an FMU variable is looked up: its FMU, the SSD, built-ins."""
         return UnitScope(self.fmu[comp], self.ssd)

@@ -41,16 +41,18 @@ import hashlib
 import json
 import sys
 import tempfile
+import warnings
 from collections.abc import Mapping, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..errors import CosimError
 from ..outputs import check_sweep_folder
 from ..safeio import lock_output, max_unpacked_bytes
-from ..simulation import signal_units
-from ..single import prepare_run
+from ..simulation import Grid, Prepared, signal_units
+from ..single import Scenario, load_scenario, prepare_scenario
 from .batch import BatchedTable
 from .cluster import check_scheduler, dispatch_cluster
 from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
@@ -89,6 +91,21 @@ class SweepResult:
 
 
 
+def _shipped_plan(loaded: Scenario, ssv: Path, start_values: Sequence[str], grid: Grid,
+                  algorithm: str) -> Prepared | None:
+    """One run's plan for a local worker (`Task.prepared`), prepared as the worker would
+    (`cosim.sweep.worker.prepare_task`); None for a run whose plan is refused: the worker
+    prepares it again and reports the refusal as that run's failed row."""
+    try:
+        with warnings.catch_warnings():   # the sweep's own plan has warned already
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return prepare_scenario(loaded, parameter_sets=[ssv.resolve()], start_values=start_values,
+                                    start_time=grid.start, stop_time=grid.stop, step_size=grid.step,
+                                    algorithm=algorithm)
+    except CosimError:
+        return None
+
+
 def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: Sequence[int] = (),
           seed_parameters: Sequence[str] = (), metrics: Sequence[str | Metric | tuple[str, str]] = (),
           parameter_sets: Sequence[str | Path] = (), start_time: float | None = None,
@@ -114,24 +131,30 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
     metric_list = [parse_metric(m) for m in metrics]
     parameter_sets = [Path(p).resolve() for p in parameter_sets]
     inputs = None if input_file is None else Path(input_file).resolve()
-    prepared = prepare_run(scenario, start_time=start_time, stop_time=stop_time, step_size=step_size,
-                           algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
-                           start_values=start_values, input_file=inputs)
+    fmu_dirs = [Path(d).resolve() for d in fmu_dirs]
+    # the scenario read once here, kept (an .ssp's extraction folder with it) until the runs are done:
+    # each run's plan is prepared from it and shipped with its task to a local worker
+    loaded = load_scenario(scenario.resolve(), parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
+                           input_file=inputs)
     try:       # this prepare also builds our FMUs once, before workers could race to build them
+        prepared = prepare_scenario(loaded, start_time=start_time, stop_time=stop_time, step_size=step_size,
+                                    algorithm=algorithm, start_values=start_values)
         check_metrics(prepared, metric_list)
         identity = identity_of(prepared, parameter_sets, start_values, inputs)
         runs, types = plan_runs(prepared, sets, seeds, seed_parameters, identity)
         grid, algo = prepared.grid, prepared.algorithm
         package = package_of(prepared) if is_cluster(executor) else None
         units = signal_units(prepared.plan)
-    finally:
-        prepared.close()
-    sweep_key = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
-    swept_types = {name: types[name] for name in sets}
-    schema = schema_of(swept_types, bool(seeds), metric_list)
+        sweep_key = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
+        swept_types = {name: types[name] for name in sets}
+        schema = schema_of(swept_types, bool(seeds), metric_list)
+    except BaseException:
+        loaded.close()
+        raise
     csv, parquet = output / "sweep.csv", output / "sweep.parquet"
     runs_dir = output / "runs"
     with ExitStack() as locks:   # the locks a run writing either table takes: one writer per folder
+        locks.callback(loaded.close)
         for table in (csv, parquet):
             locks.enter_context(lock_output(table))
         if run_files:
@@ -156,13 +179,14 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
                 continue
             ssv = (runs_dir if run_files else sets_dir) / f"{r.run_id}.ssv"
             write_ssv(ssv, r.parameters, name=f"sweep run {r.run_id}")
+            shipped = _shipped_plan(loaded, ssv, start_values, grid, algo) if reuse and package is None else None
             tasks.append(Task(r.run_id, str(scenario.resolve()),
                               tuple(str(p) for p in [*parameter_sets, ssv.resolve()]),
                               tuple(str(Path(d).resolve()) for d in fmu_dirs), grid.start, grid.stop, grid.step,
                               algo, str((runs_dir / f"{r.run_id}.csv").resolve()), tuple(metric_list),
                               max_unpacked_bytes()[0], tuple(start_values),
                               None if inputs is None else str(inputs), shared_sets=len(parameter_sets),
-                              sweep_key=sweep_key, reuse=reuse, run_files=run_files))
+                              sweep_key=sweep_key, reuse=reuse, run_files=run_files, prepared=shipped))
         skipped = len(runs) - len(tasks)
 
         bar = None

@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import CosimError, Errc, SetupError
 from ..metrics import METRICS, step_response
 from ..safeio import unpack_limit
-from ..simulation import run
+from ..simulation import Prepared, run
 from ..single import prepare_run
 from .values import Metric
 from .worker import kept_for, prepare_task, release
@@ -55,6 +55,10 @@ class Task:
     reuse: bool = True
     #: write the run's result file (``csv``) and its metadata JSON; False: the table row only
     run_files: bool = True
+    #: the run's plan, prepared by the sweep in its process (`cosim.sweep.sweep`) and pickled with
+    #: the task: the worker runs it as is, on its kept instances (None: the worker prepares the run
+    #: from the files the task names, `cosim.sweep.worker.prepare_task`)
+    prepared: Prepared | None = None
 
 
 # --------------------------------------------------------------------------- one run (in a worker)
@@ -69,7 +73,8 @@ def execute(task: Task) -> dict[str, Any]:
         with unpack_limit(task.max_unpacked):  # the FMUs are unpacked by run(): inside the limit too
             if task.reuse and task.sweep_key:
                 kept = kept_for(task)
-                result, metadata = run(prepare_task(task, kept), output=output, pool=kept.pool)
+                prepared = task.prepared if task.prepared is not None else prepare_task(task, kept)
+                result, metadata = run(prepared, output=output, pool=kept.pool)
             else:
                 prepared = prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
                                        step_size=task.step, algorithm=task.algorithm,

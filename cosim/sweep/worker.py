@@ -5,7 +5,9 @@ Every run of a sweep is the same scenario with other values for a few parameters
 a worker as a `cosim.sweep.dispatch.Task`.  A worker keeps, for the last sweep it ran a run
 of (one at a time):
 
-- the scenario read, its FMUs located and its shared parameter sets and input table read
+- for a task that does not carry its plan (`cosim.sweep.dispatch.Task.prepared`: a local sweep
+  prepares every run's plan in its own process and ships it pickled), the scenario read, its
+  FMUs located and its shared parameter sets and input table read
   (`cosim.single.load_scenario`): each run's plan is then made from it with the run's own
   parameter set (`cosim.single.prepare_scenario`, the same checks as ``cosim run``'s), so the
   swept values may be parameters or start values of any kind: nothing about the plan is kept
@@ -34,14 +36,16 @@ from ..single import Scenario, load_scenario, prepare_scenario
 class Kept:
     """One sweep's scenario and instances, kept by a worker process."""
     key: tuple
-    scenario: Scenario
+    #: None for the tasks that carry their plan
+    scenario: Scenario | None
     pool: InstancePool
 
     def close(self) -> None:
         try:
             self.pool.close()
         finally:
-            self.scenario.close()
+            if self.scenario is not None:
+                self.scenario.close()
 
 
 _KEPT: list[Kept] = []     # at most one: the last sweep's
@@ -59,8 +63,9 @@ def kept_for(task) -> Kept:
     if _KEPT and _KEPT[0].key == key:
         return _KEPT[0]
     release()
-    scenario = load_scenario(task.scenario, parameter_sets=task.parameter_sets[:task.shared_sets],
-                             fmu_dirs=task.fmu_dirs, input_file=task.input_file)
+    scenario = None if task.prepared is not None else \
+        load_scenario(task.scenario, parameter_sets=task.parameter_sets[:task.shared_sets],
+                      fmu_dirs=task.fmu_dirs, input_file=task.input_file)
     _KEPT.append(Kept(key, scenario, InstancePool()))
     return _KEPT[0]
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import pickle
 import zipfile
 
 import numpy as np
@@ -45,6 +46,25 @@ def test_locating_and_planning_change_nothing_they_are_given(chain):
     plan = build_plan(structure, fmu_paths, extra)
     assert structure == before and extra == [ParameterValue("gain.k", "Real", 4.0, "cli.ssv", 3)]
     assert {f"{s.component}.{s.variable.name}": s.value for s in plan.start_values}["gain.k"] == 4.0
+
+
+def test_a_plan_is_plain_data_that_round_trips_through_pickle(chain, tmp_path):
+    """No fmpy object in a plan (cosim.description's records); an unpickled copy equals it, and a
+    copy of an .ssp's plan reads the archive's extracted files without owning them (a sweep ships
+    plans to its workers this way, cosim.sweep.dispatch.Task.prepared)."""
+    plan = validate(chain, use_providers=False)
+    data = pickle.dumps(plan)
+    assert b"fmpy" not in data and pickle.loads(data) == plan
+    packed = validate(pack(plan, tmp_path / "chain.ssp"), use_providers=False)
+    try:
+        shipped = pickle.loads(pickle.dumps(packed))
+        assert shipped == dataclasses.replace(packed, structure=dataclasses.replace(packed.structure, _tmp=None))
+        shipped.close()   # the copy owns no folder: the files stay for the plan that extracted them
+        assert packed.files.base_dir.is_dir()
+        assert run(resolve_grid(shipped))[0].tobytes() == run(resolve_grid(packed))[0].tobytes()
+    finally:
+        packed.close()
+    assert not packed.files.base_dir.exists()
 
 
 def test_the_plan_holds_routes_columns_units_and_the_experiment(chain):
