@@ -373,17 +373,16 @@ def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
 
 
 def _validate(args) -> int:
-    prepared = _prepare_with_placeholder_grid(args)
-    plan = prepared.plan
-    e = plan.experiment
-    stop = f"stop {e.stop_time:g} s" if e.stop_time is not None else "no stop time in the SSD (run needs --stop)"
-    step = f"step {e.step_size:g} s ({e.step_size_source})" if e.step_size is not None \
-        else "no step size in the SSD (run needs --step)"
-    print(f"cosim: {args.path}: valid — {len(plan.fmus)} FMUs, {len(plan.routes)} connections, "
-          f"{len(plan.start_values)} parameter values; {stop}; {step}")
-    for loop in plan.algebraic_loops:
-        print(f"cosim: algebraic loop (run solves it by iteration; --loops delay breaks it): {loop.describe()}")
-    prepared.close()
+    with _prepare_with_placeholder_grid(args) as prepared:
+        plan = prepared.plan
+        e = plan.experiment
+        stop = f"stop {e.stop_time:g} s" if e.stop_time is not None else "no stop time in the SSD (run needs --stop)"
+        step = f"step {e.step_size:g} s ({e.step_size_source})" if e.step_size is not None \
+            else "no step size in the SSD (run needs --step)"
+        print(f"cosim: {args.path}: valid — {len(plan.fmus)} FMUs, {len(plan.routes)} connections, "
+              f"{len(plan.start_values)} parameter values; {stop}; {step}")
+        for loop in plan.algebraic_loops:
+            print(f"cosim: algebraic loop (run solves it by iteration; --loops delay breaks it): {loop.describe()}")
     return 0
 
 
@@ -411,39 +410,38 @@ def _prepare_with_placeholder_grid(args):
 
 
 def _info(args) -> int:
-    prepared = _prepare_with_placeholder_grid(args)
-    plan = prepared.plan
-    e, hierarchy = plan.experiment, plan.structure.hierarchy
-    print(f"system {plan.name!r} ({plan.files.display})")
-    print(f"  experiment: start {e.start_time}, stop {e.stop_time}, step {e.step_size} "
-          f"({e.step_size_source or 'none in the SSD'}), algorithm {e.algorithm or 'jacobi'}")
-    if hierarchy is not None and (hierarchy.systems or hierarchy.connectors):
-        print(f"hierarchy (names are paths relative to the root system '{plan.system_name}'):")
-        _print_system(hierarchy, 1)
-        for o in plan.system_outputs.values():
-            tf = f" (x{o.factor:g} {o.offset:+g})" if (o.factor, o.offset) != (1.0, 0.0) else ""
-            print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}" if o.component is not None
-                  else f"  recorded: {o.name} = {o.offset:g} (undriven: a constant)")
-    print("components:")
-    for name, desc in plan.fmus.items():
-        print(f"  {name}: {desc.path.name} (FMI {desc.fmi_version}, {desc.generation_tool}, "
-              f"GUID {desc.guid})")
-        solver = plan.solvers.get(name)
-        print(f"    interface {desc.kind} (implementation=\"{plan.components[name].implementation}\")"
-              + (f", integrated by the master: {solver.method}, rtol {solver.rtol:g}, max step "
-                 f"{solver.as_dict()['max_step']}" if solver else ""))
-        for v in plan.inputs[name] + plan.outputs[name]:
-            print(f"    {v.causality:6} {v.type:7} {v.name}" + (f" [{v.unit}]" if v.unit else ""))
-    print("connections:")
-    for r in plan.routes:
-        tf = f" (x{r.factor:g} {r.offset:+g})" if (r.factor, r.offset) != (1.0, 0.0) else ""
-        print(f"  {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}{tf}")
-    print("parameters:")
-    for sv in plan.start_values:
-        print(f"  {sv.component}.{sv.variable.name} = {sv.value}  ({sv.origin})")
-    if plan.feedthrough_sequence:
-        print("direct feedthrough resolved at each step in the order: " + ", ".join(plan.feedthrough_sequence))
-    prepared.close()
+    with _prepare_with_placeholder_grid(args) as prepared:
+        plan = prepared.plan
+        e, hierarchy = plan.experiment, plan.structure.hierarchy
+        print(f"system {plan.name!r} ({plan.files.display})")
+        print(f"  experiment: start {e.start_time}, stop {e.stop_time}, step {e.step_size} "
+              f"({e.step_size_source or 'none in the SSD'}), algorithm {e.algorithm or 'jacobi'}")
+        if hierarchy is not None and (hierarchy.systems or hierarchy.connectors):
+            print(f"hierarchy (names are paths relative to the root system '{plan.system_name}'):")
+            _print_system(hierarchy, 1)
+            for o in plan.system_outputs.values():
+                tf = f" (x{o.factor:g} {o.offset:+g})" if (o.factor, o.offset) != (1.0, 0.0) else ""
+                print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}" if o.component is not None
+                      else f"  recorded: {o.name} = {o.offset:g} (undriven: a constant)")
+        print("components:")
+        for name, desc in plan.fmus.items():
+            print(f"  {name}: {desc.path.name} (FMI {desc.fmi_version}, {desc.generation_tool}, "
+                  f"GUID {desc.guid})")
+            solver = plan.solvers.get(name)
+            print(f"    interface {desc.kind} (implementation=\"{plan.components[name].implementation}\")"
+                  + (f", integrated by the master: {solver.method}, rtol {solver.rtol:g}, max step "
+                     f"{solver.as_dict()['max_step']}" if solver else ""))
+            for v in plan.inputs[name] + plan.outputs[name]:
+                print(f"    {v.causality:6} {v.type:7} {v.name}" + (f" [{v.unit}]" if v.unit else ""))
+        print("connections:")
+        for r in plan.routes:
+            tf = f" (x{r.factor:g} {r.offset:+g})" if (r.factor, r.offset) != (1.0, 0.0) else ""
+            print(f"  {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}{tf}")
+        print("parameters:")
+        for sv in plan.start_values:
+            print(f"  {sv.component}.{sv.variable.name} = {sv.value}  ({sv.origin})")
+        if plan.feedthrough_sequence:
+            print("direct feedthrough resolved at each step in the order: " + ", ".join(plan.feedthrough_sequence))
     return 0
 
 
@@ -461,14 +459,11 @@ def _pack(args) -> int:
     from .outputs import check_output, scenario_files
     from .pack import pack
 
-    prepared = _prepare_with_placeholder_grid(args)
-    try:
+    with _prepare_with_placeholder_grid(args) as prepared:
         output = Path(args.output)
         check_output(output, scenario_files(prepared.plan), what="packed archive", option="--output",
                      suffixes=[".ssp"], companions=[output.with_suffix(output.suffix + ".part")])
         out = pack(prepared.plan, output)
-    finally:
-        prepared.close()
     print(f"cosim: packed {out}")
     return 0
 

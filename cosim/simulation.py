@@ -47,7 +47,15 @@ class Prepared:
     parameter_sets: tuple[str, ...] = ()     # the --param-set files, in the order applied
 
     def close(self) -> None:
+        """Remove the extraction folder of an .ssp archive the plan owns (`Plan.close`)."""
         self.plan.close()
+
+    def __enter__(self) -> Prepared:
+        """``with prepare(...) as prepared:`` the caller owns the extracted archive until the block ends."""
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def validate(path: str | Path, *, parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
@@ -154,13 +162,10 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
                        use_providers=use_providers, loops=loops)
-    try:
-        with lock_output(output, option="output") if output is not None else nullcontext():
-            result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
-                                   loop_settings=loop_settings, isolate=isolate,
-                                   call_timeout=call_timeout, kernel=kernel, threads=threads)
-    finally:
-        prepared.close()
+    with prepared, lock_output(output, option="output") if output is not None else nullcontext():
+        result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
+                               loop_settings=loop_settings, isolate=isolate,
+                               call_timeout=call_timeout, kernel=kernel, threads=threads)
     if metadata["status"] == "discarded":
         warnings.warn(metadata["message"], RuntimeWarning, stacklevel=2)
     return result

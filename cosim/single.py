@@ -121,7 +121,15 @@ class Scenario:
     table: InputTable | None
 
     def close(self) -> None:
+        """Remove the extraction folder of an .ssp archive (`cosim.structure.SystemStructure.close`)."""
         self.structure.close()
+
+    def __enter__(self) -> Scenario:
+        """``with load_scenario(...) as scenario:`` the caller owns the extracted archive until the block ends."""
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def load_scenario(path: str | Path, *, fmi_type: str | None = None, parameter_sets: Sequence[str | Path] = (),
@@ -271,10 +279,7 @@ def simulate_fmu(path: str | Path, *, start_values: Mapping[str, object] | None 
 
     texts = [f"{name}={str(value).lower() if isinstance(value, bool) else value}"
              for name, value in (start_values or {}).items()]
-    prepared = prepare_run(path, start_values=texts, input_file=input_file, **options)
-    try:
-        with lock_output(output, option="output") if output is not None else nullcontext():
-            result, _ = run(prepared, output=output)
-    finally:
-        prepared.close()
+    with prepare_run(path, start_values=texts, input_file=input_file, **options) as prepared, \
+            lock_output(output, option="output") if output is not None else nullcontext():
+        result, _ = run(prepared, output=output)
     return result

@@ -154,7 +154,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
     csv, parquet = output / "sweep.csv", output / "sweep.parquet"
     runs_dir = output / "runs"
     with ExitStack() as locks:   # the locks a run writing either table takes: one writer per folder
-        locks.callback(loaded.close)
+        locks.enter_context(loaded)
         for table in (csv, parquet):
             locks.enter_context(lock_output(table))
         if run_files:

@@ -76,14 +76,11 @@ def execute(task: Task) -> dict[str, Any]:
                 prepared = task.prepared if task.prepared is not None else prepare_task(task, kept)
                 result, metadata = run(prepared, output=output, pool=kept.pool)
             else:
-                prepared = prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
-                                       step_size=task.step, algorithm=task.algorithm,
-                                       parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
-                                       start_values=task.start_values, input_file=task.input_file)
-                try:
+                with prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
+                                 step_size=task.step, algorithm=task.algorithm,
+                                 parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
+                                 start_values=task.start_values, input_file=task.input_file) as prepared:
                     result, metadata = run(prepared, output=output)
-                finally:
-                    prepared.close()
         if metadata["status"] == "discarded":
             row.update(status="discarded", message=metadata["message"])
     except CosimError as e:
