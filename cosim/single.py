@@ -276,7 +276,7 @@ def simulate_fmu(path: str | Path, *, start_values: Mapping[str, object] | None 
     prepared = prepare_run(path, start_values=texts, input_file=input_file, **options)
     try:
         with lock_output(output, option="output") if output is not None else nullcontext():
-            result, _ = run(prepared, output=output)
+            outcome = run(prepared, output=output)
     finally:
         prepared.close()
-    return result
+    return outcome.result

@@ -69,18 +69,19 @@ def execute(task: Task) -> dict[str, Any]:
         with unpack_limit(task.max_unpacked):  # the FMUs are unpacked by run(): inside the limit too
             if task.reuse and task.sweep_key:
                 kept = kept_for(task)
-                result, metadata = run(prepare_task(task, kept), output=output, pool=kept.pool)
+                outcome = run(prepare_task(task, kept), output=output, pool=kept.pool)
             else:
                 prepared = prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
                                        step_size=task.step, algorithm=task.algorithm,
                                        parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
                                        start_values=task.start_values, input_file=task.input_file)
                 try:
-                    result, metadata = run(prepared, output=output)
+                    outcome = run(prepared, output=output)
                 finally:
                     prepared.close()
-        if metadata["status"] == "discarded":
-            row.update(status="discarded", message=metadata["message"])
+        result = outcome.result
+        if outcome.status == "discarded":
+            row.update(status="discarded", message=outcome.message)
     except CosimError as e:
         row.update(status="failed", message=str(e), error=e.code.value)
     row["wall_time"] = time.perf_counter() - began
