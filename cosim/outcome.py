@@ -42,5 +42,9 @@ class RunOutcome:
         return 0 if self.result is None else len(self.result)
 
     def __iter__(self) -> Iterator[Any]:
-        """``result, metadata = run(...)``: the pair `cosim.simulation.run` returned before."""
+        """``result, metadata = run(...)``: read as the pair `cosim.simulation.run` returned before."""
         return iter((self.result, self.metadata))
+
+    def __getitem__(self, index: int) -> Any:
+        """``run(...)[0]`` the result, ``[1]`` the metadata, as of the pair."""
+        return (self.result, self.metadata)[index]
