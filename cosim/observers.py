@@ -375,8 +375,9 @@ class Recorder:
     order (time first, then component by component as the SSD lists them).
     The rows go out when ``chunk_rows`` are filled or ``flush_seconds``
     have passed (the clock is read at every row, so a slow run is flushed on time).
-    With ``journal`` (a `WindowedObserver`: `cosim.journal.RunJournal`) the buffer is the journal's mapped window and the row counter is stored after every
-    row, so a crash loses no row.  The interface `cosim.execution.Execution` feeds: `record`
+    With ``journal`` (a `WindowedObserver`: `cosim.journal.RunJournal`) the buffer is the
+    journal's mapped window and the row counter is stored after every row, so a crash loses
+    no row.  The interface `cosim.execution.Execution` feeds: `record`
     (the Python loop), `window` and `filled` (the compiled one), `samples`.
     """
 
