@@ -137,3 +137,17 @@ def test_a_run_failing_half_way_keeps_its_rows_in_every_observer_and_in_the_outc
     meta = json.loads(out.with_suffix(".json").read_text())
     assert (meta["status"], meta["error"], meta["message"]) == ("failed", "model_error", outcome.message)
     assert outcome.metadata["status"] == "failed" and not journal_path(out).exists()
+
+
+def test_an_error_extended_after_the_run_is_a_new_error_of_the_same_kind():
+    """What `cosim.simulation.run` says when the metadata JSON fails after the disk filled up:
+    a copy with the text appended (class, code, file and run outcome kept), the original as it was."""
+    from cosim.errors import OutOfMemory
+
+    first = OutOfMemory("the process ran out of memory at t = 3; the 30 rows recorded before are kept.",
+                        file="r.csv")
+    later = first.extended(" The metadata JSON could not be written either (the disk is full)")
+    assert type(later) is OutOfMemory and later.code is Errc.out_of_memory and later.file == "r.csv"
+    assert str(later) == ("r.csv: the process ran out of memory at t = 3; the 30 rows recorded before are kept."
+                          " The metadata JSON could not be written either (the disk is full)")
+    assert str(first).endswith("are kept.") and later is not first
