@@ -345,25 +345,26 @@ def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
     try:
         with stop_on_signals() as stop, warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RuntimeWarning)  # printed as cosim's own warnings
-            result, metadata = run(prepared, output=output, progress=progress, fmu_log=args.fmu_log,
-                                   keep=[n for panel in panels for n in panel] if args.plot is not None else [],
-                                   loop_settings=settings, stop=stop, isolate=args.isolate,
-                                   call_timeout=args.call_timeout, kernel=args.kernel, threads=args.threads)
+            outcome = run(prepared, output=output, progress=progress, fmu_log=args.fmu_log,
+                          keep=[n for panel in panels for n in panel] if args.plot is not None else [],
+                          loop_settings=settings, stop=stop, isolate=args.isolate,
+                          call_timeout=args.call_timeout, kernel=args.kernel, threads=args.threads)
         for warning in caught:
             print(f"cosim: warning: {warning.message}", file=sys.stderr)
     except RunError:
         print(f"cosim: results up to the last good step kept in {output}", file=sys.stderr)
         raise
-    if metadata["status"] == "discarded":
-        print(f"cosim: warning: {metadata['message']}", file=sys.stderr)
-    elif metadata["status"] == "terminated":
-        print(f"cosim: {metadata['message']}", file=sys.stderr)
-    _say(args, f"cosim: results: {output} ({len(result)} samples; metadata {output.with_suffix('.json')})")
+    if outcome.status == "discarded":
+        print(f"cosim: warning: {outcome.message}", file=sys.stderr)
+    elif outcome.status == "terminated":
+        print(f"cosim: {outcome.message}", file=sys.stderr)
+    _say(args, f"cosim: results: {output} ({outcome.samples} samples; metadata {output.with_suffix('.json')})")
     if stop.signum is not None:
-        print(f"cosim: {metadata['message']} Results up to there kept in {output}", file=sys.stderr)
+        print(f"cosim: {outcome.message} Results up to there kept in {output}", file=sys.stderr)
         return 1 if stop.status() == "timeout" else 128 + stop.signum
     if args.plot is not None:
-        png = plot(result, panels, args.plot or output.with_suffix(".png"), scenario=name, metadata=metadata)
+        png = plot(outcome.result, panels, args.plot or output.with_suffix(".png"), scenario=name,
+                   metadata=outcome.metadata)
         _say(args, f"cosim: plot: {png}")
     if args.report is not None:
         from .report import write_report

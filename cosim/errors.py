@@ -15,6 +15,7 @@ from __future__ import annotations
 import difflib
 import enum
 from collections.abc import Iterable
+from typing import Any
 
 
 class Errc(str, enum.Enum):
@@ -62,6 +63,9 @@ class CosimError(Exception):
     """Base class: a message built from where the problem is and what was expected."""
 
     code: Errc = Errc.invalid_system
+    #: a failed run's `cosim.outcome.RunOutcome` (what it recorded up to the failure), set by
+    #: `cosim.simulation.run` as the error leaves it; None for an error before any run
+    run_outcome: Any = None
 
     def __init__(self, message: str, *, file: str | None = None, element: str | None = None,
                  variable: str | None = None, hint: str | None = None):
@@ -71,6 +75,19 @@ class CosimError(Exception):
         self.hint = hint
         self.detail = message
         super().__init__(self._compose())
+
+    @property
+    def result(self) -> Any:
+        """The samples a failed run recorded up to the failure (``run_outcome.result``), or None."""
+        return self.run_outcome.result if self.run_outcome is not None else None
+
+    def extended(self, text: str) -> CosimError:
+        """A copy of this error with ``text`` appended to its detail (what went wrong after it)."""
+        error = type(self).__new__(type(self))  # not copy.copy: it would call __init__ with the text alone
+        error.__dict__.update(self.__dict__)
+        error.detail = f"{self.detail}{text}"
+        error.args = (error._compose(),)
+        return error
 
     def _compose(self) -> str:
         where = []

@@ -4,6 +4,7 @@ The `cosim.observers.Recorder` fills its rows directly in a memory-mapped window
 ``<output>.journal`` and stores the row count in the file's header after each row, so a
 process that dies (``abort()``, a segfault, ``_exit()``, SIGKILL) loses none of the rows
 it completed: the pages belong to the kernel's page cache the moment they are written.
+`RunJournal` is the journal as a run's `cosim.observers.Observer` (the recorder's buffer).
 `recover` turns a journal left behind into the result file beside it (CSV or Parquet) and
 its JSON with status ``crashed`` (or the status given, e.g. ``timeout``); `cosim.supervisor` does
 that for `cosim run` after its child process ended without finishing.  A run that ends
@@ -21,11 +22,16 @@ import json
 import mmap
 import os
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .errors import Errc
+
+if TYPE_CHECKING:
+    from .observers import DerivedColumns
 
 MAGIC = b"COSIMJ01"
 _HEADER = 40
@@ -91,6 +97,56 @@ class Journal:
             self.path.unlink(missing_ok=True)
 
 
+class RunJournal:
+    """The journal of a run writing ``output``, as a `cosim.observers.Observer` of the rows as
+    the recorder's buffer holds them (time, then the sources; ``open`` names them): `open`
+    creates ``<output>.journal`` with the header `recover` needs without the plan (the result's
+    ``names``, time first, the permutation to them, the ``derived`` columns, the run's
+    ``metadata`` so far, the ``temporary`` FMU extraction folders), `window` hands the
+    recorder its next block of ``chunk_rows`` rows, `count` is the row counter it stores after
+    every row, and `close` deletes the journal."""
+
+    def __init__(self, output: str | Path, names: Sequence[str], derived: DerivedColumns, metadata: dict,
+                 temporary: Sequence[str] = (), chunk_rows: int | None = None):
+        from .observers import CHUNK_ROWS
+
+        self.output = Path(output)
+        self.names = list(names)
+        self.derived = derived
+        self.metadata = metadata
+        self.temporary = list(temporary)
+        self.chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
+        self._journal: Journal | None = None
+
+    def open(self, names: list[str]) -> None:
+        """Create the journal for buffer rows laid out as ``names`` (OSError if it cannot be written)."""
+        from .observers import column_order
+
+        permutation = column_order(names[1:], self.names[1:]).tolist()
+        header = {"output": str(self.output.resolve()), "names": self.names, "permutation": permutation,
+                  "derived": self.derived.header(), "metadata": self.metadata, "temporary": self.temporary}
+        self._journal = Journal(journal_path(self.output), header, len(names), self.chunk_rows)
+
+    @property
+    def count(self) -> np.ndarray:
+        """The row counter in the mapped header."""
+        return self._journal.count
+
+    def window(self) -> np.ndarray:
+        """The next block of rows, mapped onto the journal (OSError ENOSPC if the disk is full)."""
+        return self._journal.window()
+
+    def write(self, rows: np.ndarray) -> None:
+        """Nothing to copy: ``rows`` are the journal's own mapped window, filled in place and
+        counted row by row, so they are in the kernel's page cache already."""
+
+    def close(self, metadata: dict) -> None:
+        """Delete the journal: the run's own observers hold its rows and ``metadata`` now."""
+        if self._journal is not None:
+            self._journal.close()
+            self._journal = None
+
+
 def read_journal(path: str | Path) -> tuple[dict, np.ndarray]:
     """The header and the rows (journal column order) of a journal file."""
     data = Path(path).read_bytes()
@@ -108,18 +164,12 @@ def recover(path: str | Path, status: str = "crashed", message: str = "") -> tup
     """Write the result file and JSON of a journal left by a run that did not finish, with
     ``status`` and ``message`` in the metadata; delete the journal and the FMU extraction
     folder it names.  Returns the result path and the number of rows."""
-    from .observers import file_sink
+    from .observers import DerivedColumns, file_sink
 
     header, table = read_journal(path)
-    names = header["names"]
-    rows = table[:, header["permutation"]]
-    derived = header.get("derived", [])
-    if derived:
-        cols = np.array([d["column"] for d in derived], dtype=np.intp)
-        factor = np.array([d["factor"] for d in derived])
-        offset = np.array([d["offset"] for d in derived])
-        rows = np.hstack([rows, rows[:, cols] * factor + offset])
-        names = names + [d["name"] for d in derived]
+    derived = DerivedColumns.from_header(header.get("derived", []))
+    rows = derived.extend(table[:, header["permutation"]])
+    names = header["names"] + list(derived.names)
     output = result_of(Path(path))
     sink = file_sink(output)
     sink.open(names)

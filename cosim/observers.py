@@ -1,11 +1,14 @@
 """Observers: record every connector at every communication point.
 
-`Recorder` fills a preallocated NumPy chunk in the hot loop and hands full
-chunks to its sinks, so a run that fails half way has every flushed sample on
-disk, and the recorder's memory is one chunk whatever the run's length.  Sinks:
-`CsvSink` (a CSV readable by ``fmpy.util.read_csv``) and `ParquetSink`, each
-with a JSON metadata file beside it (`file_sink` picks one by the file's
-suffix), and `MemorySink` (for the Python API).
+Recording is one role, `Observer` (``open(names)``, ``write(rows)``, ``close(metadata)``),
+implemented by `CsvSink` (a CSV readable by ``fmpy.util.read_csv``) and `ParquetSink`, each
+with a JSON metadata file beside it (`file_sink` picks one by the file's suffix), `MemorySink`
+(for the Python API), `SystemOutputColumns` (the root system's output connectors appended,
+`DerivedColumns`, then the rows handed on) and the run journal (`cosim.journal.RunJournal`).
+`Recorder` fills a preallocated NumPy chunk (the journal's mapped window, with one) in the hot
+loop and hands the new rows to its observers, so a run that fails half way has every flushed
+sample on disk, and the recorder's memory is one chunk whatever the run's length.  Data flows
+one way: execution -> recorder -> observers; no observer calls back.
 
 A file sink writes to ``<name>.part`` beside the result (`cosim.safeio.partial_path`) and
 renames it onto the result when it closes, then writes the JSON the same way: a reader sees
@@ -21,7 +24,9 @@ import os
 import re
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -29,6 +34,40 @@ from .csvformat import format_rows
 from .errors import OutOfMemory, OutputError
 from .extras import has_pyarrow, require_pyarrow
 from .safeio import partial_path, write_atomic
+
+if TYPE_CHECKING:
+    from .structure import RecordedOutput
+
+#: rows the recorder's buffer (and each journal window) holds; a full one is flushed
+CHUNK_ROWS = 4096
+
+
+@runtime_checkable
+class Observer(Protocol):
+    """What records a run: told the column names once, handed every new block of rows (float64,
+    one row per communication point, in the order of the names, time first) and closed with the
+    run's metadata, also when the run failed, so the rows handed before stay recorded."""
+
+    def open(self, names: list[str]) -> None:
+        """The columns of every row to come."""
+
+    def write(self, rows: np.ndarray) -> None:
+        """The rows recorded since the last call (a view: copy what must be kept)."""
+
+    def close(self, metadata: dict) -> None:
+        """The run ended (completed, stopped or failed) with ``metadata``."""
+
+
+class WindowedObserver(Observer, Protocol):
+    """An `Observer` that is also the `Recorder`'s buffer (the journal, `cosim.journal.RunJournal`):
+    its ``write`` gets the rows as the buffer holds them, in place, and the recorder stores the
+    number of rows recorded in `count` after every row."""
+
+    #: the row counter (one int64)
+    count: np.ndarray
+
+    def window(self) -> np.ndarray:
+        """The next block of buffer rows (rows x columns, float64)."""
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
@@ -259,43 +298,116 @@ class MemorySink:
         return result
 
 
+def column_order(source_names: Sequence[str], names: Sequence[str]) -> np.ndarray:
+    """The permutation from a buffer row (time, then ``source_names``) to a result row (time,
+    then ``names``)."""
+    position = {n: i + 1 for i, n in enumerate(source_names)}
+    return np.array([0] + [position[n] for n in names], dtype=np.intp)
+
+
+@dataclass(frozen=True)
+class DerivedColumns:
+    """The root system's output connectors, each ``factor · rows[:, column] + offset``
+    (`cosim.structure.RecordedOutput`: the composed unit conversions and LinearTransformations
+    of SSP 1.0, sec. 5.3.4 and 5.3.5; an undriven one is 0 · time + its constant): the one formula
+    of the live run (`SystemOutputColumns`) and of a journal's recovery (`cosim.journal.recover`),
+    computed per chunk, never in the stepping loop."""
+
+    names: tuple[str, ...]
+    #: each one's source column in the rows it extends
+    columns: tuple[int, ...]
+    factor: tuple[float, ...]
+    offset: tuple[float, ...]
+
+    @classmethod
+    def of(cls, outputs: Sequence[RecordedOutput], names: Sequence[str]) -> DerivedColumns:
+        """The columns of ``outputs`` on rows laid out as ``names`` (time first)."""
+        names = list(names)
+        return cls(tuple(o.name for o in outputs), tuple(names.index(o.source) for o in outputs),
+                   tuple(o.factor for o in outputs), tuple(o.offset for o in outputs))
+
+    @classmethod
+    def from_header(cls, entries: Sequence[dict]) -> DerivedColumns:
+        """The columns a journal's header lists (`header`)."""
+        return cls(tuple(d["name"] for d in entries), tuple(int(d["column"]) for d in entries),
+                   tuple(d["factor"] for d in entries), tuple(d["offset"] for d in entries))
+
+    def header(self) -> list[dict]:
+        """What a journal's header holds of them (JSON)."""
+        return [{"name": n, "column": c, "factor": f, "offset": o}
+                for n, c, f, o in zip(self.names, self.columns, self.factor, self.offset)]
+
+    def extend(self, rows: np.ndarray) -> np.ndarray:
+        """``rows`` with the derived columns appended (``rows`` itself when there are none)."""
+        if not self.names:
+            return rows
+        columns = np.array(self.columns, dtype=np.intp)
+        return np.hstack([rows, rows[:, columns] * np.array(self.factor) + np.array(self.offset)])
+
+
+class SystemOutputColumns:
+    """An `Observer` that appends the `DerivedColumns` to every chunk and hands it on to its own
+    observers (``derived`` laid out on the names this one is opened with)."""
+
+    def __init__(self, derived: DerivedColumns, observers: Sequence[Observer]):
+        self.derived = derived
+        self.observers = list(observers)
+
+    def open(self, names: list[str]) -> None:
+        for observer in self.observers:
+            observer.open(names + list(self.derived.names))
+
+    def write(self, rows: np.ndarray) -> None:
+        rows = self.derived.extend(rows)
+        for observer in self.observers:
+            observer.write(rows)
+
+    def close(self, metadata: dict) -> None:
+        for observer in self.observers:
+            observer.close(metadata)
+
+
 class Recorder:
-    """Sample buffer fed from the execution's value arrays.
+    """Sample buffer fed from the execution's value arrays, fanning the rows out to observers.
 
     ``sources`` are the arrays (outputs and inputs of each type) copied into a
-    row in the order of ``source_names``; rows are written out in ``names``
+    row in the order of ``source_names``; rows are handed to the ``observers`` in ``names``
     order (time first, then component by component as the SSD lists them).
-    The rows go to the sinks when ``chunk_rows`` are filled or ``flush_seconds``
+    The rows go out when ``chunk_rows`` are filled or ``flush_seconds``
     have passed (the clock is read at every row, so a slow run is flushed on time).
-    With ``journal``, a function ``(names, permutation, columns, chunk_rows)`` returning a
-    `cosim.journal.Journal`, the buffer is the journal's mapped window and the row
-    counter is stored after every row, so a crash loses no row.
+    With ``journal`` (a `WindowedObserver`: `cosim.journal.RunJournal`) the buffer is the
+    journal's mapped window and the row counter is stored after every row, so a crash loses
+    no row.  The interface `cosim.execution.Execution` feeds: `record`
+    (the Python loop), `window` and `filled` (the compiled one), `samples`.
     """
 
     def __init__(self, source_names: list[str], sources: list[np.ndarray], names: list[str],
-                 sinks: list, chunk_rows: int = 4096, flush_seconds: float = 1.0, journal=None):
+                 observers: Sequence[Observer], chunk_rows: int = CHUNK_ROWS, flush_seconds: float = 1.0,
+                 journal: WindowedObserver | None = None):
         self.sources = []
         col = 1
         for arr in sources:
             self.sources.append((col, col + len(arr), arr))
             col += len(arr)
-        position = {n: i + 1 for i, n in enumerate(source_names)}
         self.names = ["time"] + names
-        self.permutation = np.array([0] + [position[n] for n in names], dtype=np.intp)
-        self.sinks = sinks
-        self.journal = None
+        self.permutation = column_order(source_names, names)
+        self.observers = list(observers)
+        self.journal = journal
         try:
-            self.journal = journal(self.names, self.permutation.tolist(), col, chunk_rows) if journal else None
-            self.buffer = self.journal.window() if self.journal is not None else np.empty((chunk_rows, col))
-            for sink in sinks:
-                sink.open(self.names)
+            if journal is not None:
+                journal.open(["time"] + list(source_names))
+                self.buffer = journal.window()
+            else:
+                self.buffer = np.empty((chunk_rows, col))
+            for observer in self.observers:
+                observer.open(self.names)
         except OSError as e:
-            if self.journal is not None:
-                self.journal.close()
+            if journal is not None:
+                journal.close({})
             raise _write_error("the results cannot be written: {}.", e) from None
-        self._count = self.journal.count if self.journal is not None else np.zeros(1, dtype=np.int64)
+        self._count = journal.count if journal is not None else np.zeros(1, dtype=np.int64)
         self.rows = 0      # rows filled in the buffer
-        self._written = 0  # rows of the buffer already handed to the sinks
+        self._written = 0  # rows of the buffer already handed to the observers
         self.flush_seconds = flush_seconds
         self._flush_at = time.monotonic() + flush_seconds
         self.samples = 0
@@ -329,15 +441,19 @@ class Recorder:
             self.flush()
 
     def flush(self) -> None:
-        """Hand the new rows to the sinks; a sink (or the journal) that cannot write (a full
-        disk) is an `OutputError`, and no later flush is tried."""
+        """Hand the new rows to the observers (the journal as the buffer holds them, the others
+        in result order); an observer (or the journal) that cannot write (a full disk) is an
+        `OutputError`, and no later flush is tried."""
         if self.broken is not None:
             return
         try:
             if self.rows > self._written:
-                chunk = self.buffer[self._written:self.rows][:, self.permutation]
-                for sink in self.sinks:
-                    sink.write(chunk)
+                new = self.buffer[self._written:self.rows]
+                if self.journal is not None:
+                    self.journal.write(new)
+                chunk = new[:, self.permutation]
+                for observer in self.observers:
+                    observer.write(chunk)
                 self._written = self.rows
             if self.rows == len(self.buffer):
                 if self.journal is not None:
@@ -350,15 +466,15 @@ class Recorder:
         self._flush_at = time.monotonic() + self.flush_seconds
 
     def close(self, metadata: dict) -> None:
-        """Flush, close the sinks (writing ``metadata``) and delete the journal, which is no
-        longer needed even when a sink fails here."""
+        """Flush, close the observers (writing ``metadata``) and then the journal (deleted: it is
+        no longer needed, even when an observer fails here)."""
         try:
             self.flush()
-            for sink in self.sinks:
-                sink.close(metadata)
+            for observer in self.observers:
+                observer.close(metadata)
         except OSError as e:
             raise _write_error("closing the results failed: {}.", e) from None
         finally:
             if self.journal is not None:
                 self.buffer = None
-                self.journal.close()
+                self.journal.close(metadata)

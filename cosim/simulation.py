@@ -28,13 +28,14 @@ from .instances import Unzipped
 from .instances.isolated import Isolation
 from .instances.reuse import InstancePool
 from .interrupts import StopRequest
-from .journal import Journal, journal_path
-from .observers import MemorySink, Recorder, file_sink
+from .journal import RunJournal
+from .observers import DerivedColumns, MemorySink, Recorder, SystemOutputColumns, file_sink
+from .outcome import RunOutcome
 from .plan import build_plan
 from .resources import locate_fmus
 from .safeio import lock_output
 from .loops import LoopSettings
-from .structure import LoopMode, Plan, RecordedOutput
+from .structure import LoopMode, Plan
 
 
 @dataclass(frozen=True)
@@ -148,8 +149,8 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     (metadata in ``<output>.json``): to ``<output>.part``, renamed onto ``output`` when the run
     ends, and under ``<output>.lock`` (`cosim.safeio.lock_output`), so another process writing
     the same output meanwhile is a `SetupError` naming it.
-    A failed run raises `RunError` with the samples so far in ``error.result``
-    (and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
+    A failed run raises `RunError` with the samples so far in ``error.result`` (its
+    ``run_outcome``, `cosim.outcome.RunOutcome`; and on disk when ``output`` is given).  ``fmu_log``: which FMU log messages are
     collected to explain a failure ("errors", "all" or "off"; see `cosim.instances.fmi2.FMI2Instance.instantiate`).
     ``loops``: algebraic loops solved by iteration ("iterate", with ``loop_settings``) or broken
     by one step of delay ("delay", with a warning), see `cosim.loops`.
@@ -163,20 +164,22 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
                        use_providers=use_providers, loops=loops)
     with prepared, lock_output(output, option="output") if output is not None else nullcontext():
-        result, metadata = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
-                               loop_settings=loop_settings, isolate=isolate,
-                               call_timeout=call_timeout, kernel=kernel, threads=threads)
-    if metadata["status"] == "discarded":
-        warnings.warn(metadata["message"], RuntimeWarning, stacklevel=2)
-    return result
+        outcome = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
+                      loop_settings=loop_settings, isolate=isolate,
+                      call_timeout=call_timeout, kernel=kernel, threads=threads)
+    if outcome.status == "discarded":
+        warnings.warn(outcome.message, RuntimeWarning, stacklevel=2)
+    return outcome.result
 
 
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
         fmu_log: str = "errors", keep: Sequence[str] | None = None,
         loop_settings: LoopSettings | None = None, stop: StopRequest | None = None,
         journal: bool = True, isolate: bool = False, call_timeout: float | None = None,
-        kernel: str = "auto", threads: int = 1, pool: InstancePool | None = None) -> tuple[np.ndarray, dict]:
-    """Execute a prepared system; returns the samples and the run's metadata.
+        kernel: str = "auto", threads: int = 1, pool: InstancePool | None = None) -> RunOutcome:
+    """Execute a prepared system; returns its `cosim.outcome.RunOutcome` (status, message, error
+    code, the samples, the result file, the metadata; it unpacks as ``result, metadata``).  A run
+    that fails raises, the error's ``run_outcome`` holding what was recorded up to the failure.
 
     ``output``: a result file written as the run goes, Parquet for a ``.parquet`` suffix, else
     CSV (`cosim.observers.file_sink`), with every row also in its journal
@@ -199,9 +202,8 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     isolation = isolation_of(isolate, call_timeout)
     plan = prepared.plan
     memory = MemorySink(keep)
-    sinks: list = [memory] + ([file_sink(output)] if output is not None else [])
-    if plan.system_outputs:
-        sinks = [SystemOutputColumns(list(plan.system_outputs.values()), sinks)]
+    derived = DerivedColumns.of(list(plan.system_outputs.values()), ["time"] + plan.columns)
+    observers = [SystemOutputColumns(derived, [memory] + ([file_sink(output)] if output is not None else []))]
     execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, isolation,
                           kernel, threads, pool)
     recorder = None
@@ -210,8 +212,8 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
         execution.instantiate()
         names, arrays = execution.recorder_sources()
         journaled = output is not None and journal
-        recorder = Recorder(names, arrays, plan.columns, sinks,
-                            journal=_journal_factory(output, plan, _metadata(prepared, execution)) if journaled else None)
+        recorder = Recorder(names, arrays, plan.columns, observers,
+                            journal=_journal(output, plan, derived, _metadata(prepared, execution)) if journaled else None)
         execution.initialize()
         if progress:
             from tqdm import tqdm
@@ -219,24 +221,7 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
                        desc=plan.name or "cosim")
         execution.run(recorder, bar, stop)
     except BaseException as e:
-        error = _out_of_memory(e, output, execution, recorder, memory)
-        execution.status = error.outcome if isinstance(error, ComponentLost) else "failed"
-        execution.error = error.code.value if isinstance(error, CosimError) else None
-        execution.message = (str(error) if isinstance(error, (RunError, OutputError))
-                             else f"{type(error).__name__}: {error}")
-        if recorder is not None:
-            try:
-                recorder.close(_metadata(prepared, execution))
-            except (OutputError, MemoryError) as closing:  # the disk is full: said after what ended the run
-                if not isinstance(error, OutputError):
-                    raise
-                detail = closing.detail if isinstance(closing, OutputError) else "out of memory"
-                error.detail += f" The metadata JSON could not be written either ({detail})"
-                error.args = (error._compose(),)
-        try:
-            error.result = memory.array() if recorder is not None else None
-        except MemoryError:  # no memory left to join the samples: they are in the result file, if any
-            error.result = None
+        error = _failed(e, prepared, execution, recorder, memory, output)
         if error is e:
             raise
         raise error from None
@@ -246,7 +231,34 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
         execution.close()
     metadata = _metadata(prepared, execution)
     recorder.close(metadata)
-    return memory.array(), metadata
+    return RunOutcome.of(metadata, memory.array(), output)
+
+
+def _failed(e: BaseException, prepared: Prepared, execution: Execution, recorder: Recorder | None,
+            memory: MemorySink, output: str | Path | None) -> BaseException:
+    """The error a run that raised ``e`` ends with (`_out_of_memory`), its `RunOutcome` in its
+    ``run_outcome``: the metadata with status "failed" (or the `ComponentLost` outcome), the
+    error's code and message, written by the observers with every row recorded before."""
+    error = _out_of_memory(e, output, execution, recorder, memory)
+    metadata = _metadata(prepared, execution)
+    metadata.update(status=error.outcome if isinstance(error, ComponentLost) else "failed",
+                    message=(str(error) if isinstance(error, (RunError, OutputError))
+                             else f"{type(error).__name__}: {error}"),
+                    error=error.code.value if isinstance(error, CosimError) else None)
+    if recorder is not None:
+        try:
+            recorder.close(metadata)
+        except (OutputError, MemoryError) as closing:  # the disk is full: said after what ended the run
+            if not isinstance(error, OutputError):
+                raise
+            detail = closing.detail if isinstance(closing, OutputError) else "out of memory"
+            error = error.extended(f" The metadata JSON could not be written either ({detail})")
+    try:
+        result = memory.array() if recorder is not None else None
+    except MemoryError:  # no memory left to join the samples: they are in the result file, if any
+        result = None
+    error.run_outcome = RunOutcome.of(metadata, result, output)
+    return error
 
 
 def _out_of_memory(e: BaseException, output: str | Path | None, execution: Execution, recorder: Recorder | None,
@@ -275,17 +287,11 @@ def isolation_of(isolate: bool, call_timeout: float | None) -> Isolation | None:
     return Isolation(call_timeout) if isolate else None
 
 
-def _journal_factory(output: str | Path, plan: Plan, metadata: dict):
-    """The `cosim.observers.Recorder`'s journal for ``output``: the header holds what
+def _journal(output: str | Path, plan: Plan, derived: DerivedColumns, metadata: dict) -> RunJournal:
+    """The journal of a run writing ``output`` (`cosim.journal.RunJournal`): its header holds what
     `cosim.journal.recover` needs to write the result files without the plan."""
-    def create(names: list[str], permutation: list[int], columns: int, chunk_rows: int) -> Journal:
-        derived = [{"name": o.name, "column": names.index(o.source),
-                    "factor": o.factor, "offset": o.offset} for o in plan.system_outputs.values()]
-        header = {"output": str(Path(output).resolve()), "names": names, "permutation": permutation,
-                  "derived": derived, "metadata": metadata,
-                  "temporary": [Unzipped.folder()] if Unzipped.folder() else []}
-        return Journal(journal_path(output), header, columns, chunk_rows)
-    return create
+    return RunJournal(output, ["time"] + plan.columns, derived, metadata,
+                      temporary=[Unzipped.folder()] if Unzipped.folder() else [])
 
 
 def _portable(path: str | Path, *bases: Path) -> str:
@@ -370,37 +376,6 @@ def signal_units(plan: Plan) -> dict[str, tuple[str, bool]]:
 
     return units({"units": plan.units, "connections": signal_info(plan)["connections"],
                   "components": {name: {"fmu": str(d.path)} for name, d in plan.fmus.items()}})
-
-
-class SystemOutputColumns:
-    """A sink wrapper that appends the root system's output connectors to every chunk.
-
-    Each is ``factor · (the driving component output's column) + offset``
-    (`cosim.structure.RecordedOutput`; an undriven one: 0 · time + its constant), computed per
-    chunk, not in the stepping loop.
-    """
-
-    def __init__(self, outputs: list[RecordedOutput], sinks: list):
-        self.outputs = outputs
-        self.sinks = sinks
-        self.columns = np.empty(0, dtype=np.intp)
-        self.factor = np.array([o.factor for o in outputs])
-        self.offset = np.array([o.offset for o in outputs])
-
-    def open(self, names: list[str]) -> None:
-        self.columns = np.array([names.index(o.source) for o in self.outputs],
-                                dtype=np.intp)
-        for sink in self.sinks:
-            sink.open(names + [o.name for o in self.outputs])
-
-    def write(self, rows: np.ndarray) -> None:
-        rows = np.hstack([rows, rows[:, self.columns] * self.factor + self.offset])
-        for sink in self.sinks:
-            sink.write(rows)
-
-    def close(self, metadata: dict) -> None:
-        for sink in self.sinks:
-            sink.close(metadata)
 
 
 def select(names: Sequence[str], patterns: Sequence[str], option: str = "--signals") -> list[str]:

@@ -281,5 +281,5 @@ def simulate_fmu(path: str | Path, *, start_values: Mapping[str, object] | None 
              for name, value in (start_values or {}).items()]
     with prepare_run(path, start_values=texts, input_file=input_file, **options) as prepared, \
             lock_output(output, option="output") if output is not None else nullcontext():
-        result, _ = run(prepared, output=output)
-    return result
+        outcome = run(prepared, output=output)
+    return outcome.result

@@ -74,15 +74,16 @@ def execute(task: Task) -> dict[str, Any]:
             if task.reuse and task.sweep_key:
                 kept = kept_for(task)
                 prepared = task.prepared if task.prepared is not None else prepare_task(task, kept)
-                result, metadata = run(prepared, output=output, pool=kept.pool)
+                outcome = run(prepared, output=output, pool=kept.pool)
             else:
                 with prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
                                  step_size=task.step, algorithm=task.algorithm,
                                  parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
                                  start_values=task.start_values, input_file=task.input_file) as prepared:
-                    result, metadata = run(prepared, output=output)
-        if metadata["status"] == "discarded":
-            row.update(status="discarded", message=metadata["message"])
+                    outcome = run(prepared, output=output)
+        result = outcome.result
+        if outcome.status == "discarded":
+            row.update(status="discarded", message=outcome.message)
     except CosimError as e:
         row.update(status="failed", message=str(e), error=e.code.value)
     row["wall_time"] = time.perf_counter() - began
