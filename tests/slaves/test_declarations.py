@@ -13,6 +13,7 @@ from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
+from cosim.description import describe
 from cosim.errors import SetupError
 from cosim.units import BUILTIN, conversion, fmu_units, make_unit
 from greyfmu.build import FMU_SOURCES, BuildError, _enumeration_items, build_fmus, fmu_names, slave_class
@@ -135,7 +136,7 @@ def test_unit_definitions_convert_as_the_masters_builtin_units(built_fmus, name)
     factors): kgf/cm2 = 98066.5 Pa, % = 0.01, MW = 1e6 W, mm = 1e-3 m; %/s and rad/s as written here."""
     md = read_model_description(str(built_fmus[name]))
     used = {v.unit for v in md.modelVariables if v.unit}
-    defined = fmu_units(md.unitDefinitions, name)
+    defined = fmu_units(describe(built_fmus[name], where=name, file=name).unit_definitions, name)
     assert set(defined) == used
     for unit in defined.values():
         assert unit.same_as({**BUILTIN, **NOT_BUILTIN}[unit.name]), unit.describe()
