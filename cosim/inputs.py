@@ -153,7 +153,7 @@ class BoundTable:
 
     def feed(self, typed: list, grid=None) -> InputFeed:
         """The callable that sets the table's values into the exchange's input buffers
-        (`cosim.execution._Typed`) at a time; with the run's ``grid`` (`cosim.execution.Grid`),
+        (`cosim.exchange.TypedBuffers`) at a time; with the run's ``grid`` (`cosim.grid.Grid`),
         a `RuntimeWarning` names the table's events that fall between its communication points."""
         if grid is not None:
             off = [t for t in self.event_times() if grid.start < t < grid.stop and not _on_grid(t, grid)]
@@ -281,7 +281,7 @@ def _check_values(table: InputTable, column: int, var: Variable, values: np.ndar
 # --------------------------------------------------------------------------- at run time
 
 class InputFeed:
-    """Writes the table's values at a time into the exchange's input buffers (``_Typed.U``),
+    """Writes the table's values at a time into the exchange's input buffers (``TypedBuffers.U``),
     by the buffers' input names; the first call (initialisation) takes left values at events."""
 
     def __init__(self, bound: BoundTable, typed: list):

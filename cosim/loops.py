@@ -39,8 +39,9 @@ of the settling: their outputs are read once per communication point, so each lo
 broken by one step of delay, as libcosim (which never reads dependencies) runs every
 connection; the execution warns, naming the loop.
 
-Kept apart from `cosim.execution` so a compiled stepping kernel can take the same interface:
-``solve(t, sweep) -> (iterations, residual)`` over NumPy views of the exchange buffers.
+The step's program (`cosim.program`) holds the iteration as one operation (OP_SOLVE) followed by
+its sweep: ``solve(t, sweep) -> (iterations, residual)`` over NumPy views of the exchange
+buffers, made by Python in either interpreter (`cosim.interpreters`).
 """
 from __future__ import annotations
 

@@ -19,7 +19,7 @@ from typing import Literal, Protocol, runtime_checkable
 
 
 from ..description import ExchangeType, FMUDescription, Variable
-from ..errors import SetupError
+from ..errors import RunError, SetupError
 from .pythonfmu_state import release_pythonfmu_state
 
 FMU_LOG_LEVELS = ("errors", "all", "off")
@@ -46,7 +46,8 @@ class Instance(Protocol):
       ``exit_initialization_mode``, ``free`` (these raise on a status above Warning);
     * ``step_end``: after ``do_step`` returned Discard, how far the FMU's outputs are valid;
     * ``step_outcome``: the post-step of a doStep made outside ``do_step`` (by the compiled loop,
-      `cosim.kernel`), which turns its raw status into the one ``do_step`` would have returned.
+      `cosim.kernel`), which turns its raw status into the one ``do_step`` would have returned;
+    * ``last_messages``: the FMU's last log messages, as a sentence to append to an error.
     """
     name: str
     desc: FMUDescription
@@ -85,19 +86,17 @@ class Instance(Protocol):
 
 
 @dataclass(frozen=True)
-class NativeFunctions:
-    """The FMI functions of one instance as C function addresses, for the compiled loop
-    (`cosim.kernel`): ``api`` 2 or 3, ``do_step``, and ``get``/``set`` by exchange type, each
-    called with the C signature of its FMI version; ``step_out``: the addresses of
-    fmi3DoStep's four out-arguments (eventHandlingNeeded, terminateSimulation, earlyReturn,
-    lastSuccessfulTime), which the instance reads after the call (`cosim.instances.fmi3`);
-    ``serial``: why its doStep must not run concurrently with other instances' ("": it may)."""
+class NativeStep:
+    """An instance's doStep as the compiled loop calls it (`cosim.kernel`): ``api`` 2 or 3 (the
+    C signature of the function at address ``do_step``), the instance handle ``component``;
+    ``post_step``: the addresses of fmi3DoStep's four out-arguments (eventHandlingNeeded,
+    terminateSimulation, earlyReturn, lastSuccessfulTime), which the instance's post-step
+    (`Instance.step_outcome`) reads, zeros for FMI 2.0; ``serial``: why it must not run
+    concurrently with other instances' doSteps ("": it may)."""
     api: int
     component: int
     do_step: int
-    get: Mapping[str, int]
-    set: Mapping[str, int]
-    step_out: tuple[int, int, int, int] = (0, 0, 0, 0)
+    post_step: tuple[int, int, int, int] = (0, 0, 0, 0)
     serial: str = ""
 
 
@@ -117,12 +116,28 @@ def serial_reason(inst: InstanceBase) -> str:
 
 @runtime_checkable
 class NativeInstance(Protocol):
-    """An instance whose hot-loop calls the compiled loop can make itself."""
+    """An instance whose hot-loop calls the compiled loop can make itself, call by call: where
+    it cannot, the operation stays with Python (`cosim.program`)."""
 
-    def native_functions(self, types: Sequence[ExchangeType]) -> NativeFunctions | str:
-        """The C addresses of its FMI functions for exchanging ``types``, or why it has none
-        (a sentence naming the component)."""
+    def native_step(self) -> NativeStep | str:
+        """Its doStep as a C function, or why it has none (a sentence naming the component)."""
         ...
+
+    def native_exchange(self, type_name: ExchangeType) -> tuple[int, int] | str:
+        """The C addresses of its get and set functions for ``type_name`` (called with the
+        C signature of its FMI version on the exchange buffers), or why it has none."""
+        ...
+
+
+def fmi_failure(inst: Instance, what: str, status: int, t: float) -> RunError:
+    """The error of ``inst``'s FMI call ``what`` (its name without the API prefix: "DoStep",
+    "Get") that returned ``status`` above Warning at ``t``, with the FMU's last messages; after
+    Error or Fatal the instance is marked ``failed`` (how `end_instance` may end it)."""
+    if status >= 3:
+        inst.failed = STATUS.get(status, "Fatal")
+    return RunError(f"{inst.api}{what} returned {STATUS.get(status, status)} at t = {t:g}.{inst.last_messages()}",
+                    time=t, component=inst.name, status=status,
+                    element=f"component '{inst.name}' ({inst.desc.path.name})")
 
 
 def address(function) -> int:

@@ -29,7 +29,7 @@ HAS_PAYLOAD = 1
 #: the status of an answer whose payload is an exception raised in the component's process
 RAISED = -1
 
-#: exchange types in slot declarations, and the C type of their values (as `cosim.execution.TYPES`)
+#: exchange types in slot declarations, and the C type of their values (as `cosim.exchange.TYPES`)
 KINDS = ("Real", "Integer", "Boolean", "String", "Binary")
 NUMBERS = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int}
 #: bytes a slot reserves per value in the shared memory (the widest number, a double)

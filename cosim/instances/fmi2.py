@@ -9,9 +9,9 @@ import fmpy
 from fmpy.fmi2 import (FMU2Slave, printLogMessage, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
-from ..description import FMUDescription, Variable
+from ..description import ExchangeType, FMUDescription, Variable
 from ..errors import SetupError
-from .base import InstanceBase, NativeFunctions, address, end_instance, log_line, serial_reason
+from .base import InstanceBase, NativeStep, address, end_instance, log_line, serial_reason
 from .loading import quick
 
 #: Log messages by instance name.  fmpy's native logger proxy (which formats the printf
@@ -68,18 +68,20 @@ class FMI2Instance(InstanceBase):
         self.set = {"Real": raw["fmi2SetReal"], "Integer": raw["fmi2SetInteger"],
                     "Boolean": raw["fmi2SetBoolean"], "String": raw["fmi2SetString"]}
 
-    def native_functions(self, types) -> NativeFunctions | str:
-        """fmi2DoStep and the get/set functions of ``types`` as C addresses (`cosim.kernel`);
-        a Model Exchange instance (stepped by the master's integrator) has none."""
+    def native_step(self) -> NativeStep | str:
+        """fmi2DoStep as a C address (`cosim.kernel`); a Model Exchange instance (stepped by the
+        master's integrator, in Python) has none."""
         raw = self.slave._functions
         if getattr(self, "do_step", None) is not raw.get("fmi2DoStep"):
             return f"component '{self.name}' is Model Exchange (integrated by the master)"
-        unknown = [t for t in types if t not in ("Real", "Integer", "Boolean")]
-        if unknown:
-            return f"component '{self.name}' exchanges {', '.join(unknown)} values"
-        return NativeFunctions(2, self.component, address(raw["fmi2DoStep"]),
-                               {t: address(self.get[t]) for t in types}, {t: address(self.set[t]) for t in types},
-                               serial=serial_reason(self))
+        return NativeStep(2, self.component, address(raw["fmi2DoStep"]), serial=serial_reason(self))
+
+    def native_exchange(self, type_name: ExchangeType) -> tuple[int, int] | str:
+        """fmi2Get/fmi2Set of Real, Integer or Boolean as C addresses (`cosim.kernel`); strings
+        are copied by Python (`cosim.exchange.TypedBuffers.get_call`)."""
+        if type_name not in ("Real", "Integer", "Boolean"):
+            return f"component '{self.name}' exchanges {type_name} values"
+        return address(self.get[type_name]), address(self.set[type_name])
 
     def instantiate(self, fmu_log: str = "errors") -> None:
         """Instantiate.  ``fmu_log``: "errors" (default) turns logging on with only the FMI 2.0

@@ -33,9 +33,9 @@ from collections.abc import Callable
 import numpy as np
 from fmpy.fmi3 import FMU3Slave, fmi3Binary
 
-from ..description import ArrayElement, FMUDescription, Variable, exchange_type
+from ..description import ArrayElement, ExchangeType, FMUDescription, Variable, exchange_type
 from ..errors import SetupError
-from .base import STATUS, InstanceBase, NativeFunctions, address, end_instance, log_line, serial_reason
+from .base import STATUS, InstanceBase, NativeStep, address, end_instance, log_line, serial_reason
 from .loading import quick
 
 FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR = 0, 1, 2, 3
@@ -122,22 +122,22 @@ class FMI3Instance(InstanceBase):
                          f"{'true' if terminate.value else 'false'} and lastSuccessfulTime = {last.value:g}")
         return status
 
-    def native_functions(self, types) -> NativeFunctions | str:
-        """fmi3DoStep (with the addresses of its out-arguments, read by `step_outcome`) and the
-        fmi3Get/SetFloat64 and Int32 functions of ``types`` as C addresses (`cosim.kernel`);
-        none for Model Exchange, and none when a type goes through `_Gather` (a C bool, array
-        elements, another FMI 3.0 type exchanged as Real or Integer) or is a String or Binary."""
+    def native_step(self) -> NativeStep | str:
+        """fmi3DoStep as a C address, with the addresses of its out-arguments, which the
+        post-step `step_outcome` reads (`cosim.kernel`); none for Model Exchange."""
         if not isinstance(self.slave, FMU3Slave):
             return f"component '{self.name}' is Model Exchange (integrated by the master)"
-        for t in types:
-            if t not in ("Real", "Integer") or self._needs_gather(t):
-                return f"component '{self.name}' exchanges {t} values through the master's FMI 3.0 conversion"
-        raw = self.slave._functions
-        suffix = {t: FMI3_FUNCTIONS[t][0] for t in types}
-        return NativeFunctions(3, self.component, address(raw["fmi3DoStep"]),
-                               {t: address(raw[f"fmi3Get{suffix[t]}"]) for t in types},
-                               {t: address(raw[f"fmi3Set{suffix[t]}"]) for t in types},
-                               tuple(ctypes.addressof(v) for v in self._step_out), serial=serial_reason(self))
+        return NativeStep(3, self.component, address(self.slave._functions["fmi3DoStep"]),
+                          tuple(ctypes.addressof(v) for v in self._step_out), serial=serial_reason(self))
+
+    def native_exchange(self, type_name: ExchangeType) -> tuple[int, int] | str:
+        """fmi3Get/SetFloat64 or Int32 as C addresses (`cosim.kernel`); none when the type goes
+        through `_Gather` (a C bool, array elements, another FMI 3.0 type exchanged as Real or
+        Integer) or is a String or Binary."""
+        if type_name not in ("Real", "Integer") or self._needs_gather(type_name):
+            return f"component '{self.name}' exchanges {type_name} values through the master's FMI 3.0 conversion"
+        raw, suffix = self.slave._functions, FMI3_FUNCTIONS[type_name][0]
+        return address(raw[f"fmi3Get{suffix}"]), address(raw[f"fmi3Set{suffix}"])
 
     def step_end(self, t: float, h: float) -> tuple[float | None, str]:
         """What ``do_step`` kept when it ended the run: t + h after OK or Warning with

@@ -256,7 +256,7 @@ class IsolatedInstance:
                 for i, value in enumerate(self._data):
                     if kind == "String":
                         values[i] = value
-                    else:  # Binary: memory the caller copies before the next call (cosim.execution._Typed)
+                    else:  # Binary: memory the caller copies before the next call (cosim.exchange.TypedBuffers)
                         values[i].data = ctypes.cast(ctypes.c_char_p(value), type(values[i].data))
                         values[i].size = len(value)
             return status
@@ -330,10 +330,13 @@ class IsolatedInstance:
                 self._reap(kill=False)
             self.component = None
 
-    def native_functions(self, types) -> str:
-        """Why the compiled loop cannot drive it (`cosim.instances.base.NativeInstance`): its FMI
-        functions live in another process."""
+    def native_step(self) -> str:
+        """Why the compiled loop cannot make its calls (`cosim.instances.base.NativeInstance`):
+        its FMI functions live in another process."""
         return f"component '{self.name}' runs in a process of its own (--isolate)"
+
+    def native_exchange(self, type_name) -> str:
+        return self.native_step()
 
     def last_messages(self) -> str:
         return (" FMU log: " + " | ".join(self.messages)) if self.messages else ""

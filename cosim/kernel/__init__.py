@@ -1,11 +1,12 @@
 """The compiled stepping loop (``kernel.c``) and its ctypes binding; the same library formats
 result CSV rows (``csvrows.c``, used by `cosim.csvformat`).
 
-`cosim.execution.Execution` compiles what its Python loop does at every communication
-step into a list of `Operation` (doSteps, gets, sets and routes, in the Python loop's order);
+`cosim.program` compiles a communication step into one list of operations; an operation C can
+run carries its `NativeOp` (doSteps, gets, sets and numeric routes), the others none.
 `Kernel` runs that list step after step in C, writing each recorded row into the recorder's
-chunk buffer, and returns to Python for everything else (flushing, progress, signals, any
-FMI status above Warning, see ``kernel.c``).
+chunk buffer, and returns to Python for everything else (an operation without a `NativeOp`,
+flushing, progress, signals, any FMI status above Warning, see ``kernel.c``), which resumes it
+at an operation index (`cosim.interpreters.NativeInterpreter`).
 
 The library is built from ``kernel.c`` when greyfmu is installed (an optional setuptools
 extension, ``setup.py``: no Python C API, loaded here with ctypes); `library` finds it, or
@@ -19,19 +20,22 @@ from __future__ import annotations
 import ctypes
 import importlib.machinery
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
-OP_STEP, OP_GET, OP_SET, OP_ROUTE = 0, 1, 2, 3
+OP_STEP, OP_GET, OP_SET, OP_ROUTE, OP_PYTHON = 0, 1, 2, 3, 4
 #: why `Kernel.run` returned (bits): step k_end reached, buffer full, flush due, stop flag set,
-#: an FMI status for Python to handle, a route whose value overflowed (its index in the status)
-KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS, KERNEL_OVERFLOW = 1, 2, 4, 8, 16, 32
+#: an FMI status for Python to handle, a route whose value overflowed (its index in the status),
+#: an operation for Python to run
+KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS, KERNEL_OVERFLOW, KERNEL_YIELD = \
+    1, 2, 4, 8, 16, 32, 64
 LIBRARY_ENV = "COSIM_KERNEL_LIBRARY"
 #: KERNEL_ABI_VERSION of kernel.c: the layout of the structures mirrored below
-ABI_VERSION = 1
+ABI_VERSION = 2
 
 
 class _Op(ctypes.Structure):
@@ -59,7 +63,7 @@ class _Run(ctypes.Structure):
     _fields_ = [("k", ctypes.c_longlong), ("k_end", ctypes.c_longlong), ("rows", ctypes.c_void_p),
                 ("free_rows", ctypes.c_longlong), ("rows_done", ctypes.c_longlong), ("count", ctypes.c_void_p),
                 ("samples", ctypes.c_longlong), ("flush_at", ctypes.c_double), ("stop", ctypes.c_void_p),
-                ("op", ctypes.c_int), ("status", ctypes.c_int)]
+                ("first", ctypes.c_int), ("op", ctypes.c_int), ("status", ctypes.c_int)]
 
 
 def _library_path() -> Path | None:
@@ -123,58 +127,55 @@ def library() -> tuple[ctypes.CDLL | None, str]:
 
 
 @dataclass(frozen=True)
-class Operation:
-    """One operation of a communication step, and what Python needs to handle its status.
+class NativeOp:
+    """The C form of one operation of a step (`cosim.program.Operation.native`).
 
-    ``kind``: OP_STEP, OP_GET, OP_SET (an FMI call of ``component``, ``api`` 2 or 3, at
-    function address ``fn``) or OP_ROUTE (``route``: source and destination positions, factor,
-    offset, identity, on the buffers ``Y`` and ``U``).  ``position``: for a doStep, the
-    component's place in the stepping order, and ``thread``: with threads, which one makes it
-    (0: the caller); ``at_step_end``: a failing get or set is reported at the end of the step
-    (else at its start, as Gauss–Seidel sets the inputs before a doStep), and so is a route that
-    overflows; ``routes_of``: for a route, what names its routes in an error (the execution's
-    exchange buffers of that type and the component routed into, None for all).
+    ``kind``: OP_STEP, OP_GET, OP_SET (an FMI call on the instance handle ``instance``, ``api`` 2
+    or 3 telling the C signature of the function at address ``fn``; a get or set exchanges ``n``
+    values of references at ``vr`` with the buffer at ``values``) or OP_ROUTE (``route``: source
+    and destination positions, factor, offset, identity, on the buffers at ``Y`` and ``U`` of C
+    ints when ``integer``, else doubles).  ``post_step``: for a doStep, the addresses of
+    fmi3DoStep's out-arguments (eventHandlingNeeded, terminateSimulation, earlyReturn,
+    lastSuccessfulTime), zeros for FMI 2.0; a set terminateSimulation returns to Python, which
+    runs the instance's post-step (`cosim.instances.Instance.step_outcome`).  ``thread``: with
+    threads, which one makes a doStep of the parallel phase (0: the caller).
     """
     kind: int
-    component: str = ""
     api: int = 2
     fn: int = 0
     instance: int = 0
     vr: int = 0
     n: int = 0
     values: int = 0
-    step_out: tuple[int, int, int, int] = (0, 0, 0, 0)
+    post_step: tuple[int, int, int, int] = (0, 0, 0, 0)
     route: tuple | None = None
     integer: bool = False
     Y: int = 0
     U: int = 0
-    position: int = -1
     thread: int = 0
-    at_step_end: bool = True
-    routes_of: tuple = ()
-
-    def what(self) -> str:
-        return {OP_STEP: "DoStep", OP_GET: "Get", OP_SET: "Set"}[self.kind]
 
 
 class Kernel:
-    """The compiled loop over one step's `Operation` list, recording ``sources`` (exchange
-    buffer addresses, lengths and whether they hold C ints) after each step on ``grid``; with
-    ``threads`` > 1, the first ``parallel`` operations (doSteps) run concurrently, each on its
-    ``thread`` (`close` ends the threads)."""
+    """The compiled loop over one step's operations (their `NativeOp`, None for one Python runs:
+    the loop returns at it), recording ``sources`` (exchange buffer addresses, lengths and
+    whether they hold C ints) after each step on ``grid``; with ``threads`` > 1, the first
+    ``parallel`` operations (doSteps) run concurrently, each on its ``thread`` (`close` ends
+    the threads)."""
 
-    def __init__(self, operations: list[Operation], sources: list[tuple[int, int, bool]], grid, columns: int,
-                 threads: int = 1, parallel: int = 0):
+    def __init__(self, operations: Sequence[NativeOp | None], sources: list[tuple[int, int, bool]], grid,
+                 columns: int, threads: int = 1, parallel: int = 0):
         self.lib, reason = library()
         if self.lib is None:
             raise RuntimeError(reason)
-        self.operations = operations
         self._keep: list = []
         ops = (_Op * max(1, len(operations)))()
         for o, op in zip(ops, operations):
+            if op is None:
+                o.kind = OP_PYTHON
+                continue
             o.kind, o.api, o.integer, o.thread = op.kind, op.api, int(op.integer), op.thread
             o.fn, o.instance, o.vr, o.n, o.values = op.fn, op.instance, op.vr, op.n, op.values
-            o.event, o.terminate, o.early, o.last = op.step_out
+            o.event, o.terminate, o.early, o.last = op.post_step
             if op.route is not None:
                 src, dst, factor, offset, identity = op.route
                 arrays = (np.ascontiguousarray(src, dtype=np.intp), np.ascontiguousarray(dst, dtype=np.intp),
@@ -200,13 +201,14 @@ class Kernel:
         self.stop_flag = ctypes.c_int(0)
         self.state.stop = ctypes.addressof(self.stop_flag)
 
-    def run(self, k: int, k_end: int, rows: int, free_rows: int, count: int, samples: int,
+    def run(self, k: int, k_end: int, first: int, rows: int, free_rows: int, count: int, samples: int,
             flush_at: float) -> int:
-        """Steps k .. k_end - 1 into the buffer at address ``rows`` (``free_rows`` rows free);
-        returns the KERNEL_* bits; `state` holds the step reached, the rows and samples done,
-        and, on KERNEL_STATUS, the operation and its status."""
+        """Steps k .. k_end - 1, step k from its operation ``first``, into the buffer at address
+        ``rows`` (``free_rows`` rows free); returns the KERNEL_* bits; `state` holds the step
+        reached, the rows and samples done, and, on KERNEL_STATUS, KERNEL_OVERFLOW and
+        KERNEL_YIELD, the operation (and its status)."""
         r = self.state
-        r.k, r.k_end, r.rows, r.free_rows, r.rows_done = k, k_end, rows, free_rows, 0
+        r.k, r.k_end, r.first, r.rows, r.free_rows, r.rows_done = k, k_end, first, rows, free_rows, 0
         r.count, r.samples, r.flush_at = count, samples, flush_at
         return self.lib.cosim_run(ctypes.byref(self.program), ctypes.byref(r))
 

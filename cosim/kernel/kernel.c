@@ -1,22 +1,27 @@
-/* The master's stepping loop in C (cosim.kernel): a fixed sequence of FMI calls and routes per
- * communication step, then one recorded row, repeated from step k to step k_end.
+/* The master's stepping loop in C (cosim.kernel): one communication step's program of operations
+ * (cosim.program), run from step k to step k_end, one recorded row after each step.
  *
- * Python (cosim.kernel.Program) compiles the sequence the Python loop of cosim.execution runs
- * at every step -- the doSteps (Jacobi, or Gauss-Seidel with each component's inputs routed
- * and set before and its outputs read after its doStep), the batched gets, the direct-
- * feedthrough settling in dependency order, the routes (y * factor + offset, two roundings:
- * built with -ffp-contract=off), the sets -- into an array of operations; this file only runs
- * it, so the calls, their order and the arithmetic are the Python loop's.
+ * cosim.program compiles the step -- the doSteps (Jacobi, or Gauss-Seidel with each component's
+ * inputs routed and set before and its outputs read after its doStep), the batched gets, the
+ * direct-feedthrough settling in dependency order, the routes (y * factor + offset, two
+ * roundings: built with -ffp-contract=off), the sets -- into one array of operations, which
+ * cosim.interpreters runs either in Python or here: this file only runs it, so the calls, their
+ * order and the arithmetic are the same in both.  An operation this file cannot run (OP_PYTHON:
+ * a call Python makes, a String route, a mapping table, an input table, an algebraic loop's
+ * iteration) is handed back to Python, which runs it and resumes here after it.
  *
  * The loop returns to Python (cosim_run's result, bits of KERNEL_*) when:
  *   - step k_end is reached (Python's progress stride);
  *   - the recorder's buffer is full, or its flush deadline (CLOCK_MONOTONIC, as Python's
  *     time.monotonic) has passed: Python hands the rows to the sinks;
  *   - the stop flag is set (a signal: cosim_watch_signals), checked after each recorded row;
- *   - an FMI call returned a status other than OK and Warning, or fmi3DoStep asked to
- *     terminate: Python handles the status and finishes that step with its own code;
+ *   - an FMI call returned a status other than OK and Warning, or a doStep's post-step flag
+ *     (fmi3DoStep's terminateSimulation) is set: Python handles the status;
  *   - a route's factor and offset turned a finite value into an infinite one (KERNEL_OVERFLOW,
- *     the route's index in ``status``): Python reports it as the Python loop does.
+ *     the route's index in ``status``): Python reports it as the Python interpreter does;
+ *   - the next operation is OP_PYTHON (KERNEL_YIELD).
+ * In the last three cases, and for a status Python decides to go on after, Python calls again
+ * with ``first``: the operation of step k to resume at.
  * No Python C API: loaded with ctypes, which releases the GIL for the call (pythonfmu FMUs
  * take it themselves in each FMI call). */
 #define _XOPEN_SOURCE 700
@@ -30,17 +35,19 @@
 #include <string.h>
 #include <time.h>
 
-enum { OP_STEP = 0, OP_GET = 1, OP_SET = 2, OP_ROUTE = 3 };
+enum { OP_STEP = 0, OP_GET = 1, OP_SET = 2, OP_ROUTE = 3, OP_PYTHON = 4 };
 enum { KERNEL_END = 1, KERNEL_FULL = 2, KERNEL_FLUSH = 4, KERNEL_STOP = 8, KERNEL_STATUS = 16,
-       KERNEL_OVERFLOW = 32 };
+       KERNEL_OVERFLOW = 32, KERNEL_YIELD = 64 };
 
 typedef int (*fmi2DoStep)(void *, double, double, int);
 typedef int (*fmi3DoStep)(void *, double, double, bool, bool *, bool *, bool *, double *);
 typedef int (*fmi2Exchange)(void *, const unsigned int *, size_t, void *);
 typedef int (*fmi3Exchange)(void *, const unsigned int *, size_t, void *, size_t);
 
-/* One operation of a step.  OP_STEP/OP_GET/OP_SET: an FMI call (api 2 or 3) on ``instance``;
- * fmi3DoStep's out-arguments are ``out`` (the instance's own, which Python reads after).
+/* One operation of a step.  OP_STEP/OP_GET/OP_SET: an FMI call (api 2 or 3: the C signature) on
+ * ``instance``; fmi3DoStep's out-arguments are ``event``, ``terminate``, ``early``, ``last`` (the
+ * instance's own, which its post-step reads in Python), and a doStep after which ``terminate``
+ * (when not NULL) is true returns to Python whatever its status.
  * OP_ROUTE: U[dst[j]] = Y[src[j]] (identity) or Y[src[j]] * factor[j] + offset[j], on doubles
  * or (integer) on C ints, as fmi2Integer and fmi2Boolean are.  ``thread``: with a pool, which
  * thread makes a doStep of the parallel phase (0: the calling thread). */
@@ -82,10 +89,11 @@ typedef struct {
     long long steps;
 } Program;
 
-/* What one call does: steps k .. k_end - 1 (k advances past every completed step), rows into
- * ``rows`` (row-major, ``columns`` doubles each) up to ``free_rows``; ``samples`` counts every
- * row of the run and is stored into ``count`` after each row (the journal's row counter).  On
- * KERNEL_STATUS: ``op`` and ``status`` of the call, in step k (not completed). */
+/* What one call does: steps k .. k_end - 1 (k advances past every completed step; step k
+ * begins at operation ``first``, the others at 0), rows into ``rows`` (row-major, ``columns``
+ * doubles each) up to ``free_rows``; ``samples`` counts every row of the run and is stored into
+ * ``count`` after each row (the journal's row counter).  On KERNEL_STATUS, KERNEL_OVERFLOW and
+ * KERNEL_YIELD: ``op`` (and ``status``) of the operation, in step k (not completed). */
 typedef struct {
     long long k, k_end;
     double *rows;
@@ -94,14 +102,14 @@ typedef struct {
     long long samples;
     double flush_at;
     volatile int *stop;
-    int op, status;
+    int first, op, status;
 } Run;
 
 /* The layout the ctypes mirrors of cosim/kernel/__init__.py declare: bump KERNEL_ABI_VERSION
  * with any change to Op, Source, Program or Run (their sizes are checked too, so a stale
  * library built before an edit is refused rather than read out of step). */
 #ifndef KERNEL_ABI_VERSION
-#define KERNEL_ABI_VERSION 1
+#define KERNEL_ABI_VERSION 2
 #endif
 enum { KERNEL_ABI_STRUCTS = 4 };
 
@@ -169,32 +177,36 @@ static int operate(const Op *o, double t, double h) {
 }
 
 /* Whether the loop stops at operation o after status s: a doStep goes on after OK and Warning
- * unless fmi3DoStep asks to terminate; a get or set after any status up to Warning; a route
- * when one of its values overflowed. */
+ * unless its post-step flag is set (fmi3DoStep asks to terminate); a get or set after any status
+ * up to Warning; a route when one of its values overflowed. */
 static int stops(const Op *o, int s) {
     if (o->kind == OP_ROUTE) return s >= 0;
-    return o->kind == OP_STEP ? (s != 0 && s != 1) || (o->api == 3 && *o->terminate) : s > 1;
+    return o->kind == OP_STEP ? (s != 0 && s != 1) || (o->terminate != NULL && *o->terminate) : s > 1;
 }
 
 static void parallel_steps(const Program *p, double t, double h);
 
 int cosim_run(const Program *p, Run *r) {
-    int reason = 0;
+    int reason = 0, first = r->first;
     while (r->k < r->k_end) {
         double t = grid_time(p, r->k), t_next = grid_time(p, r->k + 1), h = t_next - t;
-        int first = 0;
-        if (p->pool != NULL) {
-            parallel_steps(p, t, h);
-            for (int i = 0; i < p->n_parallel; i++)
+        int i = first;
+        first = 0;
+        if (p->pool != NULL && i < p->n_parallel) {
+            if (i == 0) parallel_steps(p, t, h);
+            for (; i < p->n_parallel; i++) /* resumed: the statuses of this step's parallel doSteps */
                 if (stops(&p->ops[i], p->statuses[i])) {
                     r->op = i;
                     r->status = p->statuses[i];
                     return KERNEL_STATUS;
                 }
-            first = p->n_parallel;
         }
-        for (int i = first; i < p->n_ops; i++) {
+        for (; i < p->n_ops; i++) {
             const Op *o = &p->ops[i];
+            if (o->kind == OP_PYTHON) {
+                r->op = i;
+                return KERNEL_YIELD;
+            }
             int s = operate(o, t, h);
             if (stops(o, s)) {
                 r->op = i;

@@ -194,3 +194,21 @@ def test_cli_names_the_loop_and_runs_it_both_ways(tmp_path, cfmus, capsys):
         assert warned == (mode == "delay")
     assert main(["run", str(folder), "-o", str(tmp_path / "x.csv"), "-q", "--relaxation", "0"]) == 2
     assert "the relaxation factor must be in (0, 1]; got 0.0" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("system", ["quarter_truck", "crane", "affine"])
+def test_the_iteration_runs_the_same_in_both_interpreters(tmp_path, cfmus, system):
+    """The loop solver's sweep is one operation of the step's program, made by Python within the
+    compiled loop: the same samples, sweeps and residuals as the Python interpreter."""
+    folder = _affine_loop(tmp_path, cfmus, 0.5, 0.8) if system == "affine" else _system(tmp_path, cfmus, system)
+    runs = {}
+    for kernel in ("python", "native"):
+        out = tmp_path / f"{kernel}.csv"
+        runs[kernel] = (cosim.simulate(folder, output=out, kernel=kernel),
+                        json.loads(out.with_suffix(".json").read_text()))
+    (python, p_meta), (native, n_meta) = runs["python"], runs["native"]
+    for name in python.dtype.names:
+        np.testing.assert_array_equal(python[name], native[name], err_msg=name)
+    assert n_meta["kernel"] == "native" and p_meta["kernel"] == "python"
+    assert list(n_meta["python_operations"]) == ["an algebraic loop solved by iteration (--loops iterate, cosim.loops)"]
+    assert n_meta["algebraic_loops"] == p_meta["algebraic_loops"] and n_meta["algebraic_loops"]["solves"] > 1

@@ -129,3 +129,26 @@ def test_fmi3_binary_is_exchanged_not_recorded(tmp_path):
     np.testing.assert_array_equal(res["b.checksum"], k * (k + 1))
     alone = fmpy.simulate_fmu(str(fmu), stop_time=STOP, output_interval=H, output=["length", "checksum"])
     np.testing.assert_array_equal(alone["length"], 0)      # unconnected, bin keeps its empty start value
+
+
+@pytest.mark.parametrize("pair", ["types3", "bytes3"])
+def test_converted_and_binary_exchange_runs_the_same_in_both_interpreters(tmp_path, typed, pair):
+    """The gets and sets through the master's FMI 3.0 conversion, and a Binary's get, route and
+    set, are made by Python within the compiled loop: the same samples as the Python interpreter."""
+    if pair == "types3":
+        comps = {"a": ("Types3.fmu", {o: "output" for o in OUTPUTS3}),
+                 "b": ("Types3.fmu", {"fin": "input", "i8in": "input", "i64in": "input", "ein": "input",
+                                      "fecho": "output", "sum": "output"})}
+        wires = [("a", "f", "b", "fin"), ("a", "i8", "b", "i8in"), ("a", "i64", "b", "i64in"), ("a", "e", "b", "ein")]
+        fmus = {"Types3.fmu": typed["Types3"]}
+    else:
+        comps = {"a": ("Bytes3.fmu", {"blob": "output"}),
+                 "b": ("Bytes3.fmu", {"bin": "input", "length": "output", "checksum": "output"})}
+        wires = [("a", "blob", "b", "bin")]
+        fmus = {"Bytes3.fmu": build_c_fmu(tmp_path / "fmu", "Bytes3", BYTES3, BYTES3_BODY, "3.0")}
+    folder = write_system(tmp_path / pair, fmus, ssd_text(pair, comps, wires, stop=STOP, step=H))
+    python = cosim.simulate(folder, kernel="python")
+    native = cosim.simulate(folder, kernel="native")
+    assert len(python) == len(native) == 11
+    for name in python.dtype.names:
+        np.testing.assert_array_equal(python[name], native[name], err_msg=name)

@@ -22,7 +22,7 @@ import cosim
 from cfmus import build_c_fmu
 from cosim.errors import RunError, SetupError
 from cosim.interrupts import stop_on_signals
-from cosim.kernel import _Program, library
+from cosim.kernel import ABI_VERSION, _Program, library
 from cosim.simulation import prepare, run
 from ssdgen import ssd_text, write_system
 
@@ -235,17 +235,18 @@ def test_a_crash_with_the_journal_loses_no_row_in_either_loop(tmp_path, blocks):
     assert rows["python"] == rows["native"] and len(rows["native"].splitlines()) == 1 + 100  # header, t = 0..0.99
 
 
-def test_native_refuses_what_it_cannot_run(tmp_path, blocks):
-    """A C bool in FMI 3.0 goes through the master's conversion: --kernel native refuses, auto
-    runs Python and says why, with the same samples."""
+def test_what_c_cannot_call_python_makes_within_the_compiled_loop(tmp_path, blocks):
+    """A C bool in FMI 3.0 goes through the master's conversion: the compiled loop hands b0's
+    Boolean sets back to Python at every step and makes the rest itself (auto and native alike);
+    the same samples as the Python loop, and the metadata counts what Python made and why."""
     folder = _chain(tmp_path, blocks, ["Bool3", "Block3"], stop=0.1)
-    with pytest.raises(SetupError, match=r"compiled kernel cannot run this system: component 'b0' exchanges "
-                                         r"Boolean values through the master's FMI 3.0 conversion"):
-        _run(folder, "native")
-    python, auto = _run(folder, "python"), _run(folder, "auto")
-    assert auto[1]["kernel"] == "python" and "component 'b0' exchanges Boolean" in auto[1]["kernel_reason"]
-    assert "kernel_reason" not in python[1]
+    python, compiled = _both(folder)
+    auto = _run(folder, "auto")
     assert_same(python[0], auto[0])
+    why = "component 'b0' exchanges Boolean values through the master's FMI 3.0 conversion"
+    for meta in (compiled[1], auto[1]):
+        assert meta["kernel"] == "native" and list(meta["python_operations"]) == [why], meta
+    assert "python_operations" not in python[1] and "kernel_reason" not in python[1]
 
 
 def test_without_the_library_auto_runs_python_with_one_notice(tmp_path, blocks):
@@ -277,7 +278,7 @@ def _stale_library(tmp_path: Path, name: str, source: str, *flags: str) -> Path:
 
 
 @pytest.mark.parametrize("edit, expected", [
-    ("version", r"ABI version 2, expected 1"),
+    ("version", rf"ABI version {ABI_VERSION + 1}, expected {ABI_VERSION}"),
     ("field", rf"sizeof\(Program\) is {ctypes.sizeof(_Program) + 8} bytes in C, {ctypes.sizeof(_Program)} in ctypes"),
     ("no abi", r"it has no cosim_kernel_abi")])
 def test_a_stale_library_is_refused_by_its_abi(tmp_path, blocks, monkeypatch, edit, expected):
@@ -289,7 +290,7 @@ def test_a_stale_library_is_refused_by_its_abi(tmp_path, blocks, monkeypatch, ed
     if edit == "no abi":
         source = source.replace("int cosim_kernel_abi(", "int cosim_kernel_no_abi(")
     stale = _stale_library(tmp_path, edit.replace(" ", "_"), source,
-                           *(["-DKERNEL_ABI_VERSION=2"] if edit == "version" else []))
+                           *([f"-DKERNEL_ABI_VERSION={ABI_VERSION + 1}"] if edit == "version" else []))
     folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.1)
     monkeypatch.setenv("COSIM_KERNEL_LIBRARY", str(stale))
     library.cache_clear()
@@ -341,3 +342,38 @@ def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, mon
     folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.5)
     python, compiled = _both(folder)
     assert flushes[0][0] == flushes[1][0] >= 50  # one per row (and the last at closing)
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_the_step_is_one_program_both_interpreters_run(tmp_path, blocks, algorithm):
+    """`cosim.program.compile_step` on a live execution: Jacobi's doSteps first, or Gauss–Seidel's
+    routes, sets, doStep and gets per component in dependency order; then the exchange (gets,
+    the settling of the feedthrough chain, the routes, the sets); every operation of these C
+    FMUs has a C form, FMI 3.0 doSteps a post-step."""
+    from cosim.execution import Execution
+    from cosim.program import OP_GET, OP_ROUTE, OP_SET, OP_STEP
+
+    prepared = prepare(_chain(tmp_path, blocks, ["Block", "Block3", "Block"], stop=0.1), algorithm=algorithm)
+    execution = Execution(prepared.plan, prepared.grid, algorithm)
+    try:
+        execution.instantiate()
+        program = execution.program
+        ops = program.operations
+        step = [(op.kind, op.component) for op in ops[:program.step_ops]]
+        if algorithm == "jacobi":
+            assert step == [(OP_STEP, "b0"), (OP_STEP, "b1"), (OP_STEP, "b2")]
+        else:
+            order = prepared.plan.gauss_seidel_order
+            assert [c for kind, c in step if kind == OP_STEP] == order
+            for comp in order:  # its inputs before its doStep, its outputs after
+                kinds = [kind for kind, c in step if c == comp]
+                assert kinds.index(OP_STEP) > kinds.index(OP_SET) and kinds[-1] == OP_GET
+        exchange = [op.kind for op in ops[program.step_ops:]]
+        assert exchange[0] == OP_GET and exchange[-1] == OP_SET and OP_ROUTE in exchange
+        assert all(op.native is not None for op in ops) and program.python_operations() == {}
+        assert [op.component for op in ops if op.post_step is not None] == ["b1"]   # fmi3DoStep's out-arguments
+        assert program.top_level() == list(range(len(ops)))
+        assert execution.kernel == "native"
+    finally:
+        execution.close()
+        prepared.close()

@@ -92,7 +92,7 @@ def test_a_crashing_component_is_named_its_rows_kept_and_its_process_reaped(tmp_
     assert meta["status"] == "crashed" and meta["message"] == str(e) and meta["last_time"] == 5.0
     assert e.code.value == meta["error"] == "component_crashed"
     assert meta["isolation"] == {"call_timeout": None}
-    assert meta["kernel"] == "python" and meta["kernel_reason"] == "component 'f' runs in a process of its own (--isolate)"
+    assert meta["kernel"] == "python" and "component 'f' runs in a process of its own (--isolate)" in meta["kernel_reason"]
     assert not out.with_name("out.csv.journal").exists()
     assert _children() <= before  # f's process reaped after its crash, g's after being freed
 

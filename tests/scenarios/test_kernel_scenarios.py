@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import cosim
 from cosim.errors import RunError, SetupError
 from cosim.kernel import library
 from cosim.simulation import prepare, run
@@ -40,10 +39,22 @@ def assert_same(a: np.ndarray, b: np.ndarray) -> None:
         assert np.array_equal(a[name], b[name], equal_nan=True), name
 
 
-def test_native_refuses_model_exchange_before_instantiation():
-    with pytest.raises(SetupError, match=r"component '\w+' is Model Exchange"):
-        cosim.simulate(ROOT / "ssp" / "pid_mass_damper_me", stop_time=0.1, kernel="native",
-                       fmu_dirs=[gemseo_fmu_dir()])
+def test_model_exchange_steps_in_python_within_the_compiled_loop(tmp_path):
+    """The OpenModelica Model Exchange plant of pid_mass_damper_me is integrated by the master
+    in Python: the compiled loop hands its doStep back at every step and makes the rest itself;
+    the same samples as the Python loop."""
+    folder, fmu_dirs = ROOT / "ssp" / "pid_mass_damper_me", [gemseo_fmu_dir()]
+    results = {}
+    for kernel in ("python", "native"):
+        prepared = prepare(folder, stop_time=0.5, fmu_dirs=fmu_dirs)
+        try:
+            results[kernel] = run(prepared, kernel=kernel)
+        finally:
+            prepared.close()
+    assert_same(results["python"][0], results["native"][0])
+    meta = results["native"][1]
+    assert meta["kernel"] == "native" and len(results["native"][0]) > 10
+    assert [why for why in meta["python_operations"] if "is Model Exchange (integrated by the master)" in why]
 
 
 ALL_SCENARIOS = sorted(p.parent.name for p in (ROOT / "ssp").glob("*/SystemStructure.ssd"))
@@ -85,10 +96,10 @@ def test_scenarios_run_the_same_in_both_loops(scenario, parameter_sets):
     assert_same(results["python"][0], results["auto"][0])
     meta = results["auto"][1]
     kinds = {c["interface"] for c in meta["components"].values()}
-    if kinds <= {"fmi2-cs", "fmi3-cs"} and (meta["algebraic_loops"] or {}).get("mode") != "iterate":
-        assert meta["kernel"] == "native", meta.get("kernel_reason")
-    else:
-        assert meta["kernel"] == "python" and meta["kernel_reason"]
+    assert meta["kernel"] == "native", meta.get("kernel_reason")
+    in_python = " ".join(meta.get("python_operations", {}))
+    assert ("Model Exchange" in in_python) == bool(kinds - {"fmi2-cs", "fmi3-cs"})
+    assert ("algebraic loop" in in_python) == ((meta["algebraic_loops"] or {}).get("mode") == "iterate")
 
 
 def test_threads_keep_pythonfmu_components_serial_and_refuse_gauss_seidel(tmp_path):
