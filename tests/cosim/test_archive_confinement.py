@@ -1,6 +1,5 @@
 """An .ssp archive may refer only to its own members (cosim.ssp.resolve_uri): an archive
 from elsewhere must not make the master read files outside it."""
-import zipfile
 from pathlib import Path
 
 import pytest
@@ -8,25 +7,17 @@ import pytest
 from cosim import ssp
 from cosim.errors import SetupError
 from cosim.resources import locate_fmus
+from runhelpers import edited_archive
 
 SSD = Path("ssp/pid_fopdt/SystemStructure.ssd")
 
 
-def _archive(tmp_path: Path, old: str, new: str, extra: dict[str, str] | None = None) -> Path:
-    text = SSD.read_text()
-    assert old in text
-    path = tmp_path / "x.ssp"
-    with zipfile.ZipFile(path, "w") as z:
-        z.writestr("SystemStructure.ssd", text.replace(old, new, 1))
-        for name, content in (extra or {}).items():
-            z.writestr(name, content)
-    return path
 
 
 def test_parameter_set_outside_the_archive_is_refused(tmp_path):
     outside = tmp_path / "secret.ssv"
     outside.write_text("not for the archive")
-    path = _archive(tmp_path, 'source="controller.ssv"', 'source="../secret.ssv"')
+    path = edited_archive(tmp_path, SSD, 'source="controller.ssv"', 'source="../secret.ssv"')
     with pytest.raises(SetupError) as err:
         ssp.load(path)
     assert "points outside the .ssp archive" in str(err.value) and "ParameterBinding" in str(err.value)
@@ -43,7 +34,7 @@ def test_a_folder_scenario_may_still_refer_outside_its_folder(tmp_path):
 
 def test_a_megabyte_long_value_does_not_make_a_megabyte_message(tmp_path):
     ssv = {"controller.ssv": (SSD.parent / "controller.ssv").read_text()}
-    path = _archive(tmp_path, 'source="resources/Step.fmu"', f'source="{"x" * 1_000_000}.fmu"', ssv)
+    path = edited_archive(tmp_path, SSD, 'source="resources/Step.fmu"', f'source="{"x" * 1_000_000}.fmu"', ssv)
     structure = ssp.load(path)
     try:
         with pytest.raises(SetupError) as err:

@@ -8,16 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.cli import main
+from runhelpers import cli_exit as _exit
 from cosim.results import read
 
 
-def _exit(capsys, code: int, *argv) -> str:
-    got = main(list(argv))
-    err = capsys.readouterr().err
-    assert got == code, err
-    assert "Traceback" not in err
-    return err
 
 
 def _result(tmp_path: Path, name: str, columns: dict) -> Path:

@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import cosim
 from cfmus import build_c_fmu
-from cosim.errors import RunError, SetupError
+from cosim.errors import SetupError
 from cosim.interrupts import stop_on_signals
 from cosim.kernel import ABI_VERSION, _Program, library
 from cosim.simulation import prepare, run
+from runhelpers import assert_same, run_kernel as _run
 from ssdgen import ssd_text, write_system
 
 ROOT = Path(__file__).parents[2]
@@ -130,24 +130,8 @@ def _chain(tmp_path: Path, blocks: dict, kinds: list[str], parameters: dict | No
                                                          parameters=params))
 
 
-def _run(folder: Path, kernel: str, results: Path | None = None, **kw) -> tuple[np.ndarray | None, dict, str]:
-    """One run: the samples, the metadata (of the result file's JSON, in ``results``, by default
-    beside the system's folder) and the error, if any."""
-    out = (results or folder.parent) / f"{kernel}.csv"
-    prepared = prepare(folder, algorithm=kw.pop("algorithm", None))
-    try:
-        result, meta = run(prepared, output=out, kernel=kernel, **kw)
-        return result, meta, ""
-    except RunError as e:
-        return e.result, json.loads(out.with_suffix(".json").read_text()), str(e)
-    finally:
-        prepared.close()
 
 
-def assert_same(a: np.ndarray, b: np.ndarray) -> None:
-    assert a.dtype.names == b.dtype.names and len(a) == len(b)
-    for name in a.dtype.names:
-        assert np.array_equal(a[name], b[name], equal_nan=True), name
 
 
 def _both(folder: Path, **kw) -> tuple[tuple, tuple]:

@@ -8,14 +8,13 @@ truncated the earlier result, and `cosim sweep -o FILE` was a NotADirectoryError
 from __future__ import annotations
 
 import shutil
-import time
 from pathlib import Path
 
 import pytest
 
-from cosim.cli import main
 from cosim.errors import SetupError
 from cosim.results import read
+from runhelpers import refused as _refused
 from cosim.safeio import file_name
 
 SCENARIO = Path("ssp/pid_fopdt").resolve()
@@ -27,12 +26,6 @@ def scenario(tmp_path) -> Path:
     return Path(shutil.copytree(SCENARIO, tmp_path / "pid_fopdt"))
 
 
-def _refused(capsys, *argv) -> str:
-    code = main(list(argv))
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert "Traceback" not in err and err.count("cosim: error:") == 1
-    return err
 
 
 def _files(root: Path) -> set[Path]:

@@ -1,6 +1,5 @@
 """The tests of tests/cosim/test_archive_confinement.py that need pythonfmu (issue 29): they run our FMUs
 (fmus/, greyfmu build), the scenarios of ssp/ or the pythonfmu FMUs of tests/fmus/."""
-import zipfile
 from pathlib import Path
 
 import pytest
@@ -8,26 +7,18 @@ import pytest
 from cosim import ssp
 from cosim.errors import SetupError
 from cosim.resources import locate_fmus
+from runhelpers import edited_archive
 
 
 SSD = Path("ssp/pid_fopdt/SystemStructure.ssd")
 
 
-def _archive(tmp_path: Path, old: str, new: str, extra: dict[str, str] | None = None) -> Path:
-    text = SSD.read_text()
-    assert old in text
-    path = tmp_path / "x.ssp"
-    with zipfile.ZipFile(path, "w") as z:
-        z.writestr("SystemStructure.ssd", text.replace(old, new, 1))
-        for name, content in (extra or {}).items():
-            z.writestr(name, content)
-    return path
 
 
 @pytest.mark.parametrize("source", ["../../../../etc/passwd", "file:///etc/passwd", "/etc/passwd"])
 def test_fmu_source_outside_the_archive_is_refused(tmp_path, source, built_fmus):
     ssv = {"controller.ssv": (SSD.parent / "controller.ssv").read_text()}
-    path = _archive(tmp_path, 'source="resources/PID.fmu"', f'source="{source}"', ssv)
+    path = edited_archive(tmp_path, SSD, 'source="resources/PID.fmu"', f'source="{source}"', ssv)
     structure = ssp.load(path)
     try:
         with pytest.raises(SetupError) as err:

@@ -12,18 +12,13 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
+from runhelpers import cli_exit as _exit
 from cosim.results import read, write
 
 
 SCENARIO = Path("ssp/pid_fopdt")
 
 
-def _exit(capsys, code: int, *argv) -> str:
-    got = main(list(argv))
-    err = capsys.readouterr().err
-    assert got == code, err
-    assert "Traceback" not in err
-    return err
 
 
 @pytest.mark.parametrize("name", ["pl,ant", 'pl"ant', "pl\nant", 'p"l,\na"n""t'])

@@ -2,16 +2,15 @@
 (fmus/, greyfmu build), the scenarios of ssp/ or the pythonfmu FMUs of tests/fmus/."""
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from cosim.errors import RunError, SetupError
+from cosim.errors import SetupError
 from cosim.kernel import library
 from cosim.simulation import prepare, run
+from runhelpers import assert_same, run_kernel as _run
 from peers import gemseo_fmu_dir
 
 
@@ -19,42 +18,8 @@ ROOT = Path(__file__).parents[2]
 pytestmark = pytest.mark.skipif(library()[0] is None, reason=f"no compiled kernel: {library()[1]}")
 
 
-def _run(folder: Path, kernel: str, results: Path | None = None, **kw) -> tuple[np.ndarray | None, dict, str]:
-    """One run: the samples, the metadata (of the result file's JSON, in ``results``, by default
-    beside the system's folder) and the error, if any."""
-    out = (results or folder.parent) / f"{kernel}.csv"
-    prepared = prepare(folder, algorithm=kw.pop("algorithm", None))
-    try:
-        result, meta = run(prepared, output=out, kernel=kernel, **kw)
-        return result, meta, ""
-    except RunError as e:
-        return e.result, json.loads(out.with_suffix(".json").read_text()), str(e)
-    finally:
-        prepared.close()
 
 
-def assert_same(a: np.ndarray, b: np.ndarray) -> None:
-    assert a.dtype.names == b.dtype.names and len(a) == len(b)
-    for name in a.dtype.names:
-        assert np.array_equal(a[name], b[name], equal_nan=True), name
-
-
-def test_model_exchange_steps_in_python_within_the_compiled_loop(tmp_path):
-    """The OpenModelica Model Exchange plant of pid_mass_damper_me is integrated by the master
-    in Python: the compiled loop hands its doStep back at every step and makes the rest itself;
-    the same samples as the Python loop."""
-    folder, fmu_dirs = ROOT / "ssp" / "pid_mass_damper_me", [gemseo_fmu_dir()]
-    results = {}
-    for kernel in ("python", "native"):
-        prepared = prepare(folder, stop_time=0.5, fmu_dirs=fmu_dirs)
-        try:
-            results[kernel] = run(prepared, kernel=kernel)
-        finally:
-            prepared.close()
-    assert_same(results["python"][0], results["native"][0])
-    meta = results["native"][1]
-    assert meta["kernel"] == "native" and len(results["native"][0]) > 10
-    assert [why for why in meta["python_operations"] if "is Model Exchange (integrated by the master)" in why]
 
 
 ALL_SCENARIOS = sorted(p.parent.name for p in (ROOT / "ssp").glob("*/SystemStructure.ssd"))

@@ -15,6 +15,7 @@ import pytest
 from cosim.cli import main
 from cosim.errors import SetupError
 from cosim.results import read
+from runhelpers import refused as _refused
 from cosim.safeio import lock_output, lock_path, partial_path
 
 
@@ -38,12 +39,6 @@ def cwd(tmp_path, monkeypatch) -> Path:
     return here
 
 
-def _refused(capsys, *argv) -> str:
-    code = main(list(argv))
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert "Traceback" not in err and err.count("cosim: error:") == 1
-    return err
 
 
 def _named(scenario: Path, name: str) -> Path:

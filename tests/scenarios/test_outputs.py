@@ -12,6 +12,7 @@ import pytest
 
 from cosim.cli import main
 from cosim.results import read
+from runhelpers import refused as _refused
 
 SCENARIO = Path("ssp/pid_fopdt")
 
@@ -22,12 +23,6 @@ def scenario(tmp_path) -> Path:
     return Path(shutil.copytree(SCENARIO, tmp_path / "pid_fopdt"))
 
 
-def _refused(capsys, *argv) -> str:
-    code = main(list(argv))
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert "Traceback" not in err
-    return err
 
 
 @pytest.mark.parametrize("command", ["run", "pack"])
