@@ -16,8 +16,7 @@ stop request after a recorded row; or the end of the steps asked for.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 from . import kernel as native
 from .grid import Grid
@@ -29,8 +28,7 @@ from .program import Program
 END, STATUS, STOP = "end", "status", "stop"
 
 
-@dataclass(frozen=True)
-class Event:
+class Event(NamedTuple):
     """Why `Interpreter.advance` returned: ``reason`` (END, STATUS, STOP) and ``k``, the step
     reached (every step before it recorded); on STATUS, step k stopped at operation ``op`` with
     ``status`` (after the operation's post-step)."""

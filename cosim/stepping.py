@@ -54,7 +54,7 @@ class Stepping:
         stop = stop or StopRequest()
         interpreter, time = self.interpreter, self.grid.time
         n_steps = self.grid.steps
-        stride = max(1, n_steps // 200)
+        stride = max(1, n_steps // 200) if progress is not None else n_steps  # progress every 1/200 of the run
         ended: list[tuple[str, str]] = []
         k = first = 0
         interpreter.start(recorder, stop)
