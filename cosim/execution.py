@@ -226,6 +226,7 @@ class Execution:
                         raise fmi_failure(inst, "Get (inputs)", status, t0)
 
     def _guard(self, comp: str, t: float, what: str, call) -> None:
+        """A set-up ``call`` of ``comp``: its failure is a `RunError` saying ``what`` failed at ``t``."""
         try:
             call()
         except ComponentLost:  # names the component, the call and t already
@@ -279,6 +280,8 @@ class Execution:
         return None
 
     def metadata(self) -> dict:
+        """How the run went and ran: algorithm, interpreter (``kernel``, and ``python_operations``
+        or ``kernel_reason``), threads, loops, grid, status, components, reuse and parameters."""
         program = self.program
         in_python = program.python_operations() if program is not None and self.kernel == "native" else {}
         kernel = {"kernel": self.kernel} | ({"kernel_reason": self.kernel_reason} if self.kernel_reason else {}) \

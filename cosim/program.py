@@ -124,7 +124,7 @@ def compile_step(plan: Plan, buffers: Sequence[TypedBuffers], instances: Mapping
     """The step of ``plan`` on live ``instances`` exchanging through ``buffers`` (see the module
     docstring); ``threads`` > 1 (Jacobi only) spreads the doSteps that may run concurrently
     round robin over that many threads, and refuses a doStep only Python can make."""
-    ops = _Compiler(plan, buffers, instances)
+    ops = _Compiler(buffers, instances)
     order = list(plan.components)
     if algorithm == "gauss-seidel":
         for comp in plan.gauss_seidel_order:
@@ -163,8 +163,8 @@ def compile_step(plan: Plan, buffers: Sequence[TypedBuffers], instances: Mapping
 class _Compiler:
     """Appends the operations of one component or route group to ``ops`` (`compile_step`)."""
 
-    def __init__(self, plan: Plan, buffers: Sequence[TypedBuffers], instances: Mapping[str, Instance]):
-        self.plan, self.buffers, self.instances = plan, buffers, instances
+    def __init__(self, buffers: Sequence[TypedBuffers], instances: Mapping[str, Instance]):
+        self.buffers, self.instances = buffers, instances
         self.ops: list[Operation | None] = []
         #: the components whose doStep must not run concurrently with others', and why
         self.serial: dict[str, str] = {}

@@ -15,6 +15,8 @@ import shutil
 import subprocess
 from pathlib import Path
 
+from cachelock import cache_lock
+
 ROOT = Path(__file__).resolve().parents[1]
 DEBIAN_PYTHON = Path("/usr/bin/python3")
 VENV = ROOT / "build" / "pythons" / "debian-python3"
@@ -34,9 +36,15 @@ def _stamp() -> str:
 
 
 def debian_venv() -> Path:
-    """The python of the cached virtual environment made from /usr/bin/python3 (made if needed)."""
+    """The python of the cached virtual environment made from /usr/bin/python3 (made if needed,
+    by one process while the others wait)."""
     if not DEBIAN_PYTHON.is_file():
         raise Unavailable(f"{DEBIAN_PYTHON} does not exist (not a Debian or Ubuntu machine)")
+    with cache_lock(VENV):
+        return _made_venv()
+
+
+def _made_venv() -> Path:
     python, stamp = VENV / "bin" / "python", VENV / "greyfmu-stamp.txt"
     expected = _stamp()
     if stamp.is_file() and stamp.read_text() == expected and python.is_file():

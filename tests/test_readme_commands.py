@@ -59,7 +59,8 @@ def _copy_repository(dest: Path) -> None:
             (dest / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(source, dest / name)
     if (ROOT / "build" / "fmus").is_dir() and not FRESH:   # built FMUs stay newer than the copied sources
-        shutil.copytree(ROOT / "build" / "fmus", dest / "build" / "fmus")
+        # not the .partial files of a build under way in another test worker (os.replace'd away)
+        shutil.copytree(ROOT / "build" / "fmus", dest / "build" / "fmus", ignore=shutil.ignore_patterns(".*"))
 
 
 def _purelib(python: str) -> str:

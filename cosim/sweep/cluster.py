@@ -23,7 +23,7 @@ from collections.abc import Callable
 from contextlib import contextmanager
 from typing import Any
 
-from ..errors import SetupError
+from ..errors import Errc, SetupError
 from .dispatch import Task, distributed, failed_row, is_cluster
 from .shipping import (
     Package,
@@ -179,7 +179,7 @@ def _collect(tasks: list[Task], client, package: Package, done) -> None:
         suspects = [task for task, _ in _run(tasks, client, shipped, done)]
         for task in suspects:
             for _, outcome in _run([task], client, shipped, done):
-                row = failed_row(task, outcome)
+                row = failed_row(task, outcome, Errc.worker_lost)
                 done(task, {**row, "message": f"{row['message']} Rerun alone, it killed its workers again."})
     finally:
         forget_package(client, package)

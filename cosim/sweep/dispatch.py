@@ -158,7 +158,9 @@ def _collect(tasks: list[Task], engine: cf.Executor, done) -> None:
         task = futures[future]
         try:
             row = future.result()
-        except Exception as e:  # noqa: BLE001 -- a run that raised, or a worker of the executor that died
+        except BrokenProcessPool as e:  # a worker of the executor died
+            row = failed_row(task, e, Errc.worker_lost)
+        except Exception as e:  # noqa: BLE001 -- a run that raised
             row = failed_row(task, e)
         done(task, row)
 
@@ -177,14 +179,14 @@ def _pool_sweep(tasks: list[Task], workers: int, done: Callable[[Task, dict[str,
         if broken and not started:      # the processes died outside any run: no progress to make
             for task in broken:
                 done(task, failed_row(task, BrokenProcessPool("the pool's worker processes died before "
-                                                              "starting this run")))
+                                                              "starting this run"), Errc.worker_lost))
             return
         for task in started:
             _, alone = _pool_round([task], 1, done)
             if alone:
                 done(task, failed_row(task, BrokenProcessPool(
                     "the worker process died during this run, and again when it was rerun alone "
-                    "in a fresh process (an FMU that aborts or crashes?)")))
+                    "in a fresh process (an FMU that aborts or crashes?)"), Errc.worker_lost))
         remaining = [t for t in broken if t not in started]
 
 
@@ -229,10 +231,12 @@ def _execute_marked(task: Task, marks: str) -> dict[str, Any]:
     return row
 
 
-def failed_row(task: Task, error: Exception) -> dict[str, Any]:
-    """The table row of a run whose worker raised ``error`` or died (its code: `Errc`)."""
-    code = (error.code if isinstance(error, CosimError) else
-            Errc.worker_lost if type(error).__name__ in ("BrokenProcessPool", "KilledWorker") else Errc.unexpected)
+def failed_row(task: Task, error: Exception, code: Errc | None = None) -> dict[str, Any]:
+    """The table row of a run whose worker raised ``error``, or died (``code`` `Errc.worker_lost`,
+    given by the engine that saw it die); else the code is the error's (`Errc.unexpected` for
+    one that is not a `CosimError`)."""
+    if code is None:
+        code = error.code if isinstance(error, CosimError) else Errc.unexpected
     return {"run_id": task.run_id, "status": "failed", "message": f"{type(error).__name__}: {error}",
             "error": code.value,
             "wall_time": None, **run_metrics(None, task.metrics)}

@@ -66,6 +66,8 @@ _FINALIZED_BEFORE_EXIT: dict[str, ctypes.CDLL] = {}
 """The pythonfmu3 libraries whose finalizePythonInterpreter is registered to run at exit, by
 path; each handle is kept for the life of the process, so the library is never unloaded under
 its exit handler."""
+_FOLDERS_DONE: set[str] = set()
+"""The binaries folders whose library is registered: a later instance of the same FMU looks no further."""
 
 
 def _finalize_before_exit(resources: str) -> str | None:
@@ -75,11 +77,14 @@ def _finalize_before_exit(resources: str) -> str | None:
     if not sys.platform.startswith("linux"):
         return None  # the Windows DLL's statics are released by DLL_PROCESS_DETACH in one order
     folder = Path(resources).parent / "binaries" / "x86_64-linux"
+    if str(folder) in _FOLDERS_DONE:
+        return None
     libraries = sorted(folder.glob("*.so"))
     if len(libraries) != 1:
         return f"{folder}: expected one FMU library, found {len(libraries)}"
     path = os.path.realpath(libraries[0])
     if path in _FINALIZED_BEFORE_EXIT:
+        _FOLDERS_DONE.add(str(folder))
         return None
     try:
         library = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
@@ -92,6 +97,7 @@ def _finalize_before_exit(resources: str) -> str | None:
     if register(finalize, None, None) != 0:
         return f"{path}: __cxa_atexit refused finalizePythonInterpreter"
     _FINALIZED_BEFORE_EXIT[path] = library
+    _FOLDERS_DONE.add(str(folder))
     return None
 
 

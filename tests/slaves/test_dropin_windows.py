@@ -12,8 +12,6 @@ concurrent test runs share one Python and one Wine prefix.
 """
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import os
 import shutil
 import subprocess
@@ -27,6 +25,7 @@ import pytest
 
 from greyfmu.build import build_fmus
 
+from cachelock import cache_lock
 from dropinhost import HOST_SOURCE, compile_host, environment, run_host, unzip
 
 WINE = shutil.which("wine64") or "/usr/lib/wine/wine64"
@@ -56,18 +55,6 @@ def wine() -> str:
     """Wine and mingw-w64 are installed (else skip, or fail under CI)."""
     require({"wine64": WINE, "gcc-mingw-w64-x86-64": MINGW})
     return WINE
-
-
-@contextlib.contextmanager
-def cache_lock():
-    """build/wine/ to this process alone while it is prepared (other pytest runs wait)."""
-    CACHE.mkdir(parents=True, exist_ok=True)
-    with open(CACHE / ".lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 def windows_path(path: Path) -> str:
@@ -107,7 +94,7 @@ def windows_python(wine) -> Path:
     """python.exe of an embeddable CPython 3.13 with numpy and scipy under build/wine/, and the
     Wine prefix made there (``wineboot``: two first runs must not create it at once)."""
     home = CACHE / "cp313"
-    with cache_lock():
+    with cache_lock(CACHE):
         if not home.is_dir():
             install_windows_python(home)
         if not (PREFIX / "system.reg").is_file():

@@ -80,7 +80,7 @@ def test_a_run_that_kills_every_dask_worker_it_lands_on_is_a_failed_row(aborting
     result = sweep(aborting, {"crash.abort_time": times}, output=tmp_path, executor="local:2")
     by_time = {r["crash.abort_time"]: r for r in result.rows}
     assert by_time[1e9]["status"] == by_time[2e9]["status"] == "completed"
-    assert by_time[0.5]["status"] == "failed"
+    assert by_time[0.5]["status"] == "failed" and by_time[0.5]["error"] == "worker_lost"
     assert by_time[0.5]["message"].startswith("KilledWorker:") and "workers died" in by_time[0.5]["message"]
     assert "Rerun alone, it killed its workers again." in by_time[0.5]["message"]
     assert len(read_table(tmp_path / "sweep.parquet")) == 3
