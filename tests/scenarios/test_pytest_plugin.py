@@ -6,6 +6,7 @@ pythonfmu FMUs, which share this interpreter, then fail to import numpy again ("
 once per process")."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
@@ -91,7 +92,7 @@ def test_option_and_ini_listed_in_help(pytester):
 
 def test_plugin_module_imports_neither_numpy_nor_fmpy(pytester):
     """pytest loads the plugin in every session of anyone who installs the package: it must stay cheap."""
-    result = pytester.run("python", "-c", "import sys, cosim.pytest_plugin; "
+    result = pytester.run(sys.executable, "-c", "import sys, cosim.pytest_plugin; "
                           "print(sorted(m for m in ('numpy', 'fmpy', 'cosim.simulation') if m in sys.modules))")
     assert result.ret == 0
     assert result.stdout.lines[-1] == "[]"
