@@ -406,6 +406,8 @@ class Recorder:
                 journal.close({})
             raise _write_error("the results cannot be written: {}.", e) from None
         self._count = journal.count if journal is not None else np.zeros(1, dtype=np.int64)
+        self._count_address = self._count.ctypes.data
+        self._base = self.buffer.ctypes.data   # the addresses `window` hands out, found once a buffer
         self.rows = 0      # rows filled in the buffer
         self._written = 0  # rows of the buffer already handed to the observers
         self.flush_seconds = flush_seconds
@@ -429,8 +431,7 @@ class Recorder:
         first free row of the buffer, how many rows are free, the address of the row counter
         (int64) it stores after each row, and the monotonic time after which to flush."""
         free = len(self.buffer) - self.rows
-        return (self.buffer.ctypes.data + self.rows * self.buffer.strides[0], free, self._count.ctypes.data,
-                self._flush_at)
+        return self._base + self.rows * self.buffer.strides[0], free, self._count_address, self._flush_at
 
     def filled(self, rows: int, samples: int, due: bool) -> None:
         """After the compiled loop wrote ``rows`` rows (``samples`` rows in all, also in the row
@@ -458,6 +459,7 @@ class Recorder:
             if self.rows == len(self.buffer):
                 if self.journal is not None:
                     self.buffer = self.journal.window()
+                    self._base = self.buffer.ctypes.data
                 self.rows = self._written = 0
         except OSError as e:
             self.broken = e
