@@ -72,7 +72,10 @@ def local_cluster(workers: int):
     security = sweep_security()
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
+        # no dashboard; the scheduler's HTTP server (health and metrics routes) on a free loopback
+        # port, not Dask's fixed 8787, which a second sweep on the machine would find taken
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                                host="127.0.0.1", protocol="tls://", security=security)
     finally:
         signal.signal(signal.SIGINT, previous)

@@ -99,6 +99,17 @@ def test_a_local_cluster_refuses_clients_without_the_sweeps_certificate(tmp_path
         assert all(a.startswith("tls://127.0.0.1:") for a in listeners)
 
 
+def test_two_local_clusters_at_once_serve_http_on_free_loopback_ports(recwarn):
+    """The scheduler's HTTP server (health and metrics; no dashboard) listens on loopback on a
+    port of its own: two sweeps of one machine do not fight over Dask's 8787 (the second one
+    warned and the first one held it on every sweep)."""
+    with local_cluster(1) as one, local_cluster(1) as two:
+        bound = [sorted(sock.getsockname() for sock in c.scheduler.http_server._sockets.values()) for c in (one, two)]
+    assert all(len(b) == 1 and b[0][0] == "127.0.0.1" for b in bound), bound
+    assert bound[0][0][1] != bound[1][0][1] and 8787 not in (bound[0][0][1], bound[1][0][1]), bound
+    assert [str(w.message) for w in recwarn if "already in use" in str(w.message)] == []
+
+
 @pytest.mark.parametrize("address, open_", [
     ("tcp://192.0.2.7:8786", True),
     ("192.0.2.7:8786", True),                  # Dask's default scheme is tcp
