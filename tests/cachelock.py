@@ -12,8 +12,8 @@ from pathlib import Path
 
 @contextlib.contextmanager
 def cache_lock(folder: Path) -> Iterator[None]:
-    """``folder`` (made if missing) to this process alone inside the block: an exclusive flock on
-    ``folder.lock`` beside it, released by the kernel too when the process dies."""
+    """``folder`` to this process alone inside the block: an exclusive flock on ``folder.lock``
+    beside it (its parent made if missing), released by the kernel too when the process dies."""
     folder.parent.mkdir(parents=True, exist_ok=True)
     with open(folder.with_name(folder.name + ".lock"), "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)

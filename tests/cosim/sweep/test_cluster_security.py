@@ -22,6 +22,7 @@ pytest.importorskip("cryptography")
 
 import cloudpickle  # noqa: E402 -- with Dask, as psutil
 import psutil  # noqa: E402
+from distributed.comm.utils import get_tcp_server_addresses  # noqa: E402
 from distributed.protocol.pickle import dumps  # noqa: E402
 
 # the functions the "foreign" clients send are pickled whole (the workers need not import this module)
@@ -104,7 +105,7 @@ def test_two_local_clusters_at_once_serve_http_on_free_loopback_ports(recwarn):
     port of its own: two sweeps of one machine do not fight over Dask's 8787 (the second one
     warned and the first one held it on every sweep)."""
     with local_cluster(1) as one, local_cluster(1) as two:
-        bound = [sorted(sock.getsockname() for sock in c.scheduler.http_server._sockets.values()) for c in (one, two)]
+        bound = [sorted(get_tcp_server_addresses(c.scheduler.http_server)) for c in (one, two)]
     assert all(len(b) == 1 and b[0][0] == "127.0.0.1" for b in bound), bound
     assert bound[0][0][1] != bound[1][0][1] and 8787 not in (bound[0][0][1], bound[1][0][1]), bound
     assert [str(w.message) for w in recwarn if "already in use" in str(w.message)] == []
