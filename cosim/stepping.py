@@ -51,6 +51,8 @@ class Stepping:
         return self.grid.time(self.interpreter.k)
 
     def run(self, recorder: Recorder, progress=None, stop: StopRequest | None = None) -> Ending:
+        """Every step into ``recorder``, ``progress`` told every 1/200 of the run, until stop time,
+        an FMU that ends the run, or ``stop``: how the run ended (a failed call raises)."""
         stop = stop or StopRequest()
         interpreter, time = self.interpreter, self.grid.time
         n_steps = self.grid.steps

@@ -22,8 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: Sum and FirstOrderFilter, tests/twin_fmus.py; 338 with main's test_undriven_outputs.py; 339 with the
 #: plan pickle round trip of test_plan.py; 354 with the step program's tests: both interpreters on
 #: iterated loops, FMI 3.0 conversions, Binary, tables, and the program's shape; 355 with two local
-#: clusters at once)
-AT_LEAST = 355
+#: clusters at once; 356 with test_docstrings.py)
+AT_LEAST = 356
 
 BLOCKER = '''"""Make pythonfmu, pythonfmu3 and greyfmu.build unimportable (tests/test_layout.py)."""
 import sys

@@ -59,11 +59,19 @@ class Instance(Protocol):
     get: Mapping[ExchangeType, ExchangeFunction]
     set: Mapping[ExchangeType, ExchangeFunction]
 
-    def instantiate(self, fmu_log: str = "errors") -> None: ...
+    def instantiate(self, fmu_log: str = "errors") -> None:
+        """Instantiate; ``fmu_log`` ("errors", "all" or "off") says which of the FMU's log
+        categories are turned on."""
+        ...
 
-    def setup_experiment(self, start: float, stop: float) -> None: ...
+    def setup_experiment(self, start: float, stop: float) -> None:
+        """The experiment from ``start`` to ``stop`` (FMI 2.0: fmi2SetupExperiment; FMI 3.0 keeps it
+        for entering initialization mode)."""
+        ...
 
-    def set_start(self, variable: Variable, value: float | int | bool | str) -> None: ...
+    def set_start(self, variable: Variable, value: float | int | bool | str) -> None:
+        """Set ``variable``'s start ``value`` before initialization (a parameter, a start value)."""
+        ...
 
     def step_end(self, t: float, h: float) -> tuple[float | None, str]:
         """After ``do_step(t, h)`` ended the run (returned Discard): the time up to which the
@@ -76,13 +84,22 @@ class Instance(Protocol):
         the FMU wrote; FMI 2.0: ``status`` itself)."""
         ...
 
-    def enter_initialization_mode(self) -> None: ...
+    def enter_initialization_mode(self) -> None:
+        """Enter initialization mode."""
+        ...
 
-    def exit_initialization_mode(self) -> None: ...
+    def exit_initialization_mode(self) -> None:
+        """Exit initialization mode: the instance steps from here on."""
+        ...
 
-    def free(self) -> None: ...
+    def free(self) -> None:
+        """End the instance as the FMI state machine allows after its last status (`end_instance`)
+        and unload its library."""
+        ...
 
-    def last_messages(self) -> str: ...
+    def last_messages(self) -> str:
+        """The FMU's last log messages, as a suffix for an error message (empty if none)."""
+        ...
 
 
 @dataclass(frozen=True)
