@@ -9,6 +9,7 @@ as on a machine with only the master installed; the tests that need them live in
 """
 from __future__ import annotations
 
+import ast
 import os
 import re
 import subprocess
@@ -82,3 +83,23 @@ def test_a_provider_that_cannot_be_imported_is_named_not_raised(tmp_path, twin_f
                             str(twin_fmus["Gain"].parent)], cwd=ROOT, env=env, capture_output=True, text=True,
                            timeout=120)
     assert found.returncode == 0, found.stderr
+
+
+#: the master's modules that may import fmpy (issue 29: 13 did at 520086d, the plan, routing, parameters,
+#: inputs and structure among them): the description reader and the instances, which wrap fmpy's
+#: model description and FMI calls, and three that use a fact of fmpy's (loadable: its platform
+#: folder names; single: its automatic output interval, as `fmpy simulate` picks it; ssp: the SSP
+#: XSDs it ships); every other module reads our own records (cosim.description)
+FMPY_USERS = {"cosim/description.py", "cosim/instances/fmi2.py", "cosim/instances/fmi3.py", "cosim/instances/me.py",
+              "cosim/loadable.py", "cosim/single.py", "cosim/ssp.py"}
+
+
+def test_only_the_description_reader_and_the_instances_import_fmpy():
+    importing = set()
+    for path in sorted((ROOT / "cosim").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
+            if any(n == "fmpy" or n.startswith("fmpy.") for n in names):
+                importing.add(path.relative_to(ROOT).as_posix())
+    assert importing <= FMPY_USERS, sorted(importing - FMPY_USERS)
