@@ -282,6 +282,12 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
                                       needsExecutionTool="false", canHandleVariableCommunicationStepSize="true")
         with zipfile.ZipFile(built) as archive:
             entries = {info.filename: archive.read(info) for info in archive.infolist()}
+        if not any(name.startswith("binaries/") for name in entries):
+            # pythonfmu3 copies its library from beside its own module: imported from a pythonfmu3
+            # FMU's resources/pythonfmu3/ (an FMU run earlier in this process) it has none
+            raise BuildError(f"{script.stem}: pythonfmu3's builder ({Fmu3Builder.__module__} from "
+                             f"{sys.modules[Fmu3Builder.__module__].__file__}) put no binaries in the FMU; an FMI 3.0 "
+                             "FMU run in this process shadows the installed pythonfmu3: build in a fresh process")
         root = ElementTree.fromstring(entries["modelDescription.xml"])
         model = root.get("modelName")
         slave_class = _slave_class3(script)

@@ -79,6 +79,19 @@ def _repository_root() -> None:
 
 
 @pytest.fixture(autouse=True, scope="session")
+def _installed_pythonfmu3_first() -> None:
+    """The installed pythonfmu3 imported before any test runs an FMI 3.0 FMU in this process: a
+    pythonfmu3 FMU puts its resources/ on sys.path and its slave imports the FMU's own copy of
+    pythonfmu3 (no builder binaries) when none is imported yet, and a later build here then made
+    FMUs without binaries (greyfmu.build now refuses that).  Which test runs first depends on the
+    test worker (tests/run.sh runs pytest -n); without pythonfmu3 (tests/cosim) nothing to do."""
+    try:
+        import pythonfmu3.builder  # noqa: F401
+    except ImportError:
+        pass
+
+
+@pytest.fixture(autouse=True, scope="session")
 def _release_pythonfmu_state_before_fmpy_unloads() -> None:
     """Tests also run our FMUs through fmpy.simulate_fmu, which unloads each library when it
     is done: empty pythonfmu 0.7.0's static interpreter state first, as cosim does (see
