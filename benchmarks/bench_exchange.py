@@ -28,18 +28,18 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from pythonfmu.builder import FmuBuilder
 
-ROOT = Path(__file__).resolve().parents[1]
+from greyfmu.build import SLAVE_FILES
+
 HERE = Path(__file__).resolve().parent / "fmus"
 WIDTHS = (1, 4, 16)
 
 
 def build(dest: Path) -> dict[str, Path]:
     """The fast and the generic build of the benchmark FMU."""
-    slave = ROOT / "fmus" / "_slave.py"
-    sys.path.insert(0, str(slave.parent))  # the build imports the slave module
-    fast = FmuBuilder.build_FMU(HERE / "Exchange.py", dest=dest, project_files=[slave], needsExecutionTool="false")
+    sys.path.insert(0, str(SLAVE_FILES[0].parent))  # the build imports the slave module
+    fast = FmuBuilder.build_FMU(HERE / "Exchange.py", dest=dest, project_files=SLAVE_FILES, needsExecutionTool="false")
     generic = FmuBuilder.build_FMU(HERE / "ExchangeGeneric.py", dest=dest,
-                                   project_files=[slave, HERE / "Exchange.py"], needsExecutionTool="false")
+                                   project_files=[*SLAVE_FILES, HERE / "Exchange.py"], needsExecutionTool="false")
     return {"generic": Path(generic), "fast": Path(fast)}
 
 

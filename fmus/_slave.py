@@ -7,14 +7,19 @@ communication step).  This base class
 - tracks the experiment's start time (``setup_experiment``) and the current time,
 - re-creates the greyfmu objects when they are next used after a parameter or the start
   time was set (so outputs read during initialisation already use the parameters the
-  master set, and ``exit_initialization_mode`` reports invalid parameters),
+  master set, and ``exit_initialization_mode`` refuses invalid parameters),
 - refuses non-finite inputs and outputs in ``do_step``: it logs a message naming the
   variable and returns an error status instead of passing NaN on,
 - forwards greyfmu's warnings raised in ``build``, ``advance`` and a retune to the FMU log,
 - gets, sets and serialises the FMU state (FMI 2.0 §2.1.8, fmi2GetFMUstate ... fmi2DeSerializeFMUstate):
   the whole instance but its declarations (see `GreyfmuSlave.fmu_state_attributes`), deep-copied,
   so a restored instance replays bit for bit: parameters, inputs, time, the greyfmu objects with
-  their history buffers and random generators; serialised with pickle through `StateUnpickler`;
+  their history buffers and random generators; serialised by fmus/_state.py;
+- survives an exception in any call pythonfmu makes: it is said in one line of category
+  `PYTHON_EXCEPTION` (the loader's guard answers fmi2Error and the instance lives on, FMI 2.0
+  §2.1.3) and what pythonfmu 0.7.0 releases twice is given back (fmus/_inprocess.py);
+- takes its resources folder off ``sys.path`` again and points its private package at it
+  (fmus/_inprocess.py, settle_imports);
 - answers ``fmi2Get*``/``fmi2Set*`` through accessors compiled once per list of value
   references (see `CompiledAccessors`), instead of pythonfmu's generic per-variable lookup;
 - declares a mode parameter whose start is an ``IntEnum`` member as an FMI Integer whose range
@@ -34,10 +39,8 @@ The descriptions do not say it: hosts, cosim's plots among them, label a signal 
 from __future__ import annotations
 
 import copy
-import io
+import functools
 import math
-import pickle
-import sys
 from abc import abstractmethod
 from collections.abc import Callable
 from contextlib import AbstractContextManager
@@ -50,6 +53,8 @@ from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variab
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import ScalarVariable
 
+from _inprocess import give_back, settle_imports
+from _state import state_bytes, state_from_bytes
 from greyfmu.forwarding import forward_warnings
 
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
@@ -133,57 +138,31 @@ class CompiledAccessors(dict):
         return accessor
 
 
-STATE_FORMAT = b"greyfmu-fmu-state-1\n"
-"""The first bytes of a serialised FMU state (`GreyfmuSlave._fmu_state_to_bytes`)."""
+PYTHON_EXCEPTION = "logPythonException"
+"""The log category of the line that says a call raised (`GreyfmuSlave._raised`): the loader's guard
+(greyfmu/loader/guard.h) then answers fmi2Error, not pythonfmu's fmi2Fatal, since the instance lives on."""
 
-STATE_CLASS_MODULES = ("greyfmu", "_slave")
-"""Packages and modules whose classes (classes only) a serialised state may name, with the slave's own module."""
-
-STATE_GLOBALS = frozenset(
-    [("builtins", name) for name in ("complex", "set", "frozenset", "slice", "range", "bytearray")]
-    + [("collections", "deque"), ("collections", "OrderedDict"), ("numpy", "dtype"), ("numpy", "ndarray")]
-    + [(f"numpy.{core}.{module}", name) for core in ("core", "_core")
-       for module, name in (("multiarray", "_reconstruct"), ("multiarray", "scalar"), ("numeric", "_frombuffer"))]
-    + [("numpy.random._pickle", name) for name in ("__generator_ctor", "__bit_generator_ctor", "__randomstate_ctor")]
-    + [(f"numpy.random.{module}", name) for module, name in (
-        ("_pcg64", "PCG64"), ("_pcg64", "PCG64DXSM"), ("_mt19937", "MT19937"), ("_philox", "Philox"),
-        ("_sfc64", "SFC64"), ("mtrand", "RandomState"), ("bit_generator", "SeedSequence"),
-        ("bit_generator", "__pyx_unpickle_SeedSequence"))])
-"""The other globals a serialised state may name: what pickle writes for our states' builtins,
-deques, numpy arrays, scalars and random generators (numpy 1.x's ``numpy.core`` and 2.x's ``numpy._core``)."""
+CALLED_BY_PYTHONFMU = {
+    "setup_experiment": "fmi2SetupExperiment", "enter_initialization_mode": "fmi2EnterInitializationMode",
+    "exit_initialization_mode": "fmi2ExitInitializationMode", "do_step": "fmi2DoStep", "terminate": "fmi2Terminate",
+    **{f"{verb}_{kind}": f"fmi2{verb.capitalize()}{kind.capitalize()}" for verb in ("get", "set")
+       for kind in ("real", "integer", "boolean", "string")},
+    "_get_fmu_state": "fmi2GetFMUstate", "_set_fmu_state": "fmi2SetFMUstate"}
+"""The methods pythonfmu 0.7.0's C++ wrapper calls on an instance, and the FMI function of each."""
 
 
-class StateUnpickler(pickle.Unpickler):
-    """Unpickles a serialised FMU state, refusing any global but `STATE_GLOBALS` and the classes of
-    `STATE_CLASS_MODULES` and of the slave's module.
+def _reporting(method: Callable[..., Any], call: str) -> Callable[..., Any]:
+    """A subclass's override of a method pythonfmu calls, reporting an exception as the base's methods do."""
 
-    The bytes come from the host (fmi2DeSerializeFMUstate); a plain ``pickle.loads`` would call
-    whatever they name (``os.system``).  Classes are safe to name: unpickling creates instances
-    with ``__new__`` and sets their attributes."""
+    @functools.wraps(method)
+    def reported(self: GreyfmuSlave, *args: Any) -> Any:
+        try:
+            return method(self, *args)
+        except BaseException as error:
+            self._raised(call, error)
+            raise
 
-    def __init__(self, data: bytes, slave_module: str) -> None:
-        super().__init__(io.BytesIO(data))
-        self._slave_module = slave_module
-
-    def find_class(self, module: str, name: str) -> Any:
-        if (module, name) in STATE_GLOBALS:
-            return super().find_class(module, name)
-        if module.split(".")[0] in STATE_CLASS_MODULES or module == self._slave_module:
-            found = super().find_class(module, name)
-            if isinstance(found, type):
-                return found
-        raise pickle.UnpicklingError(f"a serialised FMU state of {self._slave_module} may not refer to {module}.{name}")
-
-
-def _forget_repeated_resources(resources: str | None) -> None:
-    """Drop the repeats of ``resources`` from ``sys.path``: pythonfmu 0.7.0's wrapper inserts the
-    FMU's resource folder at the front on every fmi2Instantiate, so a host that instantiates
-    again and again (a sweep, Simulink per run) would grow sys.path by one entry each time and
-    slow every later import.  The first occurrence stays."""
-    if resources is None:
-        return
-    first = sys.path.index(resources) if resources in sys.path else -1
-    sys.path[:] = [entry for index, entry in enumerate(sys.path) if entry != resources or index == first]
+    return reported
 
 
 class GreyfmuSlave(Fmi2Slave):
@@ -196,9 +175,19 @@ class GreyfmuSlave(Fmi2Slave):
     """The modules the FMU imports from the target's Python: the loader checks them at
     instantiation, ``greyfmu build`` checks that the description names them."""
 
+    log_categories = {**Fmi2Slave.log_categories,
+                      PYTHON_EXCEPTION: "A Python exception in a call of the FMU's code (the call returns fmi2Error)."}
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """A subclass's override of a method pythonfmu calls reports its exceptions too (`_raised`)."""
+        super().__init_subclass__(**kwargs)
+        for name, call in CALLED_BY_PYTHONFMU.items():
+            if name in cls.__dict__:
+                setattr(cls, name, _reporting(cls.__dict__[name], call))
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        _forget_repeated_resources(self.resources)
+        settle_imports(self.resources)
         self._declarations = frozenset(self.__dict__) | DECLARATIONS
         """The attributes that are not FMU state: pythonfmu's (variables, log queue, names) and
         `DECLARATIONS`; everything else, set later, is (`fmu_state_attributes`)."""
@@ -350,57 +339,119 @@ class GreyfmuSlave(Fmi2Slave):
     def advance(self, t: float, h: float) -> None:
         """Advance the greyfmu objects over the communication step ``[t, t + h]``."""
 
+    # The methods pythonfmu calls (CALLED_BY_PYTHONFMU): an exception leaving one is said and
+    # given back first (`_raised`); try/except costs nothing while nothing is raised.
+
     def setup_experiment(self, start_time: float, stop_time: float | None = None, tolerance: float | None = None) -> None:
         self.experiment_start = start_time
         self.current_time = start_time
         self._built = False
 
+    def enter_initialization_mode(self) -> None:
+        pass
+
     def exit_initialization_mode(self) -> None:
-        self._ensure_built()
+        try:
+            self._ensure_built()
+        except BaseException as error:
+            self._raised("fmi2ExitInitializationMode", error)
+            raise
+
+    def terminate(self) -> None:
+        pass
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        for name in self._input_names:
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                return self._error(f"input {name} = {value} at t = {current_time} s is not a finite number")
-        if not self._built:
-            self._ensure_built()
-        with self.forwarding_warnings():
-            self.advance(current_time, step_size)
-        self.current_time = current_time + step_size
-        for vr, output_value in self._outputs.items():  # the objects are built: no getter's build check
-            value = output_value()
-            if not math.isfinite(value):
-                name = self.vars[vr].name
-                return self._error(f"output {name} = {value} at t = {self.current_time} s is not a finite number")
-        return True
+        try:
+            for name in self._input_names:
+                value = getattr(self, name)
+                if not math.isfinite(value):
+                    return self._error(f"input {name} = {value} at t = {current_time} s is not a finite number")
+            if not self._built:
+                self._ensure_built()
+            with self.forwarding_warnings():
+                self.advance(current_time, step_size)
+            self.current_time = current_time + step_size
+            for vr, output_value in self._outputs.items():  # the objects are built: no getter's build check
+                value = output_value()
+                if not math.isfinite(value):
+                    name = self.vars[vr].name
+                    return self._error(f"output {name} = {value} at t = {self.current_time} s is not a finite number")
+            return True
+        except BaseException as error:
+            self._raised("fmi2DoStep", error)
+            raise
 
     # FMI get/set: the compiled accessors of `CompiledAccessors` (the C++ wrapper reads the result
     # with PyList_GetItem, so a get returns a list).
 
     def get_real(self, vrs: list[int]) -> list[float]:
-        return self._get_real[tuple(vrs)]()
+        try:
+            return self._get_real[tuple(vrs)]()
+        except BaseException as error:
+            self._raised("fmi2GetReal", error)
+            raise
 
     def get_integer(self, vrs: list[int]) -> list[int]:
-        return self._get_integer[tuple(vrs)]()
+        try:
+            return self._get_integer[tuple(vrs)]()
+        except BaseException as error:
+            self._raised("fmi2GetInteger", error)
+            raise
 
     def get_boolean(self, vrs: list[int]) -> list[bool]:
-        return self._get_boolean[tuple(vrs)]()
+        try:
+            return self._get_boolean[tuple(vrs)]()
+        except BaseException as error:
+            self._raised("fmi2GetBoolean", error)
+            raise
 
     def get_string(self, vrs: list[int]) -> list[str]:
-        return self._get_string[tuple(vrs)]()
+        try:
+            return self._get_string[tuple(vrs)]()
+        except BaseException as error:
+            self._raised("fmi2GetString", error)
+            raise
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
-        self._set_real[tuple(vrs)](values)
+        try:
+            self._set_real[tuple(vrs)](values)
+        except BaseException as error:
+            self._raised("fmi2SetReal", error)
+            raise
 
     def set_integer(self, vrs: list[int], values: list[int]) -> None:
-        self._set_integer[tuple(vrs)](values)
+        try:
+            self._set_integer[tuple(vrs)](values)
+        except BaseException as error:
+            self._raised("fmi2SetInteger", error)
+            raise
 
     def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
-        self._set_boolean[tuple(vrs)](values)
+        try:
+            self._set_boolean[tuple(vrs)](values)
+        except BaseException as error:
+            self._raised("fmi2SetBoolean", error)
+            raise
 
     def set_string(self, vrs: list[int], values: list[str]) -> None:
-        self._set_string[tuple(vrs)](values)
+        try:
+            self._set_string[tuple(vrs)](values)
+        except BaseException as error:
+            self._raised("fmi2SetString", error)
+            raise
+
+    def _raised(self, call: str, error: BaseException) -> None:
+        """Before ``error`` leaves ``call`` for pythonfmu: one line saying it (category
+        `PYTHON_EXCEPTION`) and one reference given back of each object pythonfmu releases for it
+        (fmus/_inprocess.py), once per exception (an override calling the base's method raises it twice)."""
+        if getattr(error, "_greyfmu_given_back", False):
+            return
+        try:
+            error._greyfmu_given_back = True
+        except AttributeError:  # an exception class with __slots__: said (and given back) again by an override
+            pass
+        self.log(f"{self.instance_name}: {call}: {type(error).__name__}: {error}", Fmi2Status.error, PYTHON_EXCEPTION)
+        give_back(self, type(self), self.log_queue)
 
     def _variable(self, vr: int, kind: type[ScalarVariable]) -> ScalarVariable:
         """The variable of ``vr``; a KeyError (unknown) or TypeError (another type) as Fmi2Slave's get/set raise."""
@@ -471,8 +522,9 @@ class GreyfmuSlave(Fmi2Slave):
         return write
 
     # FMU state (FMI 2.0 §2.1.8).  pythonfmu 0.7.0's C++ wrapper keeps the object `_get_fmu_state`
-    # returns as the fmi2FMUstate, passes it back to `_set_fmu_state`, and calls the class's
-    # `_fmu_state_to_bytes`/`_fmu_state_from_bytes` to serialise it.
+    # returns as the fmi2FMUstate and passes it back to `_set_fmu_state`; the loader's guard
+    # (greyfmu/loader/guard.h) serialises it with the class's `_fmu_state_to_bytes` and
+    # `_fmu_state_from_bytes` (fmus/_state.py), whose exceptions it answers with fmi2Error.
 
     def fmu_state_attributes(self) -> dict[str, Any]:
         """The instance's state: every attribute but the declarations (``_declarations``)."""
@@ -480,51 +532,52 @@ class GreyfmuSlave(Fmi2Slave):
 
     def _get_fmu_state(self) -> dict[str, Any]:
         """A deep copy of the state, tagged with the model's name (fmi2GetFMUstate)."""
-        return {"model": type(self).__name__, "attributes": copy.deepcopy(self.fmu_state_attributes())}
+        try:
+            return {"model": type(self).__name__, "attributes": copy.deepcopy(self.fmu_state_attributes())}
+        except BaseException as error:
+            self._raised("fmi2GetFMUstate", error)
+            raise
 
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
         """Restore ``state`` (fmi2SetFMUstate): a deep copy of it, so it can be restored again.
-        A state of another model is refused (ValueError, which pythonfmu reports as fmi2Fatal)."""
-        model = state.get("model") if isinstance(state, dict) else None
-        if model != type(self).__name__:
-            raise ValueError(f"{self.instance_name}: fmi2SetFMUstate got a state of {model!r}, not of {type(self).__name__}")
-        for name in set(self.fmu_state_attributes()) - set(state["attributes"]):
-            delattr(self, name)
-        self.__dict__.update(copy.deepcopy(state["attributes"]))
+        A state of another model is refused (ValueError)."""
+        try:
+            model = state.get("model") if isinstance(state, dict) else None
+            if model != type(self).__name__:
+                raise ValueError(f"fmi2SetFMUstate got a state of {model!r}, not of {type(self).__name__}")
+            for name in set(self.fmu_state_attributes()) - set(state["attributes"]):
+                delattr(self, name)
+            self.__dict__.update(copy.deepcopy(state["attributes"]))
+        except BaseException as error:
+            self._raised("fmi2SetFMUstate", error)
+            raise
 
     @classmethod
     def _fmu_state_to_bytes(cls, state: dict[str, Any]) -> bytes:
-        """`STATE_FORMAT` then the pickled state (fmi2SerializeFMUstate)."""
-        return STATE_FORMAT + pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+        """The serialised state (fmi2SerializeFMUstate, fmus/_state.py)."""
+        return state_bytes(state, cls.__module__.rpartition(".")[2])
 
     @classmethod
     def _fmu_state_from_bytes(cls, data: bytes) -> dict[str, Any]:
-        """The state `_fmu_state_to_bytes` wrote (fmi2DeSerializeFMUstate), unpickled by `StateUnpickler`;
-        ValueError if the bytes are not one."""
-        if not data.startswith(STATE_FORMAT):
-            raise ValueError(f"{cls.__name__}: fmi2DeSerializeFMUstate got {len(data)} bytes that are not a "
-                             f"serialised greyfmu FMU state (they do not start with {STATE_FORMAT!r})")
-        state = StateUnpickler(data[len(STATE_FORMAT):], cls.__module__).load()
-        if not isinstance(state, dict) or state.get("model") != cls.__name__:
-            raise ValueError(f"{cls.__name__}: fmi2DeSerializeFMUstate got a state of another model")
-        return state
+        """The state `_fmu_state_to_bytes` wrote (fmi2DeSerializeFMUstate); ValueError saying why if
+        the bytes are not one."""
+        return state_from_bytes(data, cls.__name__, cls.__module__.rpartition(".")[2])
 
     def _claim(self, name: str) -> None:
         if hasattr(self, name):
             raise ValueError(f"{type(self).__name__}: variable name {name!r} collides with an attribute of the slave")
 
     def _ensure_built(self) -> None:
-        """Build from the current parameters; invalid parameters are logged (status error, with the
-        greyfmu message naming the parameter) before the exception, which pythonfmu turns into
-        fmi2Fatal, reaches the master."""
+        """Build from the current parameters; invalid parameters raise a ValueError "invalid
+        parameters: <greyfmu's message naming the parameter>", which the calling method says
+        (`_raised`) and the loader's guard answers with fmi2Error."""
         if not self._built:
             try:
                 self._check_choices()
                 with self.forwarding_warnings():
                     self.build()
             except (ValueError, ArithmeticError) as error:
-                self.log(f"{self.instance_name}: invalid parameters: {error}", Fmi2Status.error)
-                raise
+                raise ValueError(f"invalid parameters: {error}") from error
             self._built = True
 
     def _check_choices(self) -> None:

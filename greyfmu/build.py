@@ -36,6 +36,7 @@ from xml.etree import ElementTree
 from pythonfmu.builder import FmuBuilder, get_model_class
 
 from greyfmu.dropin import BuildError, drop_in
+from greyfmu.privatise import PYTHONFMU3, PrivatiseError, privatise
 from greyfmu.loader import PLATFORMS, compiler
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -44,8 +45,14 @@ FMU_SOURCES = REPOSITORY_ROOT / "fmus"
 SLAVE_BASE = FMU_SOURCES / "_slave.py"
 FMI3_SOURCES = FMU_SOURCES / "fmi3"
 SLAVE_BASE3 = FMI3_SOURCES / "_slave3.py"
+IN_PROCESS = FMU_SOURCES / "_inprocess.py"
+SLAVE_FILES = (SLAVE_BASE, IN_PROCESS, FMU_SOURCES / "_state.py")
+"""The modules every FMI 2.0 FMU embeds next to its slave module (and the greyfmu package)."""
+SLAVE_FILES3 = (SLAVE_BASE3, IN_PROCESS)
+"""The modules every FMI 3.0 FMU embeds next to its slave module (and the greyfmu package)."""
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
-BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "loader", "licenses", "__pycache__", "*.pyc")
+BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "privatise.py", "loader", "licenses",
+              "__pycache__", "*.pyc")
 """Files and folders of the greyfmu package that build FMUs and are not embedded in them."""
 ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
 """The time stamp of every archive entry, so that rebuilding changes no byte but what changed."""
@@ -113,11 +120,11 @@ def build_fmus(
         script = FMU_SOURCES / f"{name}.py"
         if not script.is_file():
             script = FMI3_SOURCES / f"{name}.py"
-        base = SLAVE_BASE3 if script.parent == FMI3_SOURCES else SLAVE_BASE
+        slave_files = SLAVE_FILES3 if script.parent == FMI3_SOURCES else SLAVE_FILES
         fmu = out_dir / f"{name}.fmu"
-        newest_source = max(newest_common_source, base.stat().st_mtime, script.stat().st_mtime)
+        newest_source = max(newest_common_source, script.stat().st_mtime, *(f.stat().st_mtime for f in slave_files))
         if not force and fmu.is_file() and fmu.stat().st_mtime > newest_source \
-                and not (base == SLAVE_BASE and _misses_a_loader(fmu)):
+                and not (slave_files == SLAVE_FILES and _misses_a_loader(fmu)):
             status = "up to date"
         else:
             _build_one(script, fmu)
@@ -181,7 +188,7 @@ def _build_one(script: Path, fmu: Path) -> None:
         built = FmuBuilder.build_FMU(
             script,
             dest=Path(temp) / "fmu",
-            project_files=[staged_package, SLAVE_BASE],
+            project_files=[staged_package, *SLAVE_FILES],
             needsExecutionTool="false",
             canGetAndSetFMUstate="true",  # fmus/_slave.py: the whole instance, deep-copied
             canSerializeFMUstate="true",  # pickled, read back by _slave.StateUnpickler
@@ -204,11 +211,11 @@ def slave_class(script: Path) -> type:
 
 
 def _forget_embedded_copies(script: Path) -> None:
-    """Drop from sys.modules the ``_slave`` and slave module an FMU of ours left in this process:
-    pythonfmu imports them from the FMU's resources/, and their base class is the FMU's
-    greyfmu_pythonfmu Fmi2Slave, which pythonfmu's builder does not recognise.  Running FMU
-    instances keep their classes; the next import reads fmus/."""
-    for name in (SLAVE_BASE.stem, script.stem):
+    """Drop from sys.modules a slave module or slave base of the same name that is not fmus/'s:
+    another vendor's pythonfmu FMU run in this process leaves its slave module (``PID``) under its
+    public name (ours are private, greyfmu.privatise), and pythonfmu's builder imports the
+    script by that name.  Running FMU instances keep their classes; the next import reads fmus/."""
+    for name in (*(path.stem for path in SLAVE_FILES), script.stem):
         module = sys.modules.get(name)
         if module is not None and Path(getattr(module, "__file__", "") or "").parent != FMU_SOURCES:
             del sys.modules[name]
@@ -278,19 +285,27 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
     with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
         staged_package = Path(temp) / "package" / PACKAGE_DIR.name
         shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns(*BUILD_ONLY))
-        built = Fmu3Builder.build_FMU(script, dest=Path(temp) / "fmu", project_files=[staged_package, SLAVE_BASE3],
-                                      needsExecutionTool="false", canHandleVariableCommunicationStepSize="true")
+        sys.path.insert(0, str(FMU_SOURCES))  # the script's _slave3 imports _inprocess
+        try:
+            built = Fmu3Builder.build_FMU(script, dest=Path(temp) / "fmu", project_files=[staged_package, *SLAVE_FILES3],
+                                          needsExecutionTool="false", canHandleVariableCommunicationStepSize="true")
+            slave_class = _slave_class3(script)
+        finally:
+            sys.path.remove(str(FMU_SOURCES))
         with zipfile.ZipFile(built) as archive:
             entries = {info.filename: archive.read(info) for info in archive.infolist()}
         if not any(name.startswith("binaries/") for name in entries):
-            # pythonfmu3 copies its library from beside its own module: imported from a pythonfmu3
-            # FMU's resources/pythonfmu3/ (an FMU run earlier in this process) it has none
+            # pythonfmu3 copies its library from beside its own module: imported from another
+            # vendor's pythonfmu3 FMU's resources/pythonfmu3/ (run earlier in this process) it has none
             raise BuildError(f"{script.stem}: pythonfmu3's builder ({Fmu3Builder.__module__} from "
                              f"{sys.modules[Fmu3Builder.__module__].__file__}) put no binaries in the FMU; an FMI 3.0 "
                              "FMU run in this process shadows the installed pythonfmu3: build in a fresh process")
         root = ElementTree.fromstring(entries["modelDescription.xml"])
         model = root.get("modelName")
-        slave_class = _slave_class3(script)
+        try:
+            entries = privatise(entries, model, PYTHONFMU3, slave_class.requirements)
+        except PrivatiseError as error:
+            raise BuildError(str(error)) from error
         _declare_output_dependencies3(root, model, slave_class.output_dependencies)
         _declare_units(root, model, tag="Float64")
         _describe_enumerations3(root, model, slave_class(instance_name="greyfmu-build", resources=str(FMI3_SOURCES)).choices)

@@ -4,20 +4,20 @@ Given the archive's entries (name -> bytes), its model description and the slave
 requirements, `drop_in` returns new entries:
 
 - ``binaries/linux64/<id>.so`` and ``binaries/win64/<id>.dll`` are the greyfmu loader
-  (`greyfmu.loader`); pythonfmu's library moves next to it as ``pythonfmu-export.so``/``.dll``.
+  (`greyfmu.loader`); pythonfmu's library moves next to it as ``pythonfmu-export.so``/``.dll``,
+  and on Linux ``greyfmu-process.so`` joins them (what every loader in a process shares).
   Where there is no C compiler for a platform (cc; x86_64-w64-mingw32-gcc for win64) the
   pythonfmu library stays the binary, and the build says so once on stderr: that FMU then
   loads only in a host that already runs Python (fmpy, cosim; on Windows, python3.dll on PATH);
 - ``resources/`` gets the loader's target check, the FMU's requirements, the path of the
   interpreter that built it (the loader's second choice) and ``greyfmu_guard.txt``, what the
   loader's guard checks every call against (`guard_text`);
-- pythonfmu's package in ``resources/`` becomes its run-time modules only, under the private
-  name `RUNTIME_PACKAGE` (`vendor_pythonfmu`), and the slave modules import it by that name.
-  A Python host keeps an FMU's ``resources/`` on ``sys.path`` after running it (fmpy does,
-  and processes spawned from it inherit it): a ``resources/pythonfmu`` there would shadow the
-  installed pythonfmu, and without its builder a later ``import pythonfmu.builder`` (greyfmu's
-  FMU provider, on every cosim run) would fail.  Under its own name the FMU's copy shadows
-  nothing and carries no builder;
+- every Python module in ``resources/`` — the slave module, ``_slave``, ``_inprocess``, the greyfmu
+  package, pythonfmu's run-time modules (no builder) — moves into one package whose name is
+  private to the FMU's content, ``_greyfmu_<model>_<hash>`` (`privatise`), and every import of
+  one of them names it there: the FMU adds no public name to a host's ``sys.modules``, so any
+  number of our FMUs, of any release, other vendors' pythonfmu FMUs with the same model names
+  and a host's own greyfmu or pythonfmu live in one process, each computing with its own code;
 - ``documentation/`` gets ``index.html`` (`greyfmu.documentation`) and ``licenses/`` with the
   greyfmu and pythonfmu MIT notices;
 - the model description gets ``version`` (the greyfmu version), ``license``, ``copyright``,
@@ -28,9 +28,7 @@ requirements, `drop_in` returns new entries:
 
 from __future__ import annotations
 
-import ast
 import hashlib
-import re
 import sys
 import uuid
 from importlib.metadata import version
@@ -38,7 +36,8 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from greyfmu.documentation import index_html
-from greyfmu.loader import PLATFORMS, TARGET_CHECK, loader_binary
+from greyfmu.loader import PLATFORMS, PROCESS_LIBRARY, TARGET_CHECK, loader_binary, process_binary
+from greyfmu.privatise import PYTHONFMU, PrivatiseError, privatise
 
 LICENSES = Path(__file__).resolve().parent / "licenses"
 LICENSE = "MIT"
@@ -54,14 +53,6 @@ MAX_STEP_FACTOR = 1e4
 slave computes every internal sample of a step, so h = 1e300 would never return."""
 TYPE_LETTERS = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
 """The fmi2Get/Set function family of each variable type (an Enumeration is an Integer)."""
-RUNTIME_PACKAGE = "greyfmu_pythonfmu"
-"""The name pythonfmu's run-time modules get inside an FMU (`vendor_pythonfmu`)."""
-PYTHONFMU_RUNTIME = ("__init__.py", "_version.py", "default_experiment.py", "enums.py", "fmi2slave.py", "logmsg.py",
-                     "variables.py")
-"""pythonfmu 0.7.0's modules a slave runs with; the others (builder, csvbuilder, deploy,
-__main__, osutil) build or deploy FMUs."""
-BUILDER_IMPORT = "from .builder import FmuBuilder\n"
-"""The line of pythonfmu's ``__init__.py`` that `vendor_pythonfmu` leaves out."""
 
 
 class BuildError(RuntimeError):
@@ -73,7 +64,10 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
     ``requirements``: the modules the FMU imports from the target Python (the slave's ``requirements``)."""
     model = root.get("modelName")
     identifier = root.find("CoSimulation").get("modelIdentifier")
-    result = vendor_pythonfmu(entries, model)
+    try:
+        result = privatise(entries, model, PYTHONFMU, requirements)
+    except PrivatiseError as error:
+        raise BuildError(str(error)) from error
     loaders = []
     for platform in PLATFORMS:
         loader = loader_binary(platform)
@@ -82,6 +76,8 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
             result[f"binaries/{platform.folder}/{platform.pythonfmu_library}"] = result.pop(binary)
             result[binary] = loader
             loaders.append(platform.folder)
+            if platform.folder == "linux64":
+                result[f"binaries/linux64/{PROCESS_LIBRARY}"] = process_binary()
     result["resources/greyfmu_target.py"] = TARGET_CHECK.read_bytes()
     result["resources/greyfmu_requirements.txt"] = "".join(f"{name}\n" for name in requirements).encode()
     result[BUILD_PYTHON] = f"{sys.executable}\n".encode()
@@ -98,41 +94,6 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
     result["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
     result["documentation/index.html"] = index_html(root, requirements, tuple(loaders)).encode()
     return result
-
-
-def vendor_pythonfmu(entries: dict[str, bytes], model: str) -> dict[str, bytes]:
-    """``entries`` with ``resources/pythonfmu/`` replaced by its `PYTHONFMU_RUNTIME` modules in
-    ``resources/<RUNTIME_PACKAGE>/`` (``__init__.py`` without `BUILDER_IMPORT`) and the
-    ``from pythonfmu... import`` statements of the slave modules (``resources/*.py``) naming
-    that package instead.  Refused (BuildError) when pythonfmu's files are not the expected
-    ones or an embedded module still imports ``pythonfmu`` afterwards."""
-    source = "resources/pythonfmu/"
-    shipped = {name[len(source):] for name in entries if name.startswith(source) and "__pycache__" not in name}
-    missing = sorted(set(PYTHONFMU_RUNTIME) - shipped)
-    init = entries.get(f"{source}__init__.py", b"").decode()
-    if missing or BUILDER_IMPORT not in init:
-        raise BuildError(f"{model}: pythonfmu's package in the FMU is not pythonfmu 0.7.0's (missing "
-                         f"{missing or [BUILDER_IMPORT.strip()]}); greyfmu.dropin.PYTHONFMU_RUNTIME names what it needs")
-    result = {name: data for name, data in entries.items() if not name.startswith(source)}
-    for module in PYTHONFMU_RUNTIME:
-        result[f"resources/{RUNTIME_PACKAGE}/{module}"] = entries[source + module]
-    result[f"resources/{RUNTIME_PACKAGE}/__init__.py"] = init.replace(BUILDER_IMPORT, "").encode()
-    pattern = re.compile(r"^(\s*from\s+)pythonfmu(?=[.\s])", re.MULTILINE)
-    for name in [name for name in result if re.fullmatch(r"resources/[^/]+\.py", name)]:
-        result[name] = pattern.sub(rf"\g<1>{RUNTIME_PACKAGE}", result[name].decode()).encode()
-    for name, data in result.items():
-        if name.startswith("resources/") and name.endswith(".py"):
-            left = [node.lineno for node in ast.walk(ast.parse(data, name)) if _imports_pythonfmu(node)]
-            if left:
-                raise BuildError(f"{model}: {name} still imports pythonfmu (line {left[0]}); the FMU ships its "
-                                 f"run-time modules as {RUNTIME_PACKAGE} only: import them with 'from pythonfmu...'")
-    return result
-
-
-def _imports_pythonfmu(node: ast.AST) -> bool:
-    if isinstance(node, ast.Import):
-        return any(alias.name.split(".")[0] == "pythonfmu" for alias in node.names)
-    return isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").split(".")[0] == "pythonfmu"
 
 
 def stable_guid(root: ElementTree.Element, entries: dict[str, bytes]) -> str:

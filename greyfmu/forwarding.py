@@ -15,7 +15,9 @@ import logging
 import warnings
 from collections.abc import Callable, Iterator
 
-LOGGER = logging.getLogger("greyfmu")
+LOGGER = logging.getLogger(__name__.rpartition(".")[0])
+"""greyfmu's package logger, under the name this copy of greyfmu is imported as (inside an FMU, its
+private package's ``<package>.greyfmu``, greyfmu.privatise: each FMU forwards its own numerics' warnings)."""
 
 
 class _Emit(logging.Handler):

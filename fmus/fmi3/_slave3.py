@@ -16,8 +16,12 @@ communication step).  This base class
   handle_py_exception calls cleanPyObject) and releases them again when the instance is freed
   (~PySlaveInstance), which frees objects still in use and crashes the host at a later garbage
   collection.  Each call pythonfmu3 makes on an instance gives one reference of each back when
-  it raises (`_give_back`), and the class-level FMU-state conversions never raise: the FMUs
-  declare no FMU state (canGetAndSetFMUState="false"), so getting or setting one is refused;
+  it raises (fmus/_inprocess.py, give_back), and the class-level FMU-state conversions never
+  raise: the FMUs declare no FMU state (canGetAndSetFMUState="false"), so getting or setting one
+  is refused;
+- takes its resources folder off ``sys.path`` again and points its private package at it
+  (fmus/_inprocess.py, settle_imports: the FMU's code, pythonfmu3's run-time included, is
+  imported under a name private to the FMU, greyfmu.privatise);
 - keeps a host alive at exit: pythonfmu3 0.3.4's library (binaries/x86_64-linux/<model>.so) holds
   its interpreter state in a static std::shared_ptr whose destructor (registered with
   __cxa_atexit when the library is loaded) frees it at exit, after which the library's
@@ -50,17 +54,11 @@ from pythonfmu3 import Float64, Fmi3Causality, Fmi3Slave, Fmi3Status, Fmi3StepRe
 from pythonfmu3.variable_types import EnumerationType
 from pythonfmu3.variables import Enumeration
 
+from _inprocess import give_back, settle_imports
 from greyfmu.forwarding import forward_warnings
 
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
 
-
-def _give_back(*objects: object) -> None:
-    """One reference to each of ``objects`` that no one owns, as the one pythonfmu3 releases
-    without owning it was (a list holding them would own its references, and the objects would
-    still be freed under it)."""
-    for item in objects:
-        ctypes.pythonapi.Py_IncRef(ctypes.py_object(item))
 
 _FINALIZED_BEFORE_EXIT: dict[str, ctypes.CDLL] = {}
 """The pythonfmu3 libraries whose finalizePythonInterpreter is registered to run at exit, by
@@ -114,7 +112,7 @@ def _given_back_when_raising(method: Callable[..., Any]) -> Callable[..., Any]:
         try:
             return method(self, *args)
         except BaseException:
-            _give_back(self, type(self), self.log_queue)
+            give_back(self, type(self), self.log_queue)
             raise
 
     guarded.given_back_when_raising = True
@@ -136,6 +134,8 @@ class GreyfmuSlave3(Fmi3Slave):
 
     output_dependencies: ClassVar[dict[str, list[str]]]
     """For every output, the inputs it depends on at the same instant (read by ``greyfmu build``)."""
+    requirements: ClassVar[tuple[str, ...]] = ("numpy", "scipy")
+    """The modules the FMU imports from the host's Python (part of its private package's name)."""
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """Every method pythonfmu3 calls on an instance of ``cls`` gives back its references when it raises."""
@@ -163,6 +163,7 @@ class GreyfmuSlave3(Fmi3Slave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        settle_imports(self.resources)
         self.author = "greyfmu"
         self.time = 0.0
         self.experiment_start = 0.0

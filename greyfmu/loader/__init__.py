@@ -1,9 +1,12 @@
 """The drop-in loader of the greyfmu FMUs (build side; not embedded in the FMUs).
 
-``fmi2_loader.c`` (with its platform layer ``platform.h`` and its guard ``guard.h``) becomes each FMU's
-``binaries/linux64/<modelIdentifier>.so`` and ``binaries/win64/<modelIdentifier>.dll``: it finds
-a Python, loads its shared libpython and forwards every fmi2 function to pythonfmu's library,
-shipped next to it as ``pythonfmu-export.so`` / ``.dll`` (see the C file's header).
+``fmi2_loader.c`` (with its platform layer ``platform.h``, its guard ``guard.h`` and FMU states
+``states.h``) becomes each FMU's ``binaries/linux64/<modelIdentifier>.so`` and
+``binaries/win64/<modelIdentifier>.dll``: it finds a Python, loads its shared libpython and
+forwards every fmi2 function to pythonfmu's library, shipped next to it as
+``pythonfmu-export.so`` / ``.dll`` (see the C file's header).  On Linux ``process.c`` becomes
+``binaries/linux64/greyfmu-process.so`` beside it: the lock and ready flag every loader in a
+process shares, so Python starts once per process (`process_binary`).
 ``greyfmu_target.py`` is shipped as ``resources/greyfmu_target.py``: the check the loader runs
 with a candidate Python.
 """
@@ -20,6 +23,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 LOADER_SOURCE = Path(__file__).resolve().parent / "fmi2_loader.c"
+PROCESS_SOURCE = Path(__file__).resolve().parent / "process.c"
+PROCESS_LIBRARY = "greyfmu-process.so"
+"""The file name process.c gets beside the linux64 loader (process.h GREYFMU_PROCESS_LIBRARY)."""
 TARGET_CHECK = Path(__file__).resolve().parent / "greyfmu_target.py"
 
 
@@ -91,10 +97,22 @@ def loader_binary(platform: Platform) -> bytes | None:
                   f"the FMUs keep pythonfmu's {platform.folder} library, which loads only in a host that already "
                   "runs Python", file=sys.stderr)
         return None
+    return _compiled(found, platform, LOADER_SOURCE)
+
+
+@functools.cache
+def process_binary() -> bytes | None:
+    """greyfmu-process.so for linux64 (process.c), once per process; None where the loader has
+    no compiler either (the FMU then has no loader to share it)."""
+    found = compiler(PLATFORMS[0])
+    return _compiled(found, PLATFORMS[0], PROCESS_SOURCE) if found is not None else None
+
+
+def _compiled(found: str, platform: Platform, source: Path) -> bytes:
     with tempfile.TemporaryDirectory(prefix="greyfmu-loader-") as temp:
         library = Path(temp) / f"loader{platform.suffix}"
-        completed = subprocess.run([found, *platform.flags, *warnings(), "-o", str(library), str(LOADER_SOURCE),
+        completed = subprocess.run([found, *platform.flags, *warnings(), "-o", str(library), str(source),
                                     *platform.libraries], capture_output=True, text=True)
         if completed.returncode != 0:
-            raise LoaderError(f"{found} could not compile {LOADER_SOURCE} for {platform.folder}:\n{completed.stderr}")
+            raise LoaderError(f"{found} could not compile {source} for {platform.folder}:\n{completed.stderr}")
         return library.read_bytes()

@@ -23,9 +23,17 @@
  *      included) and sys.executable; the GIL is then released.  Paths pass between C and Python
  *      as the file system's bytes (PyUnicode_DecodeFSDefault, os.fsencode), never as UTF-8: a
  *      folder name that is not UTF-8 works or is refused, it does not crash the host.
- *   3. The same greyfmu_target.py runs inside the process (Python version >= 3.10 and the
- *      requirements; once per process, see CHECK_ONCE), then pythonfmu-export.so is loaded and
- *      every fmi2 function forwards to it.
+ *      Python starts once per process, however many FMUs of ours the host loads, under a lock
+ *      and a ready flag every greyfmu loader of the process shares (process.c, platform.h
+ *      find_process).
+ *   3. pythonfmu-export.so is loaded and every fmi2 function forwards to it.  Before each
+ *      instantiation the same greyfmu_target.py runs inside the process (Python version >= 3.10
+ *      and the requirements) once for the FMU's code, which lives under a package private to
+ *      it (greyfmu.privatise; PREPARE_INSTANCE, FINISH_INSTANCE).
+ *
+ * The host's signal dispositions are put back after every call into Python but a step's
+ * (platform.h save_signals, KEEPING_HOST_SIGNALS): Python's signal module installs its SIGINT
+ * handler when imported.
  *
  * Every call passes the guard first (guard.h): the fmi2Component the host gets is the guard's
  * record of the instance, and a call the FMI 2.0 state machine, the arguments or the FMU's
@@ -88,6 +96,12 @@ typedef struct {
     void (*DecRef)(void *);
     void (*IncRef)(void *);
     void (*ErrPrint)(void);
+    void *(*GetAttrString)(void *, const char *);
+    void *(*CallFunctionObjArgs)(void *, ...);
+    void *(*BytesFromStringAndSize)(const char *, intptr_t); /* Py_ssize_t */
+    int (*BytesAsStringAndSize)(void *, char **, intptr_t *);
+    void (*ErrFetch)(void **, void **, void **);
+    void *(*ObjectStr)(void *);
 } PythonApi;
 
 enum { PY_FILE_INPUT = 257 };
@@ -276,42 +290,60 @@ static int resolve(void *library, PythonApi *api, char *problem, size_t size) {
     RESOLVE(DecRef, "Py_DecRef")
     RESOLVE(IncRef, "Py_IncRef")
     RESOLVE(ErrPrint, "PyErr_Print")
+    RESOLVE(GetAttrString, "PyObject_GetAttrString")
+    RESOLVE(CallFunctionObjArgs, "PyObject_CallFunctionObjArgs")
+    RESOLVE(BytesFromStringAndSize, "PyBytes_FromStringAndSize")
+    RESOLVE(BytesAsStringAndSize, "PyBytes_AsStringAndSize")
+    RESOLVE(ErrFetch, "PyErr_Fetch")
+    RESOLVE(ObjectStr, "PyObject_Str")
 #undef RESOLVE
     return 1;
 }
 
-/* The str variable `name` of `globals` ("" if absent) as the file system's bytes, into result; 0
- * with a Python exception set if it is not a str. */
-static int copy_result(PythonApi *api, void *globals, const char *name, char *result, size_t size) {
-    void *value = api->DictGetItemString(globals, name); /* borrowed */
+/* A str variable given to or taken from code run inside the process, as the file system's bytes. */
+typedef struct {
+    const char *name;
+    char *text;  /* given: its value; taken: where it is copied ("" if the code left none) */
+    size_t size; /* 0: given; else the size of `text` */
+} PyVariable;
+
+/* The str variable v->name of `globals` ("" if absent) copied into v->text; 0 with a Python
+ * exception set if it is not a str. */
+static int take_variable(PythonApi *api, void *globals, PyVariable *v) {
+    v->text[0] = '\0';
+    void *value = api->DictGetItemString(globals, v->name); /* borrowed */
     if (value == NULL) return 1;
     void *bytes = api->UnicodeEncodeFSDefault(value);
     const char *text = bytes != NULL ? api->BytesAsString(bytes) : NULL;
-    if (text != NULL) snprintf(result, size, "%s", text);
+    if (text != NULL) snprintf(v->text, v->size, "%s", text);
     api->DecRef(bytes); /* Py_DecRef is Py_XDECREF */
     return text != NULL;
 }
 
-/* Run code in a fresh namespace under the GIL, `file` as its __file__ (the file system's bytes);
- * the str variable `result_name` it leaves, copied.  0 (the exception printed on stderr, result
- * saying so) if any step fails, Python's own calls included. */
-static int run_in_process(PythonApi *api, const char *code, const char *file, const char *result_name, char *result,
-                          size_t size, void (*inspect)(PythonApi *, void *)) {
+/* Run code in a fresh namespace under the GIL, `file` as its __file__, with `variables` given
+ * to it (size 0) and taken from it (size > 0), then `inspect(api, globals, context)` if given.
+ * 0 (the exception printed on stderr) if any step fails, Python's own calls included. */
+static int run_in_process(PythonApi *api, const char *code, const char *file, PyVariable *variables, int count,
+                          void (*inspect)(PythonApi *, void *, void *), void *context) {
     int gil = api->GILStateEnsure();
-    snprintf(result, size, "%s", "");
     void *globals = api->DictNew(), *builtins = api->EvalGetBuiltins(); /* builtins: borrowed */
     void *name = api->UnicodeFromString("greyfmu_target"), *file_name = api->UnicodeDecodeFSDefault(file);
     int ok = globals != NULL && builtins != NULL && name != NULL && file_name != NULL &&
              api->DictSetItemString(globals, "__builtins__", builtins) == 0 &&
              api->DictSetItemString(globals, "__name__", name) == 0 &&
              api->DictSetItemString(globals, "__file__", file_name) == 0;
-    void *done = ok ? api->RunStringFlags(code, PY_FILE_INPUT, globals, globals, NULL) : NULL;
-    ok = done != NULL && (result_name == NULL || copy_result(api, globals, result_name, result, size));
-    if (ok && inspect != NULL) inspect(api, globals);
-    if (!ok) {
-        api->ErrPrint();
-        snprintf(result, size, "running %s inside the host process raised a Python exception (printed on stderr)", file);
+    for (int i = 0; ok && i < count; i++) {
+        if (variables[i].size > 0) continue;
+        void *value = api->UnicodeDecodeFSDefault(variables[i].text);
+        ok = value != NULL && api->DictSetItemString(globals, variables[i].name, value) == 0;
+        api->DecRef(value);
     }
+    void *done = ok ? api->RunStringFlags(code, PY_FILE_INPUT, globals, globals, NULL) : NULL;
+    ok = done != NULL;
+    for (int i = 0; ok && i < count; i++)
+        if (variables[i].size > 0) ok = take_variable(api, globals, &variables[i]);
+    if (ok && inspect != NULL) inspect(api, globals, context);
+    if (!ok) api->ErrPrint();
     api->DecRef(done);
     api->DecRef(file_name);
     api->DecRef(name);
@@ -367,13 +399,13 @@ static int start_python(const Interpreter *python, PythonApi *api, char *problem
         if (GIVES_PYTHON_HOME && !give_python_home(library, python->home, problem, size)) return 0;
         api->InitializeEx(0);
         size_t literal = 4 * strlen(python->executable) + 4, length = strlen(python->path) + literal + 128;
-        char *executable = malloc(literal), *code = malloc(length), ignored[16];
+        char *executable = malloc(literal), *code = malloc(length);
         int ok = executable != NULL && code != NULL;
         if (ok) {
             bytes_literal(python->executable, executable, literal);
             snprintf(code, length, "import os, sys\nsys.path[:] = %s\nsys.executable = os.fsdecode(%s)\n",
                      python->path, executable);
-            ok = run_in_process(api, code, "<greyfmu loader>", NULL, ignored, sizeof ignored, NULL);
+            ok = run_in_process(api, code, "<greyfmu loader>", NULL, 0, NULL, NULL);
         }
         free(executable);
         free(code);
@@ -491,97 +523,98 @@ static int load_pythonfmu(const char *root, char *problem, size_t size) {
     return 1;
 }
 
-/* Runs resources/greyfmu_target.py (its path is __file__) inside the process and leaves its
- * `problem`, at most once per process for the same script and requirements: a passed check is
- * remembered in sys.modules["greyfmu_target_checks"] (this library's statics die when a host
- * such as fmpy unloads it after each instance), so a re-instantiation does not compile the
- * script again.  The key is the two files' text, so another FMU or another version of one is
- * checked anew; a pass stays valid, as the modules it imported stay in sys.modules. */
-static const char CHECK_ONCE[] =
-    "import os, sys\n"
-    "checks = sys.modules.get('greyfmu_target_checks')\n"
-    "if checks is None:\n"
-    "    checks = sys.modules['greyfmu_target_checks'] = type(sys)('greyfmu_target_checks')\n"
-    "    checks.passed = set()\n"
-    "with open(__file__, 'rb') as script:\n"
-    "    source = script.read()\n"
-    "with open(os.path.join(os.path.dirname(__file__), 'greyfmu_requirements.txt'), 'rb') as listing:\n"
-    "    key = (source, listing.read())\n"
-    "problem = ''\n"
-    "if key not in checks.passed:\n"
-    "    namespace = {'__name__': 'greyfmu_target', '__file__': __file__, '__builtins__': __builtins__}\n"
-    "    exec(compile(source, __file__, 'exec'), namespace)\n"
-    "    problem = namespace['problem']\n"
-    "    if not problem:\n"
-    "        checks.passed.add(key)\n";
+#include "guard.h"
+#include "states.h"
 
+/* This FMU's loader ready: a Python running in the process (started once per process, under the
+ * lock every greyfmu loader shares: platform.h find_process) and pythonfmu's library loaded. */
 static int ensure_loaded(char *problem, size_t size) {
     if (pythonfmu_library != NULL) return 1;
-    struct {
-        char root[PATH_MAX], script[PATH_MAX + 64], answer[4096];
-    } *scratch = malloc(sizeof *scratch);
-    if (scratch == NULL) {
+    char *root = malloc(PATH_MAX);
+    if (root == NULL) {
         append(problem, size, "out of memory loading the FMU's Python");
         return 0;
     }
-    char *root = scratch->root, *answer = scratch->answer;
     PythonApi api;
-    int ok = fmu_root(root, sizeof scratch->root);
+    int ok = fmu_root(root, PATH_MAX);
     if (!ok) append(problem, size, "cannot locate the FMU's folder from its binary");
-    ok = ok && ensure_python(root, &api, problem, size);
+    ok = ok && find_process(problem, size);
     if (ok) {
-        snprintf(scratch->script, sizeof scratch->script, "%s%cresources%cgreyfmu_target.py", root, SEPARATOR,
-                 SEPARATOR);
-        run_in_process(&api, CHECK_ONCE, scratch->script, "problem", answer, sizeof scratch->answer, NULL);
-        if (answer[0] != '\0') append(problem, size, "%s", answer);
-        ok = answer[0] == '\0' && load_pythonfmu(root, problem, size);
+        int ready = python_ready();
+        if (!ready) process_lock();
+        ok = ensure_python(root, &api, problem, size);
+        if (ok && !ready) set_python_ready();
+        if (!ready) process_unlock();
     }
+    ok = ok && load_pythonfmu(root, problem, size);
     if (ok) {
         python_api = api;
         snprintf(resources, sizeof resources, "%s%cresources", root, SEPARATOR);
     }
-    free(scratch);
+    free(root);
     return ok;
 }
 
-/* Gives back the reference pythonfmu 0.7.0's fmi2Instantiate takes from the process at each call
- * (PySlaveInstance.cpp): findClass releases the slave module's __dict__, a borrowed reference (PyModule_GetDict),
- *     once per instantiation that got as far as importing the module: after as many
- *     instantiations as the dict has holders, the dict is freed while its module still uses it
- *     and the next garbage collection crashes the host (a pytest run of 1,400 tests: segfault
- *     "Garbage-collecting" in DigitalPI).  One reference per instantiation is given back
- *     (Py_IncRef, owned by no one, as the released one was); where the module was imported but
- *     the dict not released (a failure in between), the dict stays alive forever, as it does
- *     anyway while its module is in sys.modules.
- * Runs after every forwarded fmi2Instantiate, whether it returned an instance or not. */
-static const char BALANCE_PYTHONFMU[] =
-    "import os, sys\n"
-    "with open(os.path.join(os.path.dirname(__file__), 'slavemodule.txt'), encoding='utf-8') as listing:\n"
-    "    module = sys.modules.get(listing.readline().strip())\n"
-    "if module is not None:\n"
-    "    namespace = module.__dict__\n";
+/* Before each forwarded fmi2Instantiate, inside the process (`folder`: the instance's resources
+ * folder; __file__: this FMU's resources/greyfmu_target.py).  The slave module is
+ * `<package>.<model>`, all of the FMU's code under its private package (greyfmu.privatise).
+ *  - The first instance of this code in the process (its package not imported yet) runs the
+ *    target check (Python version, requirements: `problem`); a pass is not checked again, since
+ *    the modules it imported stay (the loader's statics cannot remember it: fmpy unloads the
+ *    library after each instance).
+ *  - A later one points the package at `folder` (fmus/_inprocess.py): the folder it was imported
+ *    from may have been deleted since (fmpy extracts each run into a new one).
+ *  - Python's signal module is imported here, where the host's signal dispositions are put back
+ *    afterwards: imported later, in a step, it would install Python's SIGINT handler for good.
+ *  - `paths`: how often `folder` is on sys.path before pythonfmu inserts it. */
+static const char PREPARE_INSTANCE[] =
+    "import os, signal, sys\n"
+    "with open(os.path.join(folder, 'slavemodule.txt'), encoding='utf-8') as listing:\n"
+    "    module = listing.readline().strip()\n"
+    "package = module.partition('.')[0]\n"
+    "problem = ''\n"
+    "if package not in sys.modules:\n"
+    "    namespace = {'__name__': 'greyfmu_target', '__file__': __file__, '__builtins__': __builtins__}\n"
+    "    with open(__file__, 'rb') as script:\n"
+    "        exec(compile(script.read(), __file__, 'exec'), namespace)\n"
+    "    problem = namespace['problem']\n"
+    "elif package + '._inprocess' in sys.modules:\n"
+    "    sys.modules[package + '._inprocess'].point_package_at(folder)\n"
+    "paths = str(sys.path.count(folder))\n";
 
-/* The reference given back: one that no one owns, as the one pythonfmu released was (a list
- * holding the dict would own its reference, and the dict would still be freed under it). */
-static void give_back_namespace(PythonApi *api, void *globals) {
+/* After each forwarded fmi2Instantiate, whether it gave an instance or not (`failed`):
+ *  - pythonfmu 0.7.0's findClass releases the slave module's __dict__, a borrowed reference
+ *    (PyModule_GetDict), once per instantiation that got as far as importing the module: after
+ *    as many instantiations as the dict has holders it was freed while its module still used it
+ *    and the next garbage collection crashed the host (segfault "Garbage-collecting" in
+ *    DigitalPI).  One reference is given back per instantiation (`namespace`, Py_IncRef, owned by
+ *    no one, as the released one was; `give_back_namespace`).
+ *  - `slave_class`: the slave's class, which the guard serialises FMU states with.
+ *  - An instantiation that failed before the slave took its folder off sys.path again
+ *    (fmus/_inprocess.py) leaves pythonfmu's entry: taken off here. */
+static const char FINISH_INSTANCE[] =
+    "import sys\n"
+    "found = sys.modules.get(module)\n"
+    "if found is not None:\n"
+    "    namespace = found.__dict__\n"
+    "    slave_class = getattr(found, module.rpartition('.')[2], None)\n"
+    "if failed == '1' and sys.path.count(folder) > int(paths):\n"
+    "    sys.path.remove(folder)\n";
+
+/* What FINISH_INSTANCE left: the namespace's reference given back, the slave class kept (a strong
+ * reference) in the instance, unless it failed. */
+static void give_back_namespace(PythonApi *api, void *globals, void *context) {
+    GuardedInstance *in = context;
     void *namespace = api->DictGetItemString(globals, "namespace");
     if (namespace != NULL) api->IncRef(namespace);
-}
-
-static void balance_pythonfmu(void) {
-    char *script = malloc(sizeof resources + 32), ignored[16];
-    if (script == NULL) {
-        fprintf(stderr, "greyfmu: out of memory giving back pythonfmu's reference after fmi2Instantiate\n");
-        return;
+    void *slave_class = api->DictGetItemString(globals, "slave_class");
+    if (in->real != NULL && slave_class != NULL) {
+        api->IncRef(slave_class);
+        in->slave_class = slave_class;
     }
-    snprintf(script, sizeof resources + 32, "%s%cgreyfmu_balance", resources, SEPARATOR);
-    run_in_process(&python_api, BALANCE_PYTHONFMU, script, NULL, ignored, sizeof ignored, give_back_namespace);
-    free(script);
 }
 
 /* ---- the exported FMI 2.0 functions, behind the guard (guard.h) ---- */
-
-#include "guard.h"
 
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 
@@ -606,7 +639,8 @@ static fmi2Component refuse_instance(const fmi2CallbackFunctions *functions, fmi
 /* The guard's checks of fmi2Instantiate's arguments; the instance (model read, resources folder
  * found) or NULL after one line. */
 static GuardedInstance *new_instance(fmi2String name, fmi2Type type, fmi2String guid, fmi2String location,
-                                     const fmi2CallbackFunctions *functions, char *folder, size_t size) {
+                                     const fmi2CallbackFunctions *functions, fmi2Boolean logging_on, char *folder,
+                                     size_t size) {
     const char *shown = name != NULL ? name : "";
     if (name == NULL || *name == '\0')
         return refuse_instance(functions, shown, "fmi2Instantiate: instanceName is %s", name ? "empty" : "NULL");
@@ -659,15 +693,52 @@ static GuardedInstance *new_instance(fmi2String name, fmi2Type type, fmi2String 
     in->forwarded.logger = guard_logger;
     in->forwarded.componentEnvironment = in;
     in->phase = PHASE_INSTANTIATED;
+    in->logging_on = logging_on != 0;
     in->magic = GUARD_MAGIC;
     return in;
+}
+
+static void forget_categories(GuardedInstance *in) {
+    for (size_t i = 0; i < in->category_count; i++) free(in->categories[i]);
+    free(in->categories);
+    in->categories = NULL;
+    in->category_count = 0;
 }
 
 static void free_guarded(GuardedInstance *in) {
     in->magic = 0;
     free_model(&in->model);
+    forget_categories(in);
     free(in->name);
     free(in);
+}
+
+/* Before and after the forwarded fmi2Instantiate (PREPARE_INSTANCE, FINISH_INSTANCE); 0 with the
+ * reason in `problem` if the instance cannot be made. */
+static int prepare_instance(const char *folder, char *module, size_t module_size, char *paths, size_t paths_size,
+                            char *problem, size_t size) {
+    char *script = malloc(sizeof resources + 32), answer[2048];
+    if (script == NULL) {
+        append(problem, size, "out of memory preparing the instance");
+        return 0;
+    }
+    snprintf(script, sizeof resources + 32, "%s%cgreyfmu_target.py", resources, SEPARATOR);
+    PyVariable variables[] = {{"folder", (char *)folder, 0}, {"problem", answer, sizeof answer},
+                              {"module", module, module_size}, {"paths", paths, paths_size}};
+    int ran = run_in_process(&python_api, PREPARE_INSTANCE, script, variables, 4, NULL, NULL);
+    if (!ran) append(problem, size, "checking the FMU's Python inside the host process raised a Python exception "
+                                    "(printed on stderr)");
+    else if (*answer) append(problem, size, "%s", answer);
+    free(script);
+    return ran && !*answer;
+}
+
+static void finish_instance(GuardedInstance *in, const char *folder, char *module, char *paths) {
+    PyVariable variables[] = {{"folder", (char *)folder, 0}, {"module", module, 0}, {"paths", paths, 0},
+                              {"failed", in->real == NULL ? "1" : "0", 0}};
+    if (!run_in_process(&python_api, FINISH_INSTANCE, "<greyfmu loader>", variables, 4, give_back_namespace, in))
+        fprintf(stderr, "greyfmu: fmi2Instantiate: giving back pythonfmu's reference raised a Python exception "
+                        "(printed above)\n");
 }
 
 EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
@@ -681,57 +752,67 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     /* Every buffer on the heap: a host may call from a thread with a small stack (pythonfmu and
      * Python then have it nearly all; tests/slaves/test_loader_stack.py). */
     struct {
-        char folder[PATH_MAX + 16], problem[16384];
+        char folder[PATH_MAX + 16], problem[16384], module[512], paths[32];
     } *scratch = calloc(1, sizeof *scratch);
     if (scratch == NULL)
         return refuse_instance(functions, instanceName ? instanceName : "", "fmi2Instantiate: out of memory");
     char *folder = scratch->folder, *problem = scratch->problem;
-    GuardedInstance *in =
-        new_instance(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, folder, sizeof scratch->folder);
+    GuardedInstance *in = new_instance(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, loggingOn,
+                                       folder, sizeof scratch->folder);
     if (in == NULL) {
         free(scratch);
         return NULL;
     }
+    save_signals(&in->signals); /* Python may be started, and its signal module imported, below */
     lock(&load_lock);
-    int loaded = ensure_loaded(problem, sizeof scratch->problem);
+    int ready = ensure_loaded(problem, sizeof scratch->problem);
     unlock(&load_lock);
-    if (!loaded) {
-        refuse_instance(functions, instanceName, "greyfmu: %s", problem);
+    ready = ready && prepare_instance(folder, scratch->module, sizeof scratch->module, scratch->paths,
+                                      sizeof scratch->paths, problem, sizeof scratch->problem);
+    if (ready) {
+        typedef fmi2Component (*Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String,
+                                             const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
+        /* loggingOn for pythonfmu, whose logger otherwise drops every message: the guard filters */
+        in->real = ((Instantiate)real_fmi2Instantiate)(instanceName, fmuType, fmuGUID, folder, &in->forwarded,
+                                                       visible, 1);
+        finish_instance(in, folder, scratch->module, scratch->paths);
+    }
+    restore_signals(&in->signals);
+    if (in->real == NULL) {
+        if (!ready)
+            refuse_instance(functions, instanceName, "greyfmu: %s", problem);
+        else if (!in->explained)
+            refuse_instance(functions, instanceName, "fmi2Instantiate: pythonfmu returned no instance without saying why");
         free_guarded(in);
         free(scratch);
         return NULL;
     }
-    typedef fmi2Component (*Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
-                                         fmi2Boolean, fmi2Boolean);
-    in->real = ((Instantiate)real_fmi2Instantiate)(instanceName, fmuType, fmuGUID, folder, &in->forwarded, visible,
-                                                   loggingOn);
     free(scratch);
-    balance_pythonfmu();
-    if (in->real == NULL) {
-        free_guarded(in);
-        return NULL;
-    }
     lock(&load_lock);
     live_instances++;
     unlock(&load_lock);
     return in;
 }
 
-/* Instances pythonfmu has given up on: pythonfmu 0.7.0 answers a Python exception in any call with
- * fmi2Fatal after releasing the instance's Python objects (PySlaveInstance.cpp: handle_py_exception
- * calls cleanPyObject), and releases them again when the instance is freed (~PySlaveInstance calls
- * cleanPyObject, whose pointers were never cleared): objects still in use are freed, or freed
- * twice, and a later garbage collection crashes the host (a pytest run after the FMU-state refusal
- * tests: segfault "Garbage-collecting").  So the guard forwards nothing more to an instance in
- * the fatal state (every function's allowed states leave it out), and fmi2FreeInstance frees only
- * the guard's record (pythonfmu's C++ object, a few hundred bytes, stays allocated; its Python
- * objects were released once). */
+/* Instances pythonfmu has given up on (fmi2Fatal: an exception the slave did not say, see guard.h):
+ * pythonfmu 0.7.0 answers a Python exception after releasing the instance's Python objects
+ * (PySlaveInstance.cpp: handle_py_exception calls cleanPyObject), and releases them again when
+ * the instance is freed (~PySlaveInstance calls cleanPyObject, whose pointers were never cleared):
+ * objects still in use are freed, or freed twice, and a later garbage collection crashes the host
+ * (a pytest run after the FMU-state refusal tests: segfault "Garbage-collecting").  So the guard
+ * forwards nothing more to an instance in the fatal state (every function's allowed states leave
+ * it out), and fmi2FreeInstance frees only the guard's record (pythonfmu's C++ object, a few
+ * hundred bytes, stays allocated; its Python objects were released once).  Our slaves give back
+ * what pythonfmu releases (fmus/_inprocess.py), so their exceptions end in fmi2Error instead. */
 EXPORT void fmi2FreeInstance(fmi2Component c) {
     if (c == NULL) return;
     GuardedInstance *in = guarded(c, "fmi2FreeInstance");
     if (in == NULL) return;
+    save_signals(&in->signals);
     if (in->phase != PHASE_FATAL && real_fmi2FreeInstance != NULL) /* first: pythonfmu may log while freeing */
         ((void (*)(fmi2Component))real_fmi2FreeInstance)(in->real);
+    if (real_fmi2FreeInstance != NULL) release_instance_objects(in);
+    restore_signals(&in->signals);
     free_guarded(in);
     if (real_fmi2FreeInstance == NULL) return;
     lock(&load_lock);
@@ -743,14 +824,35 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
 #define GUARDED(name, phases)                                                                                      \
     GuardedInstance *in = guarded(c, #name);                                                                       \
     if (in == NULL) return fmi2Error;                                                                              \
-    if (!allowed_in(in, #name, phases)) return fmi2Error;
+    if (!allowed_in(in, #name, phases)) return fmi2Error;                                                          \
+    in->explained = in->recoverable = 0;
+/* A call that is not on a step's path: the host's signal dispositions are put back after it (a
+ * step's path, fmi2DoStep and fmi2Get/Set, pays nothing: Python's signal module was imported at
+ * fmi2Instantiate, where they were put back, and no code of the FMU's sets a handler). */
+#define KEEPING_HOST_SIGNALS(status, call)                                                                         \
+    save_signals(&in->signals);                                                                                    \
+    fmi2Status status = (call);                                                                                    \
+    restore_signals(&in->signals);
 
+/* Answered by the guard: pythonfmu's own logging stays on (see guard.h), the host's choice filters. */
 EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]) {
     GUARDED(fmi2SetDebugLogging, PHASES_ANY_BUT_FATAL)
     if (n > 0 && categories == NULL) REFUSE(in, "fmi2SetDebugLogging", "categories is NULL with nCategories = %zu", n);
     for (size_t i = 0; i < n; i++)
         if (categories[i] == NULL) REFUSE(in, "fmi2SetDebugLogging", "categories[%zu] is NULL", i);
-    return CALL(fmi2SetDebugLogging, (fmi2Component, fmi2Boolean, size_t, const fmi2String[]), on, n, categories);
+    char **copied = n > 0 ? calloc(n, sizeof *copied) : NULL;
+    for (size_t i = 0; copied != NULL && i < n; i++)
+        if ((copied[i] = strdup(categories[i])) == NULL) {
+            while (i > 0) free(copied[--i]);
+            free(copied);
+            copied = NULL;
+        }
+    if (n > 0 && copied == NULL) REFUSE(in, "fmi2SetDebugLogging", "out of memory copying %zu categories", n);
+    forget_categories(in);
+    in->categories = copied;
+    in->category_count = n;
+    in->logging_on = on != 0;
+    return fmi2OK;
 }
 
 EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
@@ -759,39 +861,43 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
     if (!isfinite(startTime)) REFUSE(in, "fmi2SetupExperiment", "startTime = %g is not finite", startTime);
     if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime))
         REFUSE(in, "fmi2SetupExperiment", "stopTime = %g is not a finite time >= startTime = %g", stopTime, startTime);
-    fmi2Status status =
-        CALL(fmi2SetupExperiment, (fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real),
-             toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
+    KEEPING_HOST_SIGNALS(status, CALL(fmi2SetupExperiment,
+                                      (fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real),
+                                      toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime))
     if (status <= fmi2Warning) {
         in->time_known = 1;
         in->next_time = startTime;
         in->stop_defined = stopTimeDefined != 0;
         in->stop_time = stopTime;
     }
-    return settle(in, status, 0);
+    return settle(in, "fmi2SetupExperiment", status, 0);
 }
+
+#define CALL_PLAIN(name) (((fmi2Status(*)(fmi2Component))real_##name)(in->real))
 
 EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     GUARDED(fmi2EnterInitializationMode, PHASE_INSTANTIATED)
-    return settle(in, ((fmi2Status(*)(fmi2Component))real_fmi2EnterInitializationMode)(in->real),
-                  PHASE_INITIALIZATION);
+    KEEPING_HOST_SIGNALS(status, CALL_PLAIN(fmi2EnterInitializationMode))
+    return settle(in, "fmi2EnterInitializationMode", status, PHASE_INITIALIZATION);
 }
 
 EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     GUARDED(fmi2ExitInitializationMode, PHASE_INITIALIZATION)
-    return settle(in, ((fmi2Status(*)(fmi2Component))real_fmi2ExitInitializationMode)(in->real), PHASE_STEP_COMPLETE);
+    KEEPING_HOST_SIGNALS(status, CALL_PLAIN(fmi2ExitInitializationMode))
+    return settle(in, "fmi2ExitInitializationMode", status, PHASE_STEP_COMPLETE);
 }
 
 EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
     GUARDED(fmi2Terminate, PHASE_STEP_COMPLETE | PHASE_STEP_FAILED)
-    return settle(in, ((fmi2Status(*)(fmi2Component))real_fmi2Terminate)(in->real), PHASE_TERMINATED);
+    KEEPING_HOST_SIGNALS(status, CALL_PLAIN(fmi2Terminate))
+    return settle(in, "fmi2Terminate", status, PHASE_TERMINATED);
 }
 
 EXPORT fmi2Status fmi2Reset(fmi2Component c) {
     GUARDED(fmi2Reset, PHASES_ANY_BUT_FATAL)
-    fmi2Status status = ((fmi2Status(*)(fmi2Component))real_fmi2Reset)(in->real);
+    KEEPING_HOST_SIGNALS(status, CALL_PLAIN(fmi2Reset))
     if (status <= fmi2Warning) in->time_known = in->stop_defined = 0;
-    return settle(in, status, PHASE_INSTANTIATED);
+    return settle(in, "fmi2Reset", status, PHASE_INSTANTIATED);
 }
 
 /* fmi2Get<Type> and fmi2Set<Type>: the state, the arrays, every value reference (and for a set,
@@ -801,7 +907,8 @@ EXPORT fmi2Status fmi2Reset(fmi2Component c) {
         GUARDED(name, phases)                                                                                      \
         if (!references_ok(in, #name, vr, n, value, letter, setting)) return fmi2Error;                            \
         if (n == 0) return fmi2OK;                                                                                 \
-        return settle(in, CALL(name, (fmi2Component, const fmi2ValueReference[], size_t, T[]), vr, n, value), 0); \
+        return settle(in, #name, CALL(name, (fmi2Component, const fmi2ValueReference[], size_t, T[]), vr, n, value), \
+                      0);                                                                                          \
     }
 GET_SET(fmi2GetReal, fmi2Real, 'R', PHASES_GET, 0)
 GET_SET(fmi2GetInteger, fmi2Integer, 'I', PHASES_GET, 0)
@@ -812,45 +919,78 @@ GET_SET(fmi2SetInteger, const fmi2Integer, 'I', PHASES_SET, 1)
 GET_SET(fmi2SetBoolean, const fmi2Boolean, 'B', PHASES_SET, 1)
 GET_SET(fmi2SetString, const fmi2String, 'S', PHASES_SET, 1)
 
+/* FMU states: states.h.  A state passed back is freed before the new one is made. */
 EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
     GUARDED(fmi2GetFMUstate, PHASES_ANY_BUT_FATAL)
     if (state == NULL) REFUSE(in, "fmi2GetFMUstate", "FMUstate (the fmi2FMUstate* to fill) is NULL");
-    return settle(in, CALL(fmi2GetFMUstate, (fmi2Component, fmi2FMUstate *), state), 0);
+    if (*state != NULL) {
+        if (!forget_state(*state))
+            REFUSE(in, "fmi2GetFMUstate", "*FMUstate = %p is no state of this FMU: pass NULL for a new state, or a "
+                   "state fmi2GetFMUstate or fmi2DeSerializeFMUstate returned and that was not freed", *state);
+        release_objects(*state, NULL);
+        *state = NULL;
+    }
+    KEEPING_HOST_SIGNALS(status, CALL(fmi2GetFMUstate, (fmi2Component, fmi2FMUstate *), state))
+    if (status <= fmi2Warning && *state != NULL && !remember_state(*state, in)) {
+        release_objects(*state, NULL);
+        *state = NULL;
+        REFUSE(in, "fmi2GetFMUstate", "out of memory recording the state");
+    }
+    return settle(in, "fmi2GetFMUstate", status, 0);
 }
 
 /* A state restored leaves the error state for the state the instance had before it. */
 static fmi2Status restored(GuardedInstance *in, fmi2Status status) {
+    status = settle(in, "fmi2SetFMUstate", status, 0);
     if (status <= fmi2Warning && in->phase == PHASE_ERROR) in->phase = in->phase_before_error;
     if (status <= fmi2Warning) in->time_known = 0; /* the state's time: the next step says it */
-    return settle(in, status, 0);
+    return status;
 }
 
 EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
     GUARDED(fmi2SetFMUstate, PHASES_ANY_BUT_FATAL)
     if (state == NULL) REFUSE(in, "fmi2SetFMUstate", "FMUstate is NULL");
-    return restored(in, CALL(fmi2SetFMUstate, (fmi2Component, fmi2FMUstate), state));
+    if (!is_state(state)) REFUSE(in, "fmi2SetFMUstate", "FMUstate = %p is no state of this FMU (freed?)", state);
+    KEEPING_HOST_SIGNALS(status, CALL(fmi2SetFMUstate, (fmi2Component, fmi2FMUstate), state))
+    return restored(in, status);
 }
 
 EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
     GUARDED(fmi2FreeFMUstate, PHASES_ANY_BUT_FATAL)
     if (state == NULL) REFUSE(in, "fmi2FreeFMUstate", "FMUstate (the fmi2FMUstate* to free) is NULL");
     if (*state == NULL) return fmi2OK; /* nothing to free */
-    return settle(in, CALL(fmi2FreeFMUstate, (fmi2Component, fmi2FMUstate *), state), 0);
+    if (!forget_state(*state))
+        REFUSE(in, "fmi2FreeFMUstate", "*FMUstate = %p is no state of this FMU (freed already?)", *state);
+    release_objects(*state, NULL);
+    *state = NULL;
+    return fmi2OK;
 }
 
 EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size) {
     GUARDED(fmi2SerializedFMUstateSize, PHASES_ANY_BUT_FATAL)
     if (state == NULL || size == NULL)
         REFUSE(in, "fmi2SerializedFMUstateSize", "%s is NULL", state == NULL ? "FMUstate" : "size");
-    return settle(in, CALL(fmi2SerializedFMUstateSize, (fmi2Component, fmi2FMUstate, size_t *), state, size), 0);
+    if (!is_state(state)) REFUSE(in, "fmi2SerializedFMUstateSize", "FMUstate = %p is no state of this FMU", state);
+    char *bytes, problem[2048];
+    if (!serialised(in, state, &bytes, size, problem, sizeof problem))
+        REFUSE(in, "fmi2SerializedFMUstateSize", "%s", problem);
+    return fmi2OK;
 }
 
 EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size) {
     GUARDED(fmi2SerializeFMUstate, PHASES_ANY_BUT_FATAL)
     if (state == NULL) REFUSE(in, "fmi2SerializeFMUstate", "FMUstate is NULL");
     if (bytes == NULL && size > 0) REFUSE(in, "fmi2SerializeFMUstate", "serializedState is NULL with size = %zu", size);
-    return settle(in, CALL(fmi2SerializeFMUstate, (fmi2Component, fmi2FMUstate, fmi2Byte[], size_t), state, bytes, size),
-                  0);
+    if (!is_state(state)) REFUSE(in, "fmi2SerializeFMUstate", "FMUstate = %p is no state of this FMU", state);
+    char *serialised_bytes, problem[2048];
+    size_t needed;
+    if (!serialised(in, state, &serialised_bytes, &needed, problem, sizeof problem))
+        REFUSE(in, "fmi2SerializeFMUstate", "%s", problem);
+    if (size != needed)
+        REFUSE(in, "fmi2SerializeFMUstate", "size = %zu, but the state's serialised size is %zu "
+               "(fmi2SerializedFMUstateSize)", size, needed);
+    memcpy(bytes, serialised_bytes, needed);
+    return fmi2OK;
 }
 
 EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state) {
@@ -858,10 +998,19 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[
     if (bytes == NULL && size > 0)
         REFUSE(in, "fmi2DeSerializeFMUstate", "serializedState is NULL with size = %zu", size);
     if (state == NULL) REFUSE(in, "fmi2DeSerializeFMUstate", "FMUstate (the fmi2FMUstate* to fill) is NULL");
-    return settle(in,
-                  CALL(fmi2DeSerializeFMUstate, (fmi2Component, const fmi2Byte[], size_t, fmi2FMUstate *), bytes, size,
-                       state),
-                  0);
+    if (*state != NULL && forget_state(*state)) release_objects(*state, NULL); /* a state passed back */
+    *state = NULL;
+    char problem[2048];
+    save_signals(&in->signals);
+    void *made = deserialised(in, bytes, size, problem, sizeof problem);
+    restore_signals(&in->signals);
+    if (made == NULL) REFUSE(in, "fmi2DeSerializeFMUstate", "%s", problem);
+    if (!remember_state(made, in)) {
+        release_objects(made, NULL);
+        REFUSE(in, "fmi2DeSerializeFMUstate", "out of memory recording the state");
+    }
+    *state = made;
+    return fmi2OK;
 }
 
 /* The functions pythonfmu does not support (it says so and returns fmi2Error or fmi2Discard):
@@ -870,26 +1019,26 @@ EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueR
                                                const fmi2ValueReference known[], size_t nKnown,
                                                const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
     GUARDED(fmi2GetDirectionalDerivative, PHASES_GET)
-    return CALL(fmi2GetDirectionalDerivative,
+    return answered(in, "fmi2GetDirectionalDerivative", CALL(fmi2GetDirectionalDerivative,
                 (fmi2Component, const fmi2ValueReference[], size_t, const fmi2ValueReference[], size_t,
                  const fmi2Real[], fmi2Real[]),
-                unknown, nUnknown, known, nKnown, dvKnown, dvUnknown);
+                unknown, nUnknown, known, nKnown, dvKnown, dvUnknown));
 }
 
 EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                               const fmi2Integer order[], const fmi2Real value[]) {
     GUARDED(fmi2SetRealInputDerivatives, PHASES_SET)
-    return CALL(fmi2SetRealInputDerivatives,
+    return answered(in, "fmi2SetRealInputDerivatives", CALL(fmi2SetRealInputDerivatives,
                 (fmi2Component, const fmi2ValueReference[], size_t, const fmi2Integer[], const fmi2Real[]), vr, n,
-                order, value);
+                order, value));
 }
 
 EXPORT fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                                const fmi2Integer order[], fmi2Real value[]) {
     GUARDED(fmi2GetRealOutputDerivatives, PHASES_OUTPUT_DERIVATIVES)
-    return CALL(fmi2GetRealOutputDerivatives,
+    return answered(in, "fmi2GetRealOutputDerivatives", CALL(fmi2GetRealOutputDerivatives,
                 (fmi2Component, const fmi2ValueReference[], size_t, const fmi2Integer[], fmi2Real[]), vr, n, order,
-                value);
+                value));
 }
 
 EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
@@ -919,7 +1068,7 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
         in->time_known = 1;
         in->next_time = t + h;
     }
-    return settle(in, status, status == fmi2Discard ? PHASE_STEP_FAILED : PHASE_STEP_COMPLETE);
+    return settle(in, "fmi2DoStep", status, status == fmi2Discard ? PHASE_STEP_FAILED : PHASE_STEP_COMPLETE);
 }
 
 EXPORT fmi2Status fmi2CancelStep(fmi2Component c) {
@@ -931,7 +1080,7 @@ EXPORT fmi2Status fmi2CancelStep(fmi2Component c) {
     EXPORT fmi2Status name(fmi2Component c, const fmi2StatusKind s, T *value) {                                    \
         GUARDED(name, PHASES_STATUS)                                                                               \
         if (value == NULL) REFUSE(in, #name, "value (where to write the status) is NULL");                         \
-        return CALL(name, (fmi2Component, const fmi2StatusKind, T *), s, value);                                   \
+        return answered(in, #name, CALL(name, (fmi2Component, const fmi2StatusKind, T *), s, value));             \
     }
 STATUS_INQUIRY(fmi2GetStatus, fmi2Status)
 STATUS_INQUIRY(fmi2GetRealStatus, fmi2Real)
@@ -940,12 +1089,17 @@ STATUS_INQUIRY(fmi2GetBooleanStatus, fmi2Boolean)
 STATUS_INQUIRY(fmi2GetStringStatus, fmi2String)
 
 /* Unload: pythonfmu's state released (see the top comment), then its library (Linux only:
- * Windows forbids unloading a DLL while one is being detached). */
-#ifndef _WIN32
+ * Windows forbids unloading a DLL while one is being detached); Windows: this loader's handles
+ * of the process-wide lock closed. */
 __attribute__((destructor)) static void unload_loader(void) {
+    forget_process();
     if (pythonfmu_library == NULL || live_instances > 0) return;
+    free(states);
+    states = NULL;
+    state_count = state_capacity = 0;
+#ifndef _WIN32
     release_pythonfmu_state();
     dlclose(pythonfmu_library);
     pythonfmu_library = NULL;
-}
 #endif
+}

@@ -21,6 +21,21 @@
  * text).  pythonfmu passes its messages as the format (`%s%n` in a message crashed hosts), so
  * pythonfmu is given the guard's own callbacks, whose logger forwards that format verbatim as the
  * "%s" argument.
+ *
+ * Never silent (FMI 2.0 §2.1.5: the logger explains a NULL from fmi2Instantiate): pythonfmu
+ * logs nothing at all unless loggingOn (its PyLogger drops every message, errors included), so
+ * it is always instantiated with logging on and the guard filters instead: a message of status
+ * fmi2Warning or worse always reaches the host, an fmi2OK one only while the host's loggingOn
+ * (fmi2SetDebugLogging, which the guard answers itself) and its categories ask for it.  A call
+ * that returns fmi2Discard, fmi2Error or fmi2Fatal (or NULL) without a line of that status from
+ * pythonfmu or the slave gets one from the guard.
+ *
+ * fmi2Fatal only where FMI 2.0 §2.1.3 means it (all instances corrupted): pythonfmu answers
+ * every Python exception with fmi2Fatal.  The slave says an exception it survives in one line
+ * of category PYTHON_EXCEPTION (fmus/_slave.py) and gives back what pythonfmu releases for it;
+ * the guard then answers fmi2Error and drops pythonfmu's "Fatal py exception" line, and the
+ * instance is in the error state (fmi2Reset, fmi2SetFMUstate, fmi2FreeInstance).  Only an
+ * exception without that line (pythonfmu's instance then lost) stays fmi2Fatal.
  */
 #ifndef GREYFMU_LOADER_GUARD_H
 #define GREYFMU_LOADER_GUARD_H
@@ -30,6 +45,7 @@
 
 #define GUARD_MAGIC 0x67726579u /* "grey": a live GuardedInstance */
 #define GUARD_FILE "greyfmu_guard.txt"
+#define PYTHON_EXCEPTION "logPythonException" /* fmus/_slave.py PYTHON_EXCEPTION */
 
 typedef enum {
     PHASE_INSTANTIATED = 1,
@@ -104,6 +120,15 @@ typedef struct {
     double next_time;
     int stop_defined; /* fmi2SetupExperiment's stopTime: no step may end after it */
     double stop_time;
+    int logging_on;   /* the host's loggingOn (fmi2Instantiate, fmi2SetDebugLogging): fmi2OK lines pass only then */
+    char **categories;/* the categories fmi2SetDebugLogging named (count 0: all) */
+    size_t category_count;
+    int explained;    /* a line of status fmi2Discard or worse reached the host during the current call */
+    int recoverable;  /* the slave said an exception it survived during the current call (PYTHON_EXCEPTION) */
+    void *slave_class;         /* the slave's class, a strong reference (states.h serialises with it) */
+    void *serialised_state;    /* the state last serialised and its bytes, strong references (states.h) */
+    void *serialised_bytes;
+    HostSignals signals;       /* the host's signal dispositions during a call into Python (platform.h) */
 } GuardedInstance;
 
 /* Two communication times that are the same time up to rounding. */
@@ -199,16 +224,49 @@ static const GuardVariable *any_variable(const GuardModel *model, fmi2ValueRefer
 /* ---- logging: text is data ---- */
 
 static const char *status_category(fmi2Status status) {
-    return status == fmi2Warning ? "logStatusWarning" : status == fmi2Fatal ? "logStatusFatal" : "logStatusError";
+    return status == fmi2OK        ? "logAll"
+           : status == fmi2Warning ? "logStatusWarning"
+           : status == fmi2Discard ? "logStatusDiscard"
+           : status == fmi2Fatal   ? "logStatusFatal"
+                                   : "logStatusError";
+}
+
+static const char *status_name(fmi2Status status) {
+    static const char *names[] = {"fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending"};
+    return status >= fmi2OK && status <= fmi2Pending ? names[status] : "an unknown status";
+}
+
+/* Whether an fmi2OK line of `category` is one the host asked for (loggingOn, its categories). */
+static int wanted(const GuardedInstance *in, const char *category) {
+    if (!in->logging_on) return 0;
+    for (size_t i = 0; i < in->category_count; i++)
+        if (strcmp(in->categories[i], category) == 0) return 1;
+    return in->category_count == 0;
 }
 
 /* pythonfmu's logger: it passes each message as the format, with no arguments; the host
- * receives it as the "%s" argument, never as a format. */
+ * receives it as the "%s" argument, never as a format, filtered as the top comment says. */
 static void guard_logger(fmi2ComponentEnvironment environment, fmi2String name, fmi2Status status,
                          fmi2String category, fmi2String message, ...) {
-    const GuardedInstance *in = environment;
-    in->host.logger(in->host.componentEnvironment, name, status, category != NULL ? category : "", "%s",
-                    message != NULL ? message : "");
+    GuardedInstance *in = environment;
+    const char *text = message != NULL ? message : "";
+    if (category != NULL && strcmp(category, PYTHON_EXCEPTION) == 0) {
+        in->recoverable = 1;
+        status = fmi2Error; /* the explanation of the fmi2Error the call returns */
+    } else if (status == fmi2Fatal && (in->recoverable || in->real == NULL)) {
+        if (in->recoverable) return; /* pythonfmu's "Fatal py exception" for the exception the slave just said */
+        status = fmi2Error;          /* why fmi2Instantiate returns NULL: nothing else is lost */
+    }
+    if (category == NULL || *category == '\0') category = status_category(status);
+    if (status >= fmi2Discard)
+        in->explained = 1;
+    else if (status == fmi2OK && !wanted(in, category))
+        return;
+    char *one_line = strchr(text, '\n') != NULL ? strdup(text) : NULL; /* pythonfmu's "...: [ctor] findClass\n<repr>" */
+    for (char *c = one_line; c != NULL && *c; c++)
+        if (*c == '\n' || *c == '\r') *c = ' ';
+    in->host.logger(in->host.componentEnvironment, name, status, category, "%s", one_line != NULL ? one_line : text);
+    free(one_line);
 }
 
 /* One line through the host's logger: "<function>: <text> (instance '<name>', state <state>)". */
@@ -335,8 +393,19 @@ static int references_ok(GuardedInstance *in, const char *function, const fmi2Va
     return 1;
 }
 
-/* The state after a forwarded call returned `status` (`next` when it succeeded; 0: unchanged). */
-static fmi2Status settle(GuardedInstance *in, fmi2Status status, int next) {
+/* What a forwarded call returns to the host (see the top comment): fmi2Error for an exception
+ * the slave survived, and a line of its own for a failure nothing explained. */
+static fmi2Status answered(GuardedInstance *in, const char *function, fmi2Status status) {
+    if (status == fmi2Fatal && in->recoverable) status = fmi2Error;
+    if (status >= fmi2Discard && status <= fmi2Fatal && !in->explained)
+        guard_say(in, status, function, "pythonfmu returned %s without saying why", status_name(status));
+    return status;
+}
+
+/* The state after a forwarded call returned `status` (`next` when it succeeded; 0: unchanged);
+ * the status `answered` gives the host. */
+static fmi2Status settle(GuardedInstance *in, const char *function, fmi2Status status, int next) {
+    status = answered(in, function, status);
     if (status == fmi2Error) enter_error(in);
     else if (status == fmi2Fatal) in->phase = PHASE_FATAL;
     else if (status <= fmi2Warning && next) in->phase = (Phase)next;

@@ -1,12 +1,14 @@
 /* Platform layer of the greyfmu loader (fmi2_loader.c): Linux (POSIX) and Windows.
  *
  * Libraries (open, look up, a Python already in the process), the loader's own path, files,
- * a lock, and running the check script in a child process with a time limit.
+ * a lock, the process-wide lock and ready flag every loader shares, the host's signal
+ * dispositions, and running the check script in a child process with a time limit.
  */
 #ifndef GREYFMU_LOADER_PLATFORM_H
 #define GREYFMU_LOADER_PLATFORM_H
 
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -45,6 +47,7 @@ static int query_answer(char *text, int timed_out, const char *python, char **ou
 /* ------------------------------------------------------------------ Windows */
 #include <windows.h>
 #include <psapi.h>
+#include <signal.h>
 
 #define EXPORT __declspec(dllexport)
 #undef PATH_MAX
@@ -112,6 +115,69 @@ static int is_executable(const char *path) {
 
 /* The home is not given on Windows: Python finds it from pythonXY.dll's folder. */
 #define GIVES_PYTHON_HOME 0
+
+/* The process-wide lock and ready flag of the one Python start (see process.c for why): named
+ * kernel objects of this process, a mutex and a manual-reset event, which every loader of the
+ * process opens by name (created by the first).  Their handles are closed at unload; the
+ * objects live while any loader holds them, and a loader loaded after all were unloaded creates
+ * them again and finds Python initialised under the lock. */
+static HANDLE process_mutex, ready_event;
+
+static int find_process(char *problem, size_t size) {
+    if (process_mutex != NULL) return 1; /* (called under the loader's own lock) */
+    char name[64];
+    snprintf(name, sizeof name, "Local\\greyfmu-python-start-%lu", GetCurrentProcessId());
+    HANDLE mutex = CreateMutexA(NULL, FALSE, name);
+    snprintf(name, sizeof name, "Local\\greyfmu-python-ready-%lu", GetCurrentProcessId());
+    HANDLE event = CreateEventA(NULL, TRUE, FALSE, name);
+    if (mutex == NULL || event == NULL) {
+        append(problem, size, "cannot create the process-wide lock of the greyfmu loaders (Windows error %lu)",
+               GetLastError());
+        if (mutex != NULL) CloseHandle(mutex);
+        if (event != NULL) CloseHandle(event);
+        return 0;
+    }
+    process_mutex = mutex;
+    ready_event = event;
+    return 1;
+}
+static void process_lock(void) { WaitForSingleObject(process_mutex, INFINITE); }
+static void process_unlock(void) { ReleaseMutex(process_mutex); }
+static int python_ready(void) { return WaitForSingleObject(ready_event, 0) == WAIT_OBJECT_0; }
+static void set_python_ready(void) { SetEvent(ready_event); }
+static void forget_process(void) {
+    if (process_mutex != NULL) CloseHandle(process_mutex);
+    if (ready_event != NULL) CloseHandle(ready_event);
+    process_mutex = ready_event = NULL;
+}
+
+/* The host's SIGINT disposition in the C runtime Python uses (ucrtbase.dll): importing Python's
+ * signal module installs Python's handler there when it is the default, and the C runtime's
+ * console control handler then swallows Ctrl-C (the handler only sets a flag for Python's main
+ * thread).  The loader's own C runtime is another one, so ucrtbase's signal() is called. */
+typedef void (*SignalHandler)(int);
+typedef struct {
+    SignalHandler sigint;
+} HostSignals;
+
+static SignalHandler (*python_crt_signal(void))(int, SignalHandler) {
+    HMODULE crt = GetModuleHandleA("ucrtbase.dll");
+    return crt != NULL ? (SignalHandler(*)(int, SignalHandler))(void *)GetProcAddress(crt, "signal") : NULL;
+}
+
+static void save_signals(HostSignals *saved) {
+    SignalHandler (*crt_signal)(int, SignalHandler) = python_crt_signal();
+    saved->sigint = SIG_DFL; /* a C runtime not loaded yet starts with the default */
+    if (crt_signal != NULL) {
+        saved->sigint = crt_signal(SIGINT, SIG_DFL);
+        crt_signal(SIGINT, saved->sigint);
+    }
+}
+
+static void restore_signals(const HostSignals *saved) {
+    SignalHandler (*crt_signal)(int, SignalHandler) = python_crt_signal();
+    if (crt_signal != NULL) crt_signal(SIGINT, saved->sigint);
+}
 
 static int run_query(const char *python, const char *script, char **output, char *problem, size_t size) {
     SECURITY_ATTRIBUTES inherit = {sizeof inherit, NULL, TRUE};
@@ -193,6 +259,8 @@ static int run_query(const char *python, const char *script, char **output, char
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
+
+#include "process.h"
 
 extern char **environ;
 
@@ -281,6 +349,64 @@ static int is_executable(const char *path) {
 /* The candidate's home (base prefix) is given to Python before it starts (Py_SetPythonHome, not
  * PYTHONHOME: setenv races every getenv of a multithreaded host). */
 #define GIVES_PYTHON_HOME 1
+
+/* The process-wide lock and ready flag of the one Python start: greyfmu-process.so's structure
+ * (process.c says why and how every loader finds the same one). */
+static GreyfmuProcess *shared_process;
+
+static int find_process(char *problem, size_t size) {
+    if (__atomic_load_n(&shared_process, __ATOMIC_ACQUIRE) != NULL) return 1;
+    GreyfmuProcess *found = dlsym(RTLD_DEFAULT, GREYFMU_PROCESS_SYMBOL);
+    if (found == NULL) {
+        char *path = malloc(PATH_MAX + 64);
+        if (path == NULL || !library_path(path, PATH_MAX)) {
+            append(problem, size, "cannot locate the loader's own binary to load %s", GREYFMU_PROCESS_LIBRARY);
+            free(path);
+            return 0;
+        }
+        strcpy(strrchr(path, '/') + 1, GREYFMU_PROCESS_LIBRARY);
+        void *library = dlopen(path, RTLD_NOW | RTLD_GLOBAL | RTLD_NODELETE); /* never closed: it stays */
+        if (library == NULL) append(problem, size, "cannot load %s (the FMU is incomplete): %s", path, dlerror());
+        free(path);
+        if (library == NULL) return 0;
+        found = dlsym(RTLD_DEFAULT, GREYFMU_PROCESS_SYMBOL);
+        if (found == NULL) {
+            append(problem, size, "%s defines no %s", GREYFMU_PROCESS_LIBRARY, GREYFMU_PROCESS_SYMBOL);
+            return 0;
+        }
+    }
+    __atomic_store_n(&shared_process, found, __ATOMIC_RELEASE);
+    return 1;
+}
+static void process_lock(void) { pthread_mutex_lock(&shared_process->lock); }
+static void process_unlock(void) { pthread_mutex_unlock(&shared_process->lock); }
+static int python_ready(void) { return __atomic_load_n(&shared_process->python_ready, __ATOMIC_ACQUIRE); }
+static void set_python_ready(void) { __atomic_store_n(&shared_process->python_ready, 1, __ATOMIC_RELEASE); }
+static void forget_process(void) {} /* the structure outlives this loader (RTLD_NODELETE) */
+
+/* The host's signal dispositions, saved before a call into Python and put back after it where
+ * Python changed them: importing Python's signal module installs Python's SIGINT handler when
+ * the disposition is the default (signalmodule.c), and that handler only sets a flag for Python's
+ * main thread, so a C host without a handler no longer died on Ctrl-C (and if the thread that
+ * started Python had ended, Ctrl-C was lost). */
+enum { SAVED_SIGNALS = 32 }; /* the standard signals 1..31 */
+typedef struct {
+    struct sigaction action[SAVED_SIGNALS];
+} HostSignals;
+
+static void save_signals(HostSignals *saved) {
+    for (int number = 1; number < SAVED_SIGNALS; number++)
+        if (number != SIGKILL && number != SIGSTOP) sigaction(number, NULL, &saved->action[number]);
+}
+
+static void restore_signals(const HostSignals *saved) {
+    for (int number = 1; number < SAVED_SIGNALS; number++) {
+        struct sigaction now;
+        if (number == SIGKILL || number == SIGSTOP || sigaction(number, NULL, &now) != 0) continue;
+        if (now.sa_handler != saved->action[number].sa_handler || now.sa_flags != saved->action[number].sa_flags)
+            sigaction(number, &saved->action[number], NULL);
+    }
+}
 
 /* Seconds on CLOCK_MONOTONIC (a wall-clock change moves no deadline). */
 static double monotonic_seconds(void) {

@@ -28,7 +28,8 @@ from greyfmu.build import (
     slave_class,
 )
 from greyfmu.cli import main
-from greyfmu.dropin import BUILD_PYTHON, GUARD, MAX_STEP_FACTOR, PYTHONFMU_RUNTIME, stable_guid
+from greyfmu.dropin import BUILD_PYTHON, GUARD, MAX_STEP_FACTOR, stable_guid
+from greyfmu.privatise import PRIVATE_PACKAGE, PYTHONFMU
 import greyfmu.loader
 from greyfmu.loader import PLATFORMS, loader_binary
 from testfmus import edited_copy
@@ -136,13 +137,11 @@ def test_fmu_simulates_from_its_default_experiment(built_fmus, name):
 
 @pytest.mark.parametrize("name", ALL)
 def test_fmu_runs_in_a_fresh_python_with_only_its_embedded_greyfmu(built_fmus, tmp_path, name):
-    """`fmpy simulate` in another process, outside the repository: each FMU is self-contained.
-
-    One process per FMU, as a foreign tool loads it: pythonfmu FMUs share one interpreter, so
-    a second FMU in the same process would import the greyfmu modules the first one loaded
-    (from the first FMU's resources, which fmpy.simulate_fmu deletes when it returns).  No
-    workaround for pythonfmu 0.7.0's double release at unload: the FMU's loader neutralises it."""
-    script = "import sys, fmpy\nfmpy.simulate_fmu(sys.argv[1])\nprint(sys.modules['greyfmu'].__file__)\n"
+    """`fmpy simulate` in another process, outside the repository: each FMU is self-contained,
+    computing with the greyfmu it embeds (under its private package), never a public greyfmu.
+    No workaround for pythonfmu 0.7.0's double release at unload: the FMU's loader neutralises it."""
+    script = ("import sys, fmpy\nfmpy.simulate_fmu(sys.argv[1])\nassert 'greyfmu' not in sys.modules\n"
+              "print([module.__file__ for name, module in sys.modules.items() if name.endswith('.greyfmu')])\n")
     env = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
     completed = subprocess.run(
         [sys.executable, "-c", script, str(built_fmus[name])],
@@ -288,7 +287,8 @@ def test_the_guid_follows_the_model_description_and_every_embedded_source(built_
         entries = {name: archive.read(name) for name in archive.namelist()}
     root = ElementTree.fromstring(entries["modelDescription.xml"])
     assert stable_guid(root, entries) == root.get("guid")
-    edited = dict(entries, **{"resources/greyfmu/signals/arithmetic.py": entries["resources/greyfmu/signals/arithmetic.py"] + b"\n"})
+    (arithmetic,) = [name for name in entries if name.endswith("/greyfmu/signals/arithmetic.py")]
+    edited = dict(entries, **{arithmetic: entries[arithmetic] + b"\n"})
     assert stable_guid(root, edited) != root.get("guid")
     assert stable_guid(root, dict(entries, **{BUILD_PYTHON: b"/elsewhere/python3\n"})) == root.get("guid")
     root.find("DefaultExperiment").set("stopTime", "99")
@@ -337,18 +337,26 @@ def test_fmu_states_version_licence_and_carries_the_notices_and_documentation(bu
 
 @pytest.mark.parametrize("name", ["PID", "OSMMGPC"])
 def test_fmu_carries_only_what_it_runs(built_fmus, name):
-    """No greyfmu build tooling and no pythonfmu builder: pythonfmu's run-time modules only,
-    under the name greyfmu_pythonfmu (see greyfmu.dropin.vendor_pythonfmu)."""
+    """No greyfmu build tooling and no pythonfmu builder: pythonfmu's run-time modules only, and
+    all the FMU's Python under its private package (greyfmu.privatise)."""
     with zipfile.ZipFile(built_fmus[name]) as archive:
         names = set(archive.namelist())
-    assert not any(entry.startswith("resources/pythonfmu/") for entry in names)
-    assert {entry for entry in names if entry.startswith("resources/greyfmu_pythonfmu/")} == {
-        f"resources/greyfmu_pythonfmu/{module}" for module in PYTHONFMU_RUNTIME}
-    build_side = {"resources/greyfmu/build.py", "resources/greyfmu/cli.py", "resources/greyfmu/dropin.py",
-                  "resources/greyfmu/documentation.py"}
+        module = archive.read("resources/slavemodule.txt").decode()
+    package, _, model = module.partition(".")
+    assert PRIVATE_PACKAGE.fullmatch(package) and package.startswith(f"_greyfmu_{name}_") and model == name
+    python = {entry for entry in names if entry.startswith("resources/") and entry.endswith(".py")}
+    assert {entry for entry in python if not entry.startswith(f"resources/{package}/")} == {
+        "resources/greyfmu_target.py", f"resources/{module}.py"}
+    assert {entry for entry in names if entry.startswith(f"resources/{package}/pythonfmu/")} == {
+        f"resources/{package}/pythonfmu/{runtime}" for runtime in PYTHONFMU.modules}
+    assert {f"resources/{package}/{entry}.py" for entry in (name, "_slave", "_inprocess", "_state")} <= names
+    build_side = {f"resources/{package}/greyfmu/{entry}" for entry in
+                  ("build.py", "cli.py", "dropin.py", "documentation.py", "privatise.py")}
     assert not names & build_side
-    assert not any(entry.startswith(("resources/greyfmu/loader/", "resources/greyfmu/licenses/")) for entry in names)
-    assert {"binaries/linux64/pythonfmu-export.so", f"binaries/linux64/{name}.so", "resources/greyfmu_target.py"} <= names
+    assert not any(entry.startswith((f"resources/{package}/greyfmu/loader/", f"resources/{package}/greyfmu/licenses/"))
+                   for entry in names)
+    assert {"binaries/linux64/pythonfmu-export.so", f"binaries/linux64/{name}.so",
+            "binaries/linux64/greyfmu-process.so"} <= names
 
 
 def test_without_a_compiler_for_this_platform_the_build_says_so_and_keeps_pythonfmus_library(capsys):
@@ -389,26 +397,25 @@ def test_without_mingw_a_linux_build_says_nothing_of_windows_unless_asked(capsys
 
 
 def test_a_host_with_an_fmus_resources_on_sys_path_still_imports_pythonfmus_builder(built_fmus, tmp_path):
-    """fmpy leaves an FMU's resources/ on sys.path (and spawned workers inherit it): greyfmu's
-    FMU provider then imports pythonfmu.builder, which must be the installed pythonfmu's, after
-    the FMU ran in that process: its run-time copy of pythonfmu is named greyfmu_pythonfmu."""
+    """A host that keeps an FMU's resources/ on sys.path (and processes spawned from it) imports
+    greyfmu's FMU provider and pythonfmu.builder: they must be the installed ones after the FMU
+    ran in that process, since everything the FMU embeds is under its private package."""
     shutil.unpack_archive(built_fmus["PID"], tmp_path, "zip")
     script = (f"import sys, fmpy; sys.path.insert(0, {str(tmp_path / 'resources')!r}); "
               f"fmpy.simulate_fmu({str(built_fmus['PID'])!r}, stop_time=0.2); "
-              "import pythonfmu.builder; print(pythonfmu.__file__); print(sys.modules['greyfmu_pythonfmu'].__file__)")
+              "import pythonfmu.builder, greyfmu.build; print(pythonfmu.__file__); print(greyfmu.__file__)")
     completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert completed.returncode == 0, completed.stderr
-    installed, runtime = completed.stdout.splitlines()[-2:]
-    assert "resources" not in installed and "site-packages" in installed
-    assert "resources" in runtime
+    for installed in completed.stdout.splitlines()[-2:]:
+        assert "resources" not in installed, installed
 
 
 def test_a_process_that_ran_an_fmu_still_builds_from_the_sources(built_fmus, tmp_path):
-    """pythonfmu imports an FMU's _slave and slave module from its resources/ into the host
-    process; their base is the FMU's greyfmu_pythonfmu Fmi2Slave.  A later build in that process
-    (greyfmu's provider during a cosim run) must read fmus/ instead (greyfmu.build.slave_class)."""
+    """An FMU of ours run in a process leaves no public _slave or slave module there (its code is
+    under its private package): a later build in that process (greyfmu's provider during a cosim
+    run) reads fmus/."""
     script = (f"import sys, fmpy; fmpy.simulate_fmu({str(built_fmus['Gain'])!r}, stop_time=0.2); "
-              "assert 'greyfmu_pythonfmu' in sys.modules['_slave'].Fmi2Slave.__module__; "
+              "assert not {'_slave', 'Gain', 'pythonfmu'} & set(sys.modules), sorted(sys.modules); "
               "from greyfmu.build import build_fmus; "
               f"print(build_fmus(['Gain'], out_dir={str(tmp_path)!r}, force=True))")
     completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
