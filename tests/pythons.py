@@ -11,8 +11,10 @@ Python's version, pyproject.toml) is unchanged.
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 from cachelock import cache_lock
@@ -59,6 +61,29 @@ def _made_venv() -> Path:
         subprocess.run(pip + list(extra), check=True)
     stamp.write_text(expected)
     return python
+
+
+def is_debians(python: Path) -> bool:
+    """Whether ``python`` (a venv's or not) runs Debian's /usr/bin/python3."""
+    base = subprocess.run([str(python), "-c", "import sys; print(sys._base_executable)"], capture_output=True,
+                          text=True, check=True).stdout.strip()
+    return DEBIAN_PYTHON.is_file() and Path(base).resolve() == DEBIAN_PYTHON.resolve()
+
+
+def another_python() -> Path:
+    """A Python of another build than Debian's /usr/bin/python3, for checks across Pythons: the one
+    running the tests unless it is Debian's (CI runs the suite with Debian's), else python3 or
+    python on PATH outside the active virtual environment."""
+    if not is_debians(Path(sys.executable)):
+        return Path(sys.executable)
+    venv = os.environ.get("VIRTUAL_ENV")
+    path = os.pathsep.join(entry for entry in os.environ.get("PATH", "").split(os.pathsep)
+                           if not (venv and entry.startswith(venv)))
+    for name in ("python3", "python"):
+        found = shutil.which(name, path=path)
+        if found and not is_debians(Path(found)):
+            return Path(found)
+    raise Unavailable("no Python of another build than Debian's on PATH")
 
 
 def libpython_files(python: Path) -> int:
