@@ -237,3 +237,54 @@ def test_the_guard_answers_a_hostile_windows_host_as_on_linux(windows_python, bu
     assert windows.results == linux.results
     assert windows.logs == linux.logs
     assert windows.stderr.splitlines() == linux.stderr.splitlines()
+
+
+@pytest.fixture(scope="module")
+def windows_together_host(wine, tmp_path_factory) -> Path:
+    """tests/together_host.c built with mingw-w64 (winpthreads linked in)."""
+    from together import HOST_SOURCE as TOGETHER_SOURCE
+
+    host = tmp_path_factory.mktemp("wtogether") / "together_host.exe"
+    subprocess.run([MINGW, "-O1", "-Wall", "-Werror", "-static", "-o", str(host), str(TOGETHER_SOURCE), "-lpthread"],
+                   check=True)
+    return host
+
+
+def test_four_fmus_two_releases_on_four_threads_in_a_windows_host(windows_python, windows_together_host, built_fmus,
+                                                                  tmp_path):
+    """Issue 39 on Windows: PID of this build and of another release (its greyfmu doubles u),
+    Step and FOPDT, first instances made on four threads at once in a Windows C host without
+    Python, 2 trials: each ends normally, every FMU gives what it gives in the Linux host run one
+    after the other, and the two releases differ (private packages; the process-wide lock is a
+    named mutex there).  At 96f2739 the two PIDs shared one copy's code."""
+    from together import build_other_release, compile_host, host_spec, other_greyfmu, results, run_host
+
+    release = build_other_release(["PID"], other_greyfmu(tmp_path / "other"), tmp_path / "release")["PID"]
+    fmus = [built_fmus["PID"], release, built_fmus["Step"], built_fmus["FOPDT"]]
+    specs = []
+    for index, fmu in enumerate(fmus):
+        specs += host_spec(fmu, tmp_path / f"{index}-{fmu.stem}")
+    linux = results(run_host(compile_host(tmp_path), "sequence", 10, specs, Path(sys.executable)))
+    windows_specs = [windows_path(Path(item)) if item.startswith("/") else item for item in specs]
+    env = environment(WINEPREFIX=str(PREFIX), WINEDEBUG="-all", GREYFMU_PYTHON=windows_path(windows_python))
+    for trial in range(2):
+        done = subprocess.run([WINE, str(windows_together_host), "threads", "10", *windows_specs], capture_output=True,
+                              text=True, timeout=600, env=env)
+        assert done.returncode == 0, f"trial {trial}: {done.stdout[-2000:]}{done.stderr[-2000:]}"
+        assert results(done) == linux, f"trial {trial}"
+    assert linux[0, "output"] != linux[1, "output"]
+
+
+def test_a_windows_hosts_sigint_stays_the_default(windows_python, windows_together_host, built_fmus, tmp_path):
+    """After PID ran in a Windows host, SIGINT's disposition in the C runtime Python uses
+    (ucrtbase.dll) is the default again: importing Python's signal module had installed Python's
+    handler, whose console control handler swallows Ctrl-C (96f2739: "other")."""
+    from together import host_spec
+
+    specs = [windows_path(Path(item)) if item.startswith("/") else item
+             for item in host_spec(built_fmus["PID"], tmp_path / "PID")]
+    done = subprocess.run([WINE, str(windows_together_host), "sigint-main", "5", *specs], capture_output=True,
+                          text=True, timeout=600, env=environment(WINEPREFIX=str(PREFIX), WINEDEBUG="-all",
+                                                                  GREYFMU_PYTHON=windows_path(windows_python)))
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert "sigint-disposition default" in done.stdout

@@ -153,12 +153,22 @@ def test_a_loaded_uninitialised_libpython_is_initialised_not_doubled(host, built
 
 def test_another_pythons_loaded_libpython_is_refused_or_initialised_with_its_python(host, built_fmus, tmp_path,
                                                                                    debian_python):
-    """Debian's shared libpython loaded, not initialised: with the FMU's default candidate (this
-    environment's Python, another libpython) instantiate refuses with one message naming both;
-    with GREYFMU_PYTHON naming a Python of that libpython, that libpython is initialised."""
+    """Debian's shared libpython loaded, not initialised: with GREYFMU_PYTHON naming a Python of
+    another build (another libpython; the one running the tests unless it is Debian's, as under
+    CI, which runs the suite with Debian's) instantiate refuses with one message naming both;
+    naming a Python of that libpython, that libpython is initialised.  (Until issue 39 the first
+    half used the FMU's default candidate, the Python that built it: Debian's own under CI.)"""
+    from pythons import Unavailable, another_python
+    from together import bare_venv
+
     if not DEBIAN_LIBPYTHON.is_file():
         pytest.skip(f"no {DEBIAN_LIBPYTHON} (Debian: apt-get install libpython3.11)")
-    refused = run_pid(host, built_fmus, tmp_path / "refused", ["embed", str(DEBIAN_LIBPYTHON), "load"])
+    try:
+        other = bare_venv(another_python())
+    except Unavailable as why:
+        pytest.skip(str(why))
+    refused = run_pid(host, built_fmus, tmp_path / "refused", ["embed", str(DEBIAN_LIBPYTHON), "load"],
+                      GREYFMU_PYTHON=str(other))
     assert refused.returncode == 1 and "python-after-instantiate" not in refused.stdout
     assert "this process already has a libpython, not initialised, that is not" in refused.stderr
     assert "set GREYFMU_PYTHON to the Python of the host's libpython" in refused.stderr
