@@ -24,19 +24,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fmi2host.h"
+
 #ifdef _WIN32
-#include <windows.h>
 #include <psapi.h>
-#define dlopen(path, mode) ((void *)LoadLibraryExA(path, NULL, LOAD_WITH_ALTERED_SEARCH_PATH))
-#define dlsym(library, name) ((void *)GetProcAddress((HMODULE)(library), name))
-#define dlclose(library) FreeLibrary((HMODULE)(library))
-#define BINARY "%s\\binaries\\win64\\%s.dll"
-#define RESOURCES "file:///%s/resources"
-static const char *dlerror(void) {
-    static char message[64];
-    snprintf(message, sizeof message, "Windows error %lu", GetLastError());
-    return message;
-}
 static int python_mapped(void) {
     HMODULE modules[1024];
     DWORD needed = 0;
@@ -49,9 +40,6 @@ static int python_mapped(void) {
     return 0;
 }
 #else
-#include <dlfcn.h>
-#define BINARY "%s/binaries/linux64/%s.so"
-#define RESOURCES "file://%s/resources"
 static int python_mapped(void) {
     FILE *maps = fopen("/proc/self/maps", "r");
     char line[4096];
@@ -79,16 +67,6 @@ static int libpython_files(void) {
     return count;
 }
 #endif
-
-typedef void *Component;
-typedef int Status; /* fmi2OK = 0, fmi2Warning = 1 */
-typedef struct {
-    void (*logger)(void *, const char *, int, const char *, const char *, ...);
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void (*stepFinished)(void *, int);
-    void *componentEnvironment;
-} Callbacks;
 
 typedef struct {
     void *library;

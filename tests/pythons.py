@@ -1,4 +1,5 @@
-"""The Pythons a user may run us from, for the tests (issue 25): this environment's and Debian's.
+"""The Pythons a user may run us from, for the tests (issue 25): this environment's and Debian's,
+and one with only what a user of our FMUs has (issue 39, `bare_venv`).
 
 Debian's and Ubuntu's ``/usr/bin/python3`` link libpython statically (its symbols are exported
 from the executable), unlike the ``python3`` the test machines put first on PATH (pyenv, with a
@@ -15,6 +16,7 @@ import os
 import shutil
 import subprocess
 import sys
+from importlib.metadata import version
 from pathlib import Path
 
 from cachelock import cache_lock
@@ -24,6 +26,9 @@ DEBIAN_PYTHON = Path("/usr/bin/python3")
 VENV = ROOT / "build" / "pythons" / "debian-python3"
 # pytest and gemseo-fmu (its OpenModelica FMUs, --no-deps as in the README) for the first-hour commands
 EXTRAS = (("pytest",), ("--no-deps", "gemseo-fmu==3.1.1"))
+BARE = ROOT / "build" / "pythons" / "bare-fmpy"
+BARE_PACKAGES = ("fmpy", "numpy", "scipy", "daqp")
+"""What a user of our FMUs has (daqp: OSMMGPC's stated requirement); `bare_venv`."""
 
 
 class Unavailable(RuntimeError):
@@ -42,25 +47,40 @@ def debian_venv() -> Path:
     by one process while the others wait)."""
     if not DEBIAN_PYTHON.is_file():
         raise Unavailable(f"{DEBIAN_PYTHON} does not exist (not a Debian or Ubuntu machine)")
-    with cache_lock(VENV):
-        return _made_venv()
+    # with pyarrow, as tests/run.sh installs it
+    return cached_venv(DEBIAN_PYTHON, VENV, _stamp(), [["-e", f"{ROOT}[parquet]"], *map(list, EXTRAS)])
 
 
-def _made_venv() -> Path:
-    python, stamp = VENV / "bin" / "python", VENV / "greyfmu-stamp.txt"
-    expected = _stamp()
-    if stamp.is_file() and stamp.read_text() == expected and python.is_file():
+def bare_venv(base: Path | None = None) -> Path:
+    """The python of a cached environment made from ``base`` (default: the Python running the
+    tests) with only `BARE_PACKAGES` at this environment's versions and nothing of greyfmu: a user
+    of our FMUs (issue 39, tests/slaves/test_together.py)."""
+    base = Path(base or sys.executable)
+    wanted = [f"{name}=={version(name)}" for name in BARE_PACKAGES]
+    described = subprocess.run([str(base), "-c", "import sys; print(sys.version, sys.base_prefix)"],
+                               capture_output=True, text=True, check=True).stdout
+    folder = BARE.with_name(f"{BARE.name}-{hashlib.sha256(described.encode()).hexdigest()[:8]}")
+    return cached_venv(base, folder, f"{described}{' '.join(wanted)}\n", [wanted])
+
+
+def cached_venv(base: Path, folder: Path, stamp_text: str, installs: list[list[str]]) -> Path:
+    """The python of the virtual environment ``folder`` made from ``base`` with each of ``installs``
+    pip-installed, by one process while the others wait; kept while its stamp is ``stamp_text``."""
+    python, stamp = folder / "bin" / "python", folder / "greyfmu-stamp.txt"
+    with cache_lock(folder):
+        if stamp.is_file() and stamp.read_text() == stamp_text and python.is_file():
+            return python
+        shutil.rmtree(folder, ignore_errors=True)
+        made = subprocess.run([str(base), "-m", "venv", str(folder)], capture_output=True, text=True)
+        if made.returncode != 0:
+            raise Unavailable(f"{base} -m venv failed (Debian: apt-get install python3-venv):\n{made.stderr}")
+        for install in installs:
+            installed = subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check",
+                                        *install], capture_output=True, text=True)
+            if installed.returncode != 0:
+                raise Unavailable(f"pip install {' '.join(install)} failed:\n{installed.stderr[-2000:]}")
+        stamp.write_text(stamp_text)
         return python
-    shutil.rmtree(VENV, ignore_errors=True)
-    made = subprocess.run([str(DEBIAN_PYTHON), "-m", "venv", str(VENV)], capture_output=True, text=True)
-    if made.returncode != 0:
-        raise Unavailable(f"{DEBIAN_PYTHON} -m venv failed (Debian: apt-get install python3-venv):\n{made.stderr}")
-    pip = [str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check"]
-    subprocess.run(pip + ["-e", f"{ROOT}[parquet]"], check=True)   # with pyarrow, as tests/run.sh installs it
-    for extra in EXTRAS:
-        subprocess.run(pip + list(extra), check=True)
-    stamp.write_text(expected)
-    return python
 
 
 def is_debians(python: Path) -> bool:

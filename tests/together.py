@@ -2,59 +2,22 @@
 (issue 39): a Python with only fmpy, numpy and scipy, other vendors' FMUs named like ours,
 another release of ours, and the C host tests/together_host.c.
 
-``bare_venv`` makes, once per base Python under build/ (a file lock, as tests/pythons.py does), a
-virtual environment with fmpy, numpy, scipy and daqp (OSMMGPC's stated requirement) at this
-environment's versions and nothing of greyfmu: where greyfmu is not importable, every import of
-the FMUs' code must be served by the FMUs themselves.
+The Python of those hosts is tests/pythons.py bare_venv: fmpy, numpy, scipy and daqp, nothing of
+greyfmu, so every import of the FMUs' code must be served by the FMUs themselves.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 import subprocess
-import sys
-from importlib.metadata import version
 from pathlib import Path
 
-from cachelock import cache_lock
 from dropinhost import environment, unzip
 
 ROOT = Path(__file__).resolve().parents[1]
-BARE = ROOT / "build" / "pythons" / "bare-fmpy"
-BARE_PACKAGES = ("fmpy", "numpy", "scipy", "daqp")
 VENDOR = Path(__file__).resolve().parent / "fmus" / "vendor"
 HOST_SOURCE = Path(__file__).resolve().parent / "together_host.c"
 TOGETHER_FMPY = Path(__file__).resolve().parent / "together_fmpy.py"
-
-
-class Unavailable(RuntimeError):
-    """The bare virtual environment cannot be made here."""
-
-
-def bare_venv(base: Path | None = None) -> Path:
-    """The python of the cached environment made from ``base`` (default: the Python running the
-    tests) with only `BARE_PACKAGES`, made if needed."""
-    base = Path(base or sys.executable)
-    wanted = [f"{name}=={version(name)}" for name in BARE_PACKAGES]
-    described = subprocess.run([str(base), "-c", "import sys; print(sys.version, sys.base_prefix)"],
-                               capture_output=True, text=True, check=True).stdout
-    stamp_text = f"{described}{' '.join(wanted)}\n"
-    folder = BARE.with_name(f"{BARE.name}-{hashlib.sha256(described.encode()).hexdigest()[:8]}")
-    python, stamp = folder / "bin" / "python", folder / "greyfmu-stamp.txt"
-    with cache_lock(folder):
-        if stamp.is_file() and stamp.read_text() == stamp_text and python.is_file():
-            return python
-        shutil.rmtree(folder, ignore_errors=True)
-        made = subprocess.run([str(base), "-m", "venv", str(folder)], capture_output=True, text=True)
-        if made.returncode != 0:
-            raise Unavailable(f"{base} -m venv failed (Debian: apt-get install python3-venv):\n{made.stderr}")
-        installed = subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check",
-                                    *wanted], capture_output=True, text=True)
-        if installed.returncode != 0:
-            raise Unavailable(f"pip install {' '.join(wanted)} failed:\n{installed.stderr[-2000:]}")
-        stamp.write_text(stamp_text)
-        return python
 
 
 def build_vendor_fmus(dest: Path) -> dict[str, Path]:

@@ -38,32 +38,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _WIN32 /* built with mingw-w64 (-static: winpthreads inside), run under Wine: modes threads, sequence, sigint-main */
-#include <windows.h>
-#define dlopen(path, mode) ((void *)LoadLibraryExA(path, NULL, LOAD_WITH_ALTERED_SEARCH_PATH))
-#define dlsym(library, name) ((void *)GetProcAddress((HMODULE)(library), name))
-#define dlclose(library) FreeLibrary((HMODULE)(library))
-#define BINARY "%s\\binaries\\win64\\%s.dll"
-#define RESOURCES "file:///%s/resources"
-static const char *dlerror(void) { return "LoadLibrary failed"; }
-#else
-#include <dlfcn.h>
+#include "fmi2host.h" /* Windows: built with mingw-w64 (-static: winpthreads inside), modes threads, sequence,
+                      * sigint-main */
+#ifndef _WIN32
 #include <ftw.h>
 #include <unistd.h>
-#define BINARY "%s/binaries/linux64/%s.so"
-#define RESOURCES "file://%s/resources"
 #endif
 
-typedef void *Component;
 typedef void *State;
-typedef int Status;
-typedef struct {
-    void (*logger)(void *, const char *, int, const char *, const char *, ...);
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void (*stepFinished)(void *, int);
-    void *componentEnvironment;
-} Callbacks;
 
 typedef struct {
     const char *dir, *identifier, *guid;

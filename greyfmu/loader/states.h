@@ -46,11 +46,17 @@ static int remember_state(void *state, GuardedInstance *owner) {
     return ok;
 }
 
+/* The index of `state`'s record (states_lock held); state_count if it has none. */
+static size_t state_index(void *state) {
+    size_t i = 0;
+    while (i < state_count && states[i].state != state) i++;
+    return i;
+}
+
 /* Forget `state`; whether it was one of this FMU's. */
 static int forget_state(void *state) {
     lock(&states_lock);
-    size_t i = 0;
-    while (i < state_count && states[i].state != state) i++;
+    size_t i = state_index(state);
     int found = i < state_count;
     if (found) states[i] = states[--state_count];
     unlock(&states_lock);
@@ -59,10 +65,9 @@ static int forget_state(void *state) {
 
 static int is_state(void *state) {
     lock(&states_lock);
-    size_t i = 0;
-    while (i < state_count && states[i].state != state) i++;
+    int found = state_index(state) < state_count;
     unlock(&states_lock);
-    return i < state_count;
+    return found;
 }
 
 /* Release Python objects (NULLs skipped) under the GIL. */

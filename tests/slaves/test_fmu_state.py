@@ -187,8 +187,7 @@ def test_a_state_is_the_same_bytes_on_every_python_and_restores_under_another(bu
     the same bytes under both, and each one's bytes restore under the other with the outputs the
     saving process went on to compute.  At 96f2739 Debian's bytes differed and no Python could
     restore them ("may not refer to builtins.getattr": 9 FMUs, README command 2 red there)."""
-    from pythons import Unavailable, another_python
-    from together import bare_venv
+    from pythons import Unavailable, another_python, bare_venv
 
     try:
         other = bare_venv(another_python())

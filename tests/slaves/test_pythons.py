@@ -158,8 +158,7 @@ def test_another_pythons_loaded_libpython_is_refused_or_initialised_with_its_pyt
     CI, which runs the suite with Debian's) instantiate refuses with one message naming both;
     naming a Python of that libpython, that libpython is initialised.  (Until issue 39 the first
     half used the FMU's default candidate, the Python that built it: Debian's own under CI.)"""
-    from pythons import Unavailable, another_python
-    from together import bare_venv
+    from pythons import Unavailable, another_python, bare_venv
 
     if not DEBIAN_LIBPYTHON.is_file():
         pytest.skip(f"no {DEBIAN_LIBPYTHON} (Debian: apt-get install libpython3.11)")

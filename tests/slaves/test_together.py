@@ -13,14 +13,14 @@ instances on four threads crashed a C host, and so on (the figures in each test'
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 from pathlib import Path
 
 import pytest
 
-from together import (Unavailable, bare_venv, build_other_release, build_vendor_fmus, compile_host, host_spec,
-                      other_greyfmu, results, run_fmpy, run_host)
+from pythons import Unavailable, bare_venv
+from together import (build_other_release, build_vendor_fmus, compile_host, host_spec, other_greyfmu, results,
+                      run_fmpy, run_host)
 
 SOAK = os.environ.get("GREYFMU_SOAK") == "1"
 FOUR = ["Step", "PID", "FOPDT", "GrayPredictivePI"]
