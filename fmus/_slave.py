@@ -175,6 +175,9 @@ class GreyfmuSlave(Fmi2Slave):
     """The modules the FMU imports from the target's Python: the loader checks them at
     instantiation, ``greyfmu build`` checks that the description names them."""
 
+    fmi_calls: ClassVar[dict[str, str]] = {}
+    """The FMI function named in an exception's line for each FMI 2.0 one (`_raised`): the FMI 3.0
+    class (fmus/fmi3/_slave3.py) names its own."""
     log_categories = {**Fmi2Slave.log_categories,
                       PYTHON_EXCEPTION: "A Python exception in a call of the FMU's code (the call returns fmi2Error)."}
 
@@ -450,6 +453,7 @@ class GreyfmuSlave(Fmi2Slave):
             error._greyfmu_given_back = True
         except AttributeError:  # an exception class with __slots__: said (and given back) again by an override
             pass
+        call = self.fmi_calls.get(call, call)
         self.log(f"{self.instance_name}: {call}: {type(error).__name__}: {error}", Fmi2Status.error, PYTHON_EXCEPTION)
         give_back(self, type(self), self.log_queue)
 

@@ -1,9 +1,9 @@
 """Build the FMUs of ``fmus/`` with pythonfmu and repair what pythonfmu 0.7.0 writes wrong.
 
 Each ``fmus/<Name>.py`` becomes ``<out_dir>/<Name>.fmu`` (FMI 2.0 Co-Simulation) with the
-``greyfmu`` package and ``fmus/_slave.py`` embedded as resources; each ``fmus/fmi3/<Name>.py``
-becomes an FMI 3.0 Co-Simulation FMU built with pythonfmu3, with ``fmus/fmi3/_slave3.py``.  The archive's
-modelDescription.xml is then post-processed:
+``greyfmu`` package and ``fmus/_slave.py`` embedded as resources, and on demand its FMI 3.0
+sibling ``<out_dir>/<Name>3.fmu`` from the same slave (`greyfmu.fmi3`, with
+``fmus/fmi3/_slave3.py``).  The archive's modelDescription.xml is then post-processed:
 
 - every output must have ``initial="exact"`` and a start value (the build fails otherwise);
 - ``ModelStructure/Outputs/Unknown`` gets ``dependencies`` from the slave class's
@@ -20,23 +20,19 @@ slaves can promise in general.
 
 from __future__ import annotations
 
-import ast
-import inspect
 import os
 import shutil
-import textwrap
 import sys
 import tempfile
 import zipfile
 from collections.abc import Callable, Iterable
-from enum import IntEnum
 from pathlib import Path
 from xml.etree import ElementTree
 
 from pythonfmu.builder import FmuBuilder, get_model_class
 
 from greyfmu.dropin import BuildError, drop_in
-from greyfmu.privatise import PYTHONFMU3, PrivatiseError, privatise
+from greyfmu.fmi3 import SUFFIX, _enumeration_items, drop_in3, fmi3_name, model_description3  # noqa: F401 (tests)
 from greyfmu.loader import PLATFORMS, compiler
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -48,10 +44,10 @@ SLAVE_BASE3 = FMI3_SOURCES / "_slave3.py"
 IN_PROCESS = FMU_SOURCES / "_inprocess.py"
 SLAVE_FILES = (SLAVE_BASE, IN_PROCESS, FMU_SOURCES / "_state.py")
 """The modules every FMI 2.0 FMU embeds next to its slave module (and the greyfmu package)."""
-SLAVE_FILES3 = (SLAVE_BASE3, IN_PROCESS)
+SLAVE_FILES3 = (*SLAVE_FILES, SLAVE_BASE3)
 """The modules every FMI 3.0 FMU embeds next to its slave module (and the greyfmu package)."""
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
-BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "privatise.py", "loader", "licenses",
+BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "fmi3.py", "privatise.py", "loader", "licenses",
               "__pycache__", "*.pyc")
 """Files and folders of the greyfmu package that build FMUs and are not embedded in them."""
 ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
@@ -88,10 +84,20 @@ def fmu_names() -> list[str]:
 
 
 def fmi3_fmu_names() -> list[str]:
-    """Names of the FMI 3.0 FMUs that can be built: ``fmus/fmi3/*.py`` not starting with ``_``.
-    They are built when named (``greyfmu build PID3``, or an SSD naming ``resources/PID3.fmu``),
-    not by a plain ``greyfmu build``, which builds the FMI 2.0 set."""
-    return sorted(path.stem for path in FMI3_SOURCES.glob("*.py") if not path.name.startswith("_"))
+    """Names of the FMI 3.0 FMUs that can be built: ``<Name>3`` for each of `fmu_names`, built
+    from the same ``fmus/<Name>.py`` (greyfmu.fmi3).  They are built when named (``greyfmu build
+    PID3``, ``greyfmu build --fmi 3``, or an SSD naming ``resources/PID3.fmu``), not by a plain
+    ``greyfmu build``, which builds the FMI 2.0 set."""
+    names = fmu_names()
+    clashes = [name for name in names if fmi3_name(name) in names]
+    if clashes:
+        raise BuildError(f"fmus/{fmi3_name(clashes[0])}.py is named like the FMI 3.0 build of fmus/{clashes[0]}.py")
+    return [fmi3_name(name) for name in names]
+
+
+def fmi2_name(name: str) -> str | None:
+    """The FMI 2.0 sibling's name of the FMI 3.0 FMU ``name`` (PID3 -> PID); None if it is not one."""
+    return name[:-len(SUFFIX)] if name.endswith(SUFFIX) and name in fmi3_fmu_names() else None
 
 
 def build_fmus(
@@ -117,17 +123,15 @@ def build_fmus(
     newest_common_source = _newest_mtime(PACKAGE_DIR)
     paths = []
     for name in requested:
-        script = FMU_SOURCES / f"{name}.py"
-        if not script.is_file():
-            script = FMI3_SOURCES / f"{name}.py"
-        slave_files = SLAVE_FILES3 if script.parent == FMI3_SOURCES else SLAVE_FILES
+        sibling = fmi2_name(name) if name not in fmu_names() else None
+        script = FMU_SOURCES / f"{sibling or name}.py"
+        slave_files = SLAVE_FILES3 if sibling else SLAVE_FILES
         fmu = out_dir / f"{name}.fmu"
         newest_source = max(newest_common_source, script.stat().st_mtime, *(f.stat().st_mtime for f in slave_files))
-        if not force and fmu.is_file() and fmu.stat().st_mtime > newest_source \
-                and not (slave_files == SLAVE_FILES and _misses_a_loader(fmu)):
+        if not force and fmu.is_file() and fmu.stat().st_mtime > newest_source and not _misses_a_loader(fmu):
             status = "up to date"
         else:
-            _build_one(script, fmu)
+            _build_one(script, fmu, fmi3=sibling is not None)
             status = "built"
         if echo is not None:
             echo(f"{name}: {status} ({fmu})")
@@ -148,15 +152,18 @@ def _newest_mtime(folder: Path) -> float:
 
 
 def _misses_a_loader(fmu: Path) -> bool:
-    """True when ``fmu`` ships pythonfmu's own library for a platform whose loader compiler is on
-    PATH now: an FMI 2.0 drop-in FMU built with the loader keeps pythonfmu's library beside it as
-    ``pythonfmu-export.*``, so a platform folder without that file was built without the loader."""
+    """True when ``fmu`` ships pythonfmu's (pythonfmu3's) own library for a platform whose loader
+    compiler is on PATH now: a drop-in FMU built with the loader keeps that library beside it as
+    ``pythonfmu-export.*`` (``pythonfmu3-export.*``), so a platform folder without that file was
+    built without the loader."""
     with zipfile.ZipFile(fmu) as archive:
         names = set(archive.namelist())
     return any(compiler(platform) is not None
-               and any(name.startswith(f"binaries/{platform.folder}/") and name.endswith(platform.suffix) for name in names)
-               and f"binaries/{platform.folder}/{platform.pythonfmu_library}" not in names
-               for platform in PLATFORMS)
+               and any(name.startswith(f"binaries/{folder}/") and name.endswith(platform.suffix) for name in names)
+               and f"binaries/{folder}/{library}" not in names
+               for platform in PLATFORMS
+               for folder, library in ((platform.folder, platform.pythonfmu_library),
+                                       (platform.folder3, platform.pythonfmu3_library)))
 
 
 def provide_fmu(file_name: str) -> Path | None:
@@ -177,10 +184,8 @@ def provide_fmu(file_name: str) -> Path | None:
     return build_fmus([name.stem], echo=report)[0]
 
 
-def _build_one(script: Path, fmu: Path) -> None:
-    if script.parent == FMI3_SOURCES:
-        _build_one_fmi3(script, fmu)
-        return
+def _build_one(script: Path, fmu: Path, fmi3: bool = False) -> None:
+    """Build ``fmu`` from ``script``: FMI 2.0, or with ``fmi3`` its FMI 3.0 sibling (greyfmu.fmi3)."""
     _forget_embedded_copies(script)
     with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
         staged_package = Path(temp) / "package" / PACKAGE_DIR.name
@@ -188,14 +193,14 @@ def _build_one(script: Path, fmu: Path) -> None:
         built = FmuBuilder.build_FMU(
             script,
             dest=Path(temp) / "fmu",
-            project_files=[staged_package, *SLAVE_FILES],
+            project_files=[staged_package, *(SLAVE_FILES3 if fmi3 else SLAVE_FILES)],
             needsExecutionTool="false",
             canGetAndSetFMUstate="true",  # fmus/_slave.py: the whole instance, deep-copied
             canSerializeFMUstate="true",  # pickled, read back by _slave.StateUnpickler
         )
         script_class = slave_class(script)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
-        _rewrite_model_description(Path(built), partial, script_class.output_dependencies, script_class.requirements)
+        _rewrite_model_description(Path(built), partial, script_class, fmi3)
         os.replace(partial, fmu)
 
 
@@ -221,15 +226,18 @@ def _forget_embedded_copies(script: Path) -> None:
             del sys.modules[name]
 
 
-def _rewrite_model_description(source: Path, target: Path, output_dependencies: dict[str, list[str]],
-                               requirements: tuple[str, ...]) -> None:
+def _rewrite_model_description(source: Path, target: Path, script_class: type, fmi3: bool) -> None:
     with zipfile.ZipFile(source) as archive:
         entries = {info.filename: archive.read(info) for info in archive.infolist()}
     root = ElementTree.fromstring(entries["modelDescription.xml"])
     model = root.get("modelName")
-    _declare_output_dependencies(root, model, output_dependencies)
+    _declare_output_dependencies(root, model, script_class.output_dependencies)
     _declare_units(root, model)
-    _write_archive(target, drop_in(entries, root, requirements))
+    if fmi3:
+        choices = script_class(instance_name="greyfmu-build").choices
+        _write_archive(target, drop_in3(entries, model_description3(root, choices), model, script_class.requirements))
+    else:
+        _write_archive(target, drop_in(entries, root, script_class.requirements))
 
 
 def _write_archive(target: Path, entries: dict[str, bytes]) -> None:
@@ -265,92 +273,8 @@ def _declare_output_dependencies(root: ElementTree.Element, model: str, output_d
         unknown.set("dependencies", " ".join(str(index_of[dependency]) for dependency in output_dependencies[name]))
 
 
-def _build_one_fmi3(script: Path, fmu: Path) -> None:
-    """Build an FMI 3.0 FMU with pythonfmu3 0.3.4 and repair its model description:
-
-    - ``canHandleVariableCommunicationStepSize`` is written "false" whatever the slave can do
-      (pythonfmu3 copies the last common option's value into every Co-Simulation option); our
-      slaves handle any step, so it is set through the builder option;
-    - ``ModelStructure/Output`` gets ``dependencies`` (value references, FMI 3.0 §2.4.8) from
-      the slave class's ``output_dependencies``: absent, it means "depends on every input";
-    - ``UnitDefinitions`` declares the units the Float64 variables use (FMI 3.0 requires it);
-    - each ``EnumerationType`` pythonfmu3 writes for a mode parameter gets its description and
-      its items' from the IntEnum (the members' docstrings).
-
-    Outputs keep pythonfmu3's ``initial="calculated"`` (the FMI 3.0 default for outputs), so they
-    carry no start value and are listed as InitialUnknowns, as FMI 3.0 §2.4.8 requires.
-    """
-    from pythonfmu3.builder import FmuBuilder as Fmu3Builder
-
-    with tempfile.TemporaryDirectory(prefix="greyfmu-build-") as temp:
-        staged_package = Path(temp) / "package" / PACKAGE_DIR.name
-        shutil.copytree(PACKAGE_DIR, staged_package, ignore=shutil.ignore_patterns(*BUILD_ONLY))
-        sys.path.insert(0, str(FMU_SOURCES))  # the script's _slave3 imports _inprocess
-        try:
-            built = Fmu3Builder.build_FMU(script, dest=Path(temp) / "fmu", project_files=[staged_package, *SLAVE_FILES3],
-                                          needsExecutionTool="false", canHandleVariableCommunicationStepSize="true")
-            slave_class = _slave_class3(script)
-        finally:
-            sys.path.remove(str(FMU_SOURCES))
-        with zipfile.ZipFile(built) as archive:
-            entries = {info.filename: archive.read(info) for info in archive.infolist()}
-        if not any(name.startswith("binaries/") for name in entries):
-            # pythonfmu3 copies its library from beside its own module: imported from another
-            # vendor's pythonfmu3 FMU's resources/pythonfmu3/ (run earlier in this process) it has none
-            raise BuildError(f"{script.stem}: pythonfmu3's builder ({Fmu3Builder.__module__} from "
-                             f"{sys.modules[Fmu3Builder.__module__].__file__}) put no binaries in the FMU; an FMI 3.0 "
-                             "FMU run in this process shadows the installed pythonfmu3: build in a fresh process")
-        root = ElementTree.fromstring(entries["modelDescription.xml"])
-        model = root.get("modelName")
-        try:
-            entries = privatise(entries, model, PYTHONFMU3, slave_class.requirements)
-        except PrivatiseError as error:
-            raise BuildError(str(error)) from error
-        _declare_output_dependencies3(root, model, slave_class.output_dependencies)
-        _declare_units(root, model, tag="Float64")
-        _describe_enumerations3(root, model, slave_class(instance_name="greyfmu-build", resources=str(FMI3_SOURCES)).choices)
-        ElementTree.indent(root)
-        entries["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
-        partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")
-        with zipfile.ZipFile(partial, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-            for name, data in entries.items():
-                archive.writestr(name, data)
-        os.replace(partial, fmu)
-
-
-def _slave_class3(script: Path) -> type:
-    """The slave class of an FMI 3.0 script (named as the file), imported with fmus/fmi3 on sys.path."""
-    import importlib.util
-
-    sys.path.insert(0, str(script.parent))
-    try:
-        spec = importlib.util.spec_from_file_location(f"_greyfmu_fmi3_{script.stem}", script)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(script.parent))
-    return getattr(module, script.stem)
-
-
-def _declare_output_dependencies3(root: ElementTree.Element, model: str,
-                                  output_dependencies: dict[str, list[str]]) -> None:
-    variables = [node for node in root.find("ModelVariables") if node.get("name")]
-    vr_of = {node.get("name"): node.get("valueReference") for node in variables}
-    inputs = {node.get("name") for node in variables if node.get("causality") == "input"}
-    outputs = {node.get("valueReference"): node.get("name") for node in variables if node.get("causality") == "output"}
-    if set(output_dependencies) != set(outputs.values()):
-        raise BuildError(f"{model}: output_dependencies names {sorted(output_dependencies)}, "
-                         f"but the outputs are {sorted(outputs.values())}")
-    for unknown in root.findall("ModelStructure/Output"):
-        dependencies = output_dependencies[outputs[unknown.get("valueReference")]]
-        not_inputs = [dependency for dependency in dependencies if dependency not in inputs]
-        if not_inputs:
-            raise BuildError(f"{model}: an output depends on {not_inputs}, which are not inputs ({sorted(inputs)})")
-        unknown.set("dependencies", " ".join(vr_of[dependency] for dependency in dependencies))
-
-
-def _declare_units(root: ElementTree.Element, model: str, tag: str = "Real") -> None:
-    used = sorted({unit for unit in (node.get("unit") for node in root.iter(tag)) if unit is not None})
+def _declare_units(root: ElementTree.Element, model: str) -> None:
+    used = sorted({unit for unit in (node.get("unit") for node in root.iter("Real")) if unit is not None})
     if not used:
         return
     unknown = [unit for unit in used if unit not in BASE_UNITS]
@@ -361,42 +285,3 @@ def _declare_units(root: ElementTree.Element, model: str, tag: str = "Real") -> 
         ElementTree.SubElement(ElementTree.SubElement(definitions, "Unit", name=unit), "BaseUnit", BASE_UNITS[unit])
     position = list(root).index(root.find("CoSimulation")) + 1
     root.insert(position, definitions)
-
-
-def _describe_enumerations3(root: ElementTree.Element, model: str, choices: dict[str, type[IntEnum]]) -> None:
-    """Describe each ``TypeDefinitions/EnumerationType`` (FMI 3.0 §2.4.4) and its items from
-    the IntEnum of the same name (``choices``: parameter name -> IntEnum)."""
-    types = {enumeration.__name__: enumeration for enumeration in choices.values()}
-    for node in root.iter("EnumerationType"):
-        description, members = _enumeration_items(model, types[node.get("name")])
-        node.set("description", description)
-        descriptions = {member.name: item_description for member, item_description in members.items()}
-        for item in node.iter("Item"):
-            item.set("description", descriptions[item.get("name")])
-
-
-def _enumeration_items(model: str, enumeration: type[IntEnum]) -> tuple[str, dict[IntEnum, str]]:
-    """An IntEnum's description (its docstring's first line) and each member's (the docstring
-    under it, `_member_descriptions`); BuildError naming what is undocumented."""
-    where = f"IntEnum {enumeration.__name__} ({enumeration.__module__})"
-    if not enumeration.__doc__:
-        raise BuildError(f"{model}: {where} has no docstring to describe the Enumeration type")
-    descriptions = _member_descriptions(enumeration)
-    undocumented = [member.name for member in enumeration if member.name not in descriptions]
-    if undocumented:
-        raise BuildError(f"{model}: members {undocumented} of {where} have no docstring under them to describe "
-                         "the Enumeration items")
-    return enumeration.__doc__.strip().splitlines()[0], {member: descriptions[member.name] for member in enumeration}
-
-
-def _member_descriptions(enumeration: type[IntEnum]) -> dict[str, str]:
-    """Member name -> the string literal right under its assignment in the class body (an
-    attribute docstring), whitespace collapsed."""
-    body = ast.parse(textwrap.dedent(inspect.getsource(enumeration))).body[0].body
-    descriptions = {}
-    for statement, following in zip(body, body[1:]):
-        if (isinstance(statement, ast.Assign) and len(statement.targets) == 1
-                and isinstance(statement.targets[0], ast.Name) and isinstance(following, ast.Expr)
-                and isinstance(following.value, ast.Constant) and isinstance(following.value.value, str)):
-            descriptions[statement.targets[0].id] = " ".join(following.value.value.split())
-    return descriptions

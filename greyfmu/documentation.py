@@ -12,7 +12,6 @@ from __future__ import annotations
 from html import escape
 from xml.etree import ElementTree
 
-TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
 PYTHON_ORDER = (
     "the interpreter named by the environment variable <code>GREYFMU_PYTHON</code> (if set, no other is tried);",
     "the interpreter that built the FMU (<code>resources/greyfmu_build_python.txt</code>), if it exists on this machine;",
@@ -27,15 +26,22 @@ def index_html(root: ElementTree.Element, requirements: tuple[str, ...], loaders
     experiment = root.find("DefaultExperiment")
     experiment_text = ", ".join(f"{key} = {escape(value)} s" if key != "tolerance" else f"{key} = {escape(value)}"
                                 for key, value in (experiment.attrib.items() if experiment is not None else []))
-    rows = "\n".join(_variable_row(variable) for variable in root.iter("ScalarVariable"))
+    fmi3 = root.get("fmiVersion") == "3.0"
+    variables = list(root.find("ModelVariables")) if fmi3 else root.findall("ModelVariables/ScalarVariable")
+    rows = "\n".join(_variable_row(variable, variable if fmi3 else variable[0]) for variable in variables)
     units = "\n".join(
         f"<tr><td>{escape(unit.get('name'))}</td><td>{escape(_base_unit(unit))}</td></tr>"
         for unit in root.iter("Unit")
     )
     modules = ", ".join(f"<code>{escape(name)}</code>" for name in requirements)
     order = "".join(f"<li>{step}</li>" for step in PYTHON_ORDER)
-    windows = WINDOWS_LOADER if "win64" in loaders else WINDOWS_PYTHONFMU
-    linux = LINUX_LOADER if "linux64" in loaders else LINUX_PYTHONFMU
+    linux_folder, windows_folder = ("x86_64-linux", "x86_64-windows") if fmi3 else ("linux64", "win64")
+    windows = WINDOWS_LOADER if windows_folder in loaders else WINDOWS_PYTHONFMU
+    linux = LINUX_LOADER if linux_folder in loaders else LINUX_PYTHONFMU
+    pythonfmu = "pythonfmu3" if fmi3 else "pythonfmu"
+    instantiate = "fmi3InstantiateCoSimulation" if fmi3 else "fmi2Instantiate"
+    token = f"instantiation token <code>{escape(root.get('instantiationToken', ''))}</code>" if fmi3 else \
+        f"GUID <code>{escape(root.get('guid', ''))}</code>"
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head><meta charset="utf-8"><title>{model} — greyfmu FMU</title>
@@ -43,7 +49,7 @@ def index_html(root: ElementTree.Element, requirements: tuple[str, ...], loaders
 td,th{{border:1px solid #999;padding:0.2em 0.5em;text-align:left;vertical-align:top}}</style></head>
 <body>
 <h1>{model}</h1>
-<p>FMI 2.0 Co-Simulation FMU, greyfmu {escape(root.get("version", ""))}, GUID <code>{escape(root.get("guid"))}</code>.</p>
+<p>FMI {escape(root.get("fmiVersion", ""))} Co-Simulation FMU, greyfmu {escape(root.get("version", ""))}, {token}.</p>
 <h2>What it is</h2>
 <p>{escape(root.get("description", ""))}</p>
 <h2>Default experiment</h2>
@@ -64,8 +70,8 @@ units neither refuses nor rescales a connection from, say, a kgf/cm2 or % signal
 <h2>What the target needs</h2>
 <p>A 64-bit Linux or Windows host and a CPython 3.10 or newer with {modules} installed; the FMU embeds
 its own Python code (greyfmu, the slave, pythonfmu's run-time modules).</p>
-{linux.format(order=order, modules=modules)}
-{windows.format(modules=modules)}
+{linux.format(order=order, modules=modules, folder=linux_folder, instantiate=instantiate, pythonfmu=pythonfmu)}
+{windows.format(modules=modules, folder=windows_folder, pythonfmu=pythonfmu)}
 <h2>Licences</h2>
 <p>{escape(root.get("license", ""))}. {escape(root.get("copyright", ""))}. The notices are in
 <code>documentation/licenses/</code>.</p>
@@ -74,30 +80,31 @@ its own Python code (greyfmu, the slave, pythonfmu's run-time modules).</p>
 """
 
 
-LINUX_LOADER = """<p>On Linux (<code>binaries/linux64</code>) the binary is greyfmu's loader. In a host that already
+LINUX_LOADER = """<p>On Linux (<code>binaries/{folder}</code>) the binary is greyfmu's loader. In a host that already
 runs Python (fmpy, cosim) it uses that Python. Otherwise it takes the first usable one of</p>
 <ol>{order}</ol>
 <p>A usable Python is 3.10 or newer, has a shared libpython (<code>libpython3.X.so</code>) and imports
 {modules}; the loader starts it inside the host with that interpreter's <code>sys.path</code>
-(virtual environments included). If none is usable, <code>fmi2Instantiate</code> logs one message
+(virtual environments included). If none is usable, <code>{instantiate}</code> logs one message
 naming what is missing and how to fix it and returns NULL.</p>"""
-LINUX_PYTHONFMU = """<p>On Linux the binary is pythonfmu's library (this FMU was built without a C compiler): it runs
+LINUX_PYTHONFMU = """<p>On Linux the binary is {pythonfmu}'s library (this FMU was built without a C compiler): it runs
 only in a host that already runs a Python 3.10+ with {modules} (fmpy, cosim).</p>"""
-WINDOWS_LOADER = """<p>On Windows (<code>binaries/win64</code>) the binary is the same loader: it takes
+WINDOWS_LOADER = """<p>On Windows (<code>binaries/{folder}</code>) the binary is the same loader: it takes
 <code>GREYFMU_PYTHON</code> (the full path of <code>python.exe</code>), else <code>python.exe</code> on
 <code>PATH</code>, of a 64-bit CPython 3.10+ with {modules} installed, and says what is missing if
 that fails.</p>"""
-WINDOWS_PYTHONFMU = """<p>On Windows the binary is pythonfmu's library (this FMU was built without mingw-w64): it needs
+WINDOWS_PYTHONFMU = """<p>On Windows the binary is {pythonfmu}'s library (this FMU was built without mingw-w64): it needs
 <code>python3.dll</code> of a 64-bit CPython 3.10+ (python.org installer) on <code>PATH</code>, with
 {modules} installed into that Python.</p>"""
 
 
-def _variable_row(variable: ElementTree.Element) -> str:
-    kind = next(child for child in variable if child.tag in TYPES)
+def _variable_row(variable: ElementTree.Element, kind: ElementTree.Element) -> str:
+    """One variable's row; ``kind``: the element holding its type, start, unit, min and max (FMI 2.0:
+    the ScalarVariable's child; FMI 3.0: the variable itself)."""
     cells = [
         variable.get("name"), variable.get("causality", "local"), variable.get("variability", "continuous"),
         kind.tag + (f" ({kind.get('declaredType')})" if kind.get("declaredType") else ""),
-        kind.get("unit", "as wired" if kind.tag == "Real" else ""), kind.get("start", ""), kind.get("min", ""), kind.get("max", ""),
+        kind.get("unit", "as wired" if kind.tag in ("Real", "Float64") and variable.get("causality") != "independent" else ""), kind.get("start", ""), kind.get("min", ""), kind.get("max", ""),
         variable.get("description", ""),
     ]
     return "<tr>" + "".join(f"<td>{escape(cell)}</td>" for cell in cells) + "</tr>"

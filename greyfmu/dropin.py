@@ -53,6 +53,10 @@ MAX_STEP_FACTOR = 1e4
 slave computes every internal sample of a step, so h = 1e300 would never return."""
 TYPE_LETTERS = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
 """The fmi2Get/Set function family of each variable type (an Enumeration is an Integer)."""
+TYPE_LETTERS3 = {"Float64": "R", "Int32": "I", "Int64": "L", "Enumeration": "L", "Boolean": "B", "String": "S"}
+"""The fmi3Get/Set function family of each FMI 3.0 variable type (an Enumeration is an Int64)."""
+TOKEN = {"2.0": "guid", "3.0": "instantiationToken"}
+"""The attribute holding `stable_guid` in each FMI version's model description."""
 
 
 class BuildError(RuntimeError):
@@ -78,6 +82,16 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
             loaders.append(platform.folder)
             if platform.folder == "linux64":
                 result[f"binaries/linux64/{PROCESS_LIBRARY}"] = process_binary()
+    return finish(result, root, requirements, tuple(loaders))
+
+
+def finish(result: dict[str, bytes], root: ElementTree.Element, requirements: tuple[str, ...],
+           loaders: tuple[str, ...]) -> dict[str, bytes]:
+    """What every drop-in FMU gets once its code is private and its binaries in place (FMI 2.0 and
+    3.0, ``root``'s fmiVersion): the loader's resources, the licences, version/licence/copyright,
+    the stable GUID (FMI 3.0: instantiation token), the guard's file and documentation/index.html."""
+    token = TOKEN[root.get("fmiVersion")]
+    model = root.get("modelName")
     result["resources/greyfmu_target.py"] = TARGET_CHECK.read_bytes()
     result["resources/greyfmu_requirements.txt"] = "".join(f"{name}\n" for name in requirements).encode()
     result[BUILD_PYTHON] = f"{sys.executable}\n".encode()
@@ -89,18 +103,19 @@ def drop_in(entries: dict[str, bytes], root: ElementTree.Element, requirements: 
     root.set("copyright", COPYRIGHT)
     root.attrib.pop("generationDateAndTime", None)
     ElementTree.indent(root)  # before the hash: it covers the text as written
-    root.set("guid", stable_guid(root, result))
+    root.set(token, stable_guid(root, result, token))
     result[GUARD] = guard_text(root).encode()
     result["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
-    result["documentation/index.html"] = index_html(root, requirements, tuple(loaders)).encode()
+    result["documentation/index.html"] = index_html(root, requirements, loaders).encode()
     return result
 
 
-def stable_guid(root: ElementTree.Element, entries: dict[str, bytes]) -> str:
-    """A GUID from the SHA-256 of the model description (its guid attribute left out) and of
+def stable_guid(root: ElementTree.Element, entries: dict[str, bytes], token: str = "guid") -> str:
+    """A GUID from the SHA-256 of the model description (its ``token`` attribute left out: FMI 2.0's
+    guid, FMI 3.0's instantiationToken) and of
     every resource but the machine-specific `BUILD_PYTHON`, in name order."""
     digest = hashlib.sha256()
-    described = {key: value for key, value in root.attrib.items() if key != "guid"}
+    described = {key: value for key, value in root.attrib.items() if key != token}
     digest.update(repr(sorted(described.items())).encode())
     for child in root:
         digest.update(ElementTree.tostring(child, encoding="UTF-8"))
@@ -113,16 +128,21 @@ def stable_guid(root: ElementTree.Element, entries: dict[str, bytes]) -> str:
 def guard_text(root: ElementTree.Element) -> str:
     """`GUARD`'s text: ``guid G``, ``max_step H`` (`MAX_STEP_FACTOR` DefaultExperiment steps; 0:
     no bound but finiteness), then one ``variable VR TYPE CAUSALITY VARIABILITY INITIAL NAME``
-    line per ScalarVariable (TYPE one of `TYPE_LETTERS`' letters, INITIAL as FMI 2.0 Table 2
-    resolves its default, ``none`` for inputs and the independent variable)."""
+    line per variable (TYPE one of `TYPE_LETTERS`' letters, FMI 3.0: `TYPE_LETTERS3`'; INITIAL as
+    FMI 2.0 Table 2 and FMI 3.0 Table 19 resolve its default, ``none`` for inputs and the
+    independent variable); FMI 3.0's instantiation token is the ``guid`` line."""
     experiment = root.find("DefaultExperiment")
     step = float(experiment.get("stepSize", "0")) if experiment is not None else 0.0
-    lines = [f"guid {root.get('guid')}", f"max_step {MAX_STEP_FACTOR * step!r}"]
-    for variable in root.findall("ModelVariables/ScalarVariable"):
+    lines = [f"guid {root.get(TOKEN[root.get('fmiVersion')])}", f"max_step {MAX_STEP_FACTOR * step!r}"]
+    if root.get("fmiVersion") == "3.0":
+        typed = [(variable, TYPE_LETTERS3[variable.tag]) for variable in root.find("ModelVariables")]
+    else:
+        typed = [(variable, TYPE_LETTERS[variable[0].tag]) for variable in root.findall("ModelVariables/ScalarVariable")]
+    for variable, letter in typed:
         causality = variable.get("causality", "local")
         variability = variable.get("variability", "continuous")
         initial = variable.get("initial") or _default_initial(causality, variability)
-        lines.append(f"variable {variable.get('valueReference')} {TYPE_LETTERS[variable[0].tag]} {causality} "
+        lines.append(f"variable {variable.get('valueReference')} {letter} {causality} "
                      f"{variability} {initial} {variable.get('name')}")
     return "".join(f"{line}\n" for line in lines)
 

@@ -1,268 +1,163 @@
-"""FMI 3.0 plumbing for the greyfmu slaves built with pythonfmu3; embedded in every FMI 3.0
-FMU next to the slave module.  The FMI 3.0 counterpart of ``fmus/_slave.py``, with the same
-contract for a slave: declare variables with ``parameter``/``input``/``output``, implement
-``build()`` (create the greyfmu objects from the parameters) and ``advance(t, h)`` (one
-communication step).  This base class
+"""The FMI 3.0 face of the greyfmu slaves: every FMU of ``fmus/`` is also an FMI 3.0
+Co-Simulation FMU (``<Name>3.fmu``, greyfmu.build), computed by the same slave class with the
+same declarations; embedded in the FMI 3.0 FMUs next to ``_slave.py``.
 
-- re-creates the greyfmu objects when they are next used after a parameter was set, so
-  outputs read during initialisation already use the parameters the master set;
-- takes the start time from the first ``do_step``: pythonfmu3 0.3.4 drops the startTime
-  of fmi3EnterInitializationMode (FMI 3.0 §2.3.2) and never calls ``setup_experiment``;
-- refuses non-finite inputs and outputs in ``do_step``: it logs a message naming the
-  variable and returns an error status instead of passing NaN on;
-- declares the independent variable ``time`` that FMI 3.0 requires (§2.4.7.4);
-- keeps a host alive after a call raised: pythonfmu3 0.3.4 answers an exception with fmi3Fatal
-  after releasing the instance, its class and its log queue (PySlaveInstance.cpp,
-  handle_py_exception calls cleanPyObject) and releases them again when the instance is freed
-  (~PySlaveInstance), which frees objects still in use and crashes the host at a later garbage
-  collection.  Each call pythonfmu3 makes on an instance gives one reference of each back when
-  it raises (fmus/_inprocess.py, give_back), and the class-level FMU-state conversions never
-  raise: the FMUs declare no FMU state (canGetAndSetFMUState="false"), so getting or setting one
-  is refused;
-- takes its resources folder off ``sys.path`` again and points its private package at it
-  (fmus/_inprocess.py, settle_imports: the FMU's code, pythonfmu3's run-time included, is
-  imported under a name private to the FMU, greyfmu.privatise);
-- keeps a host alive at exit: pythonfmu3 0.3.4's library (binaries/x86_64-linux/<model>.so) holds
-  its interpreter state in a static std::shared_ptr whose destructor (registered with
-  __cxa_atexit when the library is loaded) frees it at exit, after which the library's
-  destructor function onLibraryUnload (.fini_array, run later by _dl_fini) calls
-  finalizePythonInterpreter on the freed block and decrements a word in it: valgrind shows the
-  invalid read and write in finalizePythonInterpreter in every process that loaded the FMU, and
-  glibc aborts ("corrupted double-linked list") when the block was reused.  The same bug as
-  pythonfmu 0.7.0's, which greyfmu/loader/fmi2_loader.c answers the same way: the library's
-  exported finalizePythonInterpreter, which empties the pointer, is registered as an exit
-  handler after the library was loaded (`_finalize_before_exit`), so it runs before the static
-  destructor and both later releases find the pointer empty.
+pythonfmu3 0.3.4's library (the binary behind greyfmu's FMI 3.0 loader, fmi3_loader.c) imports
+the module named in ``resources/slavemodule.txt``, which is this one, and asks it for the slave
+class by the name it reads in the stub ``resources/<package>._slave3.py``: the FMI 2.0 class's
+name.  `__getattr__` answers with `fmi3_slave` of the FMI 2.0 slave class (``fmus/<Name>.py``),
+a subclass made once that adds the calls pythonfmu3 makes and pythonfmu does not:
+
+- ``get_float64``/``set_float64`` (FMI 2.0 Real), ``get_int32``/``set_int32`` (Integer),
+  ``get_int64``/``set_int64`` (the mode parameters, FMI 3.0 Enumerations of their IntEnum),
+  ``get_boolean``, ``get_string`` and their setters, through the FMI 2.0 slave's compiled
+  accessors (`GreyfmuSlave._compile_get`), so a get or set costs what it costs in FMI 2.0;
+- the independent variable ``time`` FMI 3.0 requires (§2.4.7.4), value reference `time_vr`:
+  the instance's current time when read; setting it is how greyfmu's loader gives the
+  experiment's start time (pythonfmu3 drops the startTime of fmi3EnterInitializationMode and
+  never calls ``setup_experiment``), so the FMI 3.0 FMU builds its objects for the same start
+  as its FMI 2.0 sibling;
+- log lines carrying the ``debug`` flag pythonfmu3 reads;
+- the FMI 3.0 name of the function in the line an exception is said in (``fmi3DoStep``, not
+  ``fmi2DoStep``; `FMI3_CALLS`).
+
+Everything else — do_step, initialisation, FMU states (get, set, serialise: fmus/_state.py,
+interchangeable with the FMI 2.0 sibling's), the exception contract with the loader's guard,
+the warnings forwarding — is the FMI 2.0 slave's own code.
 """
 
 from __future__ import annotations
 
-import ctypes
-import functools
-import math
-import os
-import re
-import sys
-from abc import abstractmethod
+import importlib
 from collections.abc import Callable
-from pathlib import Path
-from contextlib import AbstractContextManager
-from enum import IntEnum
-from typing import Any, ClassVar
+from typing import Any
 
-from pythonfmu3 import Float64, Fmi3Causality, Fmi3Slave, Fmi3Status, Fmi3StepResult, Fmi3Variability, Int32
-from pythonfmu3.variable_types import EnumerationType
-from pythonfmu3.variables import Enumeration
+from pythonfmu import Integer, Real
+from pythonfmu.enums import Fmi2Status
 
-from _inprocess import give_back, settle_imports
-from greyfmu.forwarding import forward_warnings
+from _slave import CALLED_BY_PYTHONFMU, CompiledAccessors, GreyfmuSlave
 
-REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
+PACKAGE = __name__.rpartition(".")[0]
+"""The FMU's private package ('' where this module runs under its own name: a build, the tests)."""
 
+FMI3_CALLS = {call: call.replace("fmi2", "fmi3").replace("Real", "Float64").replace("Integer", "Int32")
+              .replace("FMUstate", "FMUState") for call in CALLED_BY_PYTHONFMU.values()}
+"""The FMI 2.0 function named in an exception's line -> the FMI 3.0 function pythonfmu3 called."""
 
-_FINALIZED_BEFORE_EXIT: dict[str, ctypes.CDLL] = {}
-"""The pythonfmu3 libraries whose finalizePythonInterpreter is registered to run at exit, by
-path; each handle is kept for the life of the process, so the library is never unloaded under
-its exit handler."""
-_FOLDERS_DONE: set[str] = set()
-"""The binaries folders whose library is registered: a later instance of the same FMU looks no further."""
+ACCESSORS3 = ("_get_float64", "_get_int32", "_get_int64", "_set_float64", "_set_int32", "_set_int64")
+"""The FMI 3.0 accessors an instance adds to its declarations (not FMU state)."""
 
 
-def _finalize_before_exit(resources: str) -> str | None:
-    """Register the finalizePythonInterpreter of the FMU library next to ``resources`` (Linux:
-    ``binaries/x86_64-linux/*.so``) as an exit handler, once per library and process (see the
-    module docstring); the reason it could not be registered, or None."""
-    if not sys.platform.startswith("linux"):
-        return None  # the Windows DLL's statics are released by DLL_PROCESS_DETACH in one order
-    folder = Path(resources).parent / "binaries" / "x86_64-linux"
-    if str(folder) in _FOLDERS_DONE:
-        return None
-    libraries = sorted(folder.glob("*.so"))
-    if len(libraries) != 1:
-        return f"{folder}: expected one FMU library, found {len(libraries)}"
-    path = os.path.realpath(libraries[0])
-    if path in _FINALIZED_BEFORE_EXIT:
-        _FOLDERS_DONE.add(str(folder))
-        return None
-    try:
-        library = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
-        finalize = ctypes.cast(library.finalizePythonInterpreter, ctypes.c_void_p).value
-    except (OSError, AttributeError) as error:
-        return f"{path}: finalizePythonInterpreter not found in the loaded library ({error})"
-    register = ctypes.CDLL(None).__cxa_atexit
-    register.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
-    register.restype = ctypes.c_int
-    if register(finalize, None, None) != 0:
-        return f"{path}: __cxa_atexit refused finalizePythonInterpreter"
-    _FINALIZED_BEFORE_EXIT[path] = library
-    _FOLDERS_DONE.add(str(folder))
-    return None
+class Fmi3Calls:
+    """The calls pythonfmu3 0.3.4 makes that pythonfmu 0.7.0 does not (see the module docstring);
+    mixed in before a `GreyfmuSlave` subclass by `fmi3_slave`."""
 
-
-_CALLED_BY_PYTHONFMU3 = re.compile(r"(get|set)_[a-z0-9_]+|setup_experiment|enter_initialization_mode|"
-                                   r"exit_initialization_mode|do_step|terminate|_get_fmu_state|_set_fmu_state")
-"""The methods pythonfmu3 0.3.4's C++ wrapper calls on an instance."""
-
-
-def _given_back_when_raising(method: Callable[..., Any]) -> Callable[..., Any]:
-    """``method``, which gives back what pythonfmu3 will release twice when it raises."""
-
-    @functools.wraps(method)
-    def guarded(self: Fmi3Slave, *args: Any) -> Any:
-        try:
-            return method(self, *args)
-        except BaseException:
-            give_back(self, type(self), self.log_queue)
-            raise
-
-    guarded.given_back_when_raising = True
-    return guarded
-
-
-class ScalarEnumeration(Enumeration):
-    """pythonfmu3 0.3.4's Enumeration lacks the ``dimensions`` and ``size`` its get_int64 and
-    set_int64 read: a scalar has no dimensions and size 1."""
-
-    dimensions: tuple[()] = ()
-
-    def size(self, variables: dict) -> int:
-        return 1
-
-
-class GreyfmuSlave3(Fmi3Slave):
-    """Base of the greyfmu FMI 3.0 slaves (see the module docstring)."""
-
-    output_dependencies: ClassVar[dict[str, list[str]]]
-    """For every output, the inputs it depends on at the same instant (read by ``greyfmu build``)."""
-    requirements: ClassVar[tuple[str, ...]] = ("numpy", "scipy")
-    """The modules the FMU imports from the host's Python (part of its private package's name)."""
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        """Every method pythonfmu3 calls on an instance of ``cls`` gives back its references when it raises."""
-        super().__init_subclass__(**kwargs)
-        for name in filter(_CALLED_BY_PYTHONFMU3.fullmatch, dir(cls)):
-            method = getattr(cls, name)
-            if callable(method) and not getattr(method, "given_back_when_raising", False):
-                setattr(cls, name, _given_back_when_raising(method))
-
-    def _get_fmu_state(self) -> dict[str, Any]:
-        raise NotImplementedError(f"{self.instance_name}: this FMU has no FMU state (canGetAndSetFMUState is false)")
-
-    def _set_fmu_state(self, state: Any) -> None:
-        raise NotImplementedError(f"{self.instance_name}: this FMU has no FMU state (canGetAndSetFMUState is false)")
-
-    @staticmethod
-    def _fmu_state_to_bytes(state: Any) -> bytes:
-        """No state to serialise; called on the class, so it must not raise (see the module docstring)."""
-        return b""
-
-    @staticmethod
-    def _fmu_state_from_bytes(state: bytes) -> None:
-        """No state to restore (``_set_fmu_state`` refuses it); called on the class, so it must not raise."""
-        return None
+    fmi_calls = FMI3_CALLS
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        settle_imports(self.resources)
-        self.author = "greyfmu"
-        self.time = 0.0
-        self.experiment_start = 0.0
-        self._stepped = False
-        self._input_names: list[str] = []
-        self._output_values: dict[str, Callable[[], float]] = {}
-        self._built = False
-        self.choices: dict[str, type[IntEnum]] = {}
-        """Parameter name -> the IntEnum of each Enumeration parameter (``greyfmu build`` describes its items)."""
-        self.register_variable(Float64("time", causality=Fmi3Causality.independent, variability=Fmi3Variability.continuous,
-                                       description="Simulation time"))
-        if self.resources is not None and (why := _finalize_before_exit(self.resources)) is not None:
-            self.log(f"{self.instance_name}: the host may crash at exit (pythonfmu3 0.3.4 releases its state "
-                     f"twice there): {why}", Fmi3Status.warning)
+        self.time_vr = len(self.vars)
+        """The value reference of ``time``: the first after the FMI 2.0 slave's variables (greyfmu.build)."""
+        enumerations = {vr for vr, name in self._attributes.items() if name in self.choices}
+        self._get_float64 = CompiledAccessors(lambda vrs: self._compile_float64(vrs, setting=False))
+        self._set_float64 = CompiledAccessors(lambda vrs: self._compile_float64(vrs, setting=True))
+        self._get_int32 = CompiledAccessors(lambda vrs: self._compile_get(Integer, self._typed(vrs, enumerations, False)))
+        self._set_int32 = CompiledAccessors(lambda vrs: self._compile_set(Integer, self._typed(vrs, enumerations, False)))
+        self._get_int64 = CompiledAccessors(lambda vrs: self._compile_get(Integer, self._typed(vrs, enumerations, True)))
+        self._set_int64 = CompiledAccessors(lambda vrs: self._compile_set(Integer, self._typed(vrs, enumerations, True)))
+        self._declarations |= {"time_vr", *ACCESSORS3}
 
-    def parameter(self, name: str, start: float | int, description: str, unit: str | None = None) -> None:
-        """Declare a fixed parameter (an ``int`` start makes it Int32, an ``IntEnum`` member an
-        Enumeration of that IntEnum's members, FMI 3.0 §2.4.7.8); setting it makes the next use
-        rebuild the greyfmu objects."""
-        setattr(self, name, start)
+    def _typed(self, vrs: tuple[int, ...], enumerations: set[int], enumeration: bool) -> tuple[int, ...]:
+        """``vrs`` if each is an Enumeration (``enumeration``) or each is not; TypeError naming one that is not."""
+        for vr in vrs:
+            if (vr in enumerations) != enumeration:
+                variable = self._variable(vr, Integer)
+                raise TypeError(f"{self.instance_name}: variable {variable.name} (value reference {vr}) is "
+                                + ("not an Enumeration: use fmi3Get/SetInt32" if enumeration
+                                   else "an Enumeration: use fmi3Get/SetInt64"))
+        return vrs
 
-        def setter(value: float | int) -> None:
-            setattr(self, name, value)
-            self._built = False
+    def _compile_float64(self, vrs: tuple[int, ...], setting: bool) -> Callable:
+        """FMI 2.0's Real accessor of ``vrs``; with ``time`` among them: its value, or the start time set."""
+        if self.time_vr not in vrs:
+            return self._compile_set(Real, vrs) if setting else self._compile_get(Real, vrs)
+        if setting:
+            if vrs != (self.time_vr,):
+                raise TypeError(f"{self.instance_name}: time (value reference {self.time_vr}) is set alone, "
+                                "by greyfmu's loader before initialisation")
+            return lambda values: self.setup_experiment(float(values[0]))
+        getters = [None if vr == self.time_vr else self._compile_get(Real, (vr,)) for vr in vrs]
+        return lambda: [self.current_time if get is None else get()[0] for get in getters]
 
-        declaration = {"description": description, "causality": Fmi3Causality.parameter,
-                       "variability": Fmi3Variability.fixed, "setter": setter}
-        if isinstance(start, IntEnum):
-            self.choices[name] = type(start)
-            self.register_variable(ScalarEnumeration(name, start=int(start), **declaration),
-                                   var_type=EnumerationType(type(start).__name__, type(start)))
-            return
-        variable_type = Int32 if isinstance(start, int) else Float64
-        extra = {"unit": unit} if unit is not None and variable_type is Float64 else {}
-        self.register_variable(variable_type(name, start=start, **declaration, **extra))
+    def get_float64(self, vrs: list[int]) -> list[float]:
+        try:
+            return self._get_float64[tuple(vrs)]()
+        except BaseException as error:
+            self._raised("fmi2GetReal", error)
+            raise
 
-    def input(self, name: str, start: float, description: str) -> None:
-        """Declare a continuous Float64 input."""
-        setattr(self, name, start)
-        self.register_variable(Float64(name, start=start, description=description, causality=Fmi3Causality.input,
-                                       variability=Fmi3Variability.continuous))
-        self._input_names.append(name)
+    def get_int32(self, vrs: list[int]) -> list[int]:
+        try:
+            return self._get_int32[tuple(vrs)]()
+        except BaseException as error:
+            self._raised("fmi2GetInteger", error)
+            raise
 
-    def output(self, name: str, description: str, value: Callable[[], float], variability: Fmi3Variability) -> None:
-        """Declare a Float64 output computed by ``value()`` from up-to-date greyfmu objects."""
+    def get_int64(self, vrs: list[int]) -> list[int]:
+        try:
+            return self._get_int64[tuple(vrs)]()
+        except BaseException as error:
+            self._raised("fmi3GetInt64", error)
+            raise
 
-        def getter() -> float:
-            self._ensure_built()
-            return value()
+    def set_float64(self, vrs: list[int], values: list[float]) -> None:
+        try:
+            self._set_float64[tuple(vrs)](values)
+        except BaseException as error:
+            self._raised("fmi2SetReal", error)
+            raise
 
-        self.register_variable(Float64(name, description=description, causality=Fmi3Causality.output,
-                                       variability=variability, getter=getter))
-        self._output_values[name] = getter
+    def set_int32(self, vrs: list[int], values: list[int]) -> None:
+        try:
+            self._set_int32[tuple(vrs)](values)
+        except BaseException as error:
+            self._raised("fmi2SetInteger", error)
+            raise
 
-    @abstractmethod
-    def build(self) -> None:
-        """Create the greyfmu objects from the current parameters and ``self.experiment_start``."""
+    def set_int64(self, vrs: list[int], values: list[int]) -> None:
+        try:
+            self._set_int64[tuple(vrs)](values)
+        except BaseException as error:
+            self._raised("fmi3SetInt64", error)
+            raise
 
-    @abstractmethod
-    def advance(self, t: float, h: float) -> None:
-        """Advance the greyfmu objects over the communication step ``[t, t + h]``."""
+    def log(self, msg: str, status: Fmi2Status = Fmi2Status.ok, category: str | None = None, debug: None = None) -> None:
+        """pythonfmu's log line, with the ``debug`` flag pythonfmu3's library reads from each (false: said
+        as the guard's filter decides, greyfmu/loader/guard.h)."""
+        super().log(msg, status, category)
+        self.log_queue[-1].debug = False
 
-    def exit_initialization_mode(self) -> None:
-        self._ensure_built()
+_SLAVES: dict[type, type] = {}
+"""FMI 2.0 slave class -> its FMI 3.0 class, made once per process and kept (pythonfmu3 holds it)."""
 
-    def do_step(self, current_time: float, step_size: float) -> Fmi3StepResult:
-        if not self._stepped:
-            self._stepped = True
-            if current_time != self.experiment_start:
-                self.experiment_start = current_time
-                self._built = False
-        for name in self._input_names:
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                return self._error(f"input {name} = {value} at t = {current_time} s is not a finite number")
-        self._ensure_built()
-        with self.forwarding_warnings():
-            self.advance(current_time, step_size)
-        self.time = current_time + step_size
-        for name, output_value in self._output_values.items():
-            value = output_value()
-            if not math.isfinite(value):
-                return self._error(f"output {name} = {value} at t = {self.time} s is not a finite number")
-        return Fmi3StepResult()
 
-    def _ensure_built(self) -> None:
-        if not self._built:
-            try:
-                with self.forwarding_warnings():
-                    self.build()
-            except (ValueError, ArithmeticError) as error:
-                self.log(f"{self.instance_name}: invalid parameters: {error}", Fmi3Status.error)
-                raise
-            self._built = True
+def fmi3_slave(slave: type[GreyfmuSlave]) -> type:
+    """The FMI 3.0 class of ``slave``: `Fmi3Calls` before it, same name, module and qualified name, so
+    FMU states name the same model and classes as the FMI 2.0 sibling's."""
+    made = _SLAVES.get(slave)
+    if made is None:
+        made = _SLAVES[slave] = type(slave.__name__, (Fmi3Calls, slave),
+                                     {"__module__": slave.__module__, "__qualname__": slave.__qualname__})
+    return made
 
-    def forwarding_warnings(self) -> AbstractContextManager[None]:
-        """A context in which greyfmu's warnings (``greyfmu.forwarding``) reach this instance's FMU log as a warning."""
-        return forward_warnings(lambda message: self.log(f"{self.instance_name}: {message}", Fmi3Status.warning))
 
-    def _error(self, message: str) -> Fmi3StepResult:
-        self.log(f"{self.instance_name}: {message}", Fmi3Status.error)
-        return Fmi3StepResult(status=Fmi3Status.error)
+def __getattr__(name: str) -> type:
+    """pythonfmu3 asks this module (its slave module) for the class ``name``: the FMI 3.0 class of
+    the FMI 2.0 slave ``<package>.<name>.<name>``."""
+    if not name.isidentifier() or name.startswith("_"):
+        raise AttributeError(name)
+    module = importlib.import_module(f"{PACKAGE}.{name}" if PACKAGE else name)
+    slave = getattr(module, name, None)
+    if not (isinstance(slave, type) and issubclass(slave, GreyfmuSlave)):
+        raise AttributeError(f"{module.__name__} has no greyfmu slave class {name}")
+    return fmi3_slave(slave)

@@ -23,6 +23,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 LOADER_SOURCE = Path(__file__).resolve().parent / "fmi2_loader.c"
+LOADER_SOURCE3 = Path(__file__).resolve().parent / "fmi3_loader.c"
+"""The FMI 3.0 loader: the same Python start, guard, FMU states and process lock (python.h, guard.h,
+states.h, platform.h, process.c), forwarding to pythonfmu3's library (``pythonfmu3-export.so``/``.dll``)."""
 PROCESS_SOURCE = Path(__file__).resolve().parent / "process.c"
 PROCESS_LIBRARY = "greyfmu-process.so"
 """The file name process.c gets beside the linux64 loader (process.h GREYFMU_PROCESS_LIBRARY)."""
@@ -34,6 +37,8 @@ class Platform:
     """How the loader is compiled for one FMI platform folder."""
 
     folder: str
+    folder3: str
+    """The FMI 3.0 platform tuple's folder (FMI 3.0 §2.5.1.1)."""
     suffix: str
     compilers: tuple[str, ...]
     flags: tuple[str, ...]
@@ -44,11 +49,16 @@ class Platform:
         """The name pythonfmu's library gets inside the FMU, next to the loader."""
         return f"pythonfmu-export{self.suffix}"
 
+    @property
+    def pythonfmu3_library(self) -> str:
+        """The name pythonfmu3's library gets inside an FMI 3.0 FMU, next to the loader."""
+        return f"pythonfmu3-export{self.suffix}"
+
 
 PLATFORMS = (
-    Platform("linux64", ".so", ("cc", "gcc", "clang"), ("-shared", "-fPIC", "-O2", "-fvisibility=hidden"),
+    Platform("linux64", "x86_64-linux", ".so", ("cc", "gcc", "clang"), ("-shared", "-fPIC", "-O2", "-fvisibility=hidden"),
              ("-ldl", "-lpthread")),
-    Platform("win64", ".dll", ("x86_64-w64-mingw32-gcc",), ("-shared", "-O2", "-static-libgcc"), ("-lpsapi",)),
+    Platform("win64", "x86_64-windows", ".dll", ("x86_64-w64-mingw32-gcc",), ("-shared", "-O2", "-static-libgcc"), ("-lpsapi",)),
 )
 WARNINGS_ENV = "GREYFMU_WERROR"
 
@@ -84,12 +94,12 @@ def compiler(platform: Platform) -> str | None:
 
 
 @functools.cache
-def loader_binary(platform: Platform) -> bytes | None:
+def loader_binary(platform: Platform, fmi: int = 2) -> bytes | None:
     """The compiled loader for ``platform``, once per process; None when there is no compiler for
     it: the FMU then keeps pythonfmu's library there.  That is said once on stderr for this
     machine's platform (the FMUs then need a host that runs Python); for another one (win64 on
     Linux: a cross compiler few have, which matters only to whoever ships the FMUs to Windows)
-    only ``greyfmu build`` says it (`cross_compiler_notices`)."""
+    only ``greyfmu build`` says it (`cross_compiler_notices`).  ``fmi``: 2 (fmi2_loader.c) or 3 (fmi3_loader.c)."""
     found = compiler(platform)
     if found is None:
         if platform.folder == host_folder():
@@ -97,7 +107,7 @@ def loader_binary(platform: Platform) -> bytes | None:
                   f"the FMUs keep pythonfmu's {platform.folder} library, which loads only in a host that already "
                   "runs Python", file=sys.stderr)
         return None
-    return _compiled(found, platform, LOADER_SOURCE)
+    return _compiled(found, platform, LOADER_SOURCE if fmi == 2 else LOADER_SOURCE3)
 
 
 @functools.cache

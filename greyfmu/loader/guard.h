@@ -1,5 +1,11 @@
-/* The guard of the greyfmu loader (fmi2_loader.c): a host that misuses the FMU gets fmi2Error
- * and one log line, never a crash.
+/* The guard of the greyfmu loaders (fmi2_loader.c, fmi3_loader.c): a host that misuses the FMU
+ * gets fmi2Error (fmi3Error) and one log line, never a crash.  Said here for FMI 2.0; the FMI 3.0
+ * loader's top comment says what differs (its state machine, calls and types).
+ *
+ * Before including it a loader defines its FMI version's names: `Status` and STATUS(OK) ...
+ * STATUS(Fatal) (the two versions' status values are the same), FMI ("fmi2"), `HostCallbacks`,
+ * PHASE_NAMES (the state names in Phase's order), TYPE_NAME_R/I/L (the types of the guard file's
+ * letters), and after it `host_log`.
  *
  * fmi2Instantiate returns a `GuardedInstance` as the fmi2Component: it holds pythonfmu's
  * component, the instance's state in the FMI 2.0 Co-Simulation state machine (FMI 2.0 §4.2.4),
@@ -70,17 +76,12 @@ typedef enum {
 #define PHASES_STATUS (PHASE_STEP_COMPLETE | PHASE_STEP_FAILED | PHASE_TERMINATED)
 #define PHASES_OUTPUT_DERIVATIVES (PHASE_STEP_COMPLETE | PHASE_STEP_FAILED | PHASE_STEP_CANCELED | PHASE_TERMINATED | PHASE_ERROR)
 
+/* The state's name in the loader's FMI version (the loader's PHASE_NAMES, in Phase's order). */
 static const char *phase_name(Phase phase) {
-    switch (phase) {
-    case PHASE_INSTANTIATED: return "instantiated";
-    case PHASE_INITIALIZATION: return "initializationMode";
-    case PHASE_STEP_COMPLETE: return "stepComplete";
-    case PHASE_STEP_FAILED: return "stepFailed";
-    case PHASE_STEP_CANCELED: return "stepCanceled";
-    case PHASE_TERMINATED: return "terminated";
-    case PHASE_ERROR: return "error";
-    default: return "fatal";
-    }
+    static const char *const names[] = {PHASE_NAMES};
+    int index = 0;
+    while (index < 7 && (1 << index) != (int)phase) index++;
+    return names[index];
 }
 
 /* The names of the states in `phases`, comma-separated. */
@@ -91,7 +92,7 @@ static void phase_names(int phases, char *text, size_t size) {
 }
 
 typedef struct {
-    fmi2ValueReference vr;
+    unsigned int vr;
     char type;               /* R, I (Integer and Enumeration), B, S */
     const char *causality;   /* parameter, calculatedParameter, input, output, local, independent */
     const char *variability; /* constant, fixed, tunable, discrete, continuous */
@@ -109,21 +110,21 @@ typedef struct {
 
 typedef struct {
     unsigned magic;
-    fmi2Component real; /* pythonfmu's component */
+    void *real; /* pythonfmu's component */
     Phase phase;
     Phase phase_before_error;
     char *name;
-    fmi2CallbackFunctions host;      /* the host's callbacks, copied */
-    fmi2CallbackFunctions forwarded; /* given to pythonfmu: guard_logger, componentEnvironment = this */
+    HostCallbacks host;              /* the host's callbacks, copied (the loader's type) */
+    HostCallbacks forwarded;         /* given to pythonfmu (FMI 2.0): guard_logger, componentEnvironment = this */
     GuardModel model;
     int time_known;   /* next_time is where the next step starts (unknown after a reset or a restored state) */
     double next_time;
     int stop_defined; /* fmi2SetupExperiment's stopTime: no step may end after it */
     double stop_time;
-    int logging_on;   /* the host's loggingOn (fmi2Instantiate, fmi2SetDebugLogging): fmi2OK lines pass only then */
+    int logging_on;   /* the host's loggingOn (fmi2Instantiate, fmi2SetDebugLogging): OK lines pass only then */
     char **categories;/* the categories fmi2SetDebugLogging named (count 0: all) */
     size_t category_count;
-    int explained;    /* a line of status fmi2Discard or worse reached the host during the current call */
+    int explained;    /* a line of status Discard or worse reached the host during the current call */
     int recoverable;  /* the slave said an exception it survived during the current call (PYTHON_EXCEPTION) */
     void *slave_class;         /* the slave's class, a strong reference (states.h serialises with it) */
     void *serialised_state;    /* the state last serialised and its bytes, strong references (states.h) */
@@ -137,8 +138,10 @@ static int same_time(double a, double b) {
     return fabs(a - b) <= 1e-9 * (scale > 1 ? scale : 1);
 }
 
+/* The type of a guard file's letter, in the loader's FMI version (TYPE_NAME_R, ...). */
 static const char *type_name(char type) {
-    return type == 'R' ? "Real" : type == 'I' ? "Integer" : type == 'B' ? "Boolean" : "String";
+    return type == 'R' ? TYPE_NAME_R : type == 'I' ? TYPE_NAME_I : type == 'L' ? TYPE_NAME_L : type == 'B' ? "Boolean"
+                                                                                                        : "String";
 }
 
 /* ---- the model: resources/greyfmu_guard.txt ---- */
@@ -190,7 +193,7 @@ static int read_model(const char *folder, GuardModel *model, char *problem, size
             model->max_step = strtod(next_word(&cursor), NULL);
         } else if (strcmp(key, "variable") == 0) {
             GuardVariable *v = &model->variables[model->count++];
-            v->vr = (fmi2ValueReference)strtoul(next_word(&cursor), NULL, 10);
+            v->vr = (unsigned int)strtoul(next_word(&cursor), NULL, 10);
             v->type = *next_word(&cursor);
             v->causality = next_word(&cursor);
             v->variability = next_word(&cursor);
@@ -209,13 +212,13 @@ static int read_model(const char *folder, GuardModel *model, char *problem, size
     return 1;
 }
 
-static const GuardVariable *find_variable(const GuardModel *model, char type, fmi2ValueReference vr) {
+static const GuardVariable *find_variable(const GuardModel *model, char type, unsigned int vr) {
     GuardVariable key = {.vr = vr, .type = type};
     return bsearch(&key, model->variables, model->count, sizeof *model->variables, compare_variables);
 }
 
 /* The variable of any type with this value reference (to say what a wrong-typed one is). */
-static const GuardVariable *any_variable(const GuardModel *model, fmi2ValueReference vr) {
+static const GuardVariable *any_variable(const GuardModel *model, unsigned int vr) {
     for (size_t i = 0; i < model->count; i++)
         if (model->variables[i].vr == vr) return &model->variables[i];
     return NULL;
@@ -223,20 +226,24 @@ static const GuardVariable *any_variable(const GuardModel *model, fmi2ValueRefer
 
 /* ---- logging: text is data ---- */
 
-static const char *status_category(fmi2Status status) {
-    return status == fmi2OK        ? "logAll"
-           : status == fmi2Warning ? "logStatusWarning"
-           : status == fmi2Discard ? "logStatusDiscard"
-           : status == fmi2Fatal   ? "logStatusFatal"
+/* One line to the host's logger, as data (defined by the loader: FMI 2.0's logger takes a format,
+ * FMI 3.0's a message). */
+static void host_log(const GuardedInstance *in, Status status, const char *category, const char *text);
+
+static const char *status_category(Status status) {
+    return status == STATUS(OK)        ? "logAll"
+           : status == STATUS(Warning) ? "logStatusWarning"
+           : status == STATUS(Discard) ? "logStatusDiscard"
+           : status == STATUS(Fatal)   ? "logStatusFatal"
                                    : "logStatusError";
 }
 
-static const char *status_name(fmi2Status status) {
-    static const char *names[] = {"fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending"};
-    return status >= fmi2OK && status <= fmi2Pending ? names[status] : "an unknown status";
+static const char *status_name(Status status) {
+    static const char *names[] = {FMI "OK", FMI "Warning", FMI "Discard", FMI "Error", FMI "Fatal"};
+    return status >= STATUS(OK) && status <= STATUS(Fatal) ? names[status] : "an unknown status";
 }
 
-/* Whether an fmi2OK line of `category` is one the host asked for (loggingOn, its categories). */
+/* Whether an OK line of `category` is one the host asked for (loggingOn, its categories). */
 static int wanted(const GuardedInstance *in, const char *category) {
     if (!in->logging_on) return 0;
     for (size_t i = 0; i < in->category_count; i++)
@@ -246,31 +253,29 @@ static int wanted(const GuardedInstance *in, const char *category) {
 
 /* pythonfmu's logger: it passes each message as the format, with no arguments; the host
  * receives it as the "%s" argument, never as a format, filtered as the top comment says. */
-static void guard_logger(fmi2ComponentEnvironment environment, fmi2String name, fmi2Status status,
-                         fmi2String category, fmi2String message, ...) {
-    GuardedInstance *in = environment;
+static void guard_message(GuardedInstance *in, Status status, const char *category, const char *message) {
     const char *text = message != NULL ? message : "";
     if (category != NULL && strcmp(category, PYTHON_EXCEPTION) == 0) {
         in->recoverable = 1;
-        status = fmi2Error; /* the explanation of the fmi2Error the call returns */
-    } else if (status == fmi2Fatal && (in->recoverable || in->real == NULL)) {
+        status = STATUS(Error); /* the explanation of the Error the call returns */
+    } else if (status == STATUS(Fatal) && (in->recoverable || in->real == NULL)) {
         if (in->recoverable) return; /* pythonfmu's "Fatal py exception" for the exception the slave just said */
-        status = fmi2Error;          /* why fmi2Instantiate returns NULL: nothing else is lost */
+        status = STATUS(Error);          /* why the instantiation returns NULL: nothing else is lost */
     }
     if (category == NULL || *category == '\0') category = status_category(status);
-    if (status >= fmi2Discard)
+    if (status >= STATUS(Discard))
         in->explained = 1;
-    else if (status == fmi2OK && !wanted(in, category))
+    else if (status == STATUS(OK) && !wanted(in, category))
         return;
     char *one_line = strchr(text, '\n') != NULL ? strdup(text) : NULL; /* pythonfmu's "...: [ctor] findClass\n<repr>" */
     for (char *c = one_line; c != NULL && *c; c++)
         if (*c == '\n' || *c == '\r') *c = ' ';
-    in->host.logger(in->host.componentEnvironment, name, status, category, "%s", one_line != NULL ? one_line : text);
+    host_log(in, status, category, one_line != NULL ? one_line : text);
     free(one_line);
 }
 
 /* One line through the host's logger: "<function>: <text> (instance '<name>', state <state>)". */
-static void guard_say(const GuardedInstance *in, fmi2Status status, const char *function, const char *format, ...) {
+static void guard_say(const GuardedInstance *in, Status status, const char *function, const char *format, ...) {
     char text[2048];
     va_list args;
     va_start(args, format);
@@ -278,7 +283,7 @@ static void guard_say(const GuardedInstance *in, fmi2Status status, const char *
     va_end(args);
     char line[2400];
     snprintf(line, sizeof line, "%s: %s (instance '%s', state %s)", function, text, in->name, phase_name(in->phase));
-    in->host.logger(in->host.componentEnvironment, in->name, status, status_category(status), "%s", line);
+    host_log(in, status, status_category(status), line);
 }
 
 static void enter_error(GuardedInstance *in) {
@@ -287,22 +292,22 @@ static void enter_error(GuardedInstance *in) {
     in->phase = PHASE_ERROR;
 }
 
-/* Refuse a call: one line, the error state, fmi2Error. */
+/* Refuse a call: one line, the error state, Error. */
 #define REFUSE(in, function, ...)                                                                                  \
     do {                                                                                                           \
-        guard_say(in, fmi2Error, function, __VA_ARGS__);                                                           \
+        guard_say(in, STATUS(Error), function, __VA_ARGS__);                                                           \
         enter_error(in);                                                                                           \
-        return fmi2Error;                                                                                          \
+        return STATUS(Error);                                                                                          \
     } while (0)
 
 /* ---- the checks ---- */
 
 /* The GuardedInstance behind c; NULL (one line on stderr: there is no logger to use) if c is
  * NULL or not a live instance of this FMU. */
-static GuardedInstance *guarded(fmi2Component c, const char *function) {
+static GuardedInstance *guarded(void *c, const char *function) {
     GuardedInstance *in = c;
     if (in == NULL) {
-        fprintf(stderr, "greyfmu: %s: the instance (fmi2Component) is NULL\n", function);
+        fprintf(stderr, "greyfmu: %s: the instance is NULL\n", function);
         return NULL;
     }
     if (in->magic != GUARD_MAGIC) {
@@ -318,11 +323,11 @@ static int allowed_in(GuardedInstance *in, const char *function, int phases) {
     char names[256];
     phase_names(phases, names, sizeof names);
     if (in->phase == PHASE_FATAL)
-        guard_say(in, fmi2Error, function, "not allowed: the instance returned fmi2Fatal, only fmi2FreeInstance is");
+        guard_say(in, STATUS(Error), function, "not allowed: the instance returned " FMI "Fatal, only " FMI "FreeInstance is");
     else if (phases == 0)
-        guard_say(in, fmi2Error, function, "not allowed: no step is ever in progress (fmi2DoStep is synchronous)");
+        guard_say(in, STATUS(Error), function, "not allowed: no step is ever in progress (" FMI "DoStep is synchronous)");
     else
-        guard_say(in, fmi2Error, function, "not allowed in this state (allowed in: %s)", names);
+        guard_say(in, STATUS(Error), function, "not allowed in this state (allowed in: %s)", names);
     enter_error(in);
     return 0;
 }
@@ -355,15 +360,15 @@ static int settable(const GuardVariable *v, Phase phase, char *why, size_t size)
 }
 
 /* Check a get/set call's arrays and value references (type: R, I, B, S; setting: a set call). */
-static int references_ok(GuardedInstance *in, const char *function, const fmi2ValueReference vr[], size_t n,
+static int references_ok(GuardedInstance *in, const char *function, const unsigned int vr[], size_t n,
                          const void *values, char type, int setting) {
     if (n > 0 && vr == NULL) {
-        guard_say(in, fmi2Error, function, "the value reference array vr is NULL with nvr = %zu", n);
+        guard_say(in, STATUS(Error), function, "the value reference array vr is NULL with nvr = %zu", n);
         enter_error(in);
         return 0;
     }
     if (n > 0 && values == NULL) {
-        guard_say(in, fmi2Error, function, "the value array is NULL with nvr = %zu", n);
+        guard_say(in, STATUS(Error), function, "the value array is NULL with nvr = %zu", n);
         enter_error(in);
         return 0;
     }
@@ -377,7 +382,7 @@ static int references_ok(GuardedInstance *in, const char *function, const fmi2Va
                          type_name(other->type), type_name(type));
             else
                 snprintf(why, sizeof why, "vr[%zu] = %u is not a value reference of this FMU", i, vr[i]);
-        } else if (setting && type == 'S' && ((const fmi2String *)values)[i] == NULL) {
+        } else if (setting && type == 'S' && ((const char *const *)values)[i] == NULL) {
             snprintf(why, sizeof why, "value[%zu] (for %s) is NULL", i, v->name);
         } else if (setting) {
             char reason[400];
@@ -385,7 +390,7 @@ static int references_ok(GuardedInstance *in, const char *function, const fmi2Va
                 snprintf(why, sizeof why, "vr[%zu] = %u: %s %s", i, vr[i], v->name, reason);
         }
         if (*why) {
-            guard_say(in, fmi2Error, function, "%s", why);
+            guard_say(in, STATUS(Error), function, "%s", why);
             enter_error(in);
             return 0;
         }
@@ -393,23 +398,60 @@ static int references_ok(GuardedInstance *in, const char *function, const fmi2Va
     return 1;
 }
 
-/* What a forwarded call returns to the host (see the top comment): fmi2Error for an exception
+/* What a forwarded call returns to the host (see the top comment): Error for an exception
  * the slave survived, and a line of its own for a failure nothing explained. */
-static fmi2Status answered(GuardedInstance *in, const char *function, fmi2Status status) {
-    if (status == fmi2Fatal && in->recoverable) status = fmi2Error;
-    if (status >= fmi2Discard && status <= fmi2Fatal && !in->explained)
+static Status answered(GuardedInstance *in, const char *function, Status status) {
+    if (status == STATUS(Fatal) && in->recoverable) status = STATUS(Error);
+    if (status >= STATUS(Discard) && status <= STATUS(Fatal) && !in->explained)
         guard_say(in, status, function, "pythonfmu returned %s without saying why", status_name(status));
     return status;
 }
 
 /* The state after a forwarded call returned `status` (`next` when it succeeded; 0: unchanged);
  * the status `answered` gives the host. */
-static fmi2Status settle(GuardedInstance *in, const char *function, fmi2Status status, int next) {
+static Status settle(GuardedInstance *in, const char *function, Status status, int next) {
     status = answered(in, function, status);
-    if (status == fmi2Error) enter_error(in);
-    else if (status == fmi2Fatal) in->phase = PHASE_FATAL;
-    else if (status <= fmi2Warning && next) in->phase = (Phase)next;
+    if (status == STATUS(Error)) enter_error(in);
+    else if (status == STATUS(Fatal)) in->phase = PHASE_FATAL;
+    else if (status <= STATUS(Warning) && next) in->phase = (Phase)next;
     return status;
+}
+
+/* ---- what the guard answers itself ---- */
+
+static void forget_categories(GuardedInstance *in) {
+    for (size_t i = 0; i < in->category_count; i++) free(in->categories[i]);
+    free(in->categories);
+    in->categories = NULL;
+    in->category_count = 0;
+}
+
+static void free_guarded(GuardedInstance *in) {
+    in->magic = 0;
+    free_model(&in->model);
+    forget_categories(in);
+    free(in->name);
+    free(in);
+}
+
+/* fmi2SetDebugLogging, fmi3SetDebugLogging: the host's loggingOn and categories, copied. */
+static Status debug_logging(GuardedInstance *in, const char *function, int on, size_t n, const char *const categories[]) {
+    if (n > 0 && categories == NULL) REFUSE(in, function, "categories is NULL with nCategories = %zu", n);
+    for (size_t i = 0; i < n; i++)
+        if (categories[i] == NULL) REFUSE(in, function, "categories[%zu] is NULL", i);
+    char **copied = n > 0 ? calloc(n, sizeof *copied) : NULL;
+    for (size_t i = 0; copied != NULL && i < n; i++)
+        if ((copied[i] = strdup(categories[i])) == NULL) {
+            while (i > 0) free(copied[--i]);
+            free(copied);
+            copied = NULL;
+        }
+    if (n > 0 && copied == NULL) REFUSE(in, function, "out of memory copying %zu categories", n);
+    forget_categories(in);
+    in->categories = copied;
+    in->category_count = n;
+    in->logging_on = on;
+    return STATUS(OK);
 }
 
 /* ---- the resource location ---- */

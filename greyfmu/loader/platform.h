@@ -1,4 +1,4 @@
-/* Platform layer of the greyfmu loader (fmi2_loader.c): Linux (POSIX) and Windows.
+/* Platform layer of the greyfmu loaders (fmi2_loader.c, fmi3_loader.c): Linux (POSIX) and Windows.
  *
  * Libraries (open, look up, a Python already in the process), the loader's own path, files,
  * a lock, the process-wide lock and ready flag every loader shares, the host's signal
@@ -55,6 +55,7 @@ static int query_answer(char *text, int timed_out, const char *python, char **ou
 #define SEPARATOR '\\'
 #define PATH_LIST_SEPARATOR ";"
 #define PLATFORM_FOLDER "win64"
+#define PLATFORM_FOLDER3 "x86_64-windows" /* FMI 3.0 */
 #define LIBRARY_SUFFIX ".dll"
 #define PYTHON_ON_PATH "python.exe"
 
@@ -268,6 +269,7 @@ extern char **environ;
 #define SEPARATOR '/'
 #define PATH_LIST_SEPARATOR ":"
 #define PLATFORM_FOLDER "linux64"
+#define PLATFORM_FOLDER3 "x86_64-linux" /* FMI 3.0 */
 #define LIBRARY_SUFFIX ".so"
 #define PYTHON_ON_PATH "python3"
 

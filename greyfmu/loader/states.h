@@ -1,4 +1,4 @@
-/* FMU states behind the guard (fmi2_loader.c; FMI 2.0 §2.1.8), the way Simulink's operating
+/* FMU states behind the guard (fmi2_loader.c, fmi3_loader.c; FMI 2.0 §2.1.8), the way Simulink's operating
  * points use them.
  *
  * A state pythonfmu 0.7.0 makes is the Python object the slave's _get_fmu_state returns, and its
