@@ -483,44 +483,50 @@ GET_SET(fmi3SetBoolean, const fmi3Boolean, 'B', PHASES_SET, 1)
 GET_SET(fmi3SetString, const fmi3String, 'S', PHASES_SET, 1)
 
 /* The types the FMU has no variable of: answered by the guard (any value reference is refused). */
-#define NO_SUCH_TYPE(name, T, phases, setting)                                                                     \
+static fmi3Status no_such_type(GuardedInstance *in, const char *function, const char *type, const fmi3ValueReference vr[],
+                               size_t nvr, const void *values, size_t n_values) {
+    if (!values_ok(in, function, nvr, n_values)) return fmi3Error;
+    if (nvr == 0) return fmi3OK;
+    if (vr == NULL) REFUSE(in, function, "the value reference array vr is NULL with nvr = %zu", nvr);
+    if (values == NULL) REFUSE(in, function, "the value array is NULL with nvr = %zu", nvr);
+    const GuardVariable *v = any_variable(&in->model, vr[0]);
+    if (v == NULL) REFUSE(in, function, "vr[0] = %u is not a value reference of this FMU", vr[0]);
+    REFUSE(in, function, "vr[0] = %u is %s, a %s variable: this FMU has no %s variables", vr[0], v->name,
+           type_name(v->type), type);
+}
+
+#define NO_SUCH_TYPE(name, T, type, phases)                                                                        \
     EXPORT fmi3Status name(fmi3Instance c, const fmi3ValueReference vr[], size_t nvr, T values[], size_t nValues) { \
         GUARDED(name, phases)                                                                                      \
-        if (!values_ok(in, #name, nvr, nValues) || !references_ok(in, #name, vr, nvr, values, 'x', setting))      \
-            return fmi3Error;                                                                                      \
-        return fmi3OK;                                                                                             \
+        return no_such_type(in, #name, type, vr, nvr, values, nValues);                                            \
     }
-NO_SUCH_TYPE(fmi3GetFloat32, fmi3Float32, PHASES_GET, 0)
-NO_SUCH_TYPE(fmi3GetInt8, fmi3Int8, PHASES_GET, 0)
-NO_SUCH_TYPE(fmi3GetUInt8, fmi3UInt8, PHASES_GET, 0)
-NO_SUCH_TYPE(fmi3GetInt16, fmi3Int16, PHASES_GET, 0)
-NO_SUCH_TYPE(fmi3GetUInt16, fmi3UInt16, PHASES_GET, 0)
-NO_SUCH_TYPE(fmi3GetUInt32, fmi3UInt32, PHASES_GET, 0)
-NO_SUCH_TYPE(fmi3GetUInt64, fmi3UInt64, PHASES_GET, 0)
-NO_SUCH_TYPE(fmi3SetFloat32, const fmi3Float32, PHASES_SET, 1)
-NO_SUCH_TYPE(fmi3SetInt8, const fmi3Int8, PHASES_SET, 1)
-NO_SUCH_TYPE(fmi3SetUInt8, const fmi3UInt8, PHASES_SET, 1)
-NO_SUCH_TYPE(fmi3SetInt16, const fmi3Int16, PHASES_SET, 1)
-NO_SUCH_TYPE(fmi3SetUInt16, const fmi3UInt16, PHASES_SET, 1)
-NO_SUCH_TYPE(fmi3SetUInt32, const fmi3UInt32, PHASES_SET, 1)
-NO_SUCH_TYPE(fmi3SetUInt64, const fmi3UInt64, PHASES_SET, 1)
+NO_SUCH_TYPE(fmi3GetFloat32, fmi3Float32, "Float32", PHASES_GET)
+NO_SUCH_TYPE(fmi3GetInt8, fmi3Int8, "Int8", PHASES_GET)
+NO_SUCH_TYPE(fmi3GetUInt8, fmi3UInt8, "UInt8", PHASES_GET)
+NO_SUCH_TYPE(fmi3GetInt16, fmi3Int16, "Int16", PHASES_GET)
+NO_SUCH_TYPE(fmi3GetUInt16, fmi3UInt16, "UInt16", PHASES_GET)
+NO_SUCH_TYPE(fmi3GetUInt32, fmi3UInt32, "UInt32", PHASES_GET)
+NO_SUCH_TYPE(fmi3GetUInt64, fmi3UInt64, "UInt64", PHASES_GET)
+NO_SUCH_TYPE(fmi3SetFloat32, const fmi3Float32, "Float32", PHASES_SET)
+NO_SUCH_TYPE(fmi3SetInt8, const fmi3Int8, "Int8", PHASES_SET)
+NO_SUCH_TYPE(fmi3SetUInt8, const fmi3UInt8, "UInt8", PHASES_SET)
+NO_SUCH_TYPE(fmi3SetInt16, const fmi3Int16, "Int16", PHASES_SET)
+NO_SUCH_TYPE(fmi3SetUInt16, const fmi3UInt16, "UInt16", PHASES_SET)
+NO_SUCH_TYPE(fmi3SetUInt32, const fmi3UInt32, "UInt32", PHASES_SET)
+NO_SUCH_TYPE(fmi3SetUInt64, const fmi3UInt64, "UInt64", PHASES_SET)
 
 EXPORT fmi3Status fmi3GetBinary(fmi3Instance c, const fmi3ValueReference vr[], size_t nvr, size_t valueSizes[],
                                 fmi3Binary values[], size_t nValues) {
     GUARDED(fmi3GetBinary, PHASES_GET)
     if (nvr > 0 && valueSizes == NULL) REFUSE(in, "fmi3GetBinary", "valueSizes is NULL with nValueReferences = %zu", nvr);
-    if (!values_ok(in, "fmi3GetBinary", nvr, nValues) || !references_ok(in, "fmi3GetBinary", vr, nvr, values, 'x', 0))
-        return fmi3Error;
-    return fmi3OK;
+    return no_such_type(in, "fmi3GetBinary", "Binary", vr, nvr, values, nValues);
 }
 
 EXPORT fmi3Status fmi3SetBinary(fmi3Instance c, const fmi3ValueReference vr[], size_t nvr, const size_t valueSizes[],
                                 const fmi3Binary values[], size_t nValues) {
     GUARDED(fmi3SetBinary, PHASES_SET)
     if (nvr > 0 && valueSizes == NULL) REFUSE(in, "fmi3SetBinary", "valueSizes is NULL with nValueReferences = %zu", nvr);
-    if (!values_ok(in, "fmi3SetBinary", nvr, nValues) || !references_ok(in, "fmi3SetBinary", vr, nvr, values, 'x', 1))
-        return fmi3Error;
-    return fmi3OK;
+    return no_such_type(in, "fmi3SetBinary", "Binary", vr, nvr, values, nValues);
 }
 
 /* What this FMU does not have: one line saying so, fmi3Error (the instance's state is kept: nothing ran). */
