@@ -152,6 +152,7 @@ static int load_pythonfmu(const char *root, char *problem, size_t size) {
 typedef fmi2Status Status;
 #define STATUS(name) fmi2##name
 #define FMI "fmi2"
+#define INSTANCE_TYPE "fmi2Component"
 typedef fmi2CallbackFunctions HostCallbacks;
 #define PHASE_NAMES "instantiated", "initializationMode", "stepComplete", "stepFailed", "stepCanceled", "terminated", \
                     "error", "fatal"

@@ -119,6 +119,7 @@ static int load_pythonfmu(const char *root, char *problem, size_t size) {
 typedef fmi3Status Status;
 #define STATUS(name) fmi3##name
 #define FMI "fmi3"
+#define INSTANCE_TYPE "fmi3Instance"
 typedef struct {
     fmi3InstanceEnvironment environment;
     fmi3LogMessageCallback log; /* may be NULL: lines go to stderr */

@@ -3,7 +3,7 @@
  * loader's top comment says what differs (its state machine, calls and types).
  *
  * Before including it a loader defines its FMI version's names: `Status` and STATUS(OK) ...
- * STATUS(Fatal) (the two versions' status values are the same), FMI ("fmi2"), `HostCallbacks`,
+ * STATUS(Fatal) (the two versions' status values are the same), FMI ("fmi2"), INSTANCE_TYPE, `HostCallbacks`,
  * PHASE_NAMES (the state names in Phase's order), TYPE_NAME_R/I/L (the types of the guard file's
  * letters), and after it `host_log`.
  *
@@ -307,7 +307,7 @@ static void enter_error(GuardedInstance *in) {
 static GuardedInstance *guarded(void *c, const char *function) {
     GuardedInstance *in = c;
     if (in == NULL) {
-        fprintf(stderr, "greyfmu: %s: the instance is NULL\n", function);
+        fprintf(stderr, "greyfmu: %s: the instance (" INSTANCE_TYPE ") is NULL\n", function);
         return NULL;
     }
     if (in->magic != GUARD_MAGIC) {

@@ -261,15 +261,20 @@ def test_cli_reports_each_fmu_and_the_output_folder(built_fmus, capsys):
     assert str(built_fmus["Gain"].parent) in lines[2]
 
 
+def _declaring(output_dependencies: dict[str, list[str]]) -> type:
+    """A slave class as the rewrite reads it: its output dependencies and requirements."""
+    return type("Slave", (), {"output_dependencies": output_dependencies, "requirements": ("numpy", "scipy")})
+
+
 def test_rewrite_refuses_an_output_without_a_declared_dependency_list(built_fmus, tmp_path):
     with pytest.raises(BuildError, match="output_dependencies"):
-        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", {}, ("numpy", "scipy"))
+        _rewrite_model_description(built_fmus["Gain"], tmp_path / "Gain.fmu", _declaring({}), fmi3=False)
 
 
 def test_rewrite_refuses_an_output_without_initial_exact(built_fmus, tmp_path):
     broken = edited_copy(built_fmus["Gain"], tmp_path / "broken.fmu", lambda xml: xml.replace('initial="exact"', ""))
     with pytest.raises(BuildError, match="initial"):
-        _rewrite_model_description(broken, tmp_path / "Gain.fmu", {"y": ["u"]}, ("numpy", "scipy"))
+        _rewrite_model_description(broken, tmp_path / "Gain.fmu", _declaring({"y": ["u"]}), fmi3=False)
 
 
 def test_rebuilding_gives_a_byte_identical_model_description_and_the_same_guid(built_fmus, tmp_path):

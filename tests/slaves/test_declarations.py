@@ -152,7 +152,7 @@ def test_a_generic_signal_declared_dimensionless_would_be_refused_or_rescaled():
 
 
 def test_the_fmi3_pid_declares_its_integral_mode_as_an_enumeration(tmp_path):
-    """FMI 3.0 (PID3, pythonfmu3): ``<Enumeration declaredType>`` and a described ``EnumerationType``."""
+    """FMI 3.0 (PID3, the FMI 3.0 build of PID): ``<Enumeration declaredType>`` and a described ``EnumerationType``."""
     (fmu,) = build_fmus(["PID3"], out_dir=tmp_path)
     assert validate_fmu(str(fmu)) == []
     md = read_model_description(str(fmu))
@@ -160,7 +160,8 @@ def test_the_fmi3_pid_declares_its_integral_mode_as_an_enumeration(tmp_path):
     assert (mode.type, mode.declaredType.name, int(mode.start)) == ("Enumeration", "IntegralMode", 3)
     with zipfile.ZipFile(fmu) as archive:
         root = ElementTree.fromstring(archive.read("modelDescription.xml"))
-    items = {item.get("name"): item.get("description") for item in root.iter("Item")}
+    items = {item.get("name"): item.get("description")
+             for item in root.find("TypeDefinitions/EnumerationType[@name='IntegralMode']")}
     assert list(items) == ["METHOD1", "METHOD2", "METHOD3"] and items["METHOD2"].startswith("(2.11)")
 
 

@@ -222,7 +222,7 @@ def test_what_an_fmi3_host_may_do_works(hostile_runs, name):
     # no logger: the instance works, the guard's lines go to stderr
     assert (results["logger_null"], results["logger_null_step"]) == ("instance", str(ERROR))
     assert "greyfmu: hostile: fmi3DoStep: not allowed in this state" in run["stderr"]
-    assert run["stderr"].count("greyfmu: fmi3DoStep: the instance is NULL") == 1
+    assert run["stderr"].count("greyfmu: fmi3DoStep: the instance (fmi3Instance) is NULL") == 1
     if run["fixed"]:
         assert (results["set_fixed_after_init"], results["set_fixed_unchanged"]) == (str(ERROR), "1")
     if run["input"]:  # the slave's own message, naming the instance %s%n%s%n, as data

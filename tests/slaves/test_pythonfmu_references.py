@@ -117,27 +117,28 @@ def test_an_instance_survives_a_python_exception_and_is_released_once(built_fmus
     assert "alive 0" in run.stdout, "freed instances are still alive (references given back that they do not need)"
 
 
-LOSE_FMI3 = LOSING.format(version=3, calls='lambda: slave.getFloat64([987654]), slave.getFMUState, '
+LOSE_FMI3 = LOSING.format(version=3, calls="slave.enterInitializationMode, "
+                                           f"lambda: slave.setInt64([{MODE}], [5]), slave.exitInitializationMode, "
+                                           "slave.reset, slave.enterInitializationMode, slave.exitInitializationMode, "
                                            'lambda: slave.setFMUState(slave.deserializeFMUState(b"not a state"))') \
-    + 'print("alive", sum(type(o).__name__ == "PID3" for o in gc.get_objects()))\n'
+    + 'print("alive", sum(type(o).__name__ == "PID" for o in gc.get_objects()))\n'
 
 
 def test_an_fmi3_instance_survives_calls_that_raise(tmp_path: Path) -> None:
-    """pythonfmu3 0.3.4 has the same double release, without our loader in between: PID3 gives
-    the references back from Python (fmus/fmi3/_slave3.py).  60 instances in one process, each
-    asked for an unknown value reference and for an FMU state it declares it has not (segfault on
-    the first instance before the fix): each call refused (fmi3Fatal, the only error pythonfmu3
-    returns for these calls), every freed instance really freed (a Python list holding the given
-    back references, the first fix, left them freed under the list: a segfault at exit), and the
-    process ends normally."""
+    """pythonfmu3 0.3.4 has the same double release as pythonfmu 0.7.0; PID3 (the FMI 3.0 build of
+    PID) gives the references back and the FMI 3.0 loader answers fmi3Error.  60 instances in one
+    process: an invalid integral_mode refused at fmi3ExitInitializationMode (a ValueError in the
+    slave) and bytes that are no state refused by fmi3DeserializeFMUState, each fmi3Error (before
+    issue 41: fmi3Fatal, pythonfmu3's answer to every exception), fmi3Reset bringing the instance
+    back, every freed instance really freed, and the process ending normally."""
     (fmu,) = build_fmus(["PID3"], out_dir=tmp_path)
     run = subprocess.run([sys.executable, "-c", LOSE_FMI3, str(fmu)], capture_output=True,
                          text=True, timeout=300)
     assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
     answers = [line for line in run.stdout.splitlines() if line in ("ok", "3", "4")]
-    assert answers == ["4"] * 180
+    assert answers == ["ok", "ok", "3", "ok", "ok", "ok", "3"] * 60
     assert "alive 0" in run.stdout, "freed instances are still alive (given back references they do not need)"
-    assert "canGetAndSetFMUState is false" in run.stdout + run.stderr
+    assert "Fatal py exception" not in run.stdout + run.stderr
 
 
 EXIT = textwrap.dedent(

@@ -60,7 +60,8 @@ def fmpy_runs(bare_python, built_fmus, vendor_fmus, other_release):
     from greyfmu.build import build_fmus
 
     ours, release, theirs = built_fmus, other_release[1], vendor_fmus
-    (ours3,) = build_fmus(["PID3"])
+    ours3, *fmi3 = build_fmus(["PID3", *(name + "3" for name in FOUR)])
+    four3 = dict(zip(FOUR, fmi3))
     orders = {
         "ours": [ours[name] for name in ["GrayPredictivePI", *FOUR, "Step", "PID"]],
         "mixed": [ours["PID"], theirs["PID"], theirs["Step"], release["PID"], ours["Step"], theirs["PID"], ours["PID"],
@@ -68,6 +69,8 @@ def fmpy_runs(bare_python, built_fmus, vendor_fmus, other_release):
         "release first": [release["PID"], ours["PID"]],
         "fmi3 mixed": [ours3, theirs["PID3"], release["PID3"], ours3, theirs["PID3"], release["PID3"]],
         "fmi3 ours": [release["PID3"], ours3, release["PID3"]],
+        "fmi3 four": [four3[name] for name in [*FOUR, *FOUR]],
+        "fmi2 and fmi3": [ours["PID"], ours3, ours["Step"], four3["Step"], ours3, ours["PID"]],
     }
     done: dict[str, tuple[list[dict], dict]] = {}
 
@@ -303,6 +306,28 @@ def test_fmi3_fmus_of_ours_of_two_releases_and_another_vendors_pid3_in_one_proce
     assert mixed[1] == mixed[4] == {"u": 2.25}
     assert mixed[0] == mixed[3] == ours[1]
     assert mixed[2] == mixed[5] == ours[0] == ours[2] != ours[1]
+    assert left["path_added"] == [] and left["public_added"] == []
+
+
+def test_four_fmi3_fmus_of_ours_in_one_process_compute_as_their_fmi2_siblings(fmpy_runs):
+    """Step3, PID3, FOPDT3, GrayPredictivePI3 twice over in one fmpy process (each its own private
+    package): every run gives what the FMI 2.0 sibling gives (first in its process), the second
+    round the first's; sys.path and the public modules are as before.  Before issue 41 only PID3
+    existed as FMI 3.0."""
+    fmi3, left = fmpy_runs("fmi3 four")
+    fmi2, _ = fmpy_runs("ours")
+    assert fmi3[:4] == fmi3[4:] == fmi2[1:5]
+    assert left["path_added"] == [] and left["public_added"] == []
+    packages = {name.split(".")[0].rsplit("_", 1)[0] for name in left["private"]}
+    assert packages == {f"{PACKAGE_PREFIX}{name}" for name in FOUR}
+
+
+def test_the_fmi2_and_fmi3_builds_of_one_model_in_one_process_compute_the_same(fmpy_runs):
+    """PID, PID3, Step, Step3, PID3, PID in one fmpy process: each FMI 3.0 FMU gives what its FMI
+    2.0 sibling gives, in any order."""
+    outputs, left = fmpy_runs("fmi2 and fmi3")
+    assert outputs[0] == outputs[1] == outputs[4] == outputs[5] == fmpy_runs("mixed")[0][0]
+    assert outputs[2] == outputs[3] == {"y": 1.0}
     assert left["path_added"] == [] and left["public_added"] == []
 
 

@@ -183,7 +183,8 @@ def test_terminate_simulation_records_the_step_that_asked(tmp_path, fmus):
 
 
 def test_fmi3_fmu_log_explains_a_failure(tmp_path):
-    """pythonfmu3 logs through FMI 3.0's logMessage callback: the message reaches the RunError."""
+    """pythonfmu3 logs through FMI 3.0's logMessage callback: the message reaches the RunError; the
+    FMU's loader answers the slave's exception with fmi3Error (pythonfmu3: fmi3Fatal, issue 41)."""
     bad = tmp_path / "bad.ssv"
     bad.write_text('<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet xmlns:ssv='
                    '"http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="bad">'
@@ -192,7 +193,7 @@ def test_fmi3_fmu_log_explains_a_failure(tmp_path):
     with pytest.raises(RunError) as error:
         cosim.simulate(_pid_loop(tmp_path, "PID3.fmu"), stop_time=1.0, parameter_sets=[bad])
     text = str(error.value)
-    assert "component 'controller' (PID3.fmu)" in text and "fmi3Get returned Fatal at t = 0" in text
+    assert "component 'controller' (PID3.fmu)" in text and "fmi3Get returned Error at t = 0" in text
     assert "sample time Ts must be a finite number > 0, got -1.0" in text
 
 
