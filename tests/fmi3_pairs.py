@@ -1,6 +1,7 @@
 """An FMU of ours and its FMI 3.0 sibling (greyfmu.fmi3) run alone in the same master, `cosim`,
 over the FMI 2.0 FMU's DefaultExperiment with a representative input: every input steps at a
-fifth of the run from its start value s to s + 0.05 max(1, |s|) and ramps back to s by the end
+fifth of the run from its start value s to s + 0.05 k max(1, |s|) (k = 1, 2, ... in name order,
+so that no two inputs move alike: a PID's r and y give an error) and ramps back to s by the end
 (an input table, cosim.inputs), so each input's path through the model is exercised."""
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ def input_table(path: Path, start: float, stop: float, inputs: dict[str, float])
     names = sorted(inputs)
     step_time = start + 0.2 * (stop - start)
     rows = [[start, *(inputs[name] for name in names)], [step_time, *(inputs[name] for name in names)]]
-    rows += [[step_time, *(inputs[name] + 0.05 * max(1.0, abs(inputs[name])) for name in names)]]
+    rows += [[step_time, *(inputs[name] + 0.05 * k * max(1.0, abs(inputs[name])) for k, name in enumerate(names, 1))]]
     rows += [[stop, *(inputs[name] for name in names)]]
     path.write_text("time," + ",".join(names) + "\n" + "".join(",".join(repr(v) for v in row) + "\n" for row in rows))
     return path

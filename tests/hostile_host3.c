@@ -3,19 +3,32 @@
  * FMI 3.0 FMUs of ours), each on a fresh instance, printing what came back.
  *
  *   hostile_host3 DIR IDENTIFIER TOKEN REAL FIXED INPUT TIME
- *     DIR/binaries/x86_64-linux/IDENTIFIER.so is dlopen'ed; REAL: a Float64 output's value
+ *     DIR/binaries/x86_64-linux/IDENTIFIER.so is dlopen'ed (Windows, built with mingw-w64:
+ *     DIR\binaries\x86_64-windows\IDENTIFIER.dll, LoadLibrary); REAL: a Float64 output's value
  *     reference; FIXED: a fixed Float64 parameter's ("-": none); INPUT: a Float64 input's ("-":
  *     none); TIME: the independent variable's.
  *
  * Output: "result CASE VALUE" (an fmi3Status number, "instance"/"null", "skip") and
  * "log CASE STATUS CATEGORY MESSAGE" for every logger call during the case.
  */
-#include <dlfcn.h>
 #include <math.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#ifdef _WIN32
+#include <windows.h>
+#define dlopen(path, mode) ((void *)LoadLibraryExA(path, NULL, LOAD_WITH_ALTERED_SEARCH_PATH))
+#define dlsym(library, name) ((void *)GetProcAddress((HMODULE)(library), name))
+#define BINARY "%s\\binaries\\x86_64-windows\\%s.dll"
+#define RESOURCES "%s\\resources"
+static const char *dlerror(void) { return "LoadLibrary failed"; }
+#else
+#include <dlfcn.h>
+#define BINARY "%s/binaries/x86_64-linux/%s.so"
+#define RESOURCES "%s/resources"
+#endif
 
 typedef void *Instance;
 typedef unsigned int VR;
@@ -102,7 +115,7 @@ static void instantiation_cases(void) {
     resource_case("resource_null", NULL);
     resource_case("resource_empty", "");
     resource_case("resource_plain_path", resources);
-    snprintf(location, sizeof location, "%s/", resources);
+    snprintf(location, sizeof location, "%s%c", resources, resources[0] == '/' ? '/' : '\\');
     resource_case("resource_trailing_separator", location);
     resource_case("resource_missing", "/nonexistent-greyfmu-folder/resources/");
     CASE("token_wrong") result_instance(current_case, fmi.instantiate("hostile", "{%s%n-not-the-token}", resources,
@@ -348,8 +361,8 @@ int main(int argc, char **argv) {
         return 2;
     }
     char binary[4096];
-    snprintf(binary, sizeof binary, "%s/binaries/x86_64-linux/%s.so", argv[1], argv[2]);
-    snprintf(resources, sizeof resources, "%s/resources", argv[1]);
+    snprintf(binary, sizeof binary, BINARY, argv[1], argv[2]);
+    snprintf(resources, sizeof resources, RESOURCES, argv[1]);
     snprintf(token, sizeof token, "%s", argv[3]);
     real_vr = (VR)strtoul(argv[4], NULL, 10);
     has_fixed = strcmp(argv[5], "-") != 0;

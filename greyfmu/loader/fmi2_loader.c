@@ -153,6 +153,11 @@ typedef fmi2Status Status;
 #define STATUS(name) fmi2##name
 #define FMI "fmi2"
 #define INSTANCE_TYPE "fmi2Component"
+#define STATE_TYPE "fmi2FMUstate"
+#define STATE_ARGUMENT "FMUstate"
+#define GET_STATE "fmi2GetFMUstate"
+#define DESERIALIZE_STATE "fmi2DeSerializeFMUstate"
+#define SERIALIZED_STATE_SIZE "fmi2SerializedFMUstateSize"
 typedef fmi2CallbackFunctions HostCallbacks;
 #define PHASE_NAMES "instantiated", "initializationMode", "stepComplete", "stepFailed", "stepCanceled", "terminated", \
                     "error", "fatal"
@@ -481,98 +486,35 @@ GET_SET(fmi2SetInteger, const fmi2Integer, 'I', PHASES_SET, 1)
 GET_SET(fmi2SetBoolean, const fmi2Boolean, 'B', PHASES_SET, 1)
 GET_SET(fmi2SetString, const fmi2String, 'S', PHASES_SET, 1)
 
-/* FMU states: states.h.  A state passed back is freed before the new one is made. */
+/* FMU states: states.h. */
 EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
     GUARDED(fmi2GetFMUstate, PHASES_ANY_BUT_FATAL)
-    if (state == NULL) REFUSE(in, "fmi2GetFMUstate", "FMUstate (the fmi2FMUstate* to fill) is NULL");
-    if (*state != NULL) {
-        if (!forget_state(*state))
-            REFUSE(in, "fmi2GetFMUstate", "*FMUstate = %p is no state of this FMU: pass NULL for a new state, or a "
-                   "state fmi2GetFMUstate or fmi2DeSerializeFMUstate returned and that was not freed", *state);
-        release_objects(*state, NULL);
-        *state = NULL;
-    }
-    KEEPING_HOST_SIGNALS(status, CALL(fmi2GetFMUstate, (fmi2Component, fmi2FMUstate *), state))
-    if (status <= fmi2Warning && *state != NULL && !remember_state(*state, in)) {
-        release_objects(*state, NULL);
-        *state = NULL;
-        REFUSE(in, "fmi2GetFMUstate", "out of memory recording the state");
-    }
-    return settle(in, "fmi2GetFMUstate", status, 0);
-}
-
-/* A state restored leaves the error state for the state the instance had before it. */
-static fmi2Status restored(GuardedInstance *in, fmi2Status status) {
-    status = settle(in, "fmi2SetFMUstate", status, 0);
-    if (status <= fmi2Warning && in->phase == PHASE_ERROR) in->phase = in->phase_before_error;
-    if (status <= fmi2Warning) in->time_known = 0; /* the state's time: the next step says it */
-    return status;
+    return get_state(in, "fmi2GetFMUstate", state, (Status(*)(void *, void **))real_fmi2GetFMUstate);
 }
 
 EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
     GUARDED(fmi2SetFMUstate, PHASES_ANY_BUT_FATAL)
-    if (state == NULL) REFUSE(in, "fmi2SetFMUstate", "FMUstate is NULL");
-    if (!is_state(state)) REFUSE(in, "fmi2SetFMUstate", "FMUstate = %p is no state of this FMU (freed?)", state);
-    KEEPING_HOST_SIGNALS(status, CALL(fmi2SetFMUstate, (fmi2Component, fmi2FMUstate), state))
-    return restored(in, status);
+    return set_state(in, "fmi2SetFMUstate", state, (Status(*)(void *, void *))real_fmi2SetFMUstate);
 }
 
 EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
     GUARDED(fmi2FreeFMUstate, PHASES_ANY_BUT_FATAL)
-    if (state == NULL) REFUSE(in, "fmi2FreeFMUstate", "FMUstate (the fmi2FMUstate* to free) is NULL");
-    if (*state == NULL) return fmi2OK; /* nothing to free */
-    if (!forget_state(*state))
-        REFUSE(in, "fmi2FreeFMUstate", "*FMUstate = %p is no state of this FMU (freed already?)", *state);
-    release_objects(*state, NULL);
-    *state = NULL;
-    return fmi2OK;
+    return free_state(in, "fmi2FreeFMUstate", state);
 }
 
 EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size) {
     GUARDED(fmi2SerializedFMUstateSize, PHASES_ANY_BUT_FATAL)
-    if (state == NULL || size == NULL)
-        REFUSE(in, "fmi2SerializedFMUstateSize", "%s is NULL", state == NULL ? "FMUstate" : "size");
-    if (!is_state(state)) REFUSE(in, "fmi2SerializedFMUstateSize", "FMUstate = %p is no state of this FMU", state);
-    char *bytes, problem[2048];
-    if (!serialised(in, state, &bytes, size, problem, sizeof problem))
-        REFUSE(in, "fmi2SerializedFMUstateSize", "%s", problem);
-    return fmi2OK;
+    return serialized_state_size(in, "fmi2SerializedFMUstateSize", state, size);
 }
 
 EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size) {
     GUARDED(fmi2SerializeFMUstate, PHASES_ANY_BUT_FATAL)
-    if (state == NULL) REFUSE(in, "fmi2SerializeFMUstate", "FMUstate is NULL");
-    if (bytes == NULL && size > 0) REFUSE(in, "fmi2SerializeFMUstate", "serializedState is NULL with size = %zu", size);
-    if (!is_state(state)) REFUSE(in, "fmi2SerializeFMUstate", "FMUstate = %p is no state of this FMU", state);
-    char *serialised_bytes, problem[2048];
-    size_t needed;
-    if (!serialised(in, state, &serialised_bytes, &needed, problem, sizeof problem))
-        REFUSE(in, "fmi2SerializeFMUstate", "%s", problem);
-    if (size != needed)
-        REFUSE(in, "fmi2SerializeFMUstate", "size = %zu, but the state's serialised size is %zu "
-               "(fmi2SerializedFMUstateSize)", size, needed);
-    memcpy(bytes, serialised_bytes, needed);
-    return fmi2OK;
+    return serialize_state(in, "fmi2SerializeFMUstate", state, bytes, size);
 }
 
 EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state) {
     GUARDED(fmi2DeSerializeFMUstate, PHASES_ANY_BUT_FATAL)
-    if (bytes == NULL && size > 0)
-        REFUSE(in, "fmi2DeSerializeFMUstate", "serializedState is NULL with size = %zu", size);
-    if (state == NULL) REFUSE(in, "fmi2DeSerializeFMUstate", "FMUstate (the fmi2FMUstate* to fill) is NULL");
-    if (*state != NULL && forget_state(*state)) release_objects(*state, NULL); /* a state passed back */
-    *state = NULL;
-    char problem[2048];
-    save_signals(&in->signals);
-    void *made = deserialised(in, bytes, size, problem, sizeof problem);
-    restore_signals(&in->signals);
-    if (made == NULL) REFUSE(in, "fmi2DeSerializeFMUstate", "%s", problem);
-    if (!remember_state(made, in)) {
-        release_objects(made, NULL);
-        REFUSE(in, "fmi2DeSerializeFMUstate", "out of memory recording the state");
-    }
-    *state = made;
-    return fmi2OK;
+    return deserialize_state(in, "fmi2DeSerializeFMUstate", bytes, size, state);
 }
 
 /* The functions pythonfmu does not support (it says so and returns fmi2Error or fmi2Discard):

@@ -120,6 +120,11 @@ typedef fmi3Status Status;
 #define STATUS(name) fmi3##name
 #define FMI "fmi3"
 #define INSTANCE_TYPE "fmi3Instance"
+#define STATE_TYPE "fmi3FMUState"
+#define STATE_ARGUMENT "FMUState"
+#define GET_STATE "fmi3GetFMUState"
+#define DESERIALIZE_STATE "fmi3DeserializeFMUState"
+#define SERIALIZED_STATE_SIZE "fmi3SerializedFMUStateSize"
 typedef struct {
     fmi3InstanceEnvironment environment;
     fmi3LogMessageCallback log; /* may be NULL: lines go to stderr */
@@ -600,93 +605,35 @@ NOT_PROVIDED(fmi3GetNumberOfEventIndicators, CO_SIMULATION_ONLY, size_t *n)
 NOT_PROVIDED(fmi3GetNumberOfContinuousStates, CO_SIMULATION_ONLY, size_t *n)
 #pragma GCC diagnostic pop
 
-/* FMU states: states.h, as in FMI 2.0.  A state passed back is freed before the new one is made. */
+/* FMU states: states.h, as in FMI 2.0. */
 EXPORT fmi3Status fmi3GetFMUState(fmi3Instance c, fmi3FMUState *state) {
     GUARDED(fmi3GetFMUState, PHASES_ANY_BUT_FATAL)
-    if (state == NULL) REFUSE(in, "fmi3GetFMUState", "FMUState (the fmi3FMUState* to fill) is NULL");
-    if (*state != NULL) {
-        if (!forget_state(*state))
-            REFUSE(in, "fmi3GetFMUState", "*FMUState = %p is no state of this FMU: pass NULL for a new state, or a "
-                   "state fmi3GetFMUState or fmi3DeserializeFMUState returned and that was not freed", *state);
-        release_objects(*state, NULL);
-        *state = NULL;
-    }
-    KEEPING_HOST_SIGNALS(status, CALL(fmi3GetFMUState, (fmi3Instance, fmi3FMUState *), state))
-    if (status <= fmi3Warning && *state != NULL && !remember_state(*state, in)) {
-        release_objects(*state, NULL);
-        *state = NULL;
-        REFUSE(in, "fmi3GetFMUState", "out of memory recording the state");
-    }
-    return settle(in, "fmi3GetFMUState", status, 0);
+    return get_state(in, "fmi3GetFMUState", state, (Status(*)(void *, void **))real_fmi3GetFMUState);
 }
 
 EXPORT fmi3Status fmi3SetFMUState(fmi3Instance c, fmi3FMUState state) {
     GUARDED(fmi3SetFMUState, PHASES_ANY_BUT_FATAL)
-    if (state == NULL) REFUSE(in, "fmi3SetFMUState", "FMUState is NULL");
-    if (!is_state(state)) REFUSE(in, "fmi3SetFMUState", "FMUState = %p is no state of this FMU (freed?)", state);
-    KEEPING_HOST_SIGNALS(status, CALL(fmi3SetFMUState, (fmi3Instance, fmi3FMUState), state))
-    status = settle(in, "fmi3SetFMUState", status, 0);
-    if (status <= fmi3Warning && in->phase == PHASE_ERROR) in->phase = in->phase_before_error;
-    if (status <= fmi3Warning) in->time_known = 0; /* the state's time: the next step says it */
-    return status;
+    return set_state(in, "fmi3SetFMUState", state, (Status(*)(void *, void *))real_fmi3SetFMUState);
 }
 
 EXPORT fmi3Status fmi3FreeFMUState(fmi3Instance c, fmi3FMUState *state) {
     GUARDED(fmi3FreeFMUState, PHASES_ANY_BUT_FATAL)
-    if (state == NULL) REFUSE(in, "fmi3FreeFMUState", "FMUState (the fmi3FMUState* to free) is NULL");
-    if (*state == NULL) return fmi3OK;
-    if (!forget_state(*state))
-        REFUSE(in, "fmi3FreeFMUState", "*FMUState = %p is no state of this FMU (freed already?)", *state);
-    release_objects(*state, NULL);
-    *state = NULL;
-    return fmi3OK;
+    return free_state(in, "fmi3FreeFMUState", state);
 }
 
 EXPORT fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState state, size_t *size) {
     GUARDED(fmi3SerializedFMUStateSize, PHASES_ANY_BUT_FATAL)
-    if (state == NULL || size == NULL)
-        REFUSE(in, "fmi3SerializedFMUStateSize", "%s is NULL", state == NULL ? "FMUState" : "size");
-    if (!is_state(state)) REFUSE(in, "fmi3SerializedFMUStateSize", "FMUState = %p is no state of this FMU", state);
-    char *bytes, problem[2048];
-    if (!serialised(in, state, &bytes, size, problem, sizeof problem))
-        REFUSE(in, "fmi3SerializedFMUStateSize", "%s", problem);
-    return fmi3OK;
+    return serialized_state_size(in, "fmi3SerializedFMUStateSize", state, size);
 }
 
 EXPORT fmi3Status fmi3SerializeFMUState(fmi3Instance c, fmi3FMUState state, fmi3Byte bytes[], size_t size) {
     GUARDED(fmi3SerializeFMUState, PHASES_ANY_BUT_FATAL)
-    if (state == NULL) REFUSE(in, "fmi3SerializeFMUState", "FMUState is NULL");
-    if (bytes == NULL && size > 0) REFUSE(in, "fmi3SerializeFMUState", "serializedState is NULL with size = %zu", size);
-    if (!is_state(state)) REFUSE(in, "fmi3SerializeFMUState", "FMUState = %p is no state of this FMU", state);
-    char *serialised_bytes, problem[2048];
-    size_t needed;
-    if (!serialised(in, state, &serialised_bytes, &needed, problem, sizeof problem))
-        REFUSE(in, "fmi3SerializeFMUState", "%s", problem);
-    if (size != needed)
-        REFUSE(in, "fmi3SerializeFMUState", "size = %zu, but the state's serialised size is %zu "
-               "(fmi3SerializedFMUStateSize)", size, needed);
-    memcpy(bytes, serialised_bytes, needed);
-    return fmi3OK;
+    return serialize_state(in, "fmi3SerializeFMUState", state, (char *)bytes, size);
 }
 
 EXPORT fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte bytes[], size_t size, fmi3FMUState *state) {
     GUARDED(fmi3DeserializeFMUState, PHASES_ANY_BUT_FATAL)
-    if (bytes == NULL && size > 0)
-        REFUSE(in, "fmi3DeserializeFMUState", "serializedState is NULL with size = %zu", size);
-    if (state == NULL) REFUSE(in, "fmi3DeserializeFMUState", "FMUState (the fmi3FMUState* to fill) is NULL");
-    if (*state != NULL && forget_state(*state)) release_objects(*state, NULL); /* a state passed back */
-    *state = NULL;
-    char problem[2048];
-    save_signals(&in->signals);
-    void *made = deserialised(in, (const char *)bytes, size, problem, sizeof problem);
-    restore_signals(&in->signals);
-    if (made == NULL) REFUSE(in, "fmi3DeserializeFMUState", "%s", problem);
-    if (!remember_state(made, in)) {
-        release_objects(made, NULL);
-        REFUSE(in, "fmi3DeserializeFMUState", "out of memory recording the state");
-    }
-    *state = made;
-    return fmi3OK;
+    return deserialize_state(in, "fmi3DeserializeFMUState", (const char *)bytes, size, state);
 }
 
 EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,

@@ -171,4 +171,93 @@ static void *deserialised(GuardedInstance *in, const char *bytes, size_t size, c
     return state;
 }
 
+/* ---- the FMU state calls of both loaders, in the loader's names (STATE_TYPE "fmi2FMUstate",
+ * STATE_ARGUMENT "FMUstate", GET_STATE, DESERIALIZE_STATE, SERIALIZED_STATE_SIZE) ---- */
+
+/* fmi2GetFMUstate, fmi3GetFMUState: `forward` is pythonfmu's; a state passed back is freed before
+ * the new one is made. */
+static Status get_state(GuardedInstance *in, const char *function, void **state, Status (*forward)(void *, void **)) {
+    if (state == NULL) REFUSE(in, function, STATE_ARGUMENT " (the " STATE_TYPE "* to fill) is NULL");
+    if (*state != NULL) {
+        if (!forget_state(*state))
+            REFUSE(in, function, "*" STATE_ARGUMENT " = %p is no state of this FMU: pass NULL for a new state, or a "
+                   "state " GET_STATE " or " DESERIALIZE_STATE " returned and that was not freed", *state);
+        release_objects(*state, NULL);
+        *state = NULL;
+    }
+    save_signals(&in->signals);
+    Status status = forward(in->real, state);
+    restore_signals(&in->signals);
+    if (status <= STATUS(Warning) && *state != NULL && !remember_state(*state, in)) {
+        release_objects(*state, NULL);
+        *state = NULL;
+        REFUSE(in, function, "out of memory recording the state");
+    }
+    return settle(in, function, status, 0);
+}
+
+/* fmi2SetFMUstate, fmi3SetFMUState: a state restored leaves the error state for the state the
+ * instance had before it; the next step says the time. */
+static Status set_state(GuardedInstance *in, const char *function, void *state, Status (*forward)(void *, void *)) {
+    if (state == NULL) REFUSE(in, function, STATE_ARGUMENT " is NULL");
+    if (!is_state(state)) REFUSE(in, function, STATE_ARGUMENT " = %p is no state of this FMU (freed?)", state);
+    save_signals(&in->signals);
+    Status status = settle(in, function, forward(in->real, state), 0);
+    restore_signals(&in->signals);
+    if (status <= STATUS(Warning) && in->phase == PHASE_ERROR) in->phase = in->phase_before_error;
+    if (status <= STATUS(Warning)) in->time_known = 0;
+    return status;
+}
+
+static Status free_state(GuardedInstance *in, const char *function, void **state) {
+    if (state == NULL) REFUSE(in, function, STATE_ARGUMENT " (the " STATE_TYPE "* to free) is NULL");
+    if (*state == NULL) return STATUS(OK); /* nothing to free */
+    if (!forget_state(*state)) REFUSE(in, function, "*" STATE_ARGUMENT " = %p is no state of this FMU (freed already?)",
+                                      *state);
+    release_objects(*state, NULL);
+    *state = NULL;
+    return STATUS(OK);
+}
+
+static Status serialized_state_size(GuardedInstance *in, const char *function, void *state, size_t *size) {
+    if (state == NULL || size == NULL) REFUSE(in, function, "%s is NULL", state == NULL ? STATE_ARGUMENT : "size");
+    if (!is_state(state)) REFUSE(in, function, STATE_ARGUMENT " = %p is no state of this FMU", state);
+    char *bytes, problem[2048];
+    if (!serialised(in, state, &bytes, size, problem, sizeof problem)) REFUSE(in, function, "%s", problem);
+    return STATUS(OK);
+}
+
+static Status serialize_state(GuardedInstance *in, const char *function, void *state, char bytes[], size_t size) {
+    if (state == NULL) REFUSE(in, function, STATE_ARGUMENT " is NULL");
+    if (bytes == NULL && size > 0) REFUSE(in, function, "serializedState is NULL with size = %zu", size);
+    if (!is_state(state)) REFUSE(in, function, STATE_ARGUMENT " = %p is no state of this FMU", state);
+    char *serialised_bytes, problem[2048];
+    size_t needed;
+    if (!serialised(in, state, &serialised_bytes, &needed, problem, sizeof problem)) REFUSE(in, function, "%s", problem);
+    if (size != needed)
+        REFUSE(in, function, "size = %zu, but the state's serialised size is %zu (" SERIALIZED_STATE_SIZE ")", size,
+               needed);
+    memcpy(bytes, serialised_bytes, needed);
+    return STATUS(OK);
+}
+
+static Status deserialize_state(GuardedInstance *in, const char *function, const char bytes[], size_t size,
+                                void **state) {
+    if (bytes == NULL && size > 0) REFUSE(in, function, "serializedState is NULL with size = %zu", size);
+    if (state == NULL) REFUSE(in, function, STATE_ARGUMENT " (the " STATE_TYPE "* to fill) is NULL");
+    if (*state != NULL && forget_state(*state)) release_objects(*state, NULL); /* a state passed back */
+    *state = NULL;
+    char problem[2048];
+    save_signals(&in->signals);
+    void *made = deserialised(in, bytes, size, problem, sizeof problem);
+    restore_signals(&in->signals);
+    if (made == NULL) REFUSE(in, function, "%s", problem);
+    if (!remember_state(made, in)) {
+        release_objects(made, NULL);
+        REFUSE(in, function, "out of memory recording the state");
+    }
+    *state = made;
+    return STATUS(OK);
+}
+
 #endif

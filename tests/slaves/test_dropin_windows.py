@@ -239,6 +239,28 @@ def test_the_guard_answers_a_hostile_windows_host_as_on_linux(windows_python, bu
     assert windows.stderr.splitlines() == linux.stderr.splitlines()
 
 
+def test_an_fmi3_fmu_answers_a_hostile_windows_host_as_on_linux(windows_python, tmp_path):
+    """PID3 (the FMI 3.0 build of PID, issue 41): its x86_64-windows binary is greyfmu's FMI 3.0 loader
+    (it exports the fmi3 functions, imports no Python), and tests/hostile_host3.c built with mingw-w64
+    and run under Wine with no Python gives every case the results and log lines it gives on Linux."""
+    from test_fmi3 import HOST_SOURCE as HOSTILE3, compile_host3, host3_arguments, parse_host3, run_host3
+
+    (fmu,) = build_fmus(["PID3"], out_dir=tmp_path / "built")
+    arguments, has = host3_arguments(fmu, tmp_path / "PID3")
+    dll = tmp_path / "PID3" / "binaries" / "x86_64-windows" / "PID3.dll"
+    headers = subprocess.run([OBJDUMP, "-p", str(dll)], capture_output=True, text=True, check=True).stdout
+    assert "fmi3InstantiateCoSimulation" in headers and "python3" not in headers.lower()
+    host = tmp_path / "hostile_host3.exe"
+    subprocess.run([MINGW, "-O1", "-Wall", "-Werror", "-o", str(host), str(HOSTILE3)], check=True)
+    done = subprocess.run([WINE, str(host), windows_path(tmp_path / "PID3"), *arguments], capture_output=True,
+                          text=True, timeout=600, env=environment(WINEPREFIX=str(PREFIX), WINEDEBUG="-all",
+                                                                  GREYFMU_PYTHON=windows_path(windows_python)))
+    windows = parse_host3(done, has)
+    linux = run_host3(compile_host3(tmp_path), fmu, tmp_path / "PID3-linux")
+    assert windows["results"] == linux["results"] and len(linux["results"]) > 60
+    assert windows["logs"] == linux["logs"]
+
+
 @pytest.fixture(scope="module")
 def windows_together_host(wine, tmp_path_factory) -> Path:
     """tests/together_host.c built with mingw-w64 (winpthreads linked in)."""

@@ -152,43 +152,61 @@ HOSTILE = ["PID", "Step", "BoilerTurbine"]
 """FMUs with inputs and fixed Float64 parameters (PID, BoilerTurbine) and without inputs (Step)."""
 
 
-@pytest.fixture(scope="module")
-def hostile_runs(fmi3_fmus, tmp_path_factory) -> dict[str, dict]:
+def host3_arguments(fmu: Path, folder: Path) -> tuple[list[str], dict]:
+    """hostile_host3's arguments after the folder for ``fmu`` extracted into ``folder``, and what the
+    FMU has (a fixed Float64 parameter, an input)."""
+    with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(folder)
+    description = read_model_description(str(folder))
+    variables = description.modelVariables
+    real = next(v for v in variables if v.causality == "output")
+    fixed = next((v for v in variables if v.causality == "parameter" and v.type == "Float64"), None)
+    inputs = [v for v in variables if v.causality == "input"]
+    time = next(v for v in variables if v.causality == "independent")
+    arguments = [description.coSimulation.modelIdentifier, description.instantiationToken, str(real.valueReference),
+                 str(fixed.valueReference) if fixed else "-", str(inputs[0].valueReference) if inputs else "-",
+                 str(time.valueReference)]
+    return arguments, {"fixed": fixed is not None, "input": bool(inputs)}
+
+
+def parse_host3(done: subprocess.CompletedProcess, has: dict) -> dict:
+    """The results and log lines hostile_host3 printed (it must have ended by itself)."""
+    assert done.returncode == 0 and done.stdout.rstrip().endswith("done"), \
+        f"the host crashed ({done.returncode}):\n{done.stdout[-2000:]}\n{done.stderr[-2000:]}"
+    results, logs = {}, {}
+    for line in done.stdout.splitlines():
+        if line.startswith("result "):
+            _, case, value = line.split(" ", 2)
+            results[case] = value
+        elif line.startswith("log "):
+            _, case, status, category, message = line.split(" ", 4)
+            logs.setdefault(case, []).append((int(status), category, message))
+    return {"results": results, "logs": logs, "stderr": done.stderr, **has}
+
+
+def compile_host3(folder: Path) -> Path:
     compiler = shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
         pytest.skip("no C compiler (cc or gcc) on PATH to build tests/hostile_host3.c")
-    folder = tmp_path_factory.mktemp("hostile3")
     host = folder / "hostile_host3"
     subprocess.run([compiler, "-O1", "-Wall", "-Werror", "-o", str(host), str(HOST_SOURCE), "-ldl"], check=True)
-    runs = {}
-    for name in (n for n in HOSTILE if n in ALL):
-        unzipped = folder / name
-        with zipfile.ZipFile(fmi3_fmus[name + "3"]) as archive:
-            archive.extractall(unzipped)
-        description = read_model_description(str(unzipped))
-        variables = description.modelVariables
-        vr = {v.name: v.valueReference for v in variables}
-        real = next(v for v in variables if v.causality == "output")
-        fixed = next((v for v in variables if v.causality == "parameter" and v.type == "Float64"), None)
-        inputs = [v for v in variables if v.causality == "input"]
-        arguments = [str(unzipped), name + "3", description.instantiationToken, str(real.valueReference),
-                     str(fixed.valueReference) if fixed else "-", str(inputs[0].valueReference) if inputs else "-",
-                     str(vr["time"])]
-        # a host without Python: no PYTHONPATH/PYTHONHOME, the FMU finds the interpreter that built it
-        done = subprocess.run([str(host), *arguments], capture_output=True, text=True, timeout=300, env=environment())
-        assert done.returncode == 0 and done.stdout.rstrip().endswith("done"), \
-            f"{name}3: the host crashed ({done.returncode}):\n{done.stdout[-2000:]}\n{done.stderr[-2000:]}"
-        results, logs = {}, {}
-        for line in done.stdout.splitlines():
-            if line.startswith("result "):
-                _, case, value = line.split(" ", 2)
-                results[case] = value
-            elif line.startswith("log "):
-                _, case, status, category, message = line.split(" ", 4)
-                logs.setdefault(case, []).append((int(status), category, message))
-        runs[name] = {"results": results, "logs": logs, "stderr": done.stderr, "fixed": fixed is not None,
-                      "input": bool(inputs)}
-    return runs
+    return host
+
+
+def run_host3(host: Path, fmu: Path, folder: Path) -> dict:
+    """hostile_host3 on ``fmu`` in a host without Python (no PYTHONPATH/PYTHONHOME: the FMU finds
+    the interpreter that built it)."""
+    arguments, has = host3_arguments(fmu, folder)
+    done = subprocess.run([str(host), str(folder), *arguments], capture_output=True, text=True, timeout=300,
+                          env=environment())
+    return parse_host3(done, has)
+
+
+@pytest.fixture(scope="module")
+def hostile_runs(fmi3_fmus, tmp_path_factory) -> dict[str, dict]:
+    folder = tmp_path_factory.mktemp("hostile3")
+    host = compile_host3(folder)
+    return {name: run_host3(host, fmi3_fmus[name + "3"], folder / name) for name in HOSTILE if name in ALL}
 
 
 @pytest.mark.parametrize("name", [n for n in HOSTILE if n in ALL])
