@@ -22,7 +22,7 @@ from greyfmu.build import FMU_SOURCES, slave_class
 
 ROOT = Path(__file__).resolve().parents[2]
 FMI2_SLAVES = sorted(path.stem for path in FMU_SOURCES.glob("*.py") if not path.name.startswith("_"))
-"""The FMUs built on fmus/_slave.py (fmus/fmi3/ holds the FMI 3.0 ones, on their own base)."""
+"""The FMUs built on fmus/_slave.py (each also the FMI 3.0 <Name>3.fmu, fmus/fmi3/_slave3.py)."""
 GENERIC = {Real: (Fmi2Slave.get_real, Fmi2Slave.set_real), Integer: (Fmi2Slave.get_integer, Fmi2Slave.set_integer)}
 
 
