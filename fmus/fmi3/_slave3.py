@@ -10,6 +10,9 @@ communication step).  This base class
   of fmi3EnterInitializationMode (FMI 3.0 §2.3.2) and never calls ``setup_experiment``;
 - refuses non-finite inputs and outputs in ``do_step``: it logs a message naming the
   variable and returns an error status instead of passing NaN on;
+- forwards the warnings raised in its calls (greyfmu's ``logging`` warnings and Python warnings) to
+  the FMU log of the instance that raised them (greyfmu.forwarding: routes installed once per
+  process, paid only when a warning fires);
 - declares the independent variable ``time`` that FMI 3.0 requires (§2.4.7.4);
 - keeps a host alive after a call raised: pythonfmu3 0.3.4 answers an exception with fmi3Fatal
   after releasing the instance, its class and its log queue (PySlaveInstance.cpp,
@@ -39,15 +42,14 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import math
 import os
 import re
 import sys
 from abc import abstractmethod
 from collections.abc import Callable
 from pathlib import Path
-from contextlib import AbstractContextManager
 from enum import IntEnum
+from math import isfinite
 from typing import Any, ClassVar
 
 from pythonfmu3 import Float64, Fmi3Causality, Fmi3Slave, Fmi3Status, Fmi3StepResult, Fmi3Variability, Int32
@@ -55,10 +57,13 @@ from pythonfmu3.variable_types import EnumerationType
 from pythonfmu3.variables import Enumeration
 
 from _inprocess import give_back, settle_imports
-from greyfmu.forwarding import forward_warnings
+from greyfmu.forwarding import forward_from, keep_routing
 
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
 
+
+STEPPED = Fmi3StepResult()
+"""What ``do_step`` returns after a step that went well (an immutable NamedTuple, made once)."""
 
 _FINALIZED_BEFORE_EXIT: dict[str, ctypes.CDLL] = {}
 """The pythonfmu3 libraries whose finalizePythonInterpreter is registered to run at exit, by
@@ -170,6 +175,7 @@ class GreyfmuSlave3(Fmi3Slave):
         self._stepped = False
         self._input_names: list[str] = []
         self._output_values: dict[str, Callable[[], float]] = {}
+        """Output name -> its value function, valid once the greyfmu objects are built."""
         self._built = False
         self.choices: dict[str, type[IntEnum]] = {}
         """Parameter name -> the IntEnum of each Enumeration parameter (``greyfmu build`` describes its items)."""
@@ -211,12 +217,13 @@ class GreyfmuSlave3(Fmi3Slave):
         """Declare a Float64 output computed by ``value()`` from up-to-date greyfmu objects."""
 
         def getter() -> float:
-            self._ensure_built()
+            if not self._built:
+                self._ensure_built()
             return value()
 
         self.register_variable(Float64(name, description=description, causality=Fmi3Causality.output,
                                        variability=variability, getter=getter))
-        self._output_values[name] = getter
+        self._output_values[name] = value
 
     @abstractmethod
     def build(self) -> None:
@@ -230,39 +237,56 @@ class GreyfmuSlave3(Fmi3Slave):
         self._ensure_built()
 
     def do_step(self, current_time: float, step_size: float) -> Fmi3StepResult:
-        if not self._stepped:
-            self._stepped = True
-            if current_time != self.experiment_start:
-                self.experiment_start = current_time
-                self._built = False
-        for name in self._input_names:
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                return self._error(f"input {name} = {value} at t = {current_time} s is not a finite number")
-        self._ensure_built()
-        with self.forwarding_warnings():
+        """One communication step, the path a host takes at every step with fmi3DoStep: the inputs
+        checked, the objects rebuilt if a parameter changed, the warnings' route kept in front
+        (greyfmu.forwarding, one comparison), ``advance``, the outputs checked.  Nothing allocated
+        but the new time (a float) and what ``advance`` allocates.  Gives back its references when it raises, itself (one
+        frame less than `_given_back_when_raising`'s)."""
+        try:
+            if not self._stepped:
+                self._stepped = True
+                if current_time != self.experiment_start:
+                    self.experiment_start = current_time
+                    self._built = False
+            attributes = self.__dict__
+            for name in self._input_names:  # plain attributes
+                if not isfinite(attributes[name]):
+                    return self._error(f"input {name} = {attributes[name]} at t = {current_time} s is not a finite number")
+            if not self._built:
+                self._ensure_built()
+            keep_routing()
             self.advance(current_time, step_size)
-        self.time = current_time + step_size
-        for name, output_value in self._output_values.items():
-            value = output_value()
-            if not math.isfinite(value):
-                return self._error(f"output {name} = {value} at t = {self.time} s is not a finite number")
-        return Fmi3StepResult()
+            self.time = current_time + step_size
+            for name, output_value in self._output_values.items():  # the objects are built: no getter's build check
+                if not isfinite(output_value()):
+                    return self._error(f"output {name} = {output_value()} at t = {self.time} s is not a finite number")
+            return STEPPED
+        except BaseException:
+            give_back(self, type(self), self.log_queue)
+            raise
+
+    do_step.given_back_when_raising = True
 
     def _ensure_built(self) -> None:
         if not self._built:
             try:
-                with self.forwarding_warnings():
-                    self.build()
+                keep_routing()
+                self.build()
             except (ValueError, ArithmeticError) as error:
                 self.log(f"{self.instance_name}: invalid parameters: {error}", Fmi3Status.error)
                 raise
             self._built = True
 
-    def forwarding_warnings(self) -> AbstractContextManager[None]:
-        """A context in which greyfmu's warnings (``greyfmu.forwarding``) reach this instance's FMU log as a warning."""
-        return forward_warnings(lambda message: self.log(f"{self.instance_name}: {message}", Fmi3Status.warning))
+    def forward_warning(self, message: str) -> None:
+        """A greyfmu warning raised in one of this instance's calls (greyfmu.forwarding): a warning in its FMU log."""
+        self.log(f"{self.instance_name}: {message}", Fmi3Status.warning)
 
     def _error(self, message: str) -> Fmi3StepResult:
         self.log(f"{self.instance_name}: {message}", Fmi3Status.error)
         return Fmi3StepResult(status=Fmi3Status.error)
+
+
+forward_from(_given_back_when_raising(GreyfmuSlave3.exit_initialization_mode), GreyfmuSlave3.do_step,
+             GreyfmuSlave3._ensure_built)
+"""A warning raised in a call pythonfmu3 makes (each wrapped by `_given_back_when_raising`) or in a
+build reaches the instance's FMU log (`GreyfmuSlave3.forward_warning`)."""
