@@ -2,44 +2,50 @@
 and the FMU's own law (issue 42).
 
     python benchmarks/bench_slave_step.py [--fmus PID FOPDT GrayPredictivePI PID3] [--baseline DIR]
-                                          [--hosts c cosim fmpy] [--steps 4000] [--rounds 15]
+                                          [--hosts c cosim fmpy] [--steps 1000] [--rounds 31] [--json F]
     python benchmarks/bench_slave_step.py --decompose [--tree DIR] [--fmus PID ...]
+    python benchmarks/bench_slave_step.py --system ssp/pid_fopdt [--baseline DIR]
 
 A step is what a master does per FMU: set its Real inputs (one batched call), doStep over the
-FMU's default step, get its Real outputs (one batched call).  Per model, three FMUs run in one
-process, interleaved round by round, and each figure is the best round's CPU time per step
-(the machine is shared):
+FMU's default step, get its Real outputs (one batched call).  Per model, these FMUs run in one
+process, interleaved round by round, and each figure is the best round's CPU time per step (the
+machine is shared):
 
-- ``ours``: the FMU built from this tree (greyfmu.build, into a temporary folder);
-- ``before``: the same model built elsewhere (``--baseline DIR``: a folder of FMUs, e.g. built
-  from the commit before a change), run in the same process (each FMU's code is private to it,
-  greyfmu.privatise);
 - ``floor``: pythonfmu's floor, a plain pythonfmu (pythonfmu3 for an FMI 3.0 model) FMU
   ``<Model>Floor`` with the model's variables (names, types, causalities, variabilities, start
-  values) whose ``do_step`` does nothing, with pythonfmu's own generic get/set.
+  values) whose ``do_step`` does nothing, with pythonfmu's own generic get and set;
+- ``law``: the law on that floor, a plain pythonfmu FMU ``<Model>Law`` of our slave class whose
+  ``do_step`` only calls ``advance`` and whose get and set are pythonfmu's generic ones on the
+  greyfmu objects (nothing of our slave base on the step's path): what the law costs in the host;
+- ``ours``: the FMU built from this tree (greyfmu.build, into a temporary folder);
+- ``before``: the same model built elsewhere (``--baseline DIR``: a folder of FMUs, e.g. built
+  from the commit before a change), in the same process (each FMU's code is private to it,
+  greyfmu.privatise).
 
-Hosts: ``c`` (benchmarks/step_host.c, a C program that has no Python of its own: our loader
-starts it; FMI 2.0 only), ``cosim`` (`cosim.single.prepare_run` with an input table setting the
-inputs at every step, only ``time`` kept, the compiled loop; the CPU time of `Execution.run`),
-``fmpy`` (a Python loop over fmpy's ``FMU2Slave``/``FMU3Slave`` ``setReal``/``doStep``/``getReal``).
+Hosts: ``c`` (benchmarks/step_host.c, a C program with no Python of its own: our loader starts it;
+FMI 2.0 only), ``cosim`` (cosim's compiled loop over the FMU wired to a C peer FMU that feeds its
+inputs and reads its outputs, only time kept; the CPU time of `Execution.run`, the peer's share
+in every figure), ``fmpy`` (a Python loop over fmpy's ``FMU2Slave``/``FMU3Slave``
+``setReal``/``doStep``/``getReal``).  The law alone is ``advance(t, h)`` called in a Python loop
+on an instance of the slave class (fmus/, default parameters, the same inputs), in the same rounds.
+Printed per model and host: µs per step of each FMU, and what ours and before add to the law on
+the floor and to the floor plus the law alone, as multiples of that law; the target (issue 42)
+is ours <= floor + law + 1.5 law.
 
-The law is the FMU's ``advance(t, h)`` on an instance of its slave class made in this process
-(fmus/, parameters at their defaults, the same inputs), timed in the same rounds.  Printed per
-model and host: µs per step of each FMU, what ours adds to the floor, and that as a multiple of
-the law; the target (issue 42) is ours <= floor + law + 1.5 law.
+``--decompose`` splits a step of the slave class in Python, with no FMI host (with ``--tree``, the
+fmus/ and greyfmu of another tree, e.g. the commit before): the law, the warnings' forwarding per
+step (before: ``forward_warnings``, a context entered around every advance; after:
+``keep_routing``), the accessors (set_real + get_real, against the floor slave's generic ones),
+the rest of ``do_step`` (the input and output checks, the build check), against the floor slave's
+set + do_step + get.  The crossing (pythonfmu's C++ wrapper, our loader, the host's calls) is a
+host's floor figure less the floor slave's Python calls.
 
-``--decompose`` splits a step of the slave class in Python, without an FMI host (with ``--tree``,
-the fmus/ and greyfmu of another tree, e.g. the commit before): the law, the warnings'
-forwarding per step (before: ``forward_warnings``, a context entered around every advance;
-after: ``keep_routing``), the accessors (our set_real + get_real less the floor slave's generic
-ones), the rest of ``do_step`` (the input and output checks, the build check), each against the
-floor slave's set + do_step + get.  The crossing (pythonfmu's C++ wrapper, our loader, the host's
-call) is the host's floor figure less the floor slave's Python calls.
+``--system DIR``: cosim's compiled loop over a scenario (its FMUs those of this tree, and of
+``--baseline``), interleaved, µs per step.
 """
 from __future__ import annotations
 
 import argparse
-import ctypes
 import json
 import os
 import re
@@ -292,15 +298,6 @@ def law_timer(model: str, h: float):
 # -------------------------------------------------------------------------------------------- hosts
 
 
-def compile_host(folder: Path) -> Path:
-    compiler = shutil.which("cc") or shutil.which("gcc")
-    if compiler is None:
-        raise RuntimeError("no C compiler (cc or gcc) on PATH: benchmarks/step_host.c cannot be built")
-    host = folder / "step_host"
-    subprocess.run([compiler, "-O2", "-Wall", "-Werror", "-o", str(host), str(HOST_SOURCE), "-ldl"], check=True)
-    return host
-
-
 def c_host(host: Path, fmus: dict[str, Path], h: float, steps: int, rounds: int,
            folder: Path) -> dict[str, list[float]]:
     """µs per step of every round of each FMU (label -> FMU) in step_host.c; ours before the plain pythonfmu ones."""
@@ -408,28 +405,71 @@ class CosimRun:
         self.steps = steps
 
     def timed(self, steps: int) -> float:
-        from cosim.execution import Execution
-        from cosim.simulation import run
+        return loop_cpu(self.prepared) / self.steps
 
-        spent = []
-        original = Execution.run
 
-        def timed_run(execution, *args, **kwargs):
-            began = time.process_time()
-            try:
-                return original(execution, *args, **kwargs)
-            finally:
-                spent.append(time.process_time() - began)
+def loop_cpu(prepared) -> float:
+    """The CPU seconds of the stepping loop (`Execution.run`) of one cosim run of ``prepared``, only
+    time kept; RuntimeError unless every operation ran in the compiled loop."""
+    from cosim.execution import Execution
+    from cosim.simulation import run
 
-        Execution.run = timed_run
+    spent = []
+    original = Execution.run
+
+    def timed_run(execution, *args, **kwargs):
+        began = time.process_time()
         try:
-            _, meta = run(self.prepared, keep=[])
+            return original(execution, *args, **kwargs)
         finally:
-            Execution.run = original
-        if meta.get("kernel") != "native" or meta.get("python_operations"):
-            raise RuntimeError(f"cosim did not run every operation in the compiled loop: {meta.get('kernel_reason')}, "
-                               f"{meta.get('python_operations')}")
-        return spent[0] / self.steps
+            spent.append(time.process_time() - began)
+
+    Execution.run = timed_run
+    try:
+        _, meta = run(prepared, keep=[])
+    finally:
+        Execution.run = original
+    if meta.get("kernel") != "native" or meta.get("python_operations"):
+        raise RuntimeError(f"cosim did not run every operation in the compiled loop: {meta.get('kernel_reason')}, "
+                           f"{meta.get('python_operations')}")
+    return spent[0]
+
+
+def system_loop(args: argparse.Namespace) -> None:
+    """``--system DIR``: cosim's loop over the scenario DIR with our FMUs of this tree and with those
+    of ``--baseline``, interleaved, µs per step (CPU time of the loop, only time kept)."""
+    import cosim
+    from greyfmu.build import build_fmus
+
+    ssd = (args.system / "SystemStructure.ssd").read_text()
+    names = sorted(set(re.findall(r'source="resources/(\w+)\.fmu"', ssd)))
+    with tempfile.TemporaryDirectory(prefix="bench-slave-system-") as temp:
+        folder = Path(temp)
+        trees = {"ours": build_fmus(names, out_dir=folder / "ours")[0].parent}
+        if args.baseline is not None:
+            trees["before"] = args.baseline
+        for label, fmus in trees.items():
+            copy = shutil.copytree(args.system, folder / label / args.system.name)
+            (copy / "resources").mkdir(exist_ok=True)
+            for name in names:
+                shutil.copy(fmus / f"{name}.fmu", copy / "resources" / f"{name}.fmu")
+        default = cosim.prepare(folder / "ours" / args.system.name, use_providers=False)
+        step = default.grid.step
+        default.close()
+        prepared = {label: cosim.prepare(folder / label / args.system.name, stop_time=args.steps * step,
+                                         use_providers=False) for label in trees}
+        us: dict[str, list[float]] = {label: [] for label in trees}
+        print(f"{args.system.name}: {', '.join(names)}; {args.steps} steps of {step:g} s, best of {args.rounds}, "
+              f"load average {os.getloadavg()[0]:.2f}")
+        for _ in range(args.rounds):
+            for label in trees:
+                us[label].append(loop_cpu(prepared[label]) / args.steps * 1e6)
+        for label, values in us.items():
+            print(f"  {label:6} {best(values):6.2f} µs/step (median {statistics.median(values):.2f})")
+        if "before" in us:
+            print(f"  ours / before {best(us['ours']) / best(us['before']):.2f}")
+        for run in prepared.values():
+            run.close()
 
 
 # ------------------------------------------------------------------------------------------- report
@@ -461,12 +501,13 @@ LABELS = ("floor", "law", "ours", "before")
 
 
 def measure(args: argparse.Namespace) -> None:
+    from dropinhost import compile_host
     from greyfmu.build import build_fmus
 
     with tempfile.TemporaryDirectory(prefix="bench-slave-step-") as temp:
         folder = Path(temp)
         ours = {path.stem: path for path in build_fmus(args.fmus, out_dir=folder / "ours")}
-        host = compile_host(folder) if "c" in args.hosts else None
+        host = compile_host(folder, HOST_SOURCE) if "c" in args.hosts else None
         summary = {}
         print(f"load average before: {os.getloadavg()[0]:.2f}")
         for model in args.fmus:
@@ -507,20 +548,24 @@ def measure(args: argparse.Namespace) -> None:
 
 def decompose(args: argparse.Namespace) -> None:
     """The parts of a step of the slave classes in Python (see the module docstring)."""
+    import importlib
+
+    from greyfmu import forwarding
+    from greyfmu.build import build_fmus
+
     with tempfile.TemporaryDirectory(prefix="bench-slave-parts-") as temp:
         folder = Path(temp)
         sys.path.insert(0, str(folder))
-        from greyfmu import forwarding
-
         tree = Path(forwarding.__file__).resolve().parents[1]
         print(f"tree {tree}; load average {os.getloadavg()[0]:.2f}; µs, best of {args.rounds} rounds of {args.steps}")
-        for model in args.fmus:
+        for fmu in build_fmus(args.fmus, out_dir=folder / "fmus"):
+            model = fmu.stem
             cls = slave_class(model)
-            fmi3 = "Fmi3Slave" in [base.__name__ for base in cls.__mro__]
             ours = cls(instance_name="ours", resources=None)
-            floor_cls = _floor_class(ours, model, folder, fmi3)
-            floor = floor_cls(instance_name="floor", resources=None)
-            parts = _parts(ours, floor, fmi3, forwarding)
+            write_floor(fmu, model, folder)
+            floor = getattr(importlib.import_module(f"{model}Floor"), f"{model}Floor")(instance_name="floor",
+                                                                                         resources=None)
+            parts = _parts(ours, floor, floor_variables(fmu)[0].startswith("3"), forwarding)
             us = {name: [] for name in parts}
             for _ in range(args.rounds):
                 for name, part in parts.items():
@@ -533,27 +578,6 @@ def decompose(args: argparse.Namespace) -> None:
                   f"{figures['ours do_step'] - figures['law'] - figures['warnings'] - figures['floor do_step']:.2f}; "
                   f"ours - floor - law = {step - floor_step - figures['law']:.2f} "
                   f"({(step - floor_step - figures['law']) / figures['law']:.2f} law)")
-
-
-def _floor_class(ours, model: str, folder: Path, fmi3: bool) -> type:
-    """The floor slave class for ``ours``'s variables (as `write_floor` writes it from an FMU)."""
-    variables = []
-    for variable in ours.vars.values():
-        causality = variable.causality.name
-        if causality not in ("parameter", "input", "output"):
-            continue
-        kind = type(variable).__name__
-        kind = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "Float64": "Float64", "Int32": "Int32",
-                "Enumeration": "Int32", "ScalarEnumeration": "Int32", "RealVariable": "Real",
-                "IntegerVariable": "Integer"}[kind]
-        start = 0.0 if causality == "output" else getattr(ours, variable.name)
-        start = float(start) if kind in ("Real", "Float64") else int(start)
-        variables.append((variable.name, kind, causality, variable.variability.name, start))
-    script = folder / f"{model}Floor.py"
-    script.write_text((FLOOR3 if fmi3 else FLOOR2).format(model=model, variables=variables))
-    import importlib
-
-    return getattr(importlib.import_module(f"{model}Floor"), f"{model}Floor")
 
 
 def _parts(ours, floor, fmi3: bool, forwarding) -> dict:
@@ -623,15 +647,19 @@ def main() -> None:
     parser.add_argument("--fmus", nargs="+", default=["PID", "FOPDT", "GrayPredictivePI", "PID3"])
     parser.add_argument("--baseline", type=Path, help="a folder of FMUs built otherwise (the 'before')")
     parser.add_argument("--hosts", nargs="+", default=["c", "cosim", "fmpy"], choices=["c", "cosim", "fmpy"])
-    parser.add_argument("--steps", type=int, default=4000)
-    parser.add_argument("--rounds", type=int, default=15)
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--rounds", type=int, default=31)
     parser.add_argument("--json", type=Path, help="write the figures there")
     parser.add_argument("--decompose", action="store_true", help="split a step of the slave classes in Python")
     parser.add_argument("--tree", type=Path, help="with --decompose: the tree whose fmus/ and greyfmu to use")
+    parser.add_argument("--system", type=Path, help="cosim's loop over this scenario (e.g. ssp/pid_fopdt), ours "
+                                                    "against --baseline")
     args = parser.parse_args()
     tree_on_path(args.tree if args.tree is not None else ROOT)
     if args.decompose:
         decompose(args)
+    elif args.system is not None:
+        system_loop(args)
     else:
         measure(args)
 

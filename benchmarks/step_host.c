@@ -11,12 +11,12 @@
  * Prints one line per FMU: its identifier, then the CPU time per step of every round in µs
  * (CLOCK_PROCESS_CPUTIME_ID: the host has one thread).  Exit 1 if an FMI call fails.
  */
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
+#define FMI2HOST_STDERR_LOGGER
 #include "../tests/fmi2host.h"
 
 enum { MAX_FMUS = 16, MAX_PORTS = 64, MAX_ROUNDS = 100 };
@@ -32,25 +32,6 @@ typedef struct {
     double t;
     double us[MAX_ROUNDS];
 } Fmu;
-
-static void logger(void *env, const char *instance, int status, const char *category, const char *format, ...) {
-    (void)env;
-    va_list args;
-    va_start(args, format);
-    fprintf(stderr, "[%s] status %d %s: ", instance ? instance : "?", status, category ? category : "");
-    vfprintf(stderr, format, args);
-    fprintf(stderr, "\n");
-    va_end(args);
-}
-
-static void *symbol(void *library, const char *name) {
-    void *found = dlsym(library, name);
-    if (!found) {
-        fprintf(stderr, "no %s: %s\n", name, dlerror());
-        exit(1);
-    }
-    return found;
-}
 
 static void ok(Status status, const char *call, const char *identifier) {
     if (status > 1) {

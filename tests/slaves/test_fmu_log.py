@@ -5,6 +5,8 @@ GainScheduledPID whose slave has no logging code of its own, through a real FMU 
 """
 
 import logging
+import subprocess
+import sys
 import threading
 import time
 import warnings
@@ -58,6 +60,15 @@ def test_warnings_reach_the_sink_whose_call_raised_them_every_occurrence_whateve
     logging.getLogger("greyfmu.control.gpc").warning("after the calls")
     assert first.got == ["QP infeasible", "design outside the advice"] * 2
     assert second.got == ["QP infeasible", "design outside the advice"]
+
+
+def test_a_record_outside_any_call_reaches_stderr_as_without_the_handler():
+    """greyfmu used as a library, with no logging configured: a warning outside any sink's call still
+    reaches Python's last-resort handler (stderr), though greyfmu's logger now has a handler."""
+    code = ("import logging; from greyfmu import forwarding; "
+            "logging.getLogger('greyfmu.control.gpc').warning('QP %s', 'infeasible')")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    assert done.stderr == "QP infeasible\n"
 
 
 def test_threads_calling_two_sinks_at_once_each_get_their_own_warnings():
