@@ -4,7 +4,8 @@ greyfmu reports fallbacks two ways: ``logging`` warnings under the ``greyfmu`` l
 measurement held, an infeasible QP, a refused scheduling variable) and Python ``warnings`` (an
 off-line design outside the paper's advice, ``HorizonWarning``; numpy's and scipy's).  Both reach
 the `WarningSink` whose call raised them, every occurrence, through two routes installed once per
-process and paid only when a warning fires (nothing is entered, added or allocated per call):
+process and paid only when a warning fires (per call one identity comparison, `keep_routing`;
+nothing entered, added or allocated):
 
 - `Handler`, added once to greyfmu's package logger (`LOGGER`), for the records of level WARNING
   or above; the record still propagates to the host's handlers as before;
@@ -22,8 +23,8 @@ on entry: the calls pay nothing, and threads stepping instances at once each fin
 
 The route must lead ``warnings.filters``, which a host may change at any time (``catch_warnings``
 blocks restore a list without it, ``simplefilter`` inserts before it, ``resetwarnings`` empties
-it), so the sinks' calls begin with `keep_routing`: one identity comparison, and the route put
-back in front when it was moved.  Several FMUs of ours in one process (each with its private copy
+it), so the calls that run greyfmu's code (the slave bases' step, build and retune) begin with
+`keep_routing`: one identity comparison, and the route put back in front when it was moved.  Several FMUs of ours in one process (each with its private copy
 of this module, greyfmu.privatise), of this release or another, share one route: a copy that
 finds a route at the front adopts it (``greyfmu_route``, the version of this protocol, is 1: a
 route has ``register(codes)``, and a sink ``forward_warning(message)``), so no two copies take the
