@@ -3,7 +3,7 @@ and (``--throughput``) a sweep's throughput against its loops' (issue 28).
 
     python benchmarks/bench_sweep.py [--scenario ssp/grey_noise] [--runs 20] [--stop 10000] [--workers 2]
                                      [--dask] [--cluster]
-    python benchmarks/bench_sweep.py --throughput [--runs 200] [--steps 1000] [--workers 2] [--dask]
+    python benchmarks/bench_sweep.py --throughput [--runs 200] [--steps 1000] [--workers 2] [--dask] [--fmus-from DIR]
 
 ``--throughput``: ``ssp/pid_fopdt`` swept over RUNS values of controller.Kc, STEPS steps of its
 0.1 s step each, on the local pool of WORKERS processes (``--dask``: also a Dask LocalCluster of as
@@ -41,6 +41,7 @@ import json
 import math
 import multiprocessing
 import pickle
+import shutil
 import statistics
 import subprocess
 import sys
@@ -164,13 +165,19 @@ def _loops(out: Path) -> list[float]:
     return [json.loads(p.read_text())["loop_seconds"] for p in (out / "runs").glob("*.json")]
 
 
-def throughput(runs: int, steps: int, workers: int, dask: bool) -> None:
-    """The ``--throughput`` benchmark (see the module docstring)."""
+def throughput(runs: int, steps: int, workers: int, dask: bool, fmus_from: Path | None = None) -> None:
+    """The ``--throughput`` benchmark (see the module docstring); ``fmus_from``: a folder of FMUs the
+    scenario takes its FMUs from (copied into its resources/) instead of the FMU provider's build/fmus."""
     scenario = str(ROOT / "ssp" / "pid_fopdt")
     stop = steps * 0.1
     gains = [2.0 + 6.0 * i / max(1, runs - 1) for i in range(runs)]
     engines = [("process", "process")] + ([("dask", f"local:{workers}")] if dask else [])
     with tempfile.TemporaryDirectory(prefix="bench-sweep-") as tmp:
+        if fmus_from is not None:
+            scenario = str(shutil.copytree(scenario, Path(tmp) / "pid_fopdt"))
+            (Path(scenario) / "resources").mkdir(exist_ok=True)
+            for name in ("Step", "PID", "FOPDT"):
+                shutil.copy(fmus_from / f"{name}.fmu", Path(scenario) / "resources")
         sweep(scenario, {"controller.Kc": gains[:1]}, stop_time=stop, output=Path(tmp) / "warm",
               executor="serial")     # our FMUs built, the FMU cache filled: not timed
         for label, executor in engines:
@@ -212,11 +219,13 @@ def main() -> None:
     parser.add_argument("--throughput", action="store_true",
                         help="pid_fopdt runs/s: fresh instances, reused, table only, against the loops' ideal")
     parser.add_argument("--steps", type=int, default=1000, help="--throughput: steps of each run")
+    parser.add_argument("--fmus-from", type=Path, help="--throughput: take pid_fopdt's FMUs from this folder "
+                                                       "(e.g. built at another commit) instead of build/fmus")
     args = parser.parse_args()
     if args.throughput:
         print(f"machine: a CPU-bound loop in {args.workers} processes runs {machine_speedup(args.workers):.2f}x "
               "faster than one after the other")
-        throughput(args.runs or 200, args.steps, args.workers, args.dask)
+        throughput(args.runs or 200, args.steps, args.workers, args.dask, args.fmus_from)
         print(f"machine after: {machine_speedup(args.workers):.2f}x")
         return
     args.runs = args.runs or 20

@@ -10,7 +10,9 @@ communication step).  This base class
   master set, and ``exit_initialization_mode`` refuses invalid parameters),
 - refuses non-finite inputs and outputs in ``do_step``: it logs a message naming the
   variable and returns an error status instead of passing NaN on,
-- forwards greyfmu's warnings raised in ``build``, ``advance`` and a retune to the FMU log,
+- forwards the warnings raised in its calls (greyfmu's ``logging`` warnings and Python warnings) to
+  the FMU log of the instance that raised them, as fmi2Warning (greyfmu.forwarding: routes
+  installed once per process, paid only when a warning fires),
 - gets, sets and serialises the FMU state (FMI 2.0 §2.1.8, fmi2GetFMUstate ... fmi2DeSerializeFMUstate):
   the whole instance but its declarations (see `GreyfmuSlave.fmu_state_attributes`), deep-copied,
   so a restored instance replays bit for bit: parameters, inputs, time, the greyfmu objects with
@@ -40,11 +42,10 @@ from __future__ import annotations
 
 import copy
 import functools
-import math
 from abc import abstractmethod
 from collections.abc import Callable
-from contextlib import AbstractContextManager
 from enum import IntEnum
+from math import isfinite
 from operator import attrgetter
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element
@@ -55,7 +56,7 @@ from pythonfmu.variables import ScalarVariable
 
 from _inprocess import give_back, settle_imports
 from _state import state_bytes, state_from_bytes
-from greyfmu.forwarding import forward_warnings
+from greyfmu.forwarding import forward_from, keep_routing
 
 REQUIREMENTS = "Requires Python 3.10+ with numpy and scipy on the target; the greyfmu package is embedded as FMU resources."
 
@@ -111,7 +112,7 @@ def _type_attributes(unit: str | None, minimum: float | None, maximum: float | N
     return {key: str(value) for key, value in attributes.items() if value is not None}
 
 
-DECLARATIONS = frozenset({"_declarations", "_input_names", "_attributes", "_outputs", "choices",
+DECLARATIONS = frozenset({"_declarations", "_input_names", "_attributes", "_outputs", "_output_functions", "choices",
                           "_get_real", "_get_integer", "_get_boolean", "_get_string",
                           "_set_real", "_set_integer", "_set_boolean", "_set_string"})
 """`GreyfmuSlave`'s attributes that declare the variables (fixed after ``__init__``), not FMU state."""
@@ -201,6 +202,8 @@ class GreyfmuSlave(Fmi2Slave):
         """Value reference -> attribute name of the parameters and inputs (plain attributes of the slave)."""
         self._outputs: dict[int, Callable[[], float]] = {}
         """Value reference -> value function of each output, valid once the greyfmu objects are built."""
+        self._output_functions: tuple[Callable[[], float], ...] = ()
+        """The value functions of `_outputs`, in order: what `do_step` checks."""
         self._built = False
         self.choices: dict[str, type[IntEnum]] = {}
         """Parameter name -> the IntEnum of each mode parameter (its values checked before a build)."""
@@ -241,8 +244,8 @@ class GreyfmuSlave(Fmi2Slave):
                 self._built = False
                 return
             try:
-                with self.forwarding_warnings():
-                    retune(name, value)
+                keep_routing()
+                retune(name, value)
             except ValueError as refusal:
                 self.log(f"{self.instance_name}: {refusal}; {name} stays {getattr(self, name)}", Fmi2Status.warning)
                 return
@@ -333,6 +336,7 @@ class GreyfmuSlave(Fmi2Slave):
         )
         self.register_variable(variable)
         self._outputs[variable.value_reference] = value
+        self._output_functions = tuple(self._outputs.values())
 
     @abstractmethod
     def build(self) -> None:
@@ -364,21 +368,23 @@ class GreyfmuSlave(Fmi2Slave):
         pass
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        """One communication step, the path a host takes at every step with fmi2DoStep: the inputs
+        checked, the objects rebuilt if a parameter changed, the warnings' route kept in front
+        (greyfmu.forwarding, one comparison), ``advance``, the outputs checked.  Nothing allocated
+        but the new time (a float) and what ``advance`` allocates."""
         try:
-            for name in self._input_names:
-                value = getattr(self, name)
-                if not math.isfinite(value):
-                    return self._error(f"input {name} = {value} at t = {current_time} s is not a finite number")
+            attributes = self.__dict__
+            for name in self._input_names:  # plain attributes (`_compile_set`)
+                if not isfinite(attributes[name]):
+                    return self._error(f"input {name} = {attributes[name]} at t = {current_time} s is not a finite number")
             if not self._built:
                 self._ensure_built()
-            with self.forwarding_warnings():
-                self.advance(current_time, step_size)
+            keep_routing()
+            self.advance(current_time, step_size)
             self.current_time = current_time + step_size
-            for vr, output_value in self._outputs.items():  # the objects are built: no getter's build check
-                value = output_value()
-                if not math.isfinite(value):
-                    name = self.vars[vr].name
-                    return self._error(f"output {name} = {value} at t = {self.current_time} s is not a finite number")
+            for output_value in self._output_functions:  # the objects are built: no getter's build check
+                if not isfinite(output_value()):
+                    return self._non_finite_output(output_value)
             return True
         except BaseException as error:
             self._raised("fmi2DoStep", error)
@@ -578,8 +584,8 @@ class GreyfmuSlave(Fmi2Slave):
         if not self._built:
             try:
                 self._check_choices()
-                with self.forwarding_warnings():
-                    self.build()
+                keep_routing()
+                self.build()
             except (ValueError, ArithmeticError) as error:
                 raise ValueError(f"invalid parameters: {error}") from error
             self._built = True
@@ -592,13 +598,25 @@ class GreyfmuSlave(Fmi2Slave):
                 items = ", ".join(f"{member.value} = {member.name}" for member in choices)
                 raise ValueError(f"{name} = {value} is not an item of {choices.__name__} ({items})")
 
-    def forwarding_warnings(self) -> AbstractContextManager[None]:
-        """A context in which greyfmu's warnings (``greyfmu.forwarding``) reach this instance's FMU log as fmi2Warning."""
-        return forward_warnings(lambda message: self.log(f"{self.instance_name}: {message}", Fmi2Status.warning))
+    def forward_warning(self, message: str) -> None:
+        """A greyfmu warning raised in one of this instance's calls (greyfmu.forwarding): an fmi2Warning in its FMU log."""
+        self.log(f"{self.instance_name}: {message}", Fmi2Status.warning)
 
     def _error(self, message: str) -> bool:
         self.log(f"{self.instance_name}: {message}", Fmi2Status.error)
         return False
+
+    def _non_finite_output(self, output_value: Callable[[], float]) -> bool:
+        """The error of `do_step` for the output ``output_value`` computes (not a finite number)."""
+        vr = next(vr for vr, value in self._outputs.items() if value is output_value)
+        return self._error(f"output {self.vars[vr].name} = {output_value()} at t = {self.current_time} s "
+                           "is not a finite number")
+
+
+forward_from(*(function for name, function in vars(GreyfmuSlave).items() if name in CALLED_BY_PYTHONFMU),
+             GreyfmuSlave._ensure_built, _reporting(GreyfmuSlave.do_step, "fmi2DoStep"))
+"""A warning raised in a call pythonfmu makes (the base's methods, a subclass's override wrapped by
+`_reporting`) or in a build reaches the instance's FMU log (`GreyfmuSlave.forward_warning`)."""
 
 
 class SourceSlave(GreyfmuSlave):

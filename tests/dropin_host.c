@@ -24,6 +24,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#define FMI2HOST_STDERR_LOGGER
 #include "fmi2host.h"
 
 #ifdef _WIN32
@@ -90,16 +91,6 @@ static int connection_count;
 static struct { int i; unsigned vr; const char *name; } columns[MAX * 8];
 static int column_count;
 
-static void logger(void *env, const char *instance, int status, const char *category, const char *format, ...) {
-    (void)env;
-    va_list args;
-    va_start(args, format);
-    fprintf(stderr, "[%s] status %d %s: ", instance ? instance : "?", status, category ? category : "");
-    vfprintf(stderr, format, args);
-    fprintf(stderr, "\n");
-    va_end(args);
-}
-
 static int check(Status status, const char *call, int i, double t) {
     if (status > 1) {
         fprintf(stderr, "%s of instance %d failed with status %d at t = %g\n", call, i, status, t);
@@ -108,14 +99,6 @@ static int check(Status status, const char *call, int i, double t) {
     return 1;
 }
 
-static void *symbol(void *library, const char *name) {
-    void *found = dlsym(library, name);
-    if (!found) {
-        fprintf(stderr, "no %s: %s\n", name, dlerror());
-        exit(1);
-    }
-    return found;
-}
 #ifndef _WIN32
 /* What a host embedding Python does: its libpython loaded RTLD_LOCAL, initialised if `init`. */
 static void embed(const char *libpython, int init) {

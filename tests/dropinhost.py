@@ -17,13 +17,14 @@ from fmpy import read_model_description
 HOST_SOURCE = Path(__file__).resolve().parent / "dropin_host.c"
 
 
-def compile_host(folder: Path) -> Path:
-    """tests/dropin_host.c compiled with the system compiler into ``folder``."""
+def compile_host(folder: Path, source: Path = HOST_SOURCE) -> Path:
+    """tests/dropin_host.c (or another C host, benchmarks/step_host.c) compiled with the system
+    compiler into ``folder``."""
     compiler = shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
-        raise RuntimeError("no C compiler (cc or gcc) on PATH: the drop-in tests need one to build their host")
-    host = folder / "dropin_host"
-    subprocess.run([compiler, "-O1", "-Wall", "-Werror", "-o", str(host), str(HOST_SOURCE), "-ldl"], check=True)
+        raise RuntimeError(f"no C compiler (cc or gcc) on PATH: {source.name} cannot be built")
+    host = folder / source.stem
+    subprocess.run([compiler, "-O1", "-Wall", "-Werror", "-o", str(host), str(source), "-ldl"], check=True)
     return host
 
 

@@ -1,4 +1,4 @@
-/* What the C test hosts tests/dropin_host.c and tests/together_host.c share: loading an FMU's
+/* What the C test hosts tests/dropin_host.c and tests/together_host.c (and benchmarks/step_host.c) share: loading an FMU's
  * binary on Linux (dlopen) and Windows (LoadLibrary, built with mingw-w64), and the FMI 2.0
  * types they call it with. */
 #ifndef GREYFMU_TESTS_FMI2HOST_H
@@ -34,5 +34,30 @@ typedef struct {
     void (*stepFinished)(void *, int);
     void *componentEnvironment;
 } Callbacks;
+
+#ifdef FMI2HOST_STDERR_LOGGER
+/* What tests/dropin_host.c and benchmarks/step_host.c share: a logger printing each message on
+ * stderr, and dlsym or exit(1). */
+#include <stdarg.h>
+
+static void logger(void *env, const char *instance, int status, const char *category, const char *format, ...) {
+    (void)env;
+    va_list args;
+    va_start(args, format);
+    fprintf(stderr, "[%s] status %d %s: ", instance ? instance : "?", status, category ? category : "");
+    vfprintf(stderr, format, args);
+    fprintf(stderr, "\n");
+    va_end(args);
+}
+
+static void *symbol(void *library, const char *name) {
+    void *found = dlsym(library, name);
+    if (!found) {
+        fprintf(stderr, "no %s: %s\n", name, dlerror());
+        exit(1);
+    }
+    return found;
+}
+#endif
 
 #endif
