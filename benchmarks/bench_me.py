@@ -23,7 +23,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # the root first: tests/cosim w
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 
-from cosim import simulation
+from cosim.run import simulation
 
 
 def loop_seconds(path: Path, repeat: int, **options) -> tuple[float, int]:

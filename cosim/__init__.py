@@ -17,9 +17,9 @@ def __getattr__(name: str):
     needs no FMU machinery stays cheap to import: the pytest plugin `cosim.pytest_plugin` is
     loaded into every pytest session of anyone who installs the package."""
     if name in ("simulate", "prepare"):
-        from . import simulation
+        from .run import simulation
         return getattr(simulation, name)
     if name == "simulate_fmu":
-        from . import single
+        from .plan import single
         return single.simulate_fmu
     raise AttributeError(f"module 'cosim' has no attribute {name!r}")

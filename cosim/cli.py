@@ -204,7 +204,7 @@ FMI_TYPE_HELP = "the interface of an FMU that has both (default: CoSimulation); 
 
 
 def input_options(run: argparse.ArgumentParser) -> None:
-    """--start-value and --input-file (`cosim.single`, `cosim.inputs`), with fmpy simulate's names."""
+    """--start-value and --input-file (`cosim.plan.single`, `cosim.plan.inputs`), with fmpy simulate's names."""
     run.add_argument("--start-value", "--start-values", action="append", default=[], metavar="NAME=VALUE",
                      dest="start_values", help="start value of a parameter or input, applied after the parameter "
                      "sets: the variable's name for a single FMU, 'component.variable' in a system (repeatable)")
@@ -214,7 +214,7 @@ def input_options(run: argparse.ArgumentParser) -> None:
 
 
 def single_options(run: argparse.ArgumentParser) -> None:
-    """The options of `cosim.single` and `cosim.inputs`, with fmpy simulate's names."""
+    """The options of `cosim.plan.single` and `cosim.plan.inputs`, with fmpy simulate's names."""
     input_options(run)
     run.add_argument("--output-interval", type=float, metavar="SECONDS",
                      help="communication step, at which results are recorded (fmpy's name for --step)")
@@ -262,13 +262,13 @@ def _fail(e: CosimError, debug: bool) -> int:
 
 
 def _run(args) -> int:
-    from .instances import Unzipped
-    from .journal import journal_path
-    from .outputs import RESULT_SUFFIXES, check_not_in_sweep, check_output, plot_suffixes, scenario_files
+    from .run.instances import Unzipped
+    from .record.journal import journal_path
+    from .record.outputs import RESULT_SUFFIXES, check_not_in_sweep, check_output, plot_suffixes, scenario_files
     from .safeio import lock_output, lock_path, partial_path
-    from .simulation import isolation_of
-    from .single import prepare_run
-    from .supervisor import supervise
+    from .run.simulation import isolation_of
+    from .plan.single import prepare_run
+    from .run.supervisor import supervise
 
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         raise SetupError(f"--timeout {args.timeout}: give a positive number of seconds.", element="--timeout")
@@ -315,7 +315,7 @@ SCENARIO_NAME = "the scenario's name"
 
 def _default_result(plan, name: str, parameter_sets: list[str]) -> Path:
     """``results/<system name>__<set>...csv``, the names checked to be file names."""
-    from .outputs import result_stem
+    from .record.outputs import result_stem
 
     where = dict(file=plan.files.display, element="ssd:SystemStructureDescription name") if plan.name else \
         dict(what=SCENARIO_NAME)
@@ -323,13 +323,13 @@ def _default_result(plan, name: str, parameter_sets: list[str]) -> Path:
 
 
 def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
-    """The run itself (in `cosim.supervisor`'s child, with a progress bar if ``progress``): exit 0,
+    """The run itself (in `cosim.run.supervisor`'s child, with a progress bar if ``progress``): exit 0,
     1 failed or timed out, 130/143 stopped by SIGINT/SIGTERM."""
-    from .interrupts import stop_on_signals
-    from .loops import LoopSettings
-    from .plots import default_panels, plot
-    from .simulation import run, select, signal_info
-    from .single import plotted
+    from .run.interrupts import stop_on_signals
+    from .run.loops import LoopSettings
+    from .present.plots import default_panels, plot
+    from .run.simulation import run, select, signal_info
+    from .plan.single import plotted
 
     plan = prepared.plan
     outputs, inputs = plan.recorded()
@@ -367,7 +367,7 @@ def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
                    metadata=outcome.metadata)
         _say(args, f"cosim: plot: {png}")
     if args.report is not None:
-        from .report import write_report
+        from .present.report import write_report
         page = write_report(output, args.report or output.with_suffix(".html"), panels=panels)
         _say(args, f"cosim: report: {page}")
     return 0
@@ -390,8 +390,8 @@ def _validate(args) -> int:
 def _prepare_with_placeholder_grid(args):
     """validate/info/pack need no grid, but check the SSD's: a stop time and step size the SSD
     does not give are placeholders (a stop 1 s after the start, a step of 1 s)."""
-    from .simulation import resolve_grid, validate
-    from .single import check_fmi_type, is_fmu, prepare_run
+    from .run.simulation import resolve_grid, validate
+    from .plan.single import check_fmi_type, is_fmu, prepare_run
 
     if is_fmu(args.path):
         if args.command == "pack":
@@ -457,8 +457,8 @@ def _print_system(node, depth: int) -> None:
 
 
 def _pack(args) -> int:
-    from .outputs import check_output, scenario_files
-    from .pack import pack
+    from .record.outputs import check_output, scenario_files
+    from .present.pack import pack
 
     with _prepare_with_placeholder_grid(args) as prepared:
         output = Path(args.output)
@@ -472,9 +472,9 @@ def _pack(args) -> int:
 def _metrics(args) -> int:
     import json
 
-    from .metrics import EVENT_METRICS, METRICS, Event, event_metrics, find_events, step_response
-    from .results import read
-    from .simulation import select
+    from .present.metrics import EVENT_METRICS, METRICS, Event, event_metrics, find_events, step_response
+    from .record.results import read
+    from .run.simulation import select
 
     result = read(args.result)
     names = [n for n in result.dtype.names if n != "time"]
@@ -526,10 +526,10 @@ def _metrics(args) -> int:
 
 
 def _report(args) -> int:
-    from .outputs import check_output
-    from .report import write_report
-    from .results import read
-    from .simulation import select
+    from .record.outputs import check_output
+    from .present.report import write_report
+    from .record.results import read
+    from .run.simulation import select
 
     result = Path(args.result)
     page = Path(args.output or result.with_suffix(".html"))
@@ -544,9 +544,9 @@ def _report(args) -> int:
 
 
 def _compare(args) -> int:
-    from .metrics import compare, parse_tolerance
-    from .results import read
-    from .simulation import select
+    from .present.metrics import compare, parse_tolerance
+    from .record.results import read
+    from .run.simulation import select
 
     a, b = read(args.reference), read(args.candidate)
     signals = select([n for n in a.dtype.names if n != "time"], args.signals) if args.signals else None
@@ -563,7 +563,7 @@ def _compare(args) -> int:
 
 
 def _sweep(args) -> int:
-    from .outputs import result_stem
+    from .record.outputs import result_stem
     from .sweep import parse_seeds, parse_set, read_table, sweep
 
     sets = dict(parse_set(text) for text in args.sets)
@@ -606,7 +606,7 @@ def _print_warning(message, *_) -> None:
 
 def _print_undefined_metrics(rows, metrics: list[str]) -> None:
     """For each metric column with undefined values: in how many runs, and the first run's reason."""
-    from .metrics import reasons_of
+    from .present.metrics import reasons_of
     from .sweep import parse_metric
 
     done = [row for row in rows if row.get("status") != "failed"]

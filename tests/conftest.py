@@ -13,7 +13,7 @@ from hypothesis import settings
 # COSIM_FUZZ=nightly or `pytest --hypothesis-profile nightly`; every example must end in 5 s.
 settings.register_profile("default", max_examples=100, deadline=5000)
 settings.register_profile("nightly", max_examples=2000, deadline=5000)
-#: the tests' FMU cache (cosim.fmucache): one folder per session, shared with the processes
+#: the tests' FMU cache (cosim.read.fmucache): one folder per session, shared with the processes
 #: the tests start, not the user's ~/.cache
 _FMU_CACHE = tempfile.TemporaryDirectory(prefix="cosim-test-fmu-cache-")
 os.environ.setdefault("COSIM_FMU_CACHE", _FMU_CACHE.name)
@@ -95,10 +95,10 @@ def _installed_pythonfmu3_first() -> None:
 def _release_pythonfmu_state_before_fmpy_unloads() -> None:
     """Tests also run our FMUs through fmpy.simulate_fmu, which unloads each library when it
     is done: empty pythonfmu 0.7.0's static interpreter state first, as cosim does (see
-    cosim.instances.pythonfmu_state.release_pythonfmu_state: otherwise the unload can corrupt the heap)."""
+    cosim.run.instances.pythonfmu_state.release_pythonfmu_state: otherwise the unload can corrupt the heap)."""
     from fmpy.fmi1 import _FMU
 
-    from cosim.instances.pythonfmu_state import release_pythonfmu_state
+    from cosim.run.instances.pythonfmu_state import release_pythonfmu_state
 
     unload = _FMU.freeLibrary
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from cosim.cli import main
 from cosim.errors import RunError
-from cosim.simulation import prepare, run
+from cosim.run.simulation import prepare, run
 
 
 def cli_exit(capsys, code: int, *argv: str) -> str:

@@ -89,9 +89,9 @@ def test_a_provider_that_cannot_be_imported_is_named_not_raised(tmp_path, twin_f
 #: inputs and structure among them): the description reader and the instances, which wrap fmpy's
 #: model description and FMI calls, and three that use a fact of fmpy's (loadable: its platform
 #: folder names; single: its automatic output interval, as `fmpy simulate` picks it; ssp: the SSP
-#: XSDs it ships); every other module reads our own records (cosim.description)
-FMPY_USERS = {"cosim/description.py", "cosim/instances/fmi2.py", "cosim/instances/fmi3.py", "cosim/instances/me.py",
-              "cosim/loadable.py", "cosim/single.py", "cosim/ssp.py"}
+#: XSDs it ships); every other module reads our own records (cosim.read.description)
+FMPY_USERS = {"cosim/read/description.py", "cosim/run/instances/fmi2.py", "cosim/run/instances/fmi3.py", "cosim/run/instances/me.py",
+              "cosim/read/loadable.py", "cosim/plan/single.py", "cosim/read/ssp.py"}
 
 
 def test_only_the_description_reader_and_the_instances_import_fmpy():

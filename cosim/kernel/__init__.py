@@ -1,12 +1,12 @@
 """The compiled stepping loop (``kernel.c``) and its ctypes binding; the same library formats
-result CSV rows (``csvrows.c``, used by `cosim.csvformat`).
+result CSV rows (``csvrows.c``, used by `cosim.record.csvformat`).
 
-`cosim.program` compiles a communication step into one list of operations; an operation C can
+`cosim.run.program` compiles a communication step into one list of operations; an operation C can
 run carries its `NativeOp` (doSteps, gets, sets and numeric routes), the others none.
 `Kernel` runs that list step after step in C, writing each recorded row into the recorder's
 chunk buffer, and returns to Python for everything else (an operation without a `NativeOp`,
 flushing, progress, signals, any FMI status above Warning, see ``kernel.c``), which resumes it
-at an operation index (`cosim.interpreters.NativeInterpreter`).
+at an operation index (`cosim.run.interpreters.NativeInterpreter`).
 
 The library is built from ``kernel.c`` when greyfmu is installed (an optional setuptools
 extension, ``setup.py``: no Python C API, loaded here with ctypes); `library` finds it, or
@@ -128,7 +128,7 @@ def library() -> tuple[ctypes.CDLL | None, str]:
 
 @dataclass(frozen=True)
 class NativeOp:
-    """The C form of one operation of a step (`cosim.program.Operation.native`).
+    """The C form of one operation of a step (`cosim.run.program.Operation.native`).
 
     ``kind``: OP_STEP, OP_GET, OP_SET (an FMI call on the instance handle ``instance``, ``api`` 2
     or 3 telling the C signature of the function at address ``fn``; a get or set exchanges ``n``
@@ -137,7 +137,7 @@ class NativeOp:
     ints when ``integer``, else doubles).  ``post_step``: for a doStep, the addresses of
     fmi3DoStep's out-arguments (eventHandlingNeeded, terminateSimulation, earlyReturn,
     lastSuccessfulTime), zeros for FMI 2.0; a set terminateSimulation returns to Python, which
-    runs the instance's post-step (`cosim.instances.Instance.step_outcome`).  ``thread``: with
+    runs the instance's post-step (`cosim.run.instances.Instance.step_outcome`).  ``thread``: with
     threads, which one makes a doStep of the parallel phase (0: the caller).
     """
     kind: int

@@ -1,11 +1,11 @@
 /* The master's stepping loop in C (cosim.kernel): one communication step's program of operations
- * (cosim.program), run from step k to step k_end, one recorded row after each step.
+ * (cosim.run.program), run from step k to step k_end, one recorded row after each step.
  *
- * cosim.program compiles the step -- the doSteps (Jacobi, or Gauss-Seidel with each component's
+ * cosim.run.program compiles the step -- the doSteps (Jacobi, or Gauss-Seidel with each component's
  * inputs routed and set before and its outputs read after its doStep), the batched gets, the
  * direct-feedthrough settling in dependency order, the routes (y * factor + offset, two
  * roundings: built with -ffp-contract=off), the sets -- into one array of operations, which
- * cosim.interpreters runs either in Python or here: this file only runs it, so the calls, their
+ * cosim.run.interpreters runs either in Python or here: this file only runs it, so the calls, their
  * order and the arithmetic are the same in both.  An operation this file cannot run (OP_PYTHON:
  * a call Python makes, a String route, a mapping table, an input table, an algebraic loop's
  * iteration) is handed back to Python, which runs it and resumes here after it.
@@ -237,7 +237,7 @@ int cosim_run(const Program *p, Run *r) {
 }
 
 /* Signals during a run: SIGINT, SIGTERM and SIGALRM set ``flag`` (to the signal's number) and
- * then go to the handler they had (Python's, which records them in the cosim.interrupts
+ * then go to the handler they had (Python's, which records them in the cosim.run.interrupts
  * StopRequest once the kernel returns), so the loop sees them at the next row. */
 static const int WATCHED[3] = {SIGINT, SIGTERM, SIGALRM};
 static struct sigaction previous[3];

@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import CosimError, Errc, SetupError
-from ..metrics import METRICS, step_response
+from ..present.metrics import METRICS, step_response
 from ..safeio import unpack_limit
-from ..simulation import Prepared, run
-from ..single import prepare_run
+from ..run.simulation import Prepared, run
+from ..plan.single import prepare_run
 from .values import Metric
 from .worker import kept_for, prepare_task, release
 
@@ -43,7 +43,7 @@ class Task:
     max_unpacked: int
     #: ``--start-value`` texts (``component.variable=value``), applied after the parameter sets
     start_values: tuple[str, ...] = ()
-    #: the ``--input-file`` table (`cosim.inputs`), or None
+    #: the ``--input-file`` table (`cosim.plan.inputs`), or None
     input_file: str | None = None
     #: how many of ``parameter_sets`` (the first) every run of the sweep shares; the others are the run's own
     shared_sets: int = 0

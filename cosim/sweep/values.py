@@ -13,14 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..description import exchange_type
+from ..read.description import exchange_type
 from ..errors import SetupError, did_you_mean
-from ..metrics import METRICS
-from ..parameters import check_values, split_system_name
+from ..present.metrics import METRICS
+from ..plan.parameters import check_values, split_system_name
 from ..safeio import write_atomic
-from ..simulation import Prepared
-from ..ssp import NS
-from ..structure import ParameterValue
+from ..run.simulation import Prepared
+from ..read.ssp import NS
+from ..model.structure import ParameterValue
 
 Value = float | int | bool | str
 _RANGE = re.compile(r"^\s*([-+0-9.eE]+)\s*:\s*([-+0-9.eE]+)\s*:\s*(\d+)\s*$")
@@ -33,7 +33,7 @@ MAX_RUNS = 1_000_000
 
 @dataclass(frozen=True)
 class Metric:
-    """Step metrics of ``signal`` following ``setpoint`` (see `cosim.metrics.step_metrics`)."""
+    """Step metrics of ``signal`` following ``setpoint`` (see `cosim.present.metrics.step_metrics`)."""
     signal: str
     setpoint: str
 
@@ -41,7 +41,7 @@ class Metric:
         return [f"{self.signal}:{m}" for m in METRICS]
 
     def reason_column(self) -> str:
-        """The column saying why a metric of this signal is undefined (`cosim.metrics.Response.reasons`)."""
+        """The column saying why a metric of this signal is undefined (`cosim.present.metrics.Response.reasons`)."""
         return f"undefined({self.signal})"
 
 

@@ -1,12 +1,12 @@
-"""An .ssp archive may refer only to its own members (cosim.ssp.resolve_uri): an archive
+"""An .ssp archive may refer only to its own members (cosim.read.ssp.resolve_uri): an archive
 from elsewhere must not make the master read files outside it."""
 from pathlib import Path
 
 import pytest
 
-from cosim import ssp
+from cosim.read import ssp
 from cosim.errors import SetupError
-from cosim.resources import locate_fmus
+from cosim.read.resources import locate_fmus
 from runhelpers import edited_archive
 
 SSD = Path("ssp/pid_fopdt/SystemStructure.ssd")

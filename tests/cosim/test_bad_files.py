@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from runhelpers import cli_exit as _exit
-from cosim.results import read
+from cosim.record.results import read
 
 
 

@@ -13,7 +13,7 @@ import pytest
 import cosim
 from cosim.cli import main
 from cosim.errors import RunError, SetupError
-from cosim.simulation import prepare, run
+from cosim.run.simulation import prepare, run
 from tablefmus import LEVELS, VARIABLES, build_tables_fmu
 
 NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
@@ -107,7 +107,7 @@ def test_integer_boolean_enumeration_tables_on_connections(tmp_path, tables_fmu)
     assert list(res["b.mode_echo"]) == [{1: 3, 2: 1, 3: 2}[m] for m in MODE]
     assert meta["kernel"] == "native"
     assert ("connection a.n -> b.n_in maps its values through ssc:IntegerMappingTransformation (line 2) (mapping "
-            "tables are applied by Python, cosim.maptables)") in meta["python_operations"]
+            "tables are applied by Python, cosim.plan.maptables)") in meta["python_operations"]
     for kernel in ("python", "native"):
         other, _ = _run(folder, kernel)
         for name in res.dtype.names:

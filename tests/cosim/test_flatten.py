@@ -1,4 +1,4 @@
-"""cosim.flatten on its own: a `RawStructure` built in the test (no XML, no FMU) in, a
+"""cosim.read.flatten on its own: a `RawStructure` built in the test (no XML, no FMU) in, a
 `SystemStructure` out, and nothing it was given changed."""
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from cosim.errors import SetupError
-from cosim.flatten import flatten
-from cosim.structure import (
+from cosim.read.flatten import flatten
+from cosim.model.structure import (
     Component,
     Connection,
     Connector,
@@ -114,7 +114,7 @@ def test_a_system_connector_driven_twice_is_refused_naming_both_lines():
 
 
 def test_an_undriven_root_output_is_recorded_without_a_source():
-    """SSP 1.0 requires no connector to be connected (issue 30): cosim.plan records it as a constant."""
+    """SSP 1.0 requires no connector to be connected (issue 30): cosim.plan.build records it as a constant."""
     root = system("root", components=[component("a", y="output")], connectors=[connector("out", "output")])
     out = flatten(raw(root)).system_outputs["out"]
     assert (out.component, out.connector, out.undriven, out.declared.name) == (None, None, "no connection drives it",

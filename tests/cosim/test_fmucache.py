@@ -1,4 +1,4 @@
-"""The shared cache of unpacked FMUs (`cosim.fmucache`): results as with a fresh unpack, safe
+"""The shared cache of unpacked FMUs (`cosim.read.fmucache`): results as with a fresh unpack, safe
 between concurrent processes, a new entry for new content, a broken entry rebuilt."""
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 
 import cosim
 from cosim.errors import SetupError
-from cosim.fmucache import MARKER, digest, unpacked
-from cosim.instances import Unzipped
+from cosim.read.fmucache import MARKER, digest, unpacked
+from cosim.run.instances import Unzipped
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "benchmarks")]
@@ -120,9 +120,9 @@ def test_the_size_limit_in_force_applies_to_a_cached_entry(tmp_path, c_fmus, mon
 
 def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(tmp_path, c_fmus, monkeypatch):
     """Loading the providers imports their packages (tens of ms of a run's fixed cost)."""
-    import cosim.resources
-    from cosim import ssp
-    from cosim.resources import locate_fmus
+    import cosim.read.resources
+    from cosim.read import ssp
+    from cosim.read.resources import locate_fmus
 
     asked: list[str] = []
 
@@ -130,7 +130,7 @@ def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(
         asked.append(name)
         return c_fmus["Lag"] if name == "Lag.fmu" else None
 
-    monkeypatch.setattr(cosim.resources, "providers", lambda: ([counting_provider], []))
+    monkeypatch.setattr(cosim.read.resources, "providers", lambda: ([counting_provider], []))
     system = _chain(c_fmus, tmp_path / "ssp")   # m1 (VanDerPol) then b2, b3 (Lag)
     structure = ssp.load(system)
     assert set(locate_fmus(structure).values()) == {system / "resources" / "VanDerPol.fmu",
@@ -142,19 +142,19 @@ def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(
 
 
 def test_checks_passed_are_kept_by_content_and_failures_are_not(tmp_path, c_fmus, monkeypatch):
-    import cosim.loadable
-    from cosim.plan import _describe
+    import cosim.read.loadable
+    from cosim.plan.build import _describe
 
     root = tmp_path / "cache"
     monkeypatch.setenv("COSIM_FMU_CACHE", str(root))
-    monkeypatch.setattr(cosim.loadable, "_passed", set())   # a process that checked nothing yet
-    monkeypatch.setattr("cosim.description._cache", {})
+    monkeypatch.setattr(cosim.read.loadable, "_passed", set())   # a process that checked nothing yet
+    monkeypatch.setattr("cosim.read.description._cache", {})
     fmu = c_fmus["Lag"]
     desc = _describe(fmu, "here", "x.ssd", "any")
     kept = sorted(p.name.split("-")[0] for p in (root / "verdicts").iterdir())
     assert kept == [digest(fmu)] * 3    # archive and entities, FMI schema, library
-    monkeypatch.setattr(cosim.loadable, "_passed", set())   # another process: the verdicts are used
-    monkeypatch.setattr("cosim.description._cache", {})
+    monkeypatch.setattr(cosim.read.loadable, "_passed", set())   # another process: the verdicts are used
+    monkeypatch.setattr("cosim.read.description._cache", {})
     again = _describe(fmu, "here", "x.ssd", "any")
     assert list(again.variables) == list(desc.variables)
     with zipfile.ZipFile(fmu) as archive:   # the same FMU without its library: refused, every time

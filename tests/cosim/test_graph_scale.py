@@ -3,7 +3,7 @@ chain of ~1000 FMUs raised RecursionError)."""
 from __future__ import annotations
 
 
-from cosim.graph import tarjan, topological
+from cosim.plan.graph import tarjan, topological
 
 
 def test_tarjan_and_topological_order_a_deep_chain_without_recursion():

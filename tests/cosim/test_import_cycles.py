@@ -14,13 +14,13 @@ import ast
 from pathlib import Path
 
 import cosim
-from cosim.graph import tarjan
+from cosim.plan.graph import tarjan
 
 PACKAGE = Path(cosim.__file__).parent
 
 
 def modules(root: Path = PACKAGE) -> dict[str, Path]:
-    """Every module of the package by dotted name (``cosim.instances.fmi2``; a package is its
+    """Every module of the package by dotted name (``cosim.run.instances.fmi2``; a package is its
     ``__init__``)."""
     found = {}
     for path in sorted(root.rglob("*.py")):
@@ -59,7 +59,7 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_no_import_cycle_in_cosim():
     graph = import_graph()
-    assert len(graph) > 20 and "cosim.instances.fmi2" in graph and "cosim.sweep.values" in graph
+    assert len(graph) > 20 and "cosim.run.instances.fmi2" in graph and "cosim.sweep.values" in graph
     assert cycles(graph) == []
 
 
@@ -75,11 +75,11 @@ def test_the_data_model_and_the_readers_import_no_later_stage():
                 todo.append(nxt)
         return seen
 
-    later = {"cosim.plan", "cosim.parameters", "cosim.routing", "cosim.execution", "cosim.simulation",
-             "cosim.instances", "cosim.sweep", "cosim.cli"}
-    assert reach("cosim.structure") <= {"cosim.units", "cosim.errors", "cosim.description"}
-    assert not (reach("cosim.ssp") | reach("cosim.flatten")) & later
-    assert not reach("cosim.graph") & later
+    later = {"cosim.plan.build", "cosim.plan.parameters", "cosim.plan.routing", "cosim.run.execution", "cosim.run.simulation",
+             "cosim.run.instances", "cosim.sweep", "cosim.cli"}
+    assert reach("cosim.model.structure") <= {"cosim.model.units", "cosim.errors", "cosim.read.description"}
+    assert not (reach("cosim.read.ssp") | reach("cosim.read.flatten")) & later
+    assert not reach("cosim.plan.graph") & later
 
 
 def test_the_checker_finds_a_cycle(tmp_path):

@@ -20,9 +20,9 @@ import pytest
 
 from cfmus import build_c_fmu
 from cosim.errors import SetupError
-from cosim.interrupts import stop_on_signals
+from cosim.run.interrupts import stop_on_signals
 from cosim.kernel import ABI_VERSION, _Program, library
-from cosim.simulation import prepare, run
+from cosim.run.simulation import prepare, run
 from runhelpers import assert_same, run_kernel as _run
 from ssdgen import ssd_text, write_system
 
@@ -235,7 +235,7 @@ def test_what_c_cannot_call_python_makes_within_the_compiled_loop(tmp_path, bloc
 
 def test_without_the_library_auto_runs_python_with_one_notice(tmp_path, blocks):
     folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.1)
-    script = (f"import warnings, cosim\nfrom cosim.simulation import prepare, run\n"
+    script = (f"import warnings, cosim\nfrom cosim.run.simulation import prepare, run\n"
               f"warnings.simplefilter('always')\n"
               f"for _ in range(2):\n"
               f"    p = prepare({str(folder)!r})\n"
@@ -308,8 +308,8 @@ def test_threads_step_in_parallel_bit_identical(tmp_path, blocks, parameters):
 def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, monkeypatch):
     """flush_seconds = 0: the kernel's clock says a flush is due after every row, so each row
     reaches the sinks on its own, as the Python loop's `Recorder.record` does."""
-    import cosim.simulation
-    from cosim.observers import Recorder
+    import cosim.run.simulation
+    from cosim.record.observers import Recorder
 
     flushes = {}
 
@@ -322,7 +322,7 @@ def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, mon
             self.flushes[0] += 1
             super().flush()
 
-    monkeypatch.setattr(cosim.simulation, "Recorder", Counting)
+    monkeypatch.setattr(cosim.run.simulation, "Recorder", Counting)
     folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.5)
     python, compiled = _both(folder)
     assert flushes[0][0] == flushes[1][0] >= 50  # one per row (and the last at closing)
@@ -330,12 +330,12 @@ def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, mon
 
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 def test_the_step_is_one_program_both_interpreters_run(tmp_path, blocks, algorithm):
-    """`cosim.program.compile_step` on a live execution: Jacobi's doSteps first, or Gauss–Seidel's
+    """`cosim.run.program.compile_step` on a live execution: Jacobi's doSteps first, or Gauss–Seidel's
     routes, sets, doStep and gets per component in dependency order; then the exchange (gets,
     the settling of the feedthrough chain, the routes, the sets); every operation of these C
     FMUs has a C form, FMI 3.0 doSteps a post-step."""
-    from cosim.execution import Execution
-    from cosim.program import OP_GET, OP_ROUTE, OP_SET, OP_STEP
+    from cosim.run.execution import Execution
+    from cosim.run.program import OP_GET, OP_ROUTE, OP_SET, OP_STEP
 
     prepared = prepare(_chain(tmp_path, blocks, ["Block", "Block3", "Block"], stop=0.1), algorithm=algorithm)
     execution = Execution(prepared.plan, prepared.grid, algorithm)

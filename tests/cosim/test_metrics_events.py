@@ -1,4 +1,4 @@
-"""Event-based metrics (cosim.metrics.find_events / event_metrics, ``cosim metrics
+"""Event-based metrics (cosim.present.metrics.find_events / event_metrics, ``cosim metrics
 --disturbance``) and the reasons given for undefined metrics, on responses with closed forms."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, minimize_scalar
 
-from cosim.metrics import event_metrics, find_events, step_metrics, step_response
+from cosim.present.metrics import event_metrics, find_events, step_metrics, step_response
 
 T, TAU, A = 5.0, 3.0, 0.5          # set-point response time constant; load response shape
 

@@ -12,8 +12,8 @@ import pytest
 
 import cosim
 from cosim.cli import main
-from cosim.observers import CsvSink, MemorySink, ParquetSink, Recorder, file_sink
-from cosim.results import read
+from cosim.record.observers import CsvSink, MemorySink, ParquetSink, Recorder, file_sink
+from cosim.record.results import read
 from ssdgen import ssd_text, write_system
 
 NAMES = ["time", "a.y", "b.u", "b.y"]
@@ -120,7 +120,7 @@ def test_metrics_and_compare_read_parquet_as_csv(tmp_path, twin_fmus, capsys):
     assert metrics[0] == metrics[1] and metrics[0]["IAE"] == pytest.approx(2.0, rel=1e-2)
     assert main(["compare", str(tmp_path / "r.csv"), str(tmp_path / "r.parquet"), "--rtol", "0", "--atol", "0"]) == 0
     for suffix in (".csv", ".parquet"):
-        again = read(cosim.results.write(result, tmp_path / f"w{suffix}"))
+        again = read(cosim.record.results.write(result, tmp_path / f"w{suffix}"))
         for name in result.dtype.names:
             assert_bitwise_equal(again[name], result[name])
     assert not (tmp_path / "w.json").exists()
@@ -156,7 +156,7 @@ def test_recorder_reads_the_clock_at_every_row():
     """A slow run is flushed every flush_seconds, not only every 256 rows (issue 17)."""
     import time as _t
 
-    from cosim.observers import MemorySink, Recorder
+    from cosim.record.observers import MemorySink, Recorder
 
     values = np.zeros(1)
     sink = MemorySink()

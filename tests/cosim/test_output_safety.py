@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from cosim.errors import SetupError
-from cosim.results import read
+from cosim.record.results import read
 from runhelpers import refused as _refused
 from cosim.safeio import file_name
 
@@ -92,7 +92,7 @@ def test_a_regression_reference_is_a_file_in_the_references_folder(pytester):
 def test_a_journal_s_header_decides_neither_where_the_result_goes_nor_what_is_removed(tmp_path):
     """`recover` writes beside the journal and removes only FMU extraction folders, whatever the
     header says (it named the result file and the folders to delete)."""
-    from cosim.journal import Journal, journal_path, recover
+    from cosim.record.journal import Journal, journal_path, recover
 
     keep = tmp_path / "precious"
     keep.mkdir()

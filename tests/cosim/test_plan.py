@@ -1,4 +1,4 @@
-"""The Plan as the one product of validation (cosim.plan, cosim.simulation.validate and
+"""The Plan as the one product of validation (cosim.plan.build, cosim.run.simulation.validate and
 resolve_grid): built from small real FMUs (the C twins of greyfmu's Step, Gain and
 FirstOrderFilter, tests/twin_fmus.py), changing nothing it is given, and holding everything a
 run, a pack and a sweep need."""
@@ -12,14 +12,14 @@ import zipfile
 import numpy as np
 import pytest
 
-from cosim import ssp
+from cosim.read import ssp
 from cosim.errors import SetupError
-from cosim.pack import pack
-from cosim.parameters import check_values
-from cosim.plan import build_plan
-from cosim.resources import locate_fmus
-from cosim.simulation import Prepared, resolve_grid, run, validate
-from cosim.structure import ParameterValue
+from cosim.present.pack import pack
+from cosim.plan.parameters import check_values
+from cosim.plan.build import build_plan
+from cosim.read.resources import locate_fmus
+from cosim.run.simulation import Prepared, resolve_grid, run, validate
+from cosim.model.structure import ParameterValue
 from ssdgen import ssd_text, write_system
 
 COMPONENTS = {"lag": ("FirstOrderFilter.fmu", {"y": "output", "u": "input"}),
@@ -49,7 +49,7 @@ def test_locating_and_planning_change_nothing_they_are_given(chain):
 
 
 def test_a_plan_is_plain_data_that_round_trips_through_pickle(chain, tmp_path):
-    """No fmpy object in a plan (cosim.description's records); an unpickled copy equals it, and a
+    """No fmpy object in a plan (cosim.read.description's records); an unpickled copy equals it, and a
     copy of an .ssp's plan reads the archive's extracted files without owning them (a sweep ships
     plans to its workers this way, cosim.sweep.dispatch.Task.prepared)."""
     plan = validate(chain, use_providers=False)

@@ -1,4 +1,4 @@
-"""The exchange's shortcuts in settling direct feedthrough (cosim.graph.settling_shortcuts):
+"""The exchange's shortcuts in settling direct feedthrough (cosim.plan.graph.settling_shortcuts):
 which FMI calls are left out, and that leaving them out changes no value."""
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cosim import simulation
-from cosim.graph import Route, settling_shortcuts
+from cosim.run import simulation
+from cosim.plan.graph import Route, settling_shortcuts
 from ssdgen import ssd_text, write_system
 
 

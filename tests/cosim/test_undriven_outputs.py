@@ -2,7 +2,7 @@
 
 SSP 1.0 (SystemStructureDescription, Connectors) does not require a system's connector to be
 connected, and OMSimulator's testsuite ships such SSDs (importParameterMapping: the root
-output ``Output_cref`` with no connection).  `cosim.flatten` accepts them, `cosim.plan`
+output ``Output_cref`` with no connection).  `cosim.read.flatten` accepts them, `cosim.plan.build`
 records each as a constant column, its ParameterBinding value or NaN, with one warning naming
 the file, the connector and its line, and the run's metadata lists them.  A root output that
 a connection drives is recorded as before.  The system: a C FMU whose output is the time,
@@ -19,7 +19,7 @@ import pytest
 import cosim
 from cfmus import build_c_fmu, fmi2_description
 from cosim.cli import main
-from cosim.simulation import prepare, run
+from cosim.run.simulation import prepare, run
 from ssdgen import write_system
 
 CLOCK_BODY = ("static void start(S *s) {}\n"

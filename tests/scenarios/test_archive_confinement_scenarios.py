@@ -4,9 +4,9 @@ from pathlib import Path
 
 import pytest
 
-from cosim import ssp
+from cosim.read import ssp
 from cosim.errors import SetupError
-from cosim.resources import locate_fmus
+from cosim.read.resources import locate_fmus
 from runhelpers import edited_archive
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from cosim.cli import main
 from runhelpers import cli_exit as _exit
-from cosim.results import read, write
+from cosim.record.results import read, write
 
 
 SCENARIO = Path("ssp/pid_fopdt")

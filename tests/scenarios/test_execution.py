@@ -1,15 +1,15 @@
-"""cosim.execution on its own: the time grid, and an `Execution` driven step by step on a plan
-of small real FMUs, each instance kind checked against the `cosim.instances.Instance` protocol."""
+"""cosim.run.execution on its own: the time grid, and an `Execution` driven step by step on a plan
+of small real FMUs, each instance kind checked against the `cosim.run.instances.Instance` protocol."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from cosim.errors import RunError, SetupError
-from cosim.execution import Execution, Grid
-from cosim.instances import FMI2Instance, FMI3Instance, Instance, MEInstance
-from cosim.observers import MemorySink, Recorder
-from cosim.simulation import validate
+from cosim.run.execution import Execution, Grid
+from cosim.run.instances import FMI2Instance, FMI3Instance, Instance, MEInstance
+from cosim.record.observers import MemorySink, Recorder
+from cosim.run.simulation import validate
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 from testfmus import build_test_fmus, build_test_fmus3

@@ -7,7 +7,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from cosim.fmucache import MARKER, digest
+from cosim.read.fmucache import MARKER, digest
 
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -21,7 +21,7 @@ def _entries(root: Path) -> list[str]:
 _RACE = """
 import sys, time
 from pathlib import Path
-from cosim.fmucache import unpacked
+from cosim.read.fmucache import unpacked
 go = Path(sys.argv[3])
 while not go.exists():
     time.sleep(0.001)

@@ -1,4 +1,4 @@
-"""Nested systems and system-level connectors (SSP 1.0), flattened by cosim.flatten.
+"""Nested systems and system-level connectors (SSP 1.0), flattened by cosim.read.flatten.
 
 The nested scenarios are ssp/pid_fopdt with its controller and plant moved into a
 subsystem ``loop`` (and, two levels deep, ``loop`` inside ``outer``); the setpoint and
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import cosim
-from cosim import ssp
+from cosim.read import ssp
 from cosim.cli import main
 from cosim.errors import SetupError
 

@@ -9,7 +9,7 @@ import pytest
 from pythonfmu.builder import FmuBuilder
 
 from cosim.cli import main
-from cosim.results import read
+from cosim.record.results import read
 from ssdgen import ssd_text, write_system
 from testfmus import HERE as TEST_FMU_SOURCES
 

@@ -14,7 +14,7 @@ import pytest
 
 from cosim.cli import main
 from cosim.errors import SetupError
-from cosim.results import read
+from cosim.record.results import read
 from runhelpers import refused as _refused
 from cosim.safeio import lock_output, lock_path, partial_path
 
@@ -97,7 +97,7 @@ def test_a_second_writer_of_an_output_is_refused_naming_the_holder(scenario, tmp
 
 
 def test_the_python_api_takes_the_same_lock(scenario, tmp_path):
-    from cosim.simulation import simulate
+    from cosim.run.simulation import simulate
 
     out = tmp_path / "api.csv"
     with lock_output(out), pytest.raises(SetupError) as e:

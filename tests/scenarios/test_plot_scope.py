@@ -9,8 +9,8 @@ import pytest
 from matplotlib.collections import PolyCollection
 
 from cosim.cli import main
-from cosim.plots import axis_label, default_panels, figure, limits, sampled, units
-from cosim.results import read
+from cosim.present.plots import axis_label, default_panels, figure, limits, sampled, units
+from cosim.record.results import read
 from peers import gemseo_fmu_dir
 
 
@@ -102,7 +102,7 @@ def test_a_saturating_output_shows_its_limits(mass_damper):
 
 
 def test_the_report_gives_metric_units_from_the_signal(mass_damper, tmp_path):
-    from cosim.report import render
+    from cosim.present.report import render
 
     result, meta = mass_damper
     page = render(result, meta, source=str(tmp_path / "md.csv"))

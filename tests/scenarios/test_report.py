@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
-from cosim.plots import default_panels, label, setpoints
+from cosim.present.plots import default_panels, label, setpoints
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

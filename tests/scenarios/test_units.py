@@ -1,4 +1,4 @@
-"""Unit conversion: the unit math of cosim.units, the refusals, and runs through the master.
+"""Unit conversion: the unit math of cosim.model.units, the refusals, and runs through the master.
 
 The end-to-end runs use two real pythonfmu FMUs built from tests/unitfmus/ (UnitSource:
 y_i = a_i + b·t; UnitSink: v_i = u_i) whose variables get their units written into the model
@@ -18,8 +18,8 @@ import pytest
 from pythonfmu.builder import FmuBuilder
 
 from cosim.errors import SetupError
-from cosim.simulation import prepare, run
-from cosim.units import BUILTIN, IDENTITY, conversion, make_unit, then
+from cosim.run.simulation import prepare, run
+from cosim.model.units import BUILTIN, IDENTITY, conversion, make_unit, then
 from testfmus import edited_copy
 
 HERE = Path(__file__).parents[1] / "unitfmus"

@@ -1,4 +1,4 @@
-"""Units on the connectors of nested systems, converted hop by hop (cosim.structure.Hop, cosim.routing).
+"""Units on the connectors of nested systems, converted hop by hop (cosim.model.structure.Hop, cosim.plan.routing).
 
 SSP 1.0 (SystemStructureDescription.xsd, Connection and ``suppressUnitConversion``): on each
 connection the value is converted from its start connector's unit to its end connector's unit,
@@ -26,7 +26,7 @@ from test_units import (
     with_units,
 )
 
-from cosim.units import BUILTIN, conversion, then
+from cosim.model.units import BUILTIN, conversion, then
 
 __all__ = ["built"]  # the module-scoped fixture that builds the two FMUs
 

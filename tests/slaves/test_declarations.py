@@ -13,9 +13,9 @@ from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from cosim.description import describe
+from cosim.read.description import describe
 from cosim.errors import SetupError
-from cosim.units import BUILTIN, conversion, fmu_units, make_unit
+from cosim.model.units import BUILTIN, conversion, fmu_units, make_unit
 from greyfmu.build import FMU_SOURCES, BuildError, _enumeration_items, build_fmus, fmu_names, slave_class
 
 ALL = fmu_names()
@@ -57,7 +57,7 @@ PLANT_UNITS = {
 
 
 NOT_BUILTIN = {"%/s": make_unit("%/s", factor=0.01, s=-1), "rad/s": make_unit("rad/s", rad=1, s=-1)}
-"""Our units that cosim.units.BUILTIN does not define."""
+"""Our units that cosim.model.units.BUILTIN does not define."""
 
 
 def slave_choices(name):

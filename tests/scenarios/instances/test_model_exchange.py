@@ -1,4 +1,4 @@
-"""Model Exchange FMUs integrated by the master (cosim.instances.me) on OpenModelica exports from gemseo-fmu.
+"""Model Exchange FMUs integrated by the master (cosim.run.instances.me) on OpenModelica exports from gemseo-fmu.
 
 Mass_Damper.fmu is m = 1 kg, c = 1e4 N/m, d = 10 N·s/m (modelDescription parameters), y = damper.s_rel
 with y(0) = 0 and rest at −0.5 m: y'' + 10 y' + 1e4 (y + 0.5) = f, poles −5 ± 99.9i.  Its Co-Simulation
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 import cosim
-from cosim import simulation
-from cosim.execution import Execution
-from cosim.observers import MemorySink, Recorder
+from cosim.run import simulation
+from cosim.run.execution import Execution
+from cosim.record.observers import MemorySink, Recorder
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 from testfmus import edited_copy
@@ -88,7 +88,7 @@ def extrapolate(y_h: np.ndarray, y_h2: np.ndarray, y_h4: np.ndarray) -> np.ndarr
 
 
 def run_keeping_instances(path: Path, **options) -> tuple[np.ndarray, dict[str, dict[str, int]], dict]:
-    """Run like cosim.simulation.run but read each ME instance's event counts before it is freed."""
+    """Run like cosim.run.simulation.run but read each ME instance's event counts before it is freed."""
     prepared = simulation.prepare(path, **options)
     execution = Execution(prepared.plan, prepared.grid, prepared.algorithm)
     memory = MemorySink()

@@ -1,0 +1,192 @@
+"""The exchange buffers of a run: every component's outputs (Y) and inputs (U) of one exchange
+type in ctypes memory, and the routes between them.
+
+Values move through these preallocated arrays with one batched get and one batched set per
+FMU and type; routing is precomputed NumPy index arrays.  Both interpreters of a step
+(`cosim.run.interpreters`) work on the same memory: the compiled one through the addresses
+(`TypedBuffers.address`), the Python one through the arrays and `TypedBuffers.route`.
+"""
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..read.description import exchange_type
+from ..errors import RunError
+from .instances.fmi3 import BinaryValue
+from ..model.structure import Plan, Route
+
+#: exchange types (`cosim.read.description.exchange_type`) and their buffers' C types, as fmi2 declares them
+#: (Binary, FMI 3.0 only: a pointer and a size, `cosim.run.instances.fmi3.BinaryValue`)
+TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p,
+         "Binary": BinaryValue}
+FMI_WARNING = 1
+
+#: a route group: source positions, destination positions, factors, offsets, all of them identity
+Routing = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]
+
+
+def exchange_buffers(plan: Plan, order: Sequence[str]) -> list[TypedBuffers]:
+    """The buffers of the exchange types the plan's components connect or record, in `TYPES` order."""
+    return [TypedBuffers(plan, t, order) for t in TYPES
+            if any(exchange_type(v) == t for c in order for v in plan.outputs[c] + plan.inputs[c])]
+
+
+class TypedBuffers:
+    """Outputs (Y) and inputs (U) of one exchange type for all components, in ctypes memory.
+
+    Strings (char*) and Binary values (pointer and size) are not numbers: they are routed by
+    a Python loop over the pairs of buffer positions, never transformed, and not recorded (the
+    recorder and the CSV hold numeric signals only).  An FMU's string or binary is valid only
+    until its next FMI call (FMI 2.0 §2.1.7, FMI 3.0 §2.2.6.2), so every get is followed by a
+    copy into memory the buffer owns (`get_call`); a routed Binary keeps that memory alive
+    (``owners``) as long as the input holds it.
+    """
+
+    def __init__(self, plan: Plan, type_name: str, order: Sequence[str]):
+        ctype = TYPES[type_name]
+        self.type_name = type_name
+        self.strings = type_name in ("String", "Binary")
+        self.binary = type_name == "Binary"
+        outs = [(c, v) for c in order for v in plan.outputs[c] if exchange_type(v) == type_name]
+        ins = [(c, v) for c in order for v in plan.inputs[c] if exchange_type(v) == type_name]
+        self.out_names = [f"{c}.{v.name}" for c, v in outs]
+        self.in_names = [f"{c}.{v.name}" for c, v in ins]
+        self.Ybuf = (ctype * max(1, len(outs)))()
+        self.Ubuf = (ctype * max(1, len(ins)))()
+        #: Binary only: the memory each buffer position points to, kept alive here
+        self.owners = {id(self.Ybuf): [None] * len(outs), id(self.Ubuf): [None] * len(ins)}
+        if not self.strings:
+            self.Y = np.ctypeslib.as_array(self.Ybuf)[:len(outs)]
+            self.U = np.ctypeslib.as_array(self.Ubuf)[:len(ins)]
+        self.out_slices = self._slices(outs, order)
+        self.in_slices = self._slices(ins, order)
+        out_index = {(c, v.name): i for i, (c, v) in enumerate(outs)}
+        in_index = {(c, v.name): i for i, (c, v) in enumerate(ins)}
+        routes = [r for r in plan.routes if exchange_type(r.src_var) == type_name]
+        #: the routes (`cosim.model.structure.Route`) into each component (None: all), in `routes_into`'s order
+        self.routes_of: dict[str | None, list[Route]] = {None: routes}
+        for comp in order:  # feedthrough and Gauss–Seidel route into one component at a time
+            self.routes_of[comp] = [r for r in routes if r.dst == comp]
+        self.routes_into: dict[str | None, Routing] = {
+            comp: self._routing(rs, out_index, in_index) for comp, rs in self.routes_of.items()}
+        #: the routes with a mapping transformation (`cosim.plan.maptables`) of each `routes_into` entry:
+        #: (output position, input position, route)
+        self.tables_into = {comp: [(out_index[(r.src, r.src_var.name)], in_index[(r.dst, r.dst_var.name)], r)
+                                   for r in rs if r.table is not None] for comp, rs in self.routes_of.items()}
+        self.ctype = ctype
+        self.integer = ctype is ctypes.c_int
+
+    @staticmethod
+    def _slices(pairs, order):
+        slices = {}
+        i = 0
+        for comp in order:
+            vrs = [v.vr for c, v in pairs if c == comp]
+            slices[comp] = (i, len(vrs), (ctypes.c_uint * max(1, len(vrs)))(*vrs))
+            i += len(vrs)
+        return slices
+
+    @staticmethod
+    def _routing(routes, out_index, in_index) -> Routing:
+        src = np.array([out_index[(r.src, r.src_var.name)] for r in routes], dtype=np.intp)
+        dst = np.array([in_index[(r.dst, r.dst_var.name)] for r in routes], dtype=np.intp)
+        factor = np.array([r.factor for r in routes])
+        offset = np.array([r.offset for r in routes])
+        identity = bool(np.all(factor == 1.0) and np.all(offset == 0.0))
+        return src, dst, factor, offset, identity
+
+    def route(self, t: float, comp: str | None = None) -> None:
+        """Route the outputs into the inputs (into ``comp``'s only, if given) at time ``t``; a
+        factor and offset that make a finite value infinite is a `RunError` (`overflow`).  The
+        routes with a mapping table get their value from `map_tables`, after this."""
+        src, dst, factor, offset, identity = self.routes_into[comp]
+        if len(src) == 0:
+            return
+        if self.strings:
+            Y, U = self.Ybuf, self.Ubuf
+            for i, j in zip(src.tolist(), dst.tolist()):
+                U[j] = Y[i]
+            if self.binary:
+                Yown, Uown = self.owners[id(Y)], self.owners[id(U)]
+                for i, j in zip(src.tolist(), dst.tolist()):
+                    Uown[j] = Yown[i]
+        elif identity:
+            self.U[dst] = self.Y[src]
+        else:
+            with np.errstate(over="ignore"):  # an overflow is an error of its own below, not a warning
+                values = self.Y[src] * factor + offset
+            if not np.isfinite(values).all():
+                overflowed = np.flatnonzero(~np.isfinite(values) & np.isfinite(self.Y[src]))
+                if len(overflowed):
+                    raise self.overflow(comp, int(overflowed[0]), t)
+            self.U[dst] = values
+
+    def map_tables(self, t: float, comp: str | None = None) -> None:
+        """The routes into ``comp`` (None: all) with a mapping transformation: each input gets
+        its source value through the route's table (`_mapped`)."""
+        for i, j, r in self.tables_into[comp]:
+            self.U[j] = self._mapped(r, int(self.Y[i]), t)
+
+    @staticmethod
+    def _mapped(r: Route, value: int, t: float) -> int:
+        """``value`` through the route's mapping transformations (`cosim.model.structure.RouteTable`); a
+        value that no ssc:MapEntry names is a `RunError`."""
+        table = r.table
+        key = int(value != 0) if table.boolean else value
+        if key not in table.mapping:
+            def shown(v: int) -> str:
+                return ("true" if v else "false") if table.boolean else str(v)
+            raise RunError(f"{r.src}.{r.src_var.name} = {shown(key)} at t = {t:g} is not a source value of "
+                           f"{table.elements} (its sources: {', '.join(shown(v) for v in sorted(table.mapping))}); "
+                           f"{r.dst}.{r.dst_var.name} was not given it.", time=t, component=r.dst,
+                           element=f"connection {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}")
+        return table.mapping[key]
+
+    def overflow(self, comp: str | None, j: int, t: float) -> RunError:
+        """The error of route ``j`` of ``routes_into[comp]`` at ``t``: its factor and offset (the
+        LinearTransformations and unit conversions on the way) took its finite source value past
+        the largest float."""
+        r = self.routes_of[comp][j]
+        src, _, factor, offset, _ = self.routes_into[comp]
+        y = float(self.Y[src[j]])
+        value = y * float(factor[j]) + float(offset[j])
+        label = f"{r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}"
+        return RunError(f"the value {y:.17g} of {r.src}.{r.src_var.name}, times {factor[j]:.17g} plus {offset[j]:.17g} "
+                        f"(the connection's LinearTransformation and unit conversions), overflows to {value} at "
+                        f"t = {t:g}; {r.dst}.{r.dst_var.name} was not given it.", time=t, component=r.dst,
+                        element=f"connection {label}")
+
+    def address(self, buf, start: int) -> int:
+        return ctypes.addressof(buf) + start * ctypes.sizeof(self.ctype)
+
+    def pointer(self, buf, start: int):
+        return ctypes.cast(self.address(buf, start), ctypes.POINTER(self.ctype))
+
+    def get_call(self, get, buf, start: int, n: int):
+        """The get function for the hot loop: ``get`` itself for numbers; for strings, ``get``
+        followed by copying the n strings into ``buf`` (reading a c_char_p item copies the
+        bytes, writing it back makes the array keep them)."""
+        if not self.strings:
+            return get
+        if self.binary:
+            owners = self.owners[id(buf)]
+
+            def get_owned_binary(component, vrs, count, values) -> int:
+                status = get(component, vrs, count, values)
+                if status <= FMI_WARNING:
+                    for i in range(start, start + n):
+                        data = ctypes.string_at(buf[i].data, buf[i].size) if buf[i].size else b""
+                        owners[i] = ctypes.create_string_buffer(data, max(1, len(data)))
+                        buf[i].data = ctypes.cast(owners[i], type(buf[i].data))
+                return status
+            return get_owned_binary
+
+        def get_owned(component, vrs, count, values) -> int:
+            status = get(component, vrs, count, values)
+            for i in range(start, start + n):
+                buf[i] = buf[i]
+            return status
+        return get_owned
