@@ -103,3 +103,13 @@ def test_only_the_description_reader_and_the_instances_import_fmpy():
             if any(n == "fmpy" or n.startswith("fmpy.") for n in names):
                 importing.add(path.relative_to(ROOT).as_posix())
     assert importing <= FMPY_USERS, sorted(importing - FMPY_USERS)
+
+
+def test_the_data_model_imports_no_fmpy():
+    """The records every stage shares (`cosim.model`: the structure, the Plan, the FMU description
+    records, units, transformations) are plain data: importing them loads no fmpy (issue 40: the
+    records lived in the module that read them with fmpy)."""
+    code = ("import sys, cosim.model.structure, cosim.model.fmu, cosim.model.units, cosim.model.grid; "
+            "print(sorted(m for m in sys.modules if m == 'fmpy' or m.startswith('fmpy.')))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr

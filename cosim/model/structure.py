@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Literal
 
 
-from ..read.description import FMUDescription, Variable, exchange_type
+from .fmu import FMUDescription, Variable, exchange_type
 from .units import SystemUnits, Unit
 
 

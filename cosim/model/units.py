@@ -123,7 +123,7 @@ class UnitDefinition:
 
 
 def fmu_units(unit_definitions: Iterable[UnitDefinition], source: str) -> dict[str, Unit]:
-    """The units of an FMU's ``UnitDefinitions`` (`cosim.read.description.FMUDescription.unit_definitions`);
+    """The units of an FMU's ``UnitDefinitions`` (`cosim.model.fmu.FMUDescription.unit_definitions`);
     a Unit without a BaseUnit is dimensionless with factor 1 (FMI 2.0 §2.2.2)."""
     units = {}
     for u in unit_definitions:

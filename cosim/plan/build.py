@@ -15,7 +15,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 
-from ..read.description import FMUDescription, Variable, describe, exchange_type, unit_of
+from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
+
+
+from ..read.description import describe
 from ..errors import SetupError, did_you_mean
 from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
 from ..read.fmucache import passed, record_pass
@@ -72,7 +75,7 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
     check_model_exchange(structure, fmus)
     units = SystemUnits(structure.units, {name: fmu_units(desc.unit_definitions, desc.path.name)
                                           for name, desc in fmus.items()}, file)
-    outputs, inputs = _check_connectors(structure, fmus, units)
+    fmus, outputs, inputs = _check_connectors(structure, fmus, units)
     routes = _check_connections(structure, fmus, units)
     start_values = resolve_parameters(structure, fmus, list(extra_parameters), units)
     system_outputs = _system_outputs(structure, outputs, units, [*structure.parameters, *extra_parameters])
@@ -103,15 +106,20 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
 # --------------------------------------------------------------------------- connectors and connections
 
 def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
+    """The descriptions knowing the array elements connectors name (`FMUDescription.with_element`),
+    and each component's output and input connectors' variables, checked."""
     file = structure.display
     outputs: dict[str, list[Variable]] = {}
     inputs: dict[str, list[Variable]] = {}
+    described = {}
     for name, comp in structure.components.items():
         desc = fmus[name]
         outputs[name], inputs[name] = [], []
         for conn in comp.connectors.values():
             where = f"ssd:Connector '{conn.name}' of component '{name}' (line {conn.line})"
             var = desc.variable(conn.name, where, file)
+            if isinstance(var, ArrayElement):
+                desc = desc.with_element(var)
             if conn.kind in ("input", "output") and var.causality != conn.kind:
                 raise SetupError(f"declared kind='{conn.kind}' but the FMU {desc.path.name} declares it "
                                  f"causality='{var.causality}'.", file=file, element=where, variable=conn.name)
@@ -127,12 +135,13 @@ def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription
                 outputs[name].append(var)
             elif var.causality == "input":
                 inputs[name].append(var)
-    return outputs, inputs
+        described[name] = desc
+    return described, outputs, inputs
 
 
 def _check_exchangeable(desc: FMUDescription, var: Variable, where: str, file: str) -> None:
     """Refuse a connector the exchange cannot carry: a type without an exchange type
-    (`cosim.read.description.exchange_type`) or a whole FMI 3.0 array (SSP 1.0 connectors are scalars;
+    (`cosim.model.fmu.exchange_type`) or a whole FMI 3.0 array (SSP 1.0 connectors are scalars;
     one element is named as ``vector[1]``, see `FMUDescription.variable`)."""
     if exchange_type(var) is None:
         raise SetupError(f"{var.name} has the type {var.type} in {desc.path.name}; connectors of that type are "

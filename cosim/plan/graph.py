@@ -8,7 +8,7 @@
 * `gauss_seidel_order`: components upstream first, SSD order inside a loop.
 
 The inputs are names: components, variables, and each component's output dependencies
-(FMI 2.0 ModelStructure, `cosim.read.description.FMUDescription.output_dependencies`).
+(FMI 2.0 ModelStructure, `cosim.model.fmu.FMUDescription.output_dependencies`).
 """
 from __future__ import annotations
 

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..read.description import Variable, exchange_type
+from ..model.fmu import Variable, exchange_type
 from ..errors import SetupError, did_you_mean
 from .parameters import bind_system_connectors
 from ..model.structure import ParameterValue, Plan, SystemStructure

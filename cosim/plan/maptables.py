@@ -16,11 +16,11 @@ given a value are refused (`refuse_on_path`).
 """
 from __future__ import annotations
 
-from ..read.description import Variable, exchange_type
+from ..model.fmu import Variable, exchange_type
 from ..errors import SetupError
 from ..model.structure import Hop, RouteTable, ValueTable
 
-#: the exchange type (`cosim.read.description.exchange_type`) each table applies to
+#: the exchange type (`cosim.model.fmu.exchange_type`) each table applies to
 APPLIES_TO = {"Boolean": "Boolean", "Integer": "Integer", "Enumeration": "Integer"}
 
 

@@ -15,7 +15,7 @@ from collections.abc import Collection, Sequence
 from dataclasses import replace
 
 
-from ..read.description import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
+from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
 from ..errors import SetupError, did_you_mean
 from .maptables import refuse_on_path
 from .routing import hops_map, transformations, unit_step

@@ -9,7 +9,7 @@ scopes are `cosim.model.units`.
 from __future__ import annotations
 
 
-from ..read.description import Variable, unit_of
+from ..model.fmu import Variable, unit_of
 from ..model.structure import Hop, SystemStructure
 from ..model.units import IDENTITY, Affine, SystemUnits, UnitScope, check_agree, conversion, then
 

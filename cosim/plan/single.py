@@ -28,7 +28,8 @@ import numpy as np
 from fmpy.util import auto_interval
 
 from ..read import ssp
-from ..read.description import describe, exchange_type
+from ..model.fmu import exchange_type
+from ..read.description import describe
 from ..errors import SetupError
 from ..read.flatten import flatten
 from .inputs import InputTable, bind_table, connector_values, read_input_table, with_table

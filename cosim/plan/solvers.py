@@ -2,7 +2,7 @@
 the solver settings of each, and what is checked before instantiation."""
 from __future__ import annotations
 
-from ..read.description import MODEL_EXCHANGE, FMUDescription
+from ..model.fmu import MODEL_EXCHANGE, FMUDescription
 from ..errors import SetupError
 from ..model.structure import SolverOptions, SolverSettings, SystemStructure
 

@@ -13,12 +13,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..read.description import exchange_type
+from ..model.fmu import exchange_type
 from ..errors import RunError
 from .instances.fmi3 import BinaryValue
 from ..model.structure import Plan, Route
 
-#: exchange types (`cosim.read.description.exchange_type`) and their buffers' C types, as fmi2 declares them
+#: exchange types (`cosim.model.fmu.exchange_type`) and their buffers' C types, as fmi2 declares them
 #: (Binary, FMI 3.0 only: a pointer and a size, `cosim.run.instances.fmi3.BinaryValue`)
 TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p,
          "Binary": BinaryValue}

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import kernel as native
-from ..read.description import FMUDescription
+from ..model.fmu import FMUDescription
 from ..errors import ComponentLost, RunError, SetupError
 from .exchange import TypedBuffers, exchange_buffers
 from ..model.grid import Grid

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..read import ssp
-from ..read.description import unit_of
+from ..model.fmu import unit_of
 from ..errors import ComponentLost, CosimError, OutOfMemory, OutputError, RunError, SetupError, did_you_mean
 from .execution import ALGORITHMS, Execution, Grid
 from .instances import Unzipped

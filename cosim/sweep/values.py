@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..read.description import exchange_type
+from ..model.fmu import exchange_type
 from ..errors import SetupError, did_you_mean
 from ..present.metrics import METRICS
 from ..plan.parameters import check_values, split_system_name

@@ -2,7 +2,7 @@
 
 A route here is a `cosim.model.structure.Route` between fmpy `ModelVariable`s built in the
 test; the dependencies are what an FMU's ModelStructure would give
-(`cosim.read.description.FMUDescription.output_dependencies`).
+(`cosim.model.fmu.FMUDescription.output_dependencies`).
 """
 from __future__ import annotations
 

@@ -1,10 +1,10 @@
 """Live FMU instances: one `Instance` protocol, implemented per interface kind.
 
-`open_instance` returns the instance for an `cosim.read.description.FMUDescription`'s kind.
+`open_instance` returns the instance for an `cosim.model.fmu.FMUDescription`'s kind.
 """
 from __future__ import annotations
 
-from ...read.description import FMUDescription
+from ...model.fmu import FMUDescription
 from ...model.structure import SolverSettings
 from .base import STATUS, Instance
 from .fmi2 import FMI2Instance

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
 
-from ...read.description import ExchangeType, FMUDescription, Variable
+from ...model.fmu import ExchangeType, FMUDescription, Variable
 from ...errors import RunError, SetupError
 from .pythonfmu_state import release_pythonfmu_state
 

@@ -9,7 +9,7 @@ import fmpy
 from fmpy.fmi2 import (FMU2Slave, printLogMessage, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
-from ...read.description import ExchangeType, FMUDescription, Variable
+from ...model.fmu import ExchangeType, FMUDescription, Variable
 from ...errors import SetupError
 from .base import InstanceBase, NativeStep, address, end_instance, log_line, serial_reason
 from .loading import quick

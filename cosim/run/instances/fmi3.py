@@ -11,7 +11,7 @@ are thin closures over the raw fmi3 functions; the differences they absorb:
   buffer holds ``int`` as fmi2Boolean does: copied through a preallocated
   ``c_bool`` scratch array.
 * Array variables (``<Dimension>``, FMI 3.0 §2.4.7.5, serialised row-major):
-  a connector names one element (`cosim.read.description.ArrayElement`, a value reference of
+  a connector names one element (`cosim.model.fmu.ArrayElement`, a value reference of
   its own that only this module resolves).  Reading fetches the whole array into
   a scratch buffer and copies the element out; writing keeps a scratch copy of
   the whole input array (read once, then only the master writes it) and writes
@@ -33,7 +33,7 @@ from collections.abc import Callable
 import numpy as np
 from fmpy.fmi3 import FMU3Slave, fmi3Binary
 
-from ...read.description import ArrayElement, ExchangeType, FMUDescription, Variable, exchange_type
+from ...model.fmu import ArrayElement, ExchangeType, FMUDescription, Variable, exchange_type
 from ...errors import SetupError
 from .base import STATUS, InstanceBase, NativeStep, address, end_instance, log_line, serial_reason
 from .loading import quick
@@ -292,7 +292,7 @@ class _Gather:
     3.0 type (`_Group`): the distinct variables (an array once, however many of its elements
     are named), a scratch buffer for their values in the FMU's C type, and the position of
     each named value in it.  Numbers and Booleans only: strings are exchanged scalar by scalar
-    (String array elements are refused by `cosim.read.description.FMUDescription.variable`).
+    (String array elements are refused by `cosim.model.fmu.FMUDescription.variable`).
 
     A plan serves one pair of caller arrays (value references, values), as the execution
     passes the same ones at every call; it keeps them, so their ``id`` keys it safely."""

@@ -21,7 +21,7 @@ import signal
 import socket
 from typing import NoReturn
 
-from ...read.description import FMUDescription
+from ...model.fmu import FMUDescription
 from ...model.structure import SolverSettings
 from . import open_instance
 from .channel import (HAS_PAYLOAD, NOT_READ, NUMBERS, OP_CALL, OP_FREE, OP_GET, OP_SET, OP_SLOT, OP_STEP, RAISED,

@@ -30,7 +30,7 @@ import time
 import warnings
 from dataclasses import dataclass
 
-from ...read.description import FMUDescription
+from ...model.fmu import FMUDescription
 from ...errors import ComponentLost, SetupError
 from ...model.structure import SolverSettings
 from .channel import (KINDS, NOT_READ, NUMBERS, OP_CALL, OP_FREE, OP_GET, OP_SET, OP_SLOT, OP_STEP, RAISED,

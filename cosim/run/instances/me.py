@@ -36,7 +36,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model, fmi2EventInfo, fmi2False
 from fmpy.fmi3 import FMU3Model
 
-from ...read.description import FMUDescription
+from ...model.fmu import FMUDescription
 from ...model.structure import SolverSettings
 from .base import STATUS
 from .loading import quick

@@ -24,7 +24,7 @@ reused instances with `cosim run`s in fresh processes on every scenario family o
 """
 from __future__ import annotations
 
-from ...read.description import FMUDescription
+from ...model.fmu import FMUDescription
 from .base import Instance
 from .fmi2 import FMI2Instance
 from .fmi3 import FMI3Instance
