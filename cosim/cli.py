@@ -421,9 +421,8 @@ def _info(args) -> int:
             print(f"hierarchy (names are paths relative to the root system '{plan.system_name}'):")
             _print_system(hierarchy, 1)
             for o in plan.system_outputs.values():
-                tf = f" (x{o.factor:g} {o.offset:+g})" if (o.factor, o.offset) != (1.0, 0.0) else ""
-                print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}" if o.component is not None
-                      else f"  recorded: {o.name} = {o.offset:g} (undriven: a constant)")
+                print(f"  recorded: {o.name} = {o.transform.text(o.source)}" if o.component is not None
+                      else f"  recorded: {o.name} = {o.transform.offset:g} (undriven: a constant)")
         print("components:")
         for name, desc in plan.fmus.items():
             print(f"  {name}: {desc.path.name} (FMI {desc.fmi_version}, {desc.generation_tool}, "
@@ -436,8 +435,8 @@ def _info(args) -> int:
                 print(f"    {v.causality:6} {v.type:7} {v.name}" + (f" [{v.unit}]" if v.unit else ""))
         print("connections:")
         for r in plan.routes:
-            tf = f" (x{r.factor:g} {r.offset:+g})" if (r.factor, r.offset) != (1.0, 0.0) else ""
-            print(f"  {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}{tf}")
+            tf = "" if r.transform.identity else f" = {r.transform.text(r.source)}"
+            print(f"  {r.label}{tf}")
         print("parameters:")
         for sv in plan.start_values:
             print(f"  {sv.component}.{sv.variable.name} = {sv.value}  ({sv.origin})")

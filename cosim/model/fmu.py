@@ -1,6 +1,6 @@
 """FMUs as the master sees them before any is instantiated: the records of a checked model
 description (`FMUDescription`, its `Variable` and `DeclaredType` records, `DefaultExperiment`,
-`cosim.model.units.UnitDefinition`), values of our own that `cosim.read.description.describe` makes
+`UnitDefinition`), values of our own that `cosim.read.description.describe` makes
 from fmpy's parse.  Nothing here imports fmpy: a `cosim.model.structure.Plan` holding them is plain
 data (a sweep pickles it for its workers, `cosim.sweep.dispatch`).  `FMUDescription.kind` is the
 interface the master drives: an FMI 2.0 Co-Simulation FMU (``fmi2-cs``), an FMI 3.0 Co-Simulation
@@ -16,7 +16,6 @@ from typing import Literal
 
 from ..errors import SetupError, did_you_mean
 from .frozen import FrozenMap
-from .units import UnitDefinition
 
 #: The interface the master drives an FMU through (`cosim.read.description.describe`).
 Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me", "fmi3-me"]
@@ -66,6 +65,16 @@ class ArrayElement(Variable):
     #: 0-based position in the array's values (FMI 3.0 serialises arrays row-major, §2.4.7.5)
     index: int = 0
     size: int = 1
+
+
+@dataclass(frozen=True)
+class UnitDefinition:
+    """One ``UnitDefinitions/Unit`` (FMI 2.0 §2.2.2): its BaseUnit's exponents in the order of
+    `cosim.model.units.BASE_UNITS`, factor and offset (``base`` None: the Unit has no BaseUnit)."""
+    name: str
+    base: tuple[int, ...] | None
+    factor: float = 1.0
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)

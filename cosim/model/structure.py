@@ -15,9 +15,11 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
+from collections.abc import Mapping
 
 
 from .fmu import FMUDescription, Variable, exchange_type
+from .transforms import Transform, Transformation
 from .units import SystemUnits, Unit
 
 
@@ -46,9 +48,9 @@ class ParameterValue:
     units: dict[str, Unit] = field(default_factory=dict, repr=False)
     #: the ``ssm:MappingEntry`` that renamed (and perhaps transformed) the value, for messages ("" if none)
     mapping: str = ""
-    #: a mapping's ``ssc:LinearTransformation`` (factor, offset) still to apply after converting ``unit``
-    #: to the variable's unit (SSP 1.0 MappingEntry: units first, then the transformation); None: none left
-    linear: tuple[float, float] | None = None
+    #: a mapping's ``ssc:LinearTransformation`` still to apply after converting ``unit`` to the
+    #: variable's unit (SSP 1.0 MappingEntry: units first, then the transformation); None: none left
+    transform: Transform | None = None
 
     def element(self) -> str:
         """Where the value comes from, for messages: its ``ssv:Parameter`` and the mapping entry, if any."""
@@ -83,10 +85,8 @@ class MappingEntry:
     line: int
     #: "Linear", "Boolean", "Integer", "Enumeration" (the ssc:...Transformation) or None
     kind: str | None = None
-    factor: float = 1.0
-    offset: float = 0.0
-    #: the ssc:MapEntry table of a Boolean, Integer or Enumeration mapping transformation
-    table: dict = field(default_factory=dict)
+    #: its transformation of the ssv value: an `Affine` (Linear) or a `Table` of ssc:MapEntry values
+    transform: Transform | None = None
 
     def where(self) -> str:
         return f"ssm:MappingEntry '{self.source}' -> '{self.target}' ({self.file}, line {self.line})"
@@ -132,20 +132,6 @@ class SolverSettings:
                 "max_step": "communication step" if self.max_step is None else self.max_step}
 
 
-@dataclass(frozen=True)
-class ValueTable:
-    """The ``ssc:BooleanMappingTransformation``, ``ssc:IntegerMappingTransformation`` or
-    ``ssc:EnumerationMappingTransformation`` of an ``ssd:Connection`` (SSP 1.0
-    SystemStructureCommon.xsd, GTransformationChoice): its ``ssc:MapEntry`` source → target
-    values, booleans, integers or item names."""
-    kind: str
-    entries: tuple[tuple[bool | int | str, bool | int | str], ...]
-    line: int
-
-    def element(self) -> str:
-        return f"ssc:{self.kind}MappingTransformation (line {self.line})"
-
-
 @dataclass
 class Connection:
     #: None, before flattening only, where the connection names a connector of its own system
@@ -153,17 +139,16 @@ class Connection:
     start_connector: str
     end_element: str | None
     end_connector: str
-    factor: float
-    offset: float
-    has_transformation: bool
+    #: its transformation (SSP 1.0 GTransformationChoice: an ``ssc:LinearTransformation``, an
+    #: `cosim.model.transforms.Affine`, or a `cosim.model.transforms.MappingTable`); None: none.  A
+    #: connection resolved through system connectors has its hops' instead (``hops``)
+    transform: Transformation | None
     suppress_unit_conversion: bool
     line: int
     #: for a connection resolved through system connectors: its lines and the connectors on the way
     via: str = ""
     #: for a connection resolved through system connectors: each connection on the way (`Hop`)
     hops: tuple[Hop, ...] = ()
-    #: its Boolean, Integer or Enumeration mapping transformation, if it has one
-    table: ValueTable | None = None
 
     def describe(self) -> str:
         return (f"connection {self.start_element}.{self.start_connector} -> "
@@ -230,9 +215,9 @@ class Hop:
 
     SSP 1.0 (SystemStructureDescription.xsd, Connection and its ``suppressUnitConversion``)
     converts the value on each connection from its start connector's unit to its end
-    connector's unit, then applies that connection's LinearTransformation (only the
-    transformation when ``suppressUnitConversion="true"``).  `cosim.plan.routing` composes the hops in
-    that order; it knows the component ends' units (their FMU variables), this module does not.
+    connector's unit, then applies that connection's transformation (only the transformation
+    when ``suppressUnitConversion="true"``).  `cosim.plan.routing` composes the hops in that order;
+    it knows the component ends' units (their FMU variables), this module does not.
     """
     line: int
     #: the system connector at each end (``loop.r``; ``r`` on the root); None where the end is a component
@@ -241,12 +226,9 @@ class Hop:
     #: those system connectors' ``ssc:Real unit``; None for a component end or a connector without one
     start_unit: str | None
     end_unit: str | None
-    factor: float
-    offset: float
-    has_transformation: bool
+    #: its transformation as read (`Connection.transform`), None without one
+    transform: Transformation | None
     suppress: bool
-    #: its Boolean, Integer or Enumeration mapping transformation, if it has one
-    table: ValueTable | None = None
 
 
 @dataclass
@@ -384,28 +366,25 @@ class SystemStructure:
 
 @dataclass(frozen=True)
 class Route:
-    """One connection, resolved: output (src) to input (dst); ``factor``/``offset`` map the
-    source FMU's value to the destination FMU's value: the unit conversion and the
-    LinearTransformation composed (see `cosim.plan.routing.hops_map`)."""
+    """One connection, resolved: output (src) to input (dst); ``transform`` maps the source FMU's
+    value to the destination FMU's value: the unit conversions and the transformations on the way
+    composed (`cosim.plan.routing.path_transform`; an `cosim.model.transforms.Affine` for Real
+    values, a `cosim.model.transforms.Table` for mapping tables of the others)."""
     src: str
     src_var: Variable
     dst: str
     dst_var: Variable
-    factor: float
-    offset: float
-    #: the mapping transformations on the way, composed (`cosim.plan.maptables`); None without any
-    table: RouteTable | None = None
+    transform: Transform
 
+    @property
+    def source(self) -> str:
+        """``src.var``: the output, as results name it (and the operand of its transformation's text)."""
+        return f"{self.src}.{self.src_var.name}"
 
-@dataclass(frozen=True)
-class RouteTable:
-    """The Boolean, Integer and Enumeration mapping transformations along one route composed into
-    one table of the exchanged values (Booleans as 0 and 1, Enumerations by item value); a value
-    outside it is a `cosim.errors.RunError` naming ``elements`` (`cosim.plan.maptables`)."""
-    mapping: dict[int, int]
-    boolean: bool
-    #: the transformations, for messages: "ssc:IntegerMappingTransformation (line 12)"
-    elements: str
+    @property
+    def label(self) -> str:
+        """``src.var -> dst.var``, as messages and the metadata name it."""
+        return f"{self.source} -> {self.dst}.{self.dst_var.name}"
 
 
 #: How the master treats an algebraic loop (`cosim.run.loops`): solve it by iteration at every
@@ -446,18 +425,17 @@ class StartValue:
 
 @dataclass(frozen=True)
 class RecordedOutput:
-    """A root-system output connector as recorded: ``factor·component.connector + offset``,
-    the per-hop composition of unit conversions and LinearTransformations from the FMU
-    variable's unit to the root connector's (`cosim.plan.routing.hops_map`).
+    """A root-system output connector as recorded: ``transform`` of ``component.connector``, the
+    per-hop composition of unit conversions and transformations from the FMU variable's value to
+    the root connector's (`cosim.plan.routing.path_transform`).
 
-    An undriven one (``component`` None) is ``0·time + offset``: the constant its
+    An undriven one (``component`` None) is ``Affine(0, value)`` of time: the constant its
     ParameterBinding value gives, else NaN, in every row (`cosim.plan.build`), through the same
     per-chunk arithmetic as the others (`source`)."""
     name: str
     component: str | None
     connector: str | None
-    factor: float
-    offset: float
+    transform: Transform
     #: the last unit a system connector declares on the way, else the source's
     unit: str | None
     #: an undriven one: the line of its ssd:Connector, and where its value comes from
@@ -521,6 +499,9 @@ class Plan:
     set_in_settling_only: set[str] = field(default_factory=set)
     #: an input table (``--input-file``) feeding inputs by name (`cosim.plan.inputs.BoundTable`), or None
     input_table: object | None = None
+    #: each undriven system connector that feeds inputs: (component, variable, the transformation a
+    #: number given to it without a unit takes on the way) per input it feeds (`cosim.plan.parameters.open_inputs`)
+    open_inputs: Mapping[str, tuple[tuple[str, str, Transform], ...]] = field(default_factory=dict)
 
     def recorded(self) -> tuple[list[str], list[str]]:
         """The result names of the recorded outputs (the root system's output connectors last)

@@ -9,7 +9,7 @@ such that
 
 (degC is ``K=1, offset=273.15``; % is dimensionless with ``factor=0.01``).  Two
 units with the same exponents have the same dimension and convert into each
-other by an affine map dst = a·src + b; units of different dimensions never do.
+other by an affine map dst = a·src + b (`cosim.model.transforms.Affine`); units of different dimensions never do.
 
 Where a unit name is looked up (`UnitScope`): the definitions of the file that
 uses the name first (an FMU's ``UnitDefinitions`` for its variables, the SSD's
@@ -27,6 +27,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from ..errors import SetupError
+from .fmu import UnitDefinition
+from .transforms import Affine
 
 #: Base-unit attribute names in FMI 2.0 / SSP 1.0 order.
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
@@ -112,16 +114,6 @@ def _builtin() -> dict[str, Unit]:
 BUILTIN: dict[str, Unit] = _builtin()
 
 
-@dataclass(frozen=True)
-class UnitDefinition:
-    """One ``UnitDefinitions/Unit`` (FMI 2.0 §2.2.2): its BaseUnit's exponents in the order of
-    `BASE_UNITS`, factor and offset (``base`` None: the Unit has no BaseUnit)."""
-    name: str
-    base: tuple[int, ...] | None
-    factor: float = 1.0
-    offset: float = 0.0
-
-
 def fmu_units(unit_definitions: Iterable[UnitDefinition], source: str) -> dict[str, Unit]:
     """The units of an FMU's ``UnitDefinitions`` (`cosim.model.fmu.FMUDescription.unit_definitions`);
     a Unit without a BaseUnit is dimensionless with factor 1 (FMI 2.0 §2.2.2)."""
@@ -203,20 +195,11 @@ class SystemUnits:
         return UnitScope(local, self.ssd, self.fmu[comp])
 
 
-Affine = tuple[float, float]
-IDENTITY: Affine = (1.0, 0.0)
-
-
 def conversion(src: Unit, dst: Unit, context: str = "", **where) -> Affine:
-    """(a, b) such that a value in ``dst`` = a·(value in ``src``) + b; refuses different dimensions,
-    naming both units and their dimensions (``context`` says what is converted)."""
+    """The `cosim.model.transforms.Affine` a·x + b taking a value in ``src`` to ``dst``; refuses
+    different dimensions, naming both units and their dimensions (``context`` says what is
+    converted)."""
     if src.exponents != dst.exponents:
         raise SetupError(f"{context}cannot convert '{src.name}' ({src.dimension}) to '{dst.name}' "
                          f"({dst.dimension}): the dimensions differ.", **where)
-    return src.factor / dst.factor, (src.offset - dst.offset) / dst.factor
-
-
-def then(first: Affine, second: Affine) -> Affine:
-    """The affine map that applies ``first``, then ``second``."""
-    (a1, b1), (a2, b2) = first, second
-    return a2 * a1, a2 * b1 + b2
+    return Affine(src.factor / dst.factor, (src.offset - dst.offset) / dst.factor)

@@ -23,9 +23,8 @@ from ..errors import SetupError, did_you_mean
 from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
 from ..read.fmucache import passed, record_pass
 from ..read.loadable import check_fmu_file, check_library
-from .maptables import refuse_on_path, route_table
-from .parameters import resolve_parameters
-from .routing import connector_unit, hops_map, source_view, transformations
+from .parameters import open_inputs, resolve_parameters
+from .routing import connector_unit, path_transform
 from .solvers import check_model_exchange, solvers_of
 from ..model.structure import (
     Connection,
@@ -41,7 +40,8 @@ from ..model.structure import (
     SystemOutput,
     SystemStructure,
 )
-from ..model.units import IDENTITY, SystemUnits, fmu_units
+from ..model.transforms import Affine
+from ..model.units import SystemUnits, fmu_units
 
 
 #: the verdict name of a model description valid against the FMI schema
@@ -99,7 +99,7 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
                 algebraic_loops=found, loop_mode=loops,
                 gauss_seidel_order=gauss_seidel_order(list(structure.components), routes),
                 system_outputs=system_outputs, columns=_columns(structure, outputs, inputs),
-                units=recorded_units, unit_scopes=units)
+                units=recorded_units, unit_scopes=units, open_inputs=open_inputs(structure, fmus, units))
 
 
 
@@ -178,23 +178,14 @@ def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescriptio
         if exchange_type(sv) != exchange_type(dv):
             raise SetupError(f"{sv.type} output {src}.{sv.name} wired to {dv.type} input {dst}.{dv.name}; "
                              "both ends must have the same type.", file=file, element=where)
-        if c.has_transformation and exchange_type(sv) != "Real":
-            raise SetupError("a LinearTransformation applies to Real connections only; "
-                             f"this one is {sv.type}.", file=file, element=where)
         key = (dst, dv.name)
         if key in driven:
             raise SetupError(f"input {dst}.{dv.name} is driven by two connections (the other: "
                              f"{driven[key].describe()}).", file=file, element=where, variable=dv.name)
         driven[key] = c
         # a connection between two components is a path of one hop
-        hops = c.hops or (Hop(c.line, None, None, None, None, c.factor, c.offset, c.has_transformation,
-                              c.suppress_unit_conversion, c.table),)
-        if exchange_type(sv) != "Real":
-            factor, offset = c.factor, c.offset
-        else:
-            factor, offset = hops_map(structure, units, hops, source_view(structure, units, (src, sv), where),
-                                       (dst, dv), where)
-        routes.append(Route(src, sv, dst, dv, factor, offset, route_table(hops, src, sv, dst, dv, file, where)))
+        hops = c.hops or (Hop(c.line, None, None, None, None, c.transform, c.suppress_unit_conversion),)
+        routes.append(Route(src, sv, dst, dv, path_transform(structure, units, hops, (src, sv), (dst, dv), where)))
     return routes
 
 
@@ -236,21 +227,13 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[Variable
         if var is None:
             raise SetupError(f"it is driven by {out.component}.{out.connector}, which is not an output "
                              "connector of that component.", file=file, element=where, variable=out.name)
-        if transformations(out.hops) != IDENTITY and exchange_type(var) != "Real":
-            raise SetupError(f"a LinearTransformation applies to Real connections only; "
-                             f"{out.component}.{out.connector} is {var.type}.", file=file, element=where,
-                             variable=out.name)
-        refuse_on_path(out.hops, "the path to a root-system output connector", file, where)
         if any(f"{c}.{v.name}" == out.name for c, vs in outputs.items() for v in vs):
             raise SetupError(f"the name clashes with the component output {out.name} in the results.",
                              file=file, element=where, variable=out.name)
-        factor, offset = IDENTITY
-        if exchange_type(var) == "Real":
-            factor, offset = hops_map(structure, units, out.hops,
-                                      source_view(structure, units, (out.component, var), where), None, where)
+        transform = path_transform(structure, units, out.hops, (out.component, var), None, where)
         declared = [u for hop in out.hops for u in (hop.start_unit, hop.end_unit) if u]
         unit = declared[-1] if declared else _unit(structure, out.component, var)
-        recorded[out.name] = RecordedOutput(out.name, out.component, out.connector, factor, offset, unit)
+        recorded[out.name] = RecordedOutput(out.name, out.component, out.connector, transform, unit)
     return recorded
 
 
@@ -277,15 +260,15 @@ def _undriven_output(structure: SystemStructure, out: SystemOutput, where: str,
                              element=p.element(), variable=out.name,
                              hint="Give the value in the connector's unit (no conversion is made).")
         value = float(p.value)
-        if p.linear is not None:  # a mapping's LinearTransformation (SSP 1.0 MappingEntry)
-            value = p.linear[0] * value + p.linear[1]
+        if p.transform is not None:  # a mapping's LinearTransformation (SSP 1.0 MappingEntry)
+            value = p.transform.apply(value)
         origin = f"{p.file}:{p.line}" if p.line else p.file  # line 0: --start-value
         origin += f", mapped by {p.mapping}" if p.mapping else ""
     held = f"the value {value:g} from {origin}" if origin else "NaN (no ParameterBinding gives it a value)"
     warnings.warn(f"{file}, {where}, variable '{out.name}': no component output drives this output connector "
                   f"({out.undriven}); SSP 1.0 allows it, its column holds {held} in every row.",
                   RuntimeWarning, stacklevel=2)
-    return RecordedOutput(out.name, None, None, 0.0, value, unit, line=out.line, origin=origin)
+    return RecordedOutput(out.name, None, None, Affine(0.0, value), unit, line=out.line, origin=origin)
 
 
 # --------------------------------------------------------------------------- recording

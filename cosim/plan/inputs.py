@@ -38,7 +38,6 @@ import numpy as np
 
 from ..model.fmu import Variable, exchange_type
 from ..errors import SetupError, did_you_mean
-from .parameters import bind_system_connectors
 from ..model.structure import ParameterValue, Plan, SystemStructure
 
 #: the Real types of FMI 2.0 and 3.0 that may be continuous
@@ -188,18 +187,16 @@ def connector_values(table: InputTable, structure: SystemStructure) -> list[Para
             for i, name in enumerate(table.names) if name in structure.open_connectors]
 
 
-def bind_table(table: InputTable, plan: Plan, single: str | None = None,
-               bindings: Sequence[ParameterValue] = ()) -> BoundTable:
+def bind_table(table: InputTable, plan: Plan, single: str | None = None) -> BoundTable:
     """Match each column to inputs: ``component.input``, an undriven system connector of a
-    system (each input it feeds, through its transformations: ``bindings`` are the values the
-    plan was built with, `connector_values` among them), or for a single FMU (``single``: its
-    component) the variable's own name, as fmpy names it.  A name that is no input, an input a
+    system (each input it feeds, through its transformations: `cosim.model.structure.Plan.open_inputs`),
+    or for a single FMU (``single``: its component) the variable's own name, as fmpy names it.  A name that is no input, an input a
     connection drives, a String or Binary input, and a value that is not of the input's type
     (an Integer that is not whole, a Boolean that is not 0 or 1) are refused, naming the file,
     column and line."""
     driven = {(r.dst, r.dst_var.name) for r in plan.routes}
     inputs = {f"{c}.{v.name}": (c, v) for c in plan.inputs for v in plan.inputs[c]}
-    connectors = plan.structure.open_connectors if single is None else {}
+    connectors = plan.open_inputs if single is None else {}
     targets: list[Target] = []
     for column, name in enumerate(table.names):
         where = dict(file=table.file, element=f"line {table.lines[0] - 1}, column '{name}'", variable=name)
@@ -208,7 +205,7 @@ def bind_table(table: InputTable, plan: Plan, single: str | None = None,
         if found is not None:
             fed = [(found[0], found[1], table.values[column])]
         elif name in connectors:
-            fed = _through_connector(plan, table, column, bindings)
+            fed = _through_connector(plan, table, column, where)
         else:
             _not_a_connector(plan, name, where)
             known = [n.partition(".")[2] if single else n for n in inputs] + list(connectors)
@@ -241,23 +238,19 @@ def _not_a_connector(plan: Plan, name: str, where: dict) -> None:
 
 
 def _through_connector(plan: Plan, table: InputTable, column: int,
-                       bindings: Sequence[ParameterValue]) -> list[tuple[str, Variable, np.ndarray]]:
+                       where: dict) -> list[tuple[str, Variable, np.ndarray]]:
     """The inputs an undriven system connector feeds and the column's values as each gets them:
-    the connector's transformations and unit conversions (affine) taken as a value there is
-    (`cosim.plan.parameters.bind_system_connectors`), from the images of 0 and 1."""
-    name = table.names[column]
-    sinks = plan.structure.open_connectors[name].sinks
-    others = [p for p in bindings if p.name != name]
-    images = []
-    for probe in (0.0, 1.0):
-        value = ParameterValue(name, "Real", probe, table.file, table.lines[0])
-        images.append(bind_system_connectors(plan.structure, plan.fmus, plan.unit_scopes,
-                                             others + [value])[-len(sinks):])
+    through the connector's transformations and unit conversions (`cosim.model.structure.Plan.open_inputs`);
+    a value a mapping table on the way names no target is refused, naming its line."""
     fed = []
-    for (comp, conn, _), zero, one in zip(sinks, *images):
-        offset = float(zero.value)
-        factor = float(one.value) - offset
-        values = table.values[column] if (factor, offset) == (1.0, 0.0) else factor * table.values[column] + offset
+    for comp, conn, transform in plan.open_inputs[table.names[column]]:
+        values = table.values[column] if transform.identity else transform.apply_array(table.values[column])
+        unmapped = np.flatnonzero(np.isnan(values))
+        if len(unmapped):
+            row = int(unmapped[0])
+            raise SetupError(f"{table.values[column][row]:.17g} reaches {comp}.{conn} through {transform.text()}, "
+                             "which names no target for it.",
+                             **(where | {"element": f"line {table.lines[row]}, column '{table.names[column]}'"}))
         fed.append((comp, plan.fmus[comp].variables[conn], values))
     return fed
 

@@ -17,10 +17,11 @@ from dataclasses import replace
 
 from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
 from ..errors import SetupError, did_you_mean
-from .maptables import refuse_on_path
 from .routing import hops_map, transformations, unit_step
 from ..model.structure import Hop, OpenConnector, ParameterValue, Plan, StartValue, SystemStructure
-from ..model.units import IDENTITY, SystemUnits, UnitScope, conversion
+from ..model.frozen import FrozenMap
+from ..model.transforms import IDENTITY, Transform, Unmapped
+from ..model.units import SystemUnits, UnitScope, conversion
 
 SETTABLE_CAUSALITIES = ("parameter", "input")
 #: the range of fmi2Integer and fmi3Int32 (a C int)
@@ -46,33 +47,56 @@ def resolve_parameters(structure: SystemStructure, fmus: dict[str, FMUDescriptio
 def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits,
                   p: ParameterValue, open_connector: OpenConnector, comp: str, conn: str,
                   hops: tuple[Hop, ...]) -> ParameterValue:
-    """The value a component connector gets from ``p``, given to an open system connector: the
-    connector holds it in its own unit if it declares one (converted from ``p``'s unit, as a
-    parameter value is), else in ``p``'s unit; then each hop as on a connection (`cosim.plan.routing.hops_map`),
-    ending in the FMU variable's unit.  A variable that is not Real gets the value through the
-    transformations only (Real and Integer values; others only where there is none)."""
+    """The value a component connector gets from ``p``, given to an open system connector
+    (`connector_transform`).  A value that is not a number goes only through an identity, an
+    Integer or Boolean one through a Real variable's conversions or a mapping table."""
     where = (f"ssv:Parameter '{p.name}' (line {p.line}) for {comp}.{conn} through system connector "
              f"'{open_connector.path}'")
     var = fmus[comp].variable(conn, where, p.file)
-    refuse_on_path(hops, f"a value given to system connector '{open_connector.path}'", p.file, where)
-    numeric = p.type in ("Real", "Integer")
-    if p.linear is not None and (exchange_type(var) != "Real" or not open_connector.unit):
+    p, transform = connector_transform(structure, units, p, open_connector, (comp, var), hops, where)
+    name = f"{comp}.{conn}"
+    if exchange_type(var) == "Real" and p.type in ("Real", "Integer"):
+        return replace(p, name=name, type="Real", value=transform.apply(float(p.value)), unit=None, transform=None)
+    if transform.identity:
+        return replace(p, name=name)
+    if p.type not in ("Real", "Integer", "Boolean"):
+        raise SetupError(f"a {p.type} value cannot go through the transformation {transform.text()} on the way "
+                         f"from system connector '{p.name}' to {name}.", file=p.file, element=p.element(),
+                         variable=p.name)
+    try:
+        value = transform.apply(p.value)
+    except Unmapped as e:
+        raise SetupError(f"the value {e.table.shown(e.value)} is not a source value of {e.table.element} on the way "
+                         f"from system connector '{p.name}' to {name}.", file=p.file, element=p.element(),
+                         variable=p.name) from None
+    if p.type == "Boolean":
+        return replace(p, name=name, value=bool(value))
+    return replace(p, name=name, type="Real" if isinstance(value, float) else "Integer", value=value)
+
+
+def connector_transform(structure: SystemStructure, units: SystemUnits, p: ParameterValue,
+                        open_connector: OpenConnector, sink: tuple[str, Variable], hops: tuple[Hop, ...],
+                        where: str) -> tuple[ParameterValue, Transform]:
+    """How a value ``p`` given to an open system connector reaches the component input ``sink``
+    through ``hops``: ``p`` with its mapping's pending LinearTransformation applied where it comes
+    first, and the transformation from its value to the sink's.  The connector holds the value in
+    its own unit if it declares one (converted from ``p``'s unit, as a parameter value is), else in
+    ``p``'s unit; then each hop as on a connection (`cosim.plan.routing.hops_map`), ending in the FMU
+    variable's unit.  A variable that is not Real, or a value that is not a number, takes the
+    hops' transformations only (`cosim.plan.routing.transformations`); the connector carries the
+    type of what it feeds."""
+    comp, var = sink
+    source = (f"system connector '{open_connector.path}'", var)
+    if p.transform is not None and (exchange_type(var) != "Real" or not open_connector.unit):
         if exchange_type(var) == "Real":
             raise SetupError(f"the value is given in '{p.unit}' and mapped with a LinearTransformation, which SSP 1.0 "
                              "applies after converting it to its target's unit; system connector "
                              f"'{open_connector.path}' declares no unit.", file=p.file, element=p.element(),
                              variable=p.name, hint="Declare the connector's unit, or add "
                              "suppressUnitConversion=\"true\" to the mapping entry.")
-        p = replace(p, value=p.linear[0] * float(p.value) + p.linear[1], linear=None)
-    if exchange_type(var) != "Real" or not numeric:
-        factor, offset = transformations(hops)
-        if (factor, offset) == IDENTITY:
-            return replace(p, name=f"{comp}.{conn}")
-        if not numeric:
-            raise SetupError(f"a {p.type} value cannot go through the LinearTransformation on the way "
-                             f"from system connector '{p.name}' to {comp}.{conn}.", file=p.file,
-                             element=p.element(), variable=p.name)
-        return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset)
+        p = replace(p, value=p.transform.apply(float(p.value)), transform=None)
+    if exchange_type(var) != "Real" or p.type not in ("Real", "Integer"):
+        return p, transformations(hops, source, sink, p.file, where)
     kw = {"file": p.file, "element": where, "variable": open_connector.path}
     unit, scope = p.unit, units.for_value(comp, p.units, file=p.file, element=where)
     given = IDENTITY
@@ -83,12 +107,29 @@ def _through_hops(structure: SystemStructure, fmus: dict[str, FMUDescription], u
                            f"'{open_connector.unit}': ", "Give the value in a unit of the connector's dimension.",
                            **kw)
         unit, scope = open_connector.unit, own
-        if p.linear is not None:  # the mapping's LinearTransformation, in the connector's unit
-            given = (p.linear[0] * given[0], p.linear[0] * given[1] + p.linear[1])
-    factor, offset = hops_map(structure, units, hops, (unit, scope, given, f"system connector '{p.name}'"),
-                               (comp, var), where)
-    return replace(p, name=f"{comp}.{conn}", type="Real", value=factor * float(p.value) + offset, unit=None,
-                   linear=None)
+        if p.transform is not None:  # the mapping's LinearTransformation, in the connector's unit
+            given = given.then(p.transform)
+    return p, hops_map(structure, units, hops, (unit, scope, given, f"system connector '{p.name}'"), sink, where,
+                       source)
+
+
+def open_inputs(structure: SystemStructure, fmus: dict[str, FMUDescription],
+                units: SystemUnits) -> FrozenMap[str, tuple[tuple[str, str, Transform], ...]]:
+    """Each undriven system connector that feeds something: the inputs it feeds (component,
+    variable) and the transformation a number given to it without a unit takes to each
+    (`connector_transform`): an input table's column naming it (`cosim.plan.inputs`)."""
+    out = {}
+    for path, target in structure.open_connectors.items():
+        if target.sinks:
+            probe = ParameterValue(path, "Real", 0.0, structure.display, target.line)
+            sinks = []
+            for comp, conn, hops in target.sinks:
+                where = f"system connector '{path}' for {comp}.{conn}"
+                var = fmus[comp].variable(conn, where, structure.display)
+                sinks.append((comp, conn, connector_transform(structure, units, probe, target, (comp, var), hops,
+                                                              where)[1]))
+            out[path] = tuple(sinks)
+    return FrozenMap(out)
 
 
 def bind_system_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits,
@@ -163,9 +204,9 @@ def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue
     if exchange_type(var) == "Real" and p.unit is not None and unit_of(var) not in (None, p.unit):
         value = _convert_value(p, var, comp, value, where, units)
         origin += f", given as {p.value:g} {p.unit}"
-    if p.linear is not None:  # a mapping's LinearTransformation, after the unit conversion (SSP 1.0 MappingEntry)
-        value = p.linear[0] * value + p.linear[1]
-        origin += f", then {p.linear[0]:g}*x{p.linear[1]:+g}"
+    if p.transform is not None:  # a mapping's LinearTransformation, after the unit conversion (SSP 1.0 MappingEntry)
+        value = p.transform.apply(value)
+        origin += f", then {p.transform.text()}"
     if exchange_type(var) in ("Real", "Integer"):
         _check_number(value, var, desc, p, where)
         lo = float(var.min) if var.min is not None else None
@@ -180,9 +221,9 @@ def _pending_linear(p: ParameterValue, var: Variable) -> ParameterValue:
     """``p`` with its mapping's LinearTransformation applied now where no unit conversion comes
     first (the variable is not Real, or has no unit or the value's own): the transformation then
     acts on the value as given, and the value is coerced to the variable's type afterwards."""
-    if p.linear is None or (exchange_type(var) == "Real" and unit_of(var) not in (None, p.unit)):
+    if p.transform is None or (exchange_type(var) == "Real" and unit_of(var) not in (None, p.unit)):
         return p
-    return replace(p, value=p.linear[0] * float(p.value) + p.linear[1], linear=None)
+    return replace(p, value=p.transform.apply(float(p.value)), transform=None)
 
 
 def _check_number(value: float | int, var: Variable, desc: FMUDescription, p: ParameterValue,
@@ -205,9 +246,8 @@ def _convert_value(p: ParameterValue, var: Variable, comp: str, value: float, wh
     kw = {"file": p.file, "element": where, "variable": var.name}
     given = units.for_value(comp, p.units, file=p.file, element=where).resolve(p.unit, **kw)
     own = units.for_variable(comp).resolve(unit_of(var), **kw)
-    a, b = conversion(given, own, f"the value is given in '{p.unit}' and {comp}.{var.name} is in "
-                      f"'{unit_of(var)}': ", **kw)
-    return a * value + b
+    return conversion(given, own, f"the value is given in '{p.unit}' and {comp}.{var.name} is in "
+                      f"'{unit_of(var)}': ", **kw).apply(value)
 
 
 def _coerce(p: ParameterValue, var: Variable, where: str):

@@ -1,17 +1,19 @@
-"""Unit routing: the affine map each connection applies, from the source FMU's value to the
-destination FMU's value (SSP 1.0 unit conversion and LinearTransformation, hop by hop).
+"""Routing: the transformation each connection applies, from the source FMU's value to the
+destination FMU's value (SSP 1.0 unit conversion and the connections' transformations, hop by hop).
 
-`connector_unit` is a connector's view of its FMU variable's unit; `hops_map` composes the
+`connector_unit` is a connector's view of its FMU variable's unit; `hops_map` composes the unit
 conversions and transformations along a path through system connectors
-(`cosim.model.structure.Hop`) into one factor and one offset.  Unit definitions and their
-scopes are `cosim.model.units`.
+(`cosim.model.structure.Hop`) into one `cosim.model.transforms.Affine` for a Real value;
+`path_transform` is the transformation of a path for a value of any type.  Unit definitions and
+their scopes are `cosim.model.units`.
 """
 from __future__ import annotations
 
 
-from ..model.fmu import Variable, unit_of
+from ..model.fmu import Variable, exchange_type, unit_of
 from ..model.structure import Hop, SystemStructure
-from ..model.units import IDENTITY, Affine, SystemUnits, UnitScope, check_agree, conversion, then
+from ..model.transforms import IDENTITY, Affine, End, Transform, compose
+from ..model.units import SystemUnits, UnitScope, check_agree, conversion
 
 
 def connector_unit(units: SystemUnits, comp: str, var: Variable, declared: str | None, where: str,
@@ -68,7 +70,7 @@ def source_view(structure: SystemStructure, units: SystemUnits, source: tuple[st
 
 def hops_map(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, ...],
               start: tuple[str | None, UnitScope, Affine, str], target: tuple[str, Variable] | None,
-              where: str) -> Affine:
+              where: str, origin: End) -> Affine:
     """The affine map along a path through system connectors (`cosim.read.flatten`): from the value
     at its start (``start``: the unit, where it is looked up, the map from the value given to
     the start's unit, a name for messages; see `source_view`) to the target FMU's value, or,
@@ -77,7 +79,9 @@ def hops_map(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, ..
     SSP 1.0 (SystemStructureDescription.xsd, Connection and ``suppressUnitConversion``;
     SystemStructureCommon.xsd LinearTransformation) applies to each connection on the way:
     convert from its start connector's unit to its end connector's unit, then its
-    LinearTransformation (target = factor·source + offset); with
+    LinearTransformation (target = factor·source + offset; ``origin``: the variable whose values
+    take the path, which each hop's transformation is checked against,
+    `cosim.model.transforms.Transformation.resolve`); with
     ``suppressUnitConversion="true"`` on a connection, only its transformation.  A connection
     between two components is a path of one hop.  The composition is one factor and one
     offset, so the exchange costs the same as a plain LinearTransformation.  No conversion
@@ -111,18 +115,37 @@ def hops_map(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, ..
             if len(hops) > 1:  # name the connection of the path
                 context = f"on the connection at line {hop.line}, {context}"
                 element = f"{where}, ssd:Connection (line {hop.line})"
-            result = then(result, unit_step(
+            result = result.then(unit_step(
                 (name, scope), (end_name, end_scope), context, file=file, element=element,
                 variable=hop.end_system or hop.start_system or target[1].name))
-        result = then(result, (hop.factor, hop.offset))
+        result = result.then(_resolved(hop, origin, target, file, where))
         name, scope = end_name, end_scope
-    return then(result, from_view)
+    return result.then(from_view)
 
 
-def transformations(hops: tuple[Hop, ...]) -> Affine:
-    """The LinearTransformations along a path composed, without any unit conversion: what a value
-    that has no unit (not Real) goes through."""
-    result = IDENTITY
-    for hop in hops:
-        result = then(result, (hop.factor, hop.offset))
-    return result
+def _resolved(hop: Hop, source: End, target: tuple[str, Variable] | None, file: str, where: str) -> Transform:
+    """A hop's transformation as it acts on the exchanged values (none: the identity)."""
+    if hop.transform is None:
+        return IDENTITY
+    end = None if target is None else (f"{target[0]}.{target[1].name}", target[1])
+    return hop.transform.resolve(source, end, file, where)
+
+
+def transformations(hops: tuple[Hop, ...], source: End, target: tuple[str, Variable] | None, file: str,
+                    where: str) -> Transform:
+    """The transformations along a path composed, without any unit conversion: what a value that
+    has no unit (not Real) goes through."""
+    return compose(_resolved(hop, source, target, file, where) for hop in hops)
+
+
+def path_transform(structure: SystemStructure, units: SystemUnits, hops: tuple[Hop, ...], source: tuple[str, Variable],
+                   target: tuple[str, Variable] | None, where: str) -> Transform:
+    """The transformation of a path from the output ``source`` (component, variable) to the
+    input ``target`` (None: the root-system output connector that ends the path): for a Real
+    value the unit conversions and transformations composed (`hops_map`), for the others their
+    transformations (mapping tables)."""
+    src, sv = source
+    end = (f"{src}.{sv.name}", sv)
+    if exchange_type(sv) == "Real":
+        return hops_map(structure, units, hops, source_view(structure, units, source, where), target, where, end)
+    return transformations(hops, end, target, structure.display, where)

@@ -81,7 +81,7 @@ def fmu_structure(path: str | Path, fmi_type: str | None = None) -> SystemStruct
     step = float(e.step_size) if e is not None and e.step_size is not None else None
     outputs = [c for c in connectors.values() if c.kind == "output"]
     aliases = {c.name: Connector(c.name, "output", None, None, 0) for c in outputs}
-    wires = [Connection(name, c.name, None, c.name, 1.0, 0.0, False, False, 0) for c in outputs]
+    wires = [Connection(name, c.name, None, c.name, None, False, 0) for c in outputs]
     root = RawSystem(name, 0, aliases, {name: component}, {}, wires, [], [name])
     raw = RawStructure(name=name, files=ScenarioFiles(fmu, fmu.parent, None), display=str(fmu), root=root,
                        experiment=Experiment(start, stop, step, "modelDescription.xml DefaultExperiment stepSize"
@@ -207,7 +207,7 @@ def prepare_scenario(scenario: Scenario, *, parameter_sets: Sequence[str | Path]
         plan = build_plan(structure, fmu_paths, extra + starts, loops)
         extra += starts
     if table is not None:
-        plan = with_table(plan, bind_table(table, plan, component, list(structure.parameters) + extra))
+        plan = with_table(plan, bind_table(table, plan, component))
     step, source = (step_size, "command line") if step_size is not None else \
         (output_interval, "--output-interval") if output_interval is not None else (None, None)
     given = (("start time", "--start", start_time), ("stop time", "--stop", stop_time),

@@ -36,12 +36,13 @@ _UNIT_PRESERVING = {"Gain", "Sum"}
 
 
 def connections(metadata: Mapping) -> list[tuple[str, str, bool]]:
-    """(source, destination, identity) of each connection; identity: no factor or offset."""
+    """(source, destination, identity) of each connection; identity: it has no transformation
+    (the metadata's ``transforms`` names those that have one)."""
+    transforms = metadata.get("transforms", {})
     out = []
     for text in metadata.get("connections", []):
-        src, _, rest = text.partition(" -> ")
-        dst, _, transform = rest.partition(" ")
-        out.append((src, dst, not transform))
+        src, _, dst = text.partition(" -> ")
+        out.append((src, dst, text not in transforms))
     return out
 
 

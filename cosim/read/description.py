@@ -11,9 +11,9 @@ import fmpy
 from fmpy.model_description import ModelDescription, ModelVariable
 
 from ..errors import SetupError
-from ..model.fmu import MODEL_EXCHANGE, DeclaredType, DefaultExperiment, FMUDescription, Kind, Variable
+from ..model.fmu import MODEL_EXCHANGE, DeclaredType, DefaultExperiment, FMUDescription, Kind, UnitDefinition, Variable
 from ..model.frozen import FrozenMap
-from ..model.units import BASE_UNITS, UnitDefinition
+from ..model.units import BASE_UNITS
 
 #: SSP 1.0 Component ``implementation`` values (SystemStructureDescription.xsd).
 IMPLEMENTATIONS = ("any", "CoSimulation", "ModelExchange")

@@ -179,9 +179,8 @@ class _Walker:
                 for element, connector in ((c.start_element, c.start_connector), (c.end_element, c.end_connector))]
         if all(node[0] == "c" for node, _ in ends):
             # component to component: cosim.plan.build directs and checks it against the FMUs
-            self.direct.append(Connection(prefix + c.start_element, c.start_connector, prefix + c.end_element,
-                                          c.end_connector, c.factor, c.offset, c.has_transformation,
-                                          c.suppress_unit_conversion, c.line, table=c.table))
+            self.direct.append(replace(c, start_element=prefix + c.start_element,
+                                       end_element=prefix + c.end_element))
             return
         (a, a_sends), (b, b_sends) = ends
         if a_sends is None and b_sends is None:
@@ -289,7 +288,7 @@ class _Resolver:
         for src in list(self.fanout):
             if src[0] == "c":
                 for e in self.fanout[src]:
-                    routes += self._follow(src, e, 1.0, 0.0, False, False, [])
+                    routes += self._follow(src, e, [])
             elif src not in self.driver:
                 self._open(src)
         for node, conn in self.walker.system_connectors.items():
@@ -317,12 +316,10 @@ class _Resolver:
                                      element=f"ssd:Connection (line {self.driver[node].connection.line})")
                 seen.add(node)
 
-    def _follow(self, origin: Node, edge: _Edge, factor: float, offset: float, has: bool, suppress: bool,
-                hops: list[_Edge]) -> list[Connection]:
-        """Connections from ``origin`` (a component output) through ``edge`` and what follows it."""
+    def _follow(self, origin: Node, edge: _Edge, hops: list[_Edge]) -> list[Connection]:
+        """Connections from ``origin`` (a component output) through ``edge`` and what follows it:
+        each with the connections on the way as its hops (`cosim.plan.routing` composes them)."""
         c = edge.connection
-        factor, offset = c.factor * factor, c.factor * offset + c.offset
-        has, suppress = has or c.has_transformation, suppress or c.suppress_unit_conversion
         hops = hops + [edge]
         dst = edge.dst
         if dst[0] == "c":
@@ -334,12 +331,11 @@ class _Resolver:
                                  element=f"ssd:Connection (line {c.line})", variable=dst[2])
             lines = ", ".join(str(h.connection.line) for h in hops)
             through = ", ".join(node_name(h.dst) for h in hops[:-1])
-            return [Connection(origin[1], origin[2], dst[1], dst[2], factor, offset, has, suppress,
-                               hops[0].connection.line, via=f"lines {lines} through system connector {through}",
-                               hops=self._hops(hops))]
+            return [Connection(origin[1], origin[2], dst[1], dst[2], None, False, hops[0].connection.line,
+                               via=f"lines {lines} through system connector {through}", hops=self._hops(hops))]
         out: list[Connection] = []
         for nxt in self.fanout.get(dst, []):
-            out += self._follow(origin, nxt, factor, offset, has, suppress, hops)
+            out += self._follow(origin, nxt, hops)
         if dst[1] == "" and self.walker.system_connectors[dst].kind == "output":
             self.system_outputs[dst[2]] = SystemOutput(dst[2], origin[1], origin[2],
                                                        self.walker.system_connectors[dst].line, self._hops(hops))
@@ -353,8 +349,7 @@ class _Resolver:
         out = []
         for e in edges:
             (start, start_unit), (stop, stop_unit), c = end(e.src), end(e.dst), e.connection
-            out.append(Hop(c.line, start, stop, start_unit, stop_unit, c.factor, c.offset, c.has_transformation,
-                           c.suppress_unit_conversion, c.table))
+            out.append(Hop(c.line, start, stop, start_unit, stop_unit, c.transform, c.suppress_unit_conversion))
         return tuple(out)
 
     def _open(self, node: Node) -> None:

@@ -12,7 +12,7 @@ nothing.
 Transformations (SSP 1.0 §4.5.2, Transformation Choice): ``ssc:LinearTransformation``
 ``target = factor * source + offset`` on Real values, after the unit conversion (or instead of it
 with ``suppressUnitConversion="true"``): a value given in a unit keeps the transformation in
-`cosim.model.structure.ParameterValue.linear` until `cosim.plan.parameters` has converted it to the
+`cosim.model.structure.ParameterValue.transform` until `cosim.plan.parameters` has converted it to the
 variable's unit.  The Boolean, Integer and Enumeration mapping transformations are tables of
 ``ssc:MapEntry`` source → target values (Enumeration values by item name, mapped before the name
 is resolved to the target variable's item value); a value that no MapEntry names is refused,
@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from ..errors import SetupError, did_you_mean
+from ..model.transforms import Unmapped
 from ..model.structure import MappingEntry, ParameterValue
 
 #: the ssv value type each transformation applies to
@@ -53,12 +54,6 @@ def transformation_element(kind: str) -> str:
     return "ssc:LinearTransformation" if kind == "Linear" else f"ssc:{kind}MappingTransformation"
 
 
-def value_text(value) -> str:
-    """A table value as the SSP files write it: ``true``/``false``, a number, an item name."""
-    return ("true" if value else "false") if isinstance(value, bool) else f"'{value}'" if isinstance(value, str) \
-        else str(value)
-
-
 def _mapped(p: ParameterValue, entry: MappingEntry) -> ParameterValue:
     mapped = replace(p, name=entry.target, mapping=entry.where(),
                      unit=None if entry.suppress_unit_conversion else p.unit)
@@ -69,14 +64,15 @@ def _mapped(p: ParameterValue, entry: MappingEntry) -> ParameterValue:
                          f"'{entry.source}' is an ssv:{p.type} ({p.file}, line {p.line}).",
                          file=entry.file, element=f"ssm:MappingEntry (line {entry.line})", variable=entry.source)
     if entry.kind != "Linear":
-        if p.value not in entry.table:
-            sources = ", ".join(value_text(v) for v in entry.table)
-            raise SetupError(f"the value {value_text(p.value)} of '{entry.source}' ({p.file}, line {p.line}) is "
+        try:
+            return replace(mapped, value=entry.transform.apply(p.value))
+        except Unmapped as e:
+            sources = ", ".join(e.table.shown(v) for v in e.table.mapping)
+            raise SetupError(f"the value {e.table.shown(p.value)} of '{entry.source}' ({p.file}, line {p.line}) is "
                              f"not a source of the {transformation_element(entry.kind)} (its ssc:MapEntry "
                              f"sources: {sources}).", file=entry.file,
                              element=f"ssm:MappingEntry '{entry.source}' -> '{entry.target}' (line {entry.line})",
-                             variable=entry.source)
-        return replace(mapped, value=entry.table[p.value])
+                             variable=entry.source) from None
     if mapped.unit is None:
-        return replace(mapped, value=entry.factor * float(p.value) + entry.offset)
-    return replace(mapped, linear=(entry.factor, entry.offset))
+        return replace(mapped, value=entry.transform.apply(float(p.value)))
+    return replace(mapped, transform=entry.transform)

@@ -49,8 +49,9 @@ from ..model.structure import (
     SignalReference,
     SolverOptions,
     SystemStructure,
-    ValueTable,
 )
+from ..model.frozen import FrozenMap
+from ..model.transforms import Affine, MappingTable, Table
 from ..model.units import BASE_UNITS, Unit, check_definition, make_unit
 
 NS = {
@@ -362,23 +363,25 @@ def _read_connector(c: etree._Element) -> Connector:
 
 
 def _read_connection(c: etree._Element, display: str) -> Connection:
-    line = c.sourceline
-    factor, offset, has = 1.0, 0.0, False
-    lt = c.find("ssc:LinearTransformation", NS)
-    if lt is not None:
-        has = True
-        factor = _float_attr(lt, "factor", display, default=1.0)
-        offset = _float_attr(lt, "offset", display, default=0.0)
     suppress = c.get("suppressUnitConversion", "false") in ("true", "1")
-    table = None
-    for local, (kind, parse) in _TABLES.items():
-        table_el = c.find(f"ssc:{local}", NS)
-        if table_el is not None:  # the schema allows one transformation (GTransformationChoice)
-            table = ValueTable(kind, tuple(_read_table(table_el, parse, display).items()), table_el.sourceline)
     # an empty element name is the enclosing system, as an omitted one (OMSimulator writes
     # startElement="" for a system's own connector; the schema's xs:string accepts it)
     return Connection(c.get("startElement") or None, c.get("startConnector"), c.get("endElement") or None,
-                      c.get("endConnector"), factor, offset, has, suppress, line, table=table)
+                      c.get("endConnector"), _read_transformation(c, display), suppress, c.sourceline)
+
+
+def _read_transformation(el: etree._Element, display: str) -> Affine | MappingTable | None:
+    """An ``ssd:Connection``'s transformation (the schema allows one, GTransformationChoice): its
+    ``ssc:LinearTransformation`` or mapping table, as read (`cosim.model.transforms`)."""
+    linear = el.find("ssc:LinearTransformation", NS)
+    if linear is not None:
+        return Affine(_float_attr(linear, "factor", display, default=1.0),
+                      _float_attr(linear, "offset", display, default=0.0))
+    for local, (kind, parse) in _TABLES.items():
+        table_el = el.find(f"ssc:{local}", NS)
+        if table_el is not None:
+            return MappingTable(kind, tuple(_read_table(table_el, parse, display).items()), table_el.sourceline)
+    return None
 
 
 def _float_attr(el: etree._Element, name: str, display: str, default: float | None = None) -> float | None:
@@ -519,14 +522,12 @@ def _read_mapping_entries(mapping: etree._Element, display: str) -> list[Mapping
         targets[target] = e.sourceline
         entry = MappingEntry(e.get("source"), target, e.get("suppressUnitConversion", "false") in ("true", "1"),
                              display, e.sourceline)
-        linear = e.find("ssc:LinearTransformation", NS)
-        if linear is not None:
-            entry = replace(entry, kind="Linear", factor=_float_attr(linear, "factor", display, default=1.0),
-                            offset=_float_attr(linear, "offset", display, default=0.0))
-        for local, (kind, parse) in _TABLES.items():
-            table_el = e.find(f"ssc:{local}", NS)
-            if table_el is not None:
-                entry = replace(entry, kind=kind, table=_read_table(table_el, parse, display))
+        transform = _read_transformation(e, display)
+        if isinstance(transform, MappingTable):  # a table of ssv values (item names for an Enumeration)
+            entry = replace(entry, kind=transform.kind, transform=Table(FrozenMap(transform.entries),
+                                                                        element=transform.element))
+        elif transform is not None:
+            entry = replace(entry, kind="Linear", transform=transform)
         entries.append(entry)
     return entries
 

@@ -23,6 +23,7 @@ import json
 import os
 import re
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +32,7 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 import numpy as np
 
 from .csvformat import format_rows
+from ..model.transforms import Transform, from_json
 from ..errors import OutOfMemory, OutputError
 from ..extras import has_pyarrow, require_pyarrow
 from ..safeio import partial_path, write_atomic
@@ -307,42 +309,48 @@ def column_order(source_names: Sequence[str], names: Sequence[str]) -> np.ndarra
 
 @dataclass(frozen=True)
 class DerivedColumns:
-    """The root system's output connectors, each ``factor · rows[:, column] + offset``
-    (`cosim.model.structure.RecordedOutput`: the composed unit conversions and LinearTransformations
-    of SSP 1.0, sec. 5.3.4 and 5.3.5; an undriven one is 0 · time + its constant): the one formula
-    of the live run (`SystemOutputColumns`) and of a journal's recovery (`cosim.record.journal.recover`),
-    computed per chunk, never in the stepping loop."""
+    """The root system's output connectors, each its ``transform`` of ``rows[:, column]``
+    (`cosim.model.structure.RecordedOutput`: the composed unit conversions and transformations
+    of SSP 1.0, sec. 5.3.4 and 5.3.5, `cosim.model.transforms`; an undriven one is
+    ``Affine(0, its constant)`` of time): the one formula of the live run (`SystemOutputColumns`)
+    and of a journal's recovery (`cosim.record.journal.recover`), computed per chunk, never in the
+    stepping loop.  A value a mapping table on the way names no target for is NaN in the column,
+    with a `RuntimeWarning` naming the connector (the column records; it drives no FMU)."""
 
     names: tuple[str, ...]
     #: each one's source column in the rows it extends
     columns: tuple[int, ...]
-    factor: tuple[float, ...]
-    offset: tuple[float, ...]
+    transforms: tuple[Transform, ...]
 
     @classmethod
     def of(cls, outputs: Sequence[RecordedOutput], names: Sequence[str]) -> DerivedColumns:
         """The columns of ``outputs`` on rows laid out as ``names`` (time first)."""
         names = list(names)
         return cls(tuple(o.name for o in outputs), tuple(names.index(o.source) for o in outputs),
-                   tuple(o.factor for o in outputs), tuple(o.offset for o in outputs))
+                   tuple(o.transform for o in outputs))
 
     @classmethod
     def from_header(cls, entries: Sequence[dict]) -> DerivedColumns:
         """The columns a journal's header lists (`header`)."""
         return cls(tuple(d["name"] for d in entries), tuple(int(d["column"]) for d in entries),
-                   tuple(d["factor"] for d in entries), tuple(d["offset"] for d in entries))
+                   tuple(from_json(d["transform"]) for d in entries))
 
     def header(self) -> list[dict]:
         """What a journal's header holds of them (JSON)."""
-        return [{"name": n, "column": c, "factor": f, "offset": o}
-                for n, c, f, o in zip(self.names, self.columns, self.factor, self.offset)]
+        return [{"name": n, "column": c, "transform": t.as_json()}
+                for n, c, t in zip(self.names, self.columns, self.transforms)]
 
     def extend(self, rows: np.ndarray) -> np.ndarray:
         """``rows`` with the derived columns appended (``rows`` itself when there are none)."""
         if not self.names:
             return rows
-        columns = np.array(self.columns, dtype=np.intp)
-        return np.hstack([rows, rows[:, columns] * np.array(self.factor) + np.array(self.offset)])
+        derived = np.empty((len(rows), len(self.names)))
+        for k, (name, column, transform) in enumerate(zip(self.names, self.columns, self.transforms)):
+            derived[:, k] = transform.apply_array(rows[:, column])
+            if transform.partial and np.isnan(derived[:, k]).any():
+                warnings.warn(f"root output connector '{name}': {transform.text()} names no target for some of "
+                              "its source's values; its column holds NaN there.", RuntimeWarning, stacklevel=2)
+        return np.hstack([rows, derived])
 
 
 class SystemOutputColumns:

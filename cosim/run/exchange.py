@@ -17,6 +17,7 @@ from ..model.fmu import exchange_type
 from ..errors import RunError
 from .instances.fmi3 import BinaryValue
 from ..model.structure import Plan, Route
+from ..model.transforms import Affine, Unmapped
 
 #: exchange types (`cosim.model.fmu.exchange_type`) and their buffers' C types, as fmi2 declares them
 #: (Binary, FMI 3.0 only: a pointer and a size, `cosim.run.instances.fmi3.BinaryValue`)
@@ -24,8 +25,10 @@ TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_i
          "Binary": BinaryValue}
 FMI_WARNING = 1
 
-#: a route group: source positions, destination positions, factors, offsets, all of them identity
+#: a group of affine routes: source positions, destination positions, factors, offsets, all of them identity
 Routing = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]
+#: the other routes (a mapping table, ...): (source position, destination position, route)
+Mapped = list[tuple[int, int, Route]]
 
 
 def exchange_buffers(plan: Plan, order: Sequence[str]) -> list[TypedBuffers]:
@@ -66,16 +69,18 @@ class TypedBuffers:
         out_index = {(c, v.name): i for i, (c, v) in enumerate(outs)}
         in_index = {(c, v.name): i for i, (c, v) in enumerate(ins)}
         routes = [r for r in plan.routes if exchange_type(r.src_var) == type_name]
-        #: the routes (`cosim.model.structure.Route`) into each component (None: all), in `routes_into`'s order
-        self.routes_of: dict[str | None, list[Route]] = {None: routes}
-        for comp in order:  # feedthrough and Gauss–Seidel route into one component at a time
-            self.routes_of[comp] = [r for r in routes if r.dst == comp]
+        groups = {None: routes} | {comp: [r for r in routes if r.dst == comp] for comp in order}
+        #: the routes (`cosim.model.structure.Route`) into each component (None: all) whose transformation
+        #: is affine (`cosim.model.transforms.Affine`, the identity of strings among them), in
+        #: `routes_into`'s order; feedthrough and Gauss–Seidel route into one component at a time
+        self.routes_of: dict[str | None, list[Route]] = {
+            comp: [r for r in rs if isinstance(r.transform, Affine)] for comp, rs in groups.items()}
         self.routes_into: dict[str | None, Routing] = {
             comp: self._routing(rs, out_index, in_index) for comp, rs in self.routes_of.items()}
-        #: the routes with a mapping transformation (`cosim.plan.maptables`) of each `routes_into` entry:
-        #: (output position, input position, route)
-        self.tables_into = {comp: [(out_index[(r.src, r.src_var.name)], in_index[(r.dst, r.dst_var.name)], r)
-                                   for r in rs if r.table is not None] for comp, rs in self.routes_of.items()}
+        #: the others (a mapping table, ...), made after the affine ones (`map_values`)
+        self.maps_into: dict[str | None, Mapped] = {
+            comp: [(out_index[(r.src, r.src_var.name)], in_index[(r.dst, r.dst_var.name)], r) for r in rs
+                   if not isinstance(r.transform, Affine)] for comp, rs in groups.items()}
         self.ctype = ctype
         self.integer = ctype is ctypes.c_int
 
@@ -93,15 +98,15 @@ class TypedBuffers:
     def _routing(routes, out_index, in_index) -> Routing:
         src = np.array([out_index[(r.src, r.src_var.name)] for r in routes], dtype=np.intp)
         dst = np.array([in_index[(r.dst, r.dst_var.name)] for r in routes], dtype=np.intp)
-        factor = np.array([r.factor for r in routes])
-        offset = np.array([r.offset for r in routes])
+        factor = np.array([r.transform.factor for r in routes], dtype=np.float64)
+        offset = np.array([r.transform.offset for r in routes], dtype=np.float64)
         identity = bool(np.all(factor == 1.0) and np.all(offset == 0.0))
         return src, dst, factor, offset, identity
 
     def route(self, t: float, comp: str | None = None) -> None:
-        """Route the outputs into the inputs (into ``comp``'s only, if given) at time ``t``; a
-        factor and offset that make a finite value infinite is a `RunError` (`overflow`).  The
-        routes with a mapping table get their value from `map_tables`, after this."""
+        """Route the outputs into the inputs (into ``comp``'s only, if given) at time ``t`` through
+        the affine routes; a factor and offset that make a finite value infinite is a `RunError`
+        (`overflow`).  The other routes get their value from `map_values`, after this."""
         src, dst, factor, offset, identity = self.routes_into[comp]
         if len(src) == 0:
             return
@@ -124,26 +129,19 @@ class TypedBuffers:
                     raise self.overflow(comp, int(overflowed[0]), t)
             self.U[dst] = values
 
-    def map_tables(self, t: float, comp: str | None = None) -> None:
-        """The routes into ``comp`` (None: all) with a mapping transformation: each input gets
-        its source value through the route's table (`_mapped`)."""
-        for i, j, r in self.tables_into[comp]:
-            self.U[j] = self._mapped(r, int(self.Y[i]), t)
-
-    @staticmethod
-    def _mapped(r: Route, value: int, t: float) -> int:
-        """``value`` through the route's mapping transformations (`cosim.model.structure.RouteTable`); a
-        value that no ssc:MapEntry names is a `RunError`."""
-        table = r.table
-        key = int(value != 0) if table.boolean else value
-        if key not in table.mapping:
-            def shown(v: int) -> str:
-                return ("true" if v else "false") if table.boolean else str(v)
-            raise RunError(f"{r.src}.{r.src_var.name} = {shown(key)} at t = {t:g} is not a source value of "
-                           f"{table.elements} (its sources: {', '.join(shown(v) for v in sorted(table.mapping))}); "
-                           f"{r.dst}.{r.dst_var.name} was not given it.", time=t, component=r.dst,
-                           element=f"connection {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}")
-        return table.mapping[key]
+    def map_values(self, t: float, comp: str | None = None) -> None:
+        """The routes into ``comp`` (None: all) whose transformation is not affine (a mapping table,
+        `cosim.model.transforms.Table`): each input gets its source value through it; a value a
+        table names no target for is a `RunError`."""
+        for i, j, r in self.maps_into[comp]:
+            try:
+                self.U[j] = r.transform.apply(self.Y[i].item())
+            except Unmapped as e:
+                table = e.table
+                raise RunError(f"{r.src}.{r.src_var.name} = {table.shown(e.value)} at t = {t:g} is not a source value "
+                               f"of {table.element} (its sources: {', '.join(table.shown(v) for v in sorted(table.mapping))}); "
+                               f"{r.dst}.{r.dst_var.name} was not given it.", time=t, component=r.dst,
+                               element=f"connection {r.label}") from None
 
     def overflow(self, comp: str | None, j: int, t: float) -> RunError:
         """The error of route ``j`` of ``routes_into[comp]`` at ``t``: its factor and offset (the

@@ -167,11 +167,13 @@ class NativeInterpreter:
             first = 0
             recorder.filled(state.rows_done, state.samples, bool(reason & (native.KERNEL_FULL |
                                                                           native.KERNEL_FLUSH)))
-            if reason & (native.KERNEL_OVERFLOW | native.KERNEL_STATUS | native.KERNEL_YIELD):
+            if reason & (native.KERNEL_UNMADE | native.KERNEL_STATUS | native.KERNEL_YIELD):
                 op = ops[state.op]
                 t, t_next = time(k), time(k + 1)
-                if reason & native.KERNEL_OVERFLOW:  # a route of step k: as `TypedBuffers.route` raises
-                    raise op.buffers.overflow(op.component, state.status, op.time(t, t_next))
+                if reason & native.KERNEL_UNMADE:  # a route of step k: its Python form raises what C found
+                    op.call(t, t_next - t, t_next)
+                    first = op.next
+                    continue
                 if reason & native.KERNEL_STATUS:
                     status = state.status if op.post_step is None else op.post_step(t, t_next - t, state.status)
                     return Event(STATUS, k, state.op, status)

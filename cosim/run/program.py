@@ -3,8 +3,8 @@ does from t to t + h (compile: plan and instances -> `Program`).
 
 The program is a list of `Operation`: doSteps (OP_STEP), batched gets and sets of one
 component and exchange type (OP_GET, OP_SET), routes of one exchange type into one component
-or all (OP_ROUTE: y·factor + offset, `cosim.run.exchange.TypedBuffers.route`), mapping tables on
-those routes (OP_TABLE, `cosim.plan.maptables`), the input table (OP_FEED, `cosim.plan.inputs`) and the
+or all (OP_ROUTE: the affine ones, y·factor + offset, `cosim.run.exchange.TypedBuffers.route`; OP_MAP:
+the others, mapping tables, `cosim.model.transforms`), the input table (OP_FEED, `cosim.plan.inputs`) and the
 iteration of an algebraic loop (OP_SOLVE, `cosim.run.loops.LoopSolver`) over the settling sweep that
 follows it in the list (its block, up to ``Operation.next``).  Operations ``[0, step_ops)`` make
 the step, the rest is the exchange at its end, which initialisation also runs at t0:
@@ -31,6 +31,8 @@ import ctypes
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
 from .. import kernel as native
 from ..errors import SetupError
 from .exchange import TypedBuffers
@@ -40,10 +42,10 @@ from .instances.base import NativeInstance, fmi_failure
 from .loops import LoopSolver
 from ..model.structure import Plan
 
-OP_STEP, OP_GET, OP_SET, OP_ROUTE = native.OP_STEP, native.OP_GET, native.OP_SET, native.OP_ROUTE
+OP_STEP, OP_GET, OP_SET, OP_ROUTE, OP_MAP = native.OP_STEP, native.OP_GET, native.OP_SET, native.OP_ROUTE, native.OP_MAP
 #: operations only Python makes
-OP_TABLE, OP_FEED, OP_SOLVE = 5, 6, 7
-_WHAT = {OP_STEP: "DoStep", OP_GET: "Get", OP_SET: "Set", OP_ROUTE: "route", OP_TABLE: "mapping table",
+OP_FEED, OP_SOLVE = 6, 7
+_WHAT = {OP_STEP: "DoStep", OP_GET: "Get", OP_SET: "Set", OP_ROUTE: "route", OP_MAP: "mapped route",
          OP_FEED: "input table", OP_SOLVE: "algebraic loop"}
 #: (t, h, t_next) -> FMI status
 Call = Callable[[float, float, float], int]
@@ -57,8 +59,7 @@ class Operation:
     ``instance``: that component's instance (FMI calls); ``at_step_end``: an error is reported
     at t + h (else at t, as Gauss–Seidel routes and sets before a doStep); ``post_step``: after its C form returned, the
     instance's post-step (`cosim.run.instances.Instance.step_outcome`) that turns the raw status
-    into the one ``call`` returns; ``buffers``: a route's exchange buffers (to name an overflow);
-    ``next``: the operation after it (after its block, for OP_SOLVE).
+    into the one ``call`` returns; ``next``: the operation after it (after its block, for OP_SOLVE).
     """
     kind: int
     call: Call
@@ -69,7 +70,6 @@ class Operation:
     type_name: str = ""
     at_step_end: bool = True
     post_step: Callable[[float, float, int], int] | None = field(default=None, repr=False, compare=False)
-    buffers: TypedBuffers | None = field(default=None, repr=False, compare=False)
     next: int = -1
 
     @property
@@ -205,7 +205,8 @@ class _Compiler:
                         component=comp, instance=inst, type_name=ty.type_name, at_step_end=at_step_end)
 
     def routes(self, comp: str | None, at_step_end: bool = True) -> None:
-        """The routes into ``comp`` (None: all) of each exchange type, then its mapping tables."""
+        """The routes into ``comp`` (None: all) of each exchange type: the affine ones, then the
+        others (their transformations' C forms, `cosim.model.transforms.Transform.native`)."""
         for ty in self.buffers:
             routing = ty.routes_into[comp]
             if len(routing[0]):
@@ -214,13 +215,19 @@ class _Compiler:
                     U=ty.address(ty.Ubuf, 0))
                 self.append(OP_ROUTE, _route(ty.route, comp, at_step_end), c_form,
                             f"{ty.type_name} connections (routed by Python)", component=comp,
-                            type_name=ty.type_name, at_step_end=at_step_end, buffers=ty)
-            tables = ty.tables_into[comp]
-            if tables:
-                r = tables[0][2]
-                why = (f"connection {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name} maps its values through "
-                       f"{r.table.elements} (mapping tables are applied by Python, cosim.plan.maptables)")
-                self.append(OP_TABLE, _route(ty.map_tables, comp, at_step_end), None, why, component=comp,
+                            type_name=ty.type_name, at_step_end=at_step_end)
+            mapped = ty.maps_into[comp]
+            if mapped:
+                forms = [r.transform.native() for _, _, r in mapped]
+                c_form = None if ty.strings or not ty.integer or any(f is None or f[0] != "table" for f in forms) \
+                    else native.NativeOp(native.OP_MAP, route=(np.array([i for i, _, _ in mapped], dtype=np.intp),
+                                                               np.array([j for _, j, _ in mapped], dtype=np.intp)),
+                                         tables=tuple(f[1:] for f in forms), integer=True,
+                                         Y=ty.address(ty.Ybuf, 0), U=ty.address(ty.Ubuf, 0))
+                r = next((r for (_, _, r), f in zip(mapped, forms) if f is None or f[0] != "table"), mapped[0][2])
+                why = (f"connection {r.label} maps its values through {r.transform.text(r.source)}, which has no C form "
+                       "(cosim.model.transforms)")
+                self.append(OP_MAP, _route(ty.map_values, comp, at_step_end), c_form, why, component=comp,
                             type_name=ty.type_name, at_step_end=at_step_end)
 
     def route_into(self, comp: str, at_step_end: bool = True) -> None:

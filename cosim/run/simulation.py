@@ -333,10 +333,9 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
     # result names are paths relative to this system (loop.ctrl.u for component ctrl of subsystem loop)
     meta["root_system"] = plan.system_name
     if plan.system_outputs:
-        meta["system_outputs"] = {o.name: f"{o.factor:.17g} * {o.component}.{o.connector} + {o.offset:.17g}"
-                                  if o.component is not None else "undriven"
+        meta["system_outputs"] = {o.name: o.transform.text(o.source) if o.component is not None else "undriven"
                                   for o in plan.system_outputs.values()}
-        undriven = {o.name: {"line": o.line, "value": None if math.isnan(o.offset) else o.offset,
+        undriven = {o.name: {"line": o.line, "value": None if math.isnan(o.transform.offset) else o.transform.offset,
                              "origin": _portable_origin(o.origin, named) if o.origin else None}
                     for o in plan.system_outputs.values() if o.component is None}
         if undriven:  # root output connectors no component drives: a constant column (value None: NaN)
@@ -355,13 +354,14 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
 
 def signal_info(plan: Plan) -> dict:
     """What a plot or report needs to label a result: each recorded connector's description
-    (from its FMU) and the connections (``src.var -> dst.var``, with a factor/offset if any)."""
+    (from its FMU), the connections (``src.var -> dst.var``) and the transformation of each that
+    has one (`cosim.model.transforms.Transform.text`, of the source's name)."""
     variables = {f"{c}.{v.name}": v for c in plan.outputs for v in plan.outputs[c] + plan.inputs[c]}
-    connections = [f"{r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}"
-                   + (f" (x{r.factor:g} {r.offset:+g})" if (r.factor, r.offset) != (1.0, 0.0) else "")
-                   for r in plan.routes]
+    connections = [r.label for r in plan.routes]
+    transforms = {r.label: r.transform.text(r.source) for r in plan.routes
+                  if not r.transform.identity}
     return {"descriptions": {n: v.description for n, v in variables.items() if v.description},
-            "connections": connections,
+            "connections": connections, "transforms": transforms,
             # sampled outputs (FMI variability discrete): held between samples, drawn as steps
             "discrete": sorted(n for n, v in variables.items() if v.variability == "discrete"),
             "parameter_descriptions": {f"{sv.component}.{sv.variable.name}": sv.variable.description
@@ -374,7 +374,8 @@ def signal_units(plan: Plan) -> dict[str, tuple[str, bool]]:
     """Each recorded signal's unit and whether it is "as wired" (`cosim.present.plots.units`)."""
     from ..present.plots import units
 
-    return units({"units": plan.units, "connections": signal_info(plan)["connections"],
+    info = signal_info(plan)
+    return units({"units": plan.units, "connections": info["connections"], "transforms": info["transforms"],
                   "components": {name: {"fmu": str(d.path)} for name, d in plan.fmus.items()}})
 
 

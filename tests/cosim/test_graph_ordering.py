@@ -20,12 +20,13 @@ from cosim.plan.graph import (
     variable_order,
 )
 from cosim.model.structure import Route
+from cosim.model.transforms import IDENTITY
 
 
 def route(src: str, dst: str) -> Route:
     """``"a.y" -> "b.u"``: output y of a to input u of b."""
     (a, y), (b, u) = src.split("."), dst.split(".")
-    return Route(a, ModelVariable(name=y, causality="output"), b, ModelVariable(name=u, causality="input"), 1.0, 0.0)
+    return Route(a, ModelVariable(name=y, causality="output"), b, ModelVariable(name=u, causality="input"), IDENTITY)
 
 
 def test_tarjan_finds_each_loop_and_the_single_nodes():

@@ -77,7 +77,8 @@ def test_the_data_model_and_the_readers_import_no_later_stage():
 
     later = {"cosim.plan.build", "cosim.plan.parameters", "cosim.plan.routing", "cosim.run.execution", "cosim.run.simulation",
              "cosim.run.instances", "cosim.sweep", "cosim.cli"}
-    assert reach("cosim.model.structure") <= {"cosim.model.units", "cosim.errors", "cosim.read.description"}
+    assert reach("cosim.model.structure") <= {f"cosim.model.{m}" for m in ("units", "fmu", "frozen", "transforms")} \
+        | {"cosim.errors"}
     assert not (reach("cosim.read.ssp") | reach("cosim.read.flatten")) & later
     assert not reach("cosim.plan.graph") & later
 

@@ -23,6 +23,7 @@ from cosim.run.outcome import RunOutcome
 from cosim.record.results import read
 from cosim.run.simulation import prepare, run
 from cosim.model.structure import RecordedOutput
+from cosim.model.transforms import Affine
 from ssdgen import ssd_text, write_system
 
 RAMP_BODY = ("static void start(S *s) {}\n"
@@ -45,7 +46,7 @@ def _system(tmp_path: Path, ramp: Path, stop: float) -> Path:
 
 def _outputs() -> list[RecordedOutput]:
     """Two root outputs on the recorded columns: 1.8 a.y + 32 (degC -> degF) and 0 time + 2.5."""
-    return [RecordedOutput("f", "a", "y", 1.8, 32.0, "degF"), RecordedOutput("held", None, None, 0.0, 2.5, None)]
+    return [RecordedOutput("f", "a", "y", Affine(1.8, 32.0), "degF"), RecordedOutput("held", None, None, Affine(0.0, 2.5), None)]
 
 
 def _record(recorder: Recorder, values: np.ndarray, rows: int) -> None:

@@ -17,6 +17,7 @@ from cosim.errors import SetupError
 from cosim.present.pack import pack
 from cosim.plan.parameters import check_values
 from cosim.plan.build import build_plan
+from cosim.model.transforms import Affine
 from cosim.read.resources import locate_fmus
 from cosim.run.simulation import Prepared, resolve_grid, run, validate
 from cosim.model.structure import ParameterValue
@@ -70,8 +71,8 @@ def test_a_plan_is_plain_data_that_round_trips_through_pickle(chain, tmp_path):
 def test_the_plan_holds_routes_columns_units_and_the_experiment(chain):
     plan = validate(chain, use_providers=False)
     try:
-        assert [(r.src, r.src_var.name, r.dst, r.dst_var.name, r.factor, r.offset) for r in plan.routes] == [
-            ("step", "y", "gain", "u", 2.0, 0.5), ("gain", "y", "lag", "u", 1.0, 0.0)]
+        assert [(r.src, r.src_var.name, r.dst, r.dst_var.name, r.transform) for r in plan.routes] == [
+            ("step", "y", "gain", "u", Affine(2.0, 0.5)), ("gain", "y", "lag", "u", Affine(1.0, 0.0))]
         assert plan.columns == ["lag.y", "lag.u", "step.y", "gain.u", "gain.y"]  # SSD order, as declared
         assert plan.recorded() == (["lag.y", "step.y", "gain.y"], ["lag.u", "gain.u"])
         assert set(plan.units) == set(plan.columns) and plan.solvers == {} and plan.system_outputs == {}

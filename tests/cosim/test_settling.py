@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from cosim.run import simulation
+from cosim.model.transforms import IDENTITY
 from cosim.plan.graph import Route, settling_shortcuts
 from ssdgen import ssd_text, write_system
 
 
 def _routes(*pairs: tuple[str, str]) -> list[Route]:
-    return [Route(src, None, dst, None, 1.0, 0.0) for src, dst in pairs]
+    return [Route(src, None, dst, None, IDENTITY) for src, dst in pairs]
 
 
 def test_a_chain_is_read_and_set_once_per_block():

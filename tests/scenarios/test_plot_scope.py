@@ -53,7 +53,7 @@ def test_units_pass_through_gain_and_sum_blocks_both_ways():
     meta = {"units": {"sensor.y": "K", "gain.u": None, "gain.y": None, "sum.u1": None, "sum.y": None, "c.u": None},
             "components": {"gain": {"fmu": "Gain.fmu"}, "sum": {"fmu": "Sum.fmu"}, "sensor": {"fmu": "T.fmu"},
                            "c": {"fmu": "PID.fmu"}},
-            "connections": ["sensor.y -> gain.u", "gain.y -> sum.u1", "c.u -> x.u (x2 +0)"]}
+            "connections": ["sensor.y -> gain.u", "gain.y -> sum.u1", "c.u -> x.u"], "transforms": {"c.u -> x.u": "2*c.u"}}
     found = units(meta)
     assert found["sum.y"] == ("K", True) and found["gain.u"] == ("K", True) and found["sensor.y"] == ("K", False)
     assert "c.u" not in found                          # a scaled connection does not pass a unit
