@@ -89,16 +89,17 @@ class Timers:
 
 def install(timers: Timers) -> None:
     """Wrap the functions of each stage (the table of the module docstring)."""
-    import cosim.run.execution
-    import cosim.run.simulation
+    import cosim.plan.prepare
     import cosim.read.ssp
+    import cosim.run.execution
     from cosim.run.execution import Execution
     from cosim.run.instances import FMI2Instance, FMI3Instance, ME3Instance, MEInstance, Unzipped
     from cosim.record.observers import Recorder
 
     cosim.read.ssp.load = timers.wrap("read", cosim.read.ssp.load)
-    cosim.run.simulation.locate_fmus = timers.wrap("locate", cosim.run.simulation.locate_fmus)
-    cosim.run.simulation.build_plan = timers.wrap("check/plan", cosim.run.simulation.build_plan)
+    cosim.plan.prepare.locate_fmus = timers.wrap("locate", cosim.plan.prepare.locate_fmus)
+    cosim.plan.prepare.describe_fmus = timers.wrap("check/plan", cosim.plan.prepare.describe_fmus)
+    cosim.plan.prepare.build_plan = timers.wrap("check/plan", cosim.plan.prepare.build_plan)
     cosim.run.execution.open_instance = timers.wrap("load", cosim.run.execution.open_instance)
     for owner, name, stage in ((Unzipped, "__call__", "unpack"), (Execution, "__init__", "exec set-up"),
                                (Execution, "_compile_calls", "exec set-up"), (Recorder, "__init__", "record set-up"),
@@ -142,20 +143,18 @@ def reused_runs(path: str, stop: float, step: float, warm: int) -> dict:
     """As `cosim_runs`, but as a sweep worker runs (`cosim.sweep.worker`): the scenario read and
     located once, each run's plan made from it, the instances kept in an `InstancePool` (a warm
     run's "free" is terminate + fmi2Reset, its "instantiate" nothing)."""
-    import cosim.plan.single
+    import cosim.plan.prepare
     from cosim.run.instances.reuse import InstancePool
     from cosim.run.simulation import run
 
     timers = Timers()
     install(timers)
-    cosim.plan.single.locate_fmus = timers.wrap("locate", cosim.plan.single.locate_fmus)
-    cosim.plan.single.build_plan = timers.wrap("check/plan", cosim.plan.single.build_plan)
     pool, kept = InstancePool(), []
 
     def simulate() -> None:
         if not kept:
-            kept.append(cosim.plan.single.load_scenario(path))
-        run(cosim.plan.single.prepare_scenario(kept[0], stop_time=stop, step_size=step), pool=pool)
+            kept.append(cosim.plan.prepare.load_scenario(path))
+        run(cosim.plan.prepare.prepare_scenario(kept[0], stop_time=stop, step_size=step), pool=pool)
     timed = timers.wrap("total", simulate)
 
     def once() -> dict[str, float]:

@@ -99,6 +99,11 @@ def _parser() -> argparse.ArgumentParser:
     info = sub.add_parser("info", help="list components, connections and parameters")
     common(info)
     info.add_argument("--fmi-type", choices=["CoSimulation", "ModelExchange"], help=FMI_TYPE_HELP)
+    info.add_argument("--program", action="store_true",
+                      help="also print the step's program: the operations of one communication step, compiled "
+                           "from the plan (no FMU is loaded)")
+    info.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"],
+                      help="the algorithm whose step --program prints (default: the SSD's, else jacobi)")
 
     metrics = sub.add_parser("metrics", help="IAE, ISE, ITAE, overshoot, rise and settling time of a result")
     metrics.add_argument("result", help="result CSV or Parquet file written by cosim run")
@@ -204,7 +209,7 @@ FMI_TYPE_HELP = "the interface of an FMU that has both (default: CoSimulation); 
 
 
 def input_options(run: argparse.ArgumentParser) -> None:
-    """--start-value and --input-file (`cosim.plan.single`, `cosim.plan.inputs`), with fmpy simulate's names."""
+    """--start-value and --input-file (`cosim.plan.prepare`, `cosim.plan.inputs`), with fmpy simulate's names."""
     run.add_argument("--start-value", "--start-values", action="append", default=[], metavar="NAME=VALUE",
                      dest="start_values", help="start value of a parameter or input, applied after the parameter "
                      "sets: the variable's name for a single FMU, 'component.variable' in a system (repeatable)")
@@ -214,7 +219,7 @@ def input_options(run: argparse.ArgumentParser) -> None:
 
 
 def single_options(run: argparse.ArgumentParser) -> None:
-    """The options of `cosim.plan.single` and `cosim.plan.inputs`, with fmpy simulate's names."""
+    """The options of `cosim.plan.prepare` and `cosim.plan.inputs`, with fmpy simulate's names."""
     input_options(run)
     run.add_argument("--output-interval", type=float, metavar="SECONDS",
                      help="communication step, at which results are recorded (fmpy's name for --step)")
@@ -266,17 +271,17 @@ def _run(args) -> int:
     from .record.journal import journal_path
     from .record.outputs import RESULT_SUFFIXES, check_not_in_sweep, check_output, plot_suffixes, scenario_files
     from .safeio import lock_output, lock_path, partial_path
+    from .plan.prepare import prepare
     from .run.simulation import isolation_of
-    from .plan.single import prepare_run
     from .run.supervisor import supervise
 
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         raise SetupError(f"--timeout {args.timeout}: give a positive number of seconds.", element="--timeout")
     isolation_of(args.isolate, args.call_timeout)  # refused before anything is read
-    prepared = prepare_run(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
-                           algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
-                           loops=args.loops, start_values=args.start_values, input_file=args.input_file,
-                           output_interval=args.output_interval, fmi_type=args.fmi_type)
+    prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
+                       algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
+                       loops=args.loops, start_values=args.start_values, input_file=args.input_file,
+                       output_interval=args.output_interval, fmi_type=args.fmi_type)
     try:
         name = prepared.plan.name or Path(args.path).resolve().stem
         output = Path(args.output) if args.output else _default_result(prepared.plan, name, args.param_set)
@@ -328,8 +333,10 @@ def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
     from .run.interrupts import stop_on_signals
     from .run.loops import LoopSettings
     from .present.plots import default_panels, plot
-    from .run.simulation import run, select, signal_info
-    from .plan.single import plotted
+    from .present.plots import plotted
+    from .record.metadata import signal_info
+    from .record.results import select
+    from .run.simulation import run
 
     plan = prepared.plan
     outputs, inputs = plan.recorded()
@@ -389,31 +396,21 @@ def _validate(args) -> int:
 
 def _prepare_with_placeholder_grid(args):
     """validate/info/pack need no grid, but check the SSD's: a stop time and step size the SSD
-    does not give are placeholders (a stop 1 s after the start, a step of 1 s)."""
-    from .run.simulation import resolve_grid, validate
-    from .plan.single import check_fmi_type, is_fmu, prepare_run
+    does not give are placeholders (`cosim.plan.prepare.prepare_scenario`'s ``grid_placeholders``)."""
+    from .plan.prepare import prepare
+    from .read.single import is_fmu
 
-    if is_fmu(args.path):
-        if args.command == "pack":
-            raise SetupError("cosim pack packs an SSP scenario; an FMU alone has no SSD to pack.",
-                             file=args.path, element="cosim pack")
-        return prepare_run(args.path, fmi_type=args.fmi_type, parameter_sets=getattr(args, "param_set", []))
-    check_fmi_type(args.path, getattr(args, "fmi_type", None))
-    plan = validate(args.path, fmu_dirs=args.fmu_dir, parameter_sets=getattr(args, "param_set", []))
-    experiment = plan.experiment
-    try:
-        return resolve_grid(plan, stop_time=(experiment.start_time or 0.0) + 1.0 if experiment.stop_time is None
-                            else None, step_size=1.0 if experiment.step_size is None else None,
-                            options={})  # placeholders: nobody gave them
-    except BaseException:
-        plan.close()
-        raise
+    if is_fmu(args.path) and args.command == "pack":
+        raise SetupError("cosim pack packs an SSP scenario; an FMU alone has no SSD to pack.",
+                         file=args.path, element="cosim pack")
+    return prepare(args.path, fmi_type=getattr(args, "fmi_type", None), fmu_dirs=args.fmu_dir,
+                   parameter_sets=getattr(args, "param_set", []), grid_placeholders=True)
 
 
 def _info(args) -> int:
     with _prepare_with_placeholder_grid(args) as prepared:
         plan = prepared.plan
-        e, hierarchy = plan.experiment, plan.structure.hierarchy
+        e, hierarchy = plan.experiment, plan.hierarchy
         print(f"system {plan.name!r} ({plan.files.display})")
         print(f"  experiment: start {e.start_time}, stop {e.stop_time}, step {e.step_size} "
               f"({e.step_size_source or 'none in the SSD'}), algorithm {e.algorithm or 'jacobi'}")
@@ -442,6 +439,10 @@ def _info(args) -> int:
             print(f"  {sv.component}.{sv.variable.name} = {sv.value}  ({sv.origin})")
         if plan.feedthrough_sequence:
             print("direct feedthrough resolved at each step in the order: " + ", ".join(plan.feedthrough_sequence))
+        if args.program:
+            from .run.program import compile as compile_program
+
+            print("\n".join(compile_program(plan, args.algorithm or prepared.algorithm).listing()))
     return 0
 
 
@@ -473,7 +474,7 @@ def _metrics(args) -> int:
 
     from .present.metrics import EVENT_METRICS, METRICS, Event, event_metrics, find_events, step_response
     from .record.results import read
-    from .run.simulation import select
+    from .record.results import select
 
     result = read(args.result)
     names = [n for n in result.dtype.names if n != "time"]
@@ -528,7 +529,7 @@ def _report(args) -> int:
     from .record.outputs import check_output
     from .present.report import write_report
     from .record.results import read
-    from .run.simulation import select
+    from .record.results import select
 
     result = Path(args.result)
     page = Path(args.output or result.with_suffix(".html"))
@@ -545,7 +546,7 @@ def _report(args) -> int:
 def _compare(args) -> int:
     from .present.metrics import compare, parse_tolerance
     from .record.results import read
-    from .run.simulation import select
+    from .record.results import select
 
     a, b = read(args.reference), read(args.candidate)
     signals = select([n for n in a.dtype.names if n != "time"], args.signals) if args.signals else None

@@ -128,7 +128,8 @@ class Regression:
         reference; returns the run's result (every connector, every step)."""
         from .errors import CosimError
         from .present.metrics import check_tolerance_keys
-        from .run.simulation import select, simulate
+        from .record.results import select
+        from .run.simulation import simulate
 
         path = self.references / self._reference_name(reference)
         if path in self.used:

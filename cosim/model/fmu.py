@@ -23,6 +23,8 @@ Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me", "fmi3-me"]
 MODEL_EXCHANGE: tuple[Kind, ...] = ("fmi2-me", "fmi3-me")
 #: How the master exchanges a variable (`exchange_type`): the FMI 2.0 type names.
 ExchangeType = Literal["Real", "Integer", "Boolean", "String", "Binary"]
+#: The exchange types, in the order the exchange buffers and their gets and sets go in.
+EXCHANGE_TYPES: tuple[ExchangeType, ...] = ("Real", "Integer", "Boolean", "String", "Binary")
 
 
 @dataclass(frozen=True)

@@ -12,20 +12,24 @@ checks import this module, not each other.
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
-from collections.abc import Mapping
 
+
+import numpy as np
 
 from .fmu import FMUDescription, Variable, exchange_type
+from .frozen import FrozenMap
 from .transforms import Transform, Transformation
 from .units import SystemUnits, Unit
 
 
+
 # --------------------------------------------------------------------------- as read (cosim.read.ssp)
 
-@dataclass
+@dataclass(frozen=True)
 class Connector:
     name: str
     kind: str
@@ -34,7 +38,7 @@ class Connector:
     line: int
 
 
-@dataclass
+@dataclass(frozen=True)
 class ParameterValue:
     """One value from a parameter set; ``name`` is as it resolves at its binding level."""
     name: str
@@ -45,12 +49,15 @@ class ParameterValue:
     #: ``ssv:Real unit``: the unit ``value`` is given in (None: the FMU variable's own)
     unit: str | None = None
     #: the ``ssv:Units`` of the parameter set that holds the value (SSP 1.0 ParameterSet)
-    units: dict[str, Unit] = field(default_factory=dict, repr=False)
+    units: Mapping[str, Unit] = field(default_factory=FrozenMap, repr=False)
     #: the ``ssm:MappingEntry`` that renamed (and perhaps transformed) the value, for messages ("" if none)
     mapping: str = ""
     #: a mapping's ``ssc:LinearTransformation`` still to apply after converting ``unit`` to the
     #: variable's unit (SSP 1.0 MappingEntry: units first, then the transformation); None: none left
     transform: Transform | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "units", FrozenMap(self.units))
 
     def element(self) -> str:
         """Where the value comes from, for messages: its ``ssv:Parameter`` and the mapping entry, if any."""
@@ -63,8 +70,8 @@ class Component:
     name: str
     source: str
     line: int
-    connectors: dict[str, Connector] = field(default_factory=dict)
-    parameters: list[ParameterValue] = field(default_factory=list)
+    connectors: Mapping[str, Connector] = field(default_factory=FrozenMap)
+    parameters: tuple[ParameterValue, ...] = ()
     #: SSP 1.0 Component ``implementation``: "any", "CoSimulation" or "ModelExchange" (the
     #: interface the master drives; cosim.read.description.describe checks the FMU has it)
     implementation: str = "any"
@@ -72,6 +79,10 @@ class Component:
     solver: SolverOptions | None = None
     #: its ``sourceBase="component"`` bindings, read once the FMU is located
     component_bindings: tuple[ComponentBinding, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "connectors", FrozenMap(self.connectors))
+        object.__setattr__(self, "parameters", tuple(self.parameters))
 
 
 @dataclass(frozen=True)
@@ -109,7 +120,7 @@ class ComponentBinding:
     where: str
 
 
-@dataclass
+@dataclass(frozen=True)
 class SolverOptions:
     """``org.greyfmu.solver``: settings for integrating a Model Exchange FMU (None: the default)."""
     rtol: float | None
@@ -198,15 +209,15 @@ class SignalReference:
     connectors: dict[str, Connector]
 
 
-@dataclass
+@dataclass(frozen=True)
 class SystemNode:
     """The hierarchy as `cosim info` shows it: full component paths, nested systems."""
     name: str
     path: str
     line: int
-    connectors: list[Connector]
-    components: list[str]
-    systems: list[SystemNode]
+    connectors: tuple[Connector, ...]
+    components: tuple[str, ...]
+    systems: tuple[SystemNode, ...]
 
 
 @dataclass(frozen=True)
@@ -274,6 +285,11 @@ class ScenarioFiles:
     def source(self) -> Path:
         """What the user gave: the archive, else the SSD."""
         return self.archive or self.ssd_file
+
+    @property
+    def single_fmu(self) -> bool:
+        """Whether the scenario is one FMU run as a system (`cosim.read.single`): its "SSD" is the FMU."""
+        return self.ssd_file.suffix.lower() == ".fmu"
 
     @property
     def display(self) -> str:
@@ -449,69 +465,108 @@ class RecordedOutput:
         return "time" if self.component is None else f"{self.component}.{self.connector}"
 
 
+#: the Real types of FMI 2.0 and 3.0 that may be continuous
+REAL_TYPES = ("Real", "Float64", "Float32")
+
+
+@dataclass(frozen=True)
+class Target:
+    """The input one column of an input table drives, and the values it gets (the column's, through
+    a system connector's transformations and unit conversions where the column names one)."""
+    column: int
+    component: str
+    variable: Variable
+    values: tuple[float, ...]
+
+    @property
+    def name(self) -> str:
+        return f"{self.component}.{self.variable.name}"
+
+    @property
+    def discrete(self) -> bool:
+        """Held between samples (fmpy: every input that is not a continuous Real)."""
+        return not (self.variable.type in REAL_TYPES and self.variable.variability not in ("discrete", "tunable"))
+
+
+@dataclass(frozen=True)
+class BoundTable:
+    """An input table (``--input-file``) checked against a plan (`cosim.plan.inputs.bind_table`):
+    its sample times and which input each column drives."""
+    file: str
+    time: tuple[float, ...]
+    targets: tuple[Target, ...]
+
+    def event_times(self) -> list[float]:
+        """The table's events as fmpy finds them (``Input.findEvents``): times given twice, and the
+        times a discrete input's value changes."""
+        t = np.array(self.time)
+        events = set(t[np.flatnonzero(np.diff(t) == 0)].tolist())
+        for target in self.targets:
+            if target.discrete:
+                events.update(t[np.flatnonzero(np.diff(np.array(target.values))) + 1].tolist())
+        return sorted(events)
+
+
 @dataclass(frozen=True)
 class Plan:
     """Everything a run needs, checked against the FMUs (`cosim.plan.build.build_plan`): execution,
-    recording, packing and sweeps take what they need from here."""
-    #: the flattened structure the plan was built from: for `cosim info`, and it owns the
-    #: extraction folder of an .ssp archive (`close`)
-    structure: SystemStructure
+    recording, packing and sweeps take what they need from here, and nothing else of the scenario.
+    Immutable all the way down (tuples, frozensets, `cosim.model.frozen.FrozenMap` and frozen
+    records) and hashable: a value a sweep ships to its workers and a test compares."""
     name: str | None
     #: the root system's name (result names are paths relative to it)
     system_name: str
     files: ScenarioFiles
     experiment: Experiment
     #: the flattened components, by path, in SSD order
-    components: dict[str, Component]
-    fmus: dict[str, FMUDescription]
+    components: Mapping[str, Component]
+    fmus: Mapping[str, FMUDescription]
     #: how the master integrates each Model Exchange component (`cosim.plan.solvers`)
-    solvers: dict[str, SolverSettings]
-    routes: list[Route]
-    start_values: list[StartValue]
+    solvers: Mapping[str, SolverSettings]
+    routes: tuple[Route, ...]
+    start_values: tuple[StartValue, ...]
     #: per component, the connector variables recorded and exchanged, in SSD order
-    outputs: dict[str, list[Variable]]
-    inputs: dict[str, list[Variable]]
+    outputs: Mapping[str, tuple[Variable, ...]]
+    inputs: Mapping[str, tuple[Variable, ...]]
     #: components whose outputs must be re-read after their inputs are set at a
     #: communication point (direct feedthrough), in dependency order; may repeat.  With
     #: ``loop_mode`` "iterate" it includes the components of algebraic loops (the sweep the
     #: loop solver repeats); with "delay" they are left out (read once per communication
     #: point: every connection out of them one step late, as libcosim runs them).
-    feedthrough_sequence: list[str]
+    feedthrough_sequence: tuple[str, ...]
     #: Gauss-Seidel order: upstream first, SSD order inside a loop
-    gauss_seidel_order: list[str]
+    gauss_seidel_order: tuple[str, ...]
     #: root-system output connectors, recorded after the component connectors
-    system_outputs: dict[str, RecordedOutput]
+    system_outputs: Mapping[str, RecordedOutput]
     #: the recorded connectors of the components in result-column order: component by component
     #: in SSD order, connectors as each component lists them
-    columns: list[str]
+    columns: tuple[str, ...]
     #: each recorded signal's unit (None: no unit)
-    units: dict[str, str | None]
+    units: Mapping[str, str | None]
     #: where unit names are looked up (`cosim.plan.parameters.check_values`)
     unit_scopes: SystemUnits
     #: components of the feedthrough sequence whose outputs nobody reads before the settling
     #: re-reads them: the exchange skips their first read (`cosim.plan.graph.settling_shortcuts`)
-    read_in_settling_only: set[str] = field(default_factory=set)
+    read_in_settling_only: frozenset[str] = frozenset()
     #: the algebraic loops of direct feedthrough (`cosim.plan.graph.algebraic_loops`)
-    algebraic_loops: list[AlgebraicLoop] = field(default_factory=list)
+    algebraic_loops: tuple[AlgebraicLoop, ...] = ()
     loop_mode: LoopMode = "iterate"
     #: components of the feedthrough sequence whose inputs are final when the settling sets
     #: them: the exchange does not set them again
-    set_in_settling_only: set[str] = field(default_factory=set)
-    #: an input table (``--input-file``) feeding inputs by name (`cosim.plan.inputs.BoundTable`), or None
-    input_table: object | None = None
+    set_in_settling_only: frozenset[str] = frozenset()
+    #: an input table (``--input-file``) feeding inputs by name (`BoundTable`, `cosim.plan.inputs.bind_table`), or None
+    input_table: BoundTable | None = None
     #: each undriven system connector that feeds inputs: (component, variable, the transformation a
     #: number given to it without a unit takes on the way) per input it feeds (`cosim.plan.parameters.open_inputs`)
-    open_inputs: Mapping[str, tuple[tuple[str, str, Transform], ...]] = field(default_factory=dict)
+    open_inputs: Mapping[str, tuple[tuple[str, str, Transform], ...]] = field(default_factory=FrozenMap)
+    #: the systems as nested in the SSD, for `cosim info`
+    hierarchy: SystemNode | None = None
 
     def recorded(self) -> tuple[list[str], list[str]]:
         """The result names of the recorded outputs (the root system's output connectors last)
         and inputs: every connector but String and Binary ones, which are exchanged, not recorded
-        (`cosim.run.execution.Execution.recorder_sources`)."""
-        def names(group: dict[str, list[Variable]]) -> list[str]:
+        (`cosim.run.link.LinkedProgram.recorder_sources`)."""
+        def names(group: Mapping[str, tuple[Variable, ...]]) -> list[str]:
             return [f"{c}.{v.name}" for c, vs in group.items() for v in vs
                     if exchange_type(v) not in ("String", "Binary")]
         return names(self.outputs) + list(self.system_outputs), names(self.inputs)
-
-    def close(self) -> None:
-        """Remove the extraction folder of an .ssp archive (its FMUs are run from there)."""
-        self.structure.close()

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 from ..errors import SetupError
 from .fmu import UnitDefinition
+from .frozen import FrozenMap
 from .transforms import Affine
 
 #: Base-unit attribute names in FMI 2.0 / SSP 1.0 order.
@@ -165,20 +166,19 @@ class UnitScope:
         return next((table[name] for table in self.tables if name in table), None)
 
 
+@dataclass(frozen=True)
 class SystemUnits:
     """The unit tables of one system: the SSD's ``ssd:Units`` and each component's FMU
-    ``UnitDefinitions``.  Built once per plan; refuses an SSD unit that an FMU defines
+    ``UnitDefinitions``.  Built once per plan (`of`), which refuses an SSD unit that an FMU defines
     differently (SSP 1.0 gives no precedence between them, so either choice would be a guess)."""
+    ssd: Mapping[str, Unit]
+    fmu: Mapping[str, Mapping[str, Unit]]
 
-    def __init__(self, ssd_units: Mapping[str, Unit], fmu_tables: Mapping[str, Mapping[str, Unit]], file: str):
-        self.ssd = ssd_units
-        self.fmu = fmu_tables
+    @classmethod
+    def of(cls, ssd_units: Mapping[str, Unit], fmu_tables: Mapping[str, Mapping[str, Unit]], file: str) -> SystemUnits:
         for comp, table in fmu_tables.items():
             check_agree(ssd_units, table, file=file, element=f"ssd:Units and the FMU of component '{comp}'")
-
-    def __eq__(self, other: object) -> bool:
-        """The same tables (a `cosim.model.structure.Plan` compares by value, as after a pickle round trip)."""
-        return isinstance(other, SystemUnits) and (self.ssd, self.fmu) == (other.ssd, other.fmu)
+        return cls(FrozenMap(ssd_units), FrozenMap((comp, FrozenMap(t)) for comp, t in fmu_tables.items()))
 
     def for_variable(self, comp: str) -> UnitScope:
         """Where the unit of an FMU variable is looked up: its FMU, the SSD, built-ins."""

@@ -1,10 +1,10 @@
 """Validate a system structure against its FMUs and order its evaluation: the `Plan`.
 
-Everything here runs before any FMU is instantiated.  `build_plan` reads each FMU's
-model description (`cosim.read.description`), checks the connectors, connections and
+Everything here runs before any FMU is instantiated.  `build_plan` takes each FMU's model
+description (`cosim.read.description.describe_fmus`), checks the connectors, connections and
 root-system outputs against them, resolves the parameter values (`cosim.plan.parameters`)
-and the unit conversions (`cosim.plan.routing`), and orders the evaluation from the
-connection graph (`cosim.plan.graph`: direct-feedthrough loops from the FMI 2.0
+and the transformations of every connection (`cosim.plan.routing`), and orders the evaluation
+from the connection graph (`cosim.plan.graph`: direct-feedthrough loops from the FMI 2.0
 ModelStructure are refused).
 """
 from __future__ import annotations
@@ -12,25 +12,15 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
-
-from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
-
-
-from ..read.description import describe
 from ..errors import SetupError, did_you_mean
-from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
-from ..read.fmucache import passed, record_pass
-from ..read.loadable import check_fmu_file, check_library
-from .parameters import open_inputs, resolve_parameters
-from .routing import connector_unit, path_transform
-from .solvers import check_model_exchange, solvers_of
+from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
+from ..model.frozen import FrozenMap
 from ..model.structure import (
+    LOOP_MODES,
     Connection,
     Experiment,
     Hop,
-    LOOP_MODES,
     LoopMode,
     ParameterValue,
     Plan,
@@ -42,39 +32,26 @@ from ..model.structure import (
 )
 from ..model.transforms import Affine
 from ..model.units import SystemUnits, fmu_units
+from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
+from .parameters import open_inputs, resolve_parameters
+from .routing import connector_unit, path_transform
+from .solvers import check_model_exchange, solvers_of
 
 
-#: the verdict name of a model description valid against the FMI schema
-SCHEMA_CHECK = "FMI schema"
-
-
-def _describe(path: Path, where: str, file: str, implementation: str) -> FMUDescription:
-    """`cosim.read.description.describe`, with the checks of what run loads (`cosim.read.loadable`); the
-    FMI schema validation made once per FMU content (`cosim.read.fmucache.passed`)."""
-    check_fmu_file(path, file=file, where=where)
-    schema_checked = passed(path, SCHEMA_CHECK)
-    desc = describe(path, where, file, implementation, validate=not schema_checked)
-    if not schema_checked:
-        record_pass(path, SCHEMA_CHECK)
-    check_library(desc.path, desc.model_identifier, desc.kind, file=file, where=where)
-    return desc
-
-
-def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
+def build_plan(structure: SystemStructure, fmus: Mapping[str, FMUDescription],
                extra_parameters: Sequence[ParameterValue] = (), loops: LoopMode = "iterate") -> Plan:
-    """Check the structure against its FMUs (``fmu_paths``: `cosim.read.resources.locate_fmus`) and
-    order it; ``extra_parameters`` are applied last (command-line parameter sets); ``loops``:
-    how algebraic loops are run (`cosim.run.loops`).  Nothing given is changed."""
+    """Check the structure against its FMUs' descriptions (``fmus``:
+    `cosim.read.description.describe_fmus`) and order it; ``extra_parameters`` are applied last
+    (command-line parameter sets and start values); ``loops``: how algebraic loops are run
+    (`cosim.run.loops`).  Nothing given is changed; the plan holds nothing of the structure but
+    what a run, a pack, a sweep and `cosim info` read (`cosim.model.structure.Plan`)."""
     file = structure.display
     if loops not in LOOP_MODES:
         raise SetupError(f"unknown loop handling '{loops}'; choose one of {', '.join(LOOP_MODES)}.",
                          element="--loops")
-    fmus = {name: _describe(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})", file,
-                            comp.implementation)
-            for name, comp in structure.components.items()}
     check_model_exchange(structure, fmus)
-    units = SystemUnits(structure.units, {name: fmu_units(desc.unit_definitions, desc.path.name)
-                                          for name, desc in fmus.items()}, file)
+    units = SystemUnits.of(structure.units, {name: fmu_units(desc.unit_definitions, desc.path.name)
+                                             for name, desc in fmus.items()}, file)
     fmus, outputs, inputs = _check_connectors(structure, fmus, units)
     routes = _check_connections(structure, fmus, units)
     start_values = resolve_parameters(structure, fmus, list(extra_parameters), units)
@@ -89,17 +66,20 @@ def build_plan(structure: SystemStructure, fmu_paths: Mapping[str, Path],
         delayed = {c for loop in found for c in loop.components}
         feedthrough = [c for c in feedthrough if c not in delayed]
     read_once, set_once = settling_shortcuts(feedthrough, routes)
-    return Plan(structure=structure, name=structure.name, system_name=structure.system_name,
+    return Plan(name=structure.name, system_name=structure.system_name,
                 files=ScenarioFiles(structure.ssd_file, structure.base_dir, structure.archive),
                 experiment=Experiment(structure.start_time, structure.stop_time, structure.step_size,
                                       structure.step_size_source, structure.algorithm),
-                components=dict(structure.components), fmus=fmus, solvers=solvers_of(structure, fmus),
-                routes=routes, start_values=start_values, outputs=outputs, inputs=inputs,
-                feedthrough_sequence=feedthrough, read_in_settling_only=read_once, set_in_settling_only=set_once,
-                algebraic_loops=found, loop_mode=loops,
-                gauss_seidel_order=gauss_seidel_order(list(structure.components), routes),
-                system_outputs=system_outputs, columns=_columns(structure, outputs, inputs),
-                units=recorded_units, unit_scopes=units, open_inputs=open_inputs(structure, fmus, units))
+                components=FrozenMap(structure.components), fmus=FrozenMap(fmus),
+                solvers=FrozenMap(solvers_of(structure, fmus)), routes=tuple(routes),
+                start_values=tuple(start_values), outputs=FrozenMap((c, tuple(vs)) for c, vs in outputs.items()),
+                inputs=FrozenMap((c, tuple(vs)) for c, vs in inputs.items()),
+                feedthrough_sequence=tuple(feedthrough), read_in_settling_only=frozenset(read_once),
+                set_in_settling_only=frozenset(set_once), algebraic_loops=tuple(found), loop_mode=loops,
+                gauss_seidel_order=tuple(gauss_seidel_order(list(structure.components), routes)),
+                system_outputs=FrozenMap(system_outputs), columns=tuple(_columns(structure, outputs, inputs)),
+                units=FrozenMap(recorded_units), unit_scopes=units, open_inputs=open_inputs(structure, fmus, units),
+                hierarchy=structure.hierarchy)
 
 
 

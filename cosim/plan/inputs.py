@@ -1,140 +1,26 @@
-"""Input tables (``--input-file``): a CSV that drives inputs by name, as ``fmpy simulate`` reads it.
+"""Input tables (``--input-file``) bound to a plan: which input each column drives
+(`cosim.model.structure.BoundTable`, held by the plan), as ``fmpy simulate`` names them.
 
-The file is fmpy's format: a header row whose first column is ``time``, then one column per
-input, one row per sample, times non-decreasing.  A time written on two rows is an event: the
-first row is the value just before it, the last the value from then on.  The table is one more
-source of the system: at every communication point (and during initialisation) it sets the
-inputs it names, after the outputs are read and the connections routed, with the inputs the
-connections set, so nothing else of the run changes (`InputFeed`, called by
-`cosim.run.execution.Execution`).  As in fmpy's results, the outputs recorded at t are those
-before the table's values at t are set: an output with direct feedthrough from a table-driven
-input shows that input's value of the communication point before.
-
-Values follow FMI and fmpy (``fmpy.simulation.Input``):
-
-* a continuous Real input is interpolated linearly between samples; a discrete one (Integer,
-  Boolean, Enumeration, or a Real of variability discrete) holds the value of the last sample
-  at or before the time;
-* at an event time (a repeated time) the value from the right (the last row at that time) is
-  taken, except while the FMU initialises, where it is the value from the left (the first row);
-* before the first sample the first value holds, after the last the last.
-
-A Co-Simulation master on a fixed grid sees the table at its communication points only: an
-event between two of them takes effect at the next one (fmpy adds a communication point there
-when the FMU can handle variable step sizes), and a Model Exchange FMU gets its inputs held over
-each communication step (fmpy interpolates them within the step).
+The table is one more source of the system: at every communication point (and during
+initialisation) it sets the inputs it names, after the outputs are read and the connections
+routed, with the inputs the connections set, so nothing else of the run changes
+(`cosim.run.feed`).  As in fmpy's results, the outputs recorded at t are those before the table's
+values at t are set: an output with direct feedthrough from a table-driven input shows that
+input's value of the communication point before.
 """
 from __future__ import annotations
 
-import csv
-import math
-import warnings
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
-from math import isclose
-from pathlib import Path
+from dataclasses import replace
 
 import numpy as np
 
-from ..model.fmu import Variable, exchange_type
 from ..errors import SetupError, did_you_mean
-from ..model.structure import ParameterValue, Plan, SystemStructure
+from ..model.fmu import Variable, exchange_type
+from ..model.structure import BoundTable, ParameterValue, Plan, SystemStructure, Target
+from ..read.inputs import InputTable
 
-#: the Real types of FMI 2.0 and 3.0 that may be continuous
-REAL_TYPES = ("Real", "Float64", "Float32")
 #: the exchange types a table can set
 NUMERIC = ("Real", "Integer", "Boolean")
-
-
-@dataclass(frozen=True)
-class InputTable:
-    """A CSV input table as read: column names (after ``time``), sample times and values."""
-    file: str
-    names: list[str]
-    time: np.ndarray
-    #: one row per column, one entry per sample
-    values: np.ndarray
-    #: the line of the file each sample is on (for messages)
-    lines: list[int]
-
-
-def read_input_table(path: str | Path) -> InputTable:
-    """Read and check an input CSV; a missing file, a header without ``time`` first, a repeated
-    column, a row of the wrong length, a cell that is not a finite number (or true/false) and a
-    time before the previous one are each a `SetupError` naming the file, column and line."""
-    file = str(path)
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            rows = [(n, row) for n, row in enumerate(csv.reader(f), 1) if row and any(c.strip() for c in row)]
-    except OSError as e:
-        raise SetupError(f"cannot read the input table: {e.strerror}.", file=file, element="--input-file") from None
-    except (UnicodeDecodeError, csv.Error) as e:
-        raise SetupError(f"not a CSV text file: {e}.", file=file, element="--input-file") from None
-    if not rows:
-        raise SetupError("the input table is empty; it needs a header row (time, then input names) and samples.",
-                         file=file, element="--input-file")
-    header_line, header = rows[0]
-    names = [h.strip() for h in header]
-    if names[0] != "time":
-        raise SetupError(f"the first column is '{names[0]}'; an input table's first column is 'time'.",
-                         file=file, element=f"line {header_line}, column 1")
-    for i, name in enumerate(names):
-        if not name:
-            raise SetupError(f"column {i + 1} has no name.", file=file, element=f"line {header_line}")
-        if names.index(name) != i:
-            raise SetupError(f"column '{name}' is given twice (columns {names.index(name) + 1} and {i + 1}).",
-                             file=file, element=f"line {header_line}", variable=name)
-    if len(rows) < 2:
-        raise SetupError("the input table has a header and no samples.", file=file, element="--input-file")
-    data = np.empty((len(rows) - 1, len(names)))
-    lines = []
-    for r, (line, row) in enumerate(rows[1:]):
-        if len(row) != len(names):
-            raise SetupError(f"{len(row)} cells; the header has {len(names)} columns.", file=file,
-                             element=f"line {line}")
-        for c, cell in enumerate(row):
-            data[r, c] = _number(cell, file, line, names[c])
-        if r and data[r, 0] < data[r - 1, 0]:
-            raise SetupError(f"time {data[r, 0]:.17g} is before the time of the row before ({data[r - 1, 0]:.17g}); "
-                             "times must not decrease (a time given twice is an event).", file=file,
-                             element=f"line {line}, column 'time'")
-        lines.append(line)
-    return InputTable(file, names[1:], data[:, 0].copy(), data[:, 1:].T.copy(), lines)
-
-
-def _number(cell: str, file: str, line: int, column: str) -> float:
-    text = cell.strip()
-    if text.lower() in ("true", "false"):
-        return 1.0 if text.lower() == "true" else 0.0
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not math.isfinite(value):
-        raise SetupError(f"'{cell}' is not a finite number.", file=file, element=f"line {line}, column '{column}'",
-                         variable=column)
-    return value
-
-
-# --------------------------------------------------------------------------- bound to a plan
-
-@dataclass(frozen=True)
-class Target:
-    """The input one column drives, and the values it gets (the column's, through a system
-    connector's transformations and unit conversions where the column names one)."""
-    column: int
-    component: str
-    variable: Variable
-    values: np.ndarray
-
-    @property
-    def name(self) -> str:
-        return f"{self.component}.{self.variable.name}"
-
-    @property
-    def discrete(self) -> bool:
-        """Held between samples (fmpy: every input that is not a continuous Real)."""
-        return not (self.variable.type in REAL_TYPES and self.variable.variability not in ("discrete", "tunable"))
 
 
 def with_table(plan: Plan, bound: BoundTable) -> Plan:
@@ -142,41 +28,6 @@ def with_table(plan: Plan, bound: BoundTable) -> Plan:
     set at every exchange (not only in the settling, `cosim.model.structure.Plan.set_in_settling_only`)."""
     driven = {t.component for t in bound.targets}
     return replace(plan, input_table=bound, set_in_settling_only=plan.set_in_settling_only - driven)
-
-
-@dataclass(frozen=True)
-class BoundTable:
-    """An input table checked against a plan: which input each column drives."""
-    table: InputTable
-    targets: list[Target]
-
-    def feed(self, typed: list, grid=None) -> InputFeed:
-        """The callable that sets the table's values into the exchange's input buffers
-        (`cosim.run.exchange.TypedBuffers`) at a time; with the run's ``grid`` (`cosim.model.grid.Grid`),
-        a `RuntimeWarning` names the table's events that fall between its communication points."""
-        if grid is not None:
-            off = [t for t in self.event_times() if grid.start < t < grid.stop and not _on_grid(t, grid)]
-            if off:
-                shown = ", ".join(f"{t:g}" for t in off[:8]) + (f" and {len(off) - 8} more" if len(off) > 8 else "")
-                warnings.warn(f"{self.table.file}: input events at t = {shown} s fall between communication points "
-                              f"(step {grid.step:g} s); each takes effect at the next one (fmpy adds a communication "
-                              "point there for an FMU that can vary its step).", RuntimeWarning, stacklevel=2)
-        return InputFeed(self, typed)
-
-    def event_times(self) -> list[float]:
-        """The table's events as fmpy finds them (``Input.findEvents``): times given twice, and the
-        times a discrete input's value changes."""
-        t = self.table.time
-        events = set(t[np.flatnonzero(np.diff(t) == 0)].tolist())
-        for target in self.targets:
-            if target.discrete:
-                events.update(t[np.flatnonzero(np.diff(target.values)) + 1].tolist())
-        return sorted(events)
-
-
-def _on_grid(t: float, grid) -> bool:
-    k = round((t - grid.start) / grid.step)
-    return isclose(t, grid.time(k), rel_tol=1e-9, abs_tol=1e-12 * max(1.0, abs(t)))
 
 
 def connector_values(table: InputTable, structure: SystemStructure) -> list[ParameterValue]:
@@ -222,8 +73,8 @@ def bind_table(table: InputTable, plan: Plan, single: str | None = None) -> Boun
             _check_values(table, column, var, values, where)
             if any(t.component == comp and t.variable.name == var.name for t in targets):
                 raise SetupError(f"{comp}.{var.name} is driven by two columns.", **where)
-            targets.append(Target(column, comp, var, values))
-    return BoundTable(table, targets)
+            targets.append(Target(column, comp, var, tuple(values.tolist())))
+    return BoundTable(table.file, tuple(table.time.tolist()), tuple(targets))
 
 
 def _not_a_connector(plan: Plan, name: str, where: dict) -> None:
@@ -269,59 +120,3 @@ def _check_values(table: InputTable, column: int, var: Variable, values: np.ndar
         row = int(bad[0])
         raise SetupError(f"{values[row]:.17g}: {var.name} is {what}.",
                          **(where | {"element": f"line {table.lines[row]}, column '{table.names[column]}'"}))
-
-
-# --------------------------------------------------------------------------- at run time
-
-class InputFeed:
-    """Writes the table's values at a time into the exchange's input buffers (``TypedBuffers.U``),
-    by the buffers' input names; the first call (initialisation) takes left values at events."""
-
-    def __init__(self, bound: BoundTable, typed: list):
-        table = bound.table
-        self.time = table.time
-        self.initialising = True
-        self.groups = []
-        for ty in typed:
-            if ty.strings:
-                continue
-            index = {n: i for i, n in enumerate(ty.in_names)}
-            for discrete in (False, True):
-                chosen = [t for t in bound.targets if t.name in index and t.discrete == discrete]
-                if chosen:
-                    self.groups.append((ty.U, np.array([index[t.name] for t in chosen], dtype=np.intp),
-                                        np.stack([t.values for t in chosen]), discrete))
-
-    def __call__(self, t: float) -> None:
-        after_event = not self.initialising
-        self.initialising = False
-        for buffer, positions, values, discrete in self.groups:
-            buffer[positions] = interpolate(t, self.time, values, discrete, after_event)
-
-
-def interpolate(time: float, t: np.ndarray, table: np.ndarray, discrete: bool, after_event: bool) -> np.ndarray:
-    """The values of ``table`` (one row per signal, one column per sample at times ``t``) at
-    ``time``, as ``fmpy.simulation.Input.interpolate`` computes them (times compared with
-    `math.isclose`)."""
-    n = len(t)
-    if n < 2:
-        return table[:, 0]
-    i0 = int(np.searchsorted(t, time))
-    if i0 == 0:
-        return table[:, 0]
-    if i0 == n:
-        return table[:, -1]
-    if discrete:
-        i = i0 - 1
-        if after_event:
-            while i + 1 < n and (t[i + 1] < time or isclose(time, t[i + 1])):
-                i += 1
-        return table[:, i]
-    if isclose(time, t[i0]) and i0 < n - 1 and isclose(t[i0], t[i0 + 1]):  # an event at time
-        if after_event:
-            while i0 < n - 1 and isclose(t[i0], t[i0 + 1]):
-                i0 += 1
-        return table[:, i0]
-    t0, t1 = t[i0 - 1], t[i0]
-    w0 = (t1 - time) / (t1 - t0)
-    return w0 * table[:, i0 - 1] + (1 - w0) * table[:, i0]

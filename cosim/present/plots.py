@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..model.structure import Plan
+from ..record.metadata import signal_info
 from .metrics import event_metrics, find_events
 
 _SETPOINT_INPUT = re.compile(r"r\d*")
@@ -336,3 +338,18 @@ def plot(result: np.ndarray, panels: Sequence[Sequence[str]], path: str | Path, 
     finally:
         plt.close(fig)
     return path
+
+
+def signal_units(plan: Plan) -> dict[str, tuple[str, bool]]:
+    """Each recorded signal of a plan's runs with its unit and whether it is "as wired" (`units`)."""
+    info = signal_info(plan)
+    return units({"units": dict(plan.units), "connections": info["connections"], "transforms": info["transforms"],
+                  "components": {name: {"fmu": str(d.path)} for name, d in plan.fmus.items()}})
+
+
+def plotted(plan: Plan, names: list[str]) -> list[str]:
+    """The signals a default plot shows: for a single FMU its connectors once (not again under
+    the output aliases that `cosim.read.single.fmu_structure` adds), for a system all."""
+    if not plan.files.single_fmu:
+        return names
+    return [n for n in names if n not in plan.system_outputs]

@@ -5,15 +5,22 @@ nothing of fmpy's parsed objects leaves this module.  It decides which interface
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import fmpy
 from fmpy.model_description import ModelDescription, ModelVariable
 
 from ..errors import SetupError
+from ..model.structure import SystemStructure
 from ..model.fmu import MODEL_EXCHANGE, DeclaredType, DefaultExperiment, FMUDescription, Kind, UnitDefinition, Variable
 from ..model.frozen import FrozenMap
 from ..model.units import BASE_UNITS
+from .fmucache import passed, record_pass
+from .loadable import check_fmu_file, check_library
+
+#: the verdict name of a model description valid against the FMI schema
+SCHEMA_CHECK = "FMI schema"
 
 #: SSP 1.0 Component ``implementation`` values (SystemStructureDescription.xsd).
 IMPLEMENTATIONS = ("any", "CoSimulation", "ModelExchange")
@@ -120,3 +127,24 @@ def _kind(md: ModelDescription, path: Path, implementation: str, where: str, fil
     return "fmi2-me" if use_me else "fmi2-cs"
 
 
+
+
+def describe_fmu(path: Path, where: str, file: str, implementation: str = "any") -> FMUDescription:
+    """`describe`, with the checks of what run loads (`cosim.read.loadable`): the archive and its
+    entities before, the library after; the FMI schema validation made once per FMU content
+    (`cosim.read.fmucache.passed`)."""
+    check_fmu_file(path, file=file, where=where)
+    schema_checked = passed(path, SCHEMA_CHECK)
+    desc = describe(path, where, file, implementation, validate=not schema_checked)
+    if not schema_checked:
+        record_pass(path, SCHEMA_CHECK)
+    check_library(desc.path, desc.model_identifier, desc.kind, file=file, where=where)
+    return desc
+
+
+def describe_fmus(structure: SystemStructure, fmu_paths: Mapping[str, Path]) -> dict[str, FMUDescription]:
+    """Every component's FMU (``fmu_paths``: `cosim.read.resources.locate_fmus`) described and
+    checked (`describe_fmu`), by component in SSD order."""
+    return {name: describe_fmu(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})", structure.display,
+                               comp.implementation)
+            for name, comp in structure.components.items()}

@@ -169,8 +169,8 @@ class _Walker:
         for c in system.connections:
             self._connection(system, path, label, c)
         self.parameters.append((depth, [replace(p, name=prefix + p.name) for p in system.parameters]))
-        return SystemNode(system.name, path, system.line, list(system.connectors.values()),
-                          [prefix + n for n in system.components], children)
+        return SystemNode(system.name, path, system.line, tuple(system.connectors.values()),
+                          tuple(prefix + n for n in system.components), tuple(children))
 
     def _connection(self, system: RawSystem, path: str, label: str, c: Connection) -> None:
         prefix = f"{path}." if path else ""

@@ -397,7 +397,7 @@ class Recorder:
         for arr in sources:
             self.sources.append((col, col + len(arr), arr))
             col += len(arr)
-        self.names = ["time"] + names
+        self.names = ["time", *names]
         self.permutation = column_order(source_names, names)
         self.observers = list(observers)
         self.journal = journal

@@ -1,12 +1,14 @@
-"""Results on disk: read and write result files (CSV, Parquet); `cosim.present.plots` draws them."""
+"""Results on disk: read and write result files (CSV, Parquet), and choose signals of a result by
+name (`select`); `cosim.present.plots` draws them."""
 from __future__ import annotations
 
+import fnmatch
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import SetupError
+from ..errors import SetupError, did_you_mean
 from ..extras import require_pyarrow
 
 
@@ -77,3 +79,16 @@ def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = No
     sink.finish()
     sink.publish(None)
     return path
+
+
+def select(names: Sequence[str], patterns: Sequence[str], option: str = "--signals") -> list[str]:
+    """Names matching any glob pattern, in the order of ``names``; an unmatched pattern is an error
+    naming the ``option`` it was given with."""
+    chosen = []
+    for pattern in patterns:
+        matched = [n for n in names if fnmatch.fnmatchcase(n, pattern)]
+        if not matched:
+            raise SetupError(f"no signal matches '{pattern}'.", element=option,
+                             hint=did_you_mean(pattern, names) or f"Signals: {', '.join(names[:12])}.")
+        chosen += [n for n in matched if n not in chosen]
+    return chosen

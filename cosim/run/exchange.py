@@ -2,14 +2,16 @@
 type in ctypes memory, and the routes between them.
 
 Values move through these preallocated arrays with one batched get and one batched set per
-FMU and type; routing is precomputed NumPy index arrays.  Both interpreters of a step
-(`cosim.run.interpreters`) work on the same memory: the compiled one through the addresses
-(`TypedBuffers.address`), the Python one through the arrays and `TypedBuffers.route`.
+FMU and type; a group of routes (an operation of the step's program, `cosim.run.program`) is
+precomputed NumPy index arrays (`TypedBuffers.affine`, `TypedBuffers.mapped`).  Both interpreters
+of a step (`cosim.run.interpreters`) work on the same memory: the compiled one through the
+addresses (`TypedBuffers.address`), the Python one through the arrays and `TypedBuffers.route`.
 """
 from __future__ import annotations
 
 import ctypes
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -17,16 +19,31 @@ from ..model.fmu import exchange_type
 from ..errors import RunError
 from .instances.fmi3 import BinaryValue
 from ..model.structure import Plan, Route
-from ..model.transforms import Affine, Unmapped
+from ..model.transforms import Unmapped
 
-#: exchange types (`cosim.model.fmu.exchange_type`) and their buffers' C types, as fmi2 declares them
-#: (Binary, FMI 3.0 only: a pointer and a size, `cosim.run.instances.fmi3.BinaryValue`)
+#: exchange types (`cosim.model.fmu.exchange_type`, in `cosim.model.fmu.EXCHANGE_TYPES` order) and their
+#: buffers' C types, as fmi2 declares them (Binary, FMI 3.0 only: a pointer and a size,
+#: `cosim.run.instances.fmi3.BinaryValue`)
 TYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int, "String": ctypes.c_char_p,
          "Binary": BinaryValue}
 FMI_WARNING = 1
 
-#: a group of affine routes: source positions, destination positions, factors, offsets, all of them identity
-Routing = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]
+
+class Routing(NamedTuple):
+    """A group of routes whose transformations are affine: source and destination positions,
+    factors, offsets, whether all of them are the identity (and the routes, to name an overflow)."""
+    src: np.ndarray
+    dst: np.ndarray
+    factor: np.ndarray
+    offset: np.ndarray
+    identity: bool
+    routes: tuple[Route, ...]
+
+    def native(self) -> tuple:
+        """The compiled loop's form (`cosim.kernel.NativeOp.route`)."""
+        return self.src, self.dst, self.factor, self.offset, self.identity
+
+
 #: the other routes (a mapping table, ...): (source position, destination position, route)
 Mapped = list[tuple[int, int, Route]]
 
@@ -66,21 +83,9 @@ class TypedBuffers:
             self.U = np.ctypeslib.as_array(self.Ubuf)[:len(ins)]
         self.out_slices = self._slices(outs, order)
         self.in_slices = self._slices(ins, order)
-        out_index = {(c, v.name): i for i, (c, v) in enumerate(outs)}
-        in_index = {(c, v.name): i for i, (c, v) in enumerate(ins)}
-        routes = [r for r in plan.routes if exchange_type(r.src_var) == type_name]
-        groups = {None: routes} | {comp: [r for r in routes if r.dst == comp] for comp in order}
-        #: the routes (`cosim.model.structure.Route`) into each component (None: all) whose transformation
-        #: is affine (`cosim.model.transforms.Affine`, the identity of strings among them), in
-        #: `routes_into`'s order; feedthrough and Gauss–Seidel route into one component at a time
-        self.routes_of: dict[str | None, list[Route]] = {
-            comp: [r for r in rs if isinstance(r.transform, Affine)] for comp, rs in groups.items()}
-        self.routes_into: dict[str | None, Routing] = {
-            comp: self._routing(rs, out_index, in_index) for comp, rs in self.routes_of.items()}
-        #: the others (a mapping table, ...), made after the affine ones (`map_values`)
-        self.maps_into: dict[str | None, Mapped] = {
-            comp: [(out_index[(r.src, r.src_var.name)], in_index[(r.dst, r.dst_var.name)], r) for r in rs
-                   if not isinstance(r.transform, Affine)] for comp, rs in groups.items()}
+        #: each output's and input's position in Y and U
+        self.out_index = {(c, v.name): i for i, (c, v) in enumerate(outs)}
+        self.in_index = {(c, v.name): i for i, (c, v) in enumerate(ins)}
         self.ctype = ctype
         self.integer = ctype is ctypes.c_int
 
@@ -94,22 +99,24 @@ class TypedBuffers:
             i += len(vrs)
         return slices
 
-    @staticmethod
-    def _routing(routes, out_index, in_index) -> Routing:
-        src = np.array([out_index[(r.src, r.src_var.name)] for r in routes], dtype=np.intp)
-        dst = np.array([in_index[(r.dst, r.dst_var.name)] for r in routes], dtype=np.intp)
+    def affine(self, routes: Sequence[Route]) -> Routing:
+        """``routes`` (of this type, their transformations `cosim.model.transforms.Affine`) as a group."""
+        src = np.array([self.out_index[(r.src, r.src_var.name)] for r in routes], dtype=np.intp)
+        dst = np.array([self.in_index[(r.dst, r.dst_var.name)] for r in routes], dtype=np.intp)
         factor = np.array([r.transform.factor for r in routes], dtype=np.float64)
         offset = np.array([r.transform.offset for r in routes], dtype=np.float64)
         identity = bool(np.all(factor == 1.0) and np.all(offset == 0.0))
-        return src, dst, factor, offset, identity
+        return Routing(src, dst, factor, offset, identity, tuple(routes))
 
-    def route(self, t: float, comp: str | None = None) -> None:
-        """Route the outputs into the inputs (into ``comp``'s only, if given) at time ``t`` through
-        the affine routes; a factor and offset that make a finite value infinite is a `RunError`
-        (`overflow`).  The other routes get their value from `map_values`, after this."""
-        src, dst, factor, offset, identity = self.routes_into[comp]
-        if len(src) == 0:
-            return
+    def mapped(self, routes: Sequence[Route]) -> Mapped:
+        """``routes`` (of this type, with other transformations) with their positions."""
+        return [(self.out_index[(r.src, r.src_var.name)], self.in_index[(r.dst, r.dst_var.name)], r) for r in routes]
+
+    def route(self, group: Routing, t: float) -> None:
+        """Route the outputs into the inputs through the affine routes ``group`` at time ``t``; a
+        factor and offset that make a finite value infinite is a `RunError` (`overflow`).  The
+        other routes get their value from `map_values`, after this."""
+        src, dst, factor, offset, identity, _ = group
         if self.strings:
             Y, U = self.Ybuf, self.Ubuf
             for i, j in zip(src.tolist(), dst.tolist()):
@@ -126,14 +133,14 @@ class TypedBuffers:
             if not np.isfinite(values).all():
                 overflowed = np.flatnonzero(~np.isfinite(values) & np.isfinite(self.Y[src]))
                 if len(overflowed):
-                    raise self.overflow(comp, int(overflowed[0]), t)
+                    raise self.overflow(group, int(overflowed[0]), t)
             self.U[dst] = values
 
-    def map_values(self, t: float, comp: str | None = None) -> None:
-        """The routes into ``comp`` (None: all) whose transformation is not affine (a mapping table,
+    def map_values(self, mapped: Mapped, t: float) -> None:
+        """The routes ``mapped``, whose transformation is not affine (a mapping table,
         `cosim.model.transforms.Table`): each input gets its source value through it; a value a
         table names no target for is a `RunError`."""
-        for i, j, r in self.maps_into[comp]:
+        for i, j, r in mapped:
             try:
                 self.U[j] = r.transform.apply(self.Y[i].item())
             except Unmapped as e:
@@ -143,12 +150,12 @@ class TypedBuffers:
                                f"{r.dst}.{r.dst_var.name} was not given it.", time=t, component=r.dst,
                                element=f"connection {r.label}") from None
 
-    def overflow(self, comp: str | None, j: int, t: float) -> RunError:
-        """The error of route ``j`` of ``routes_into[comp]`` at ``t``: its factor and offset (the
+    def overflow(self, group: Routing, j: int, t: float) -> RunError:
+        """The error of route ``j`` of ``group`` at ``t``: its factor and offset (the
         LinearTransformations and unit conversions on the way) took its finite source value past
         the largest float."""
-        r = self.routes_of[comp][j]
-        src, _, factor, offset, _ = self.routes_into[comp]
+        r = group.routes[j]
+        src, _, factor, offset, _, _ = group
         y = float(self.Y[src[j]])
         value = y * float(factor[j]) + float(offset[j])
         label = f"{r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}"

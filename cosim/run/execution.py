@@ -1,9 +1,11 @@
-"""Run a validated plan: the lifecycle of one run -- instantiate, compile the step, initialise,
-step from start to stop, close.
+"""The lifecycle of one run: instantiate (or take from the pool), link the step's program to the
+instances, initialise, step from start to stop, close; and the metadata of how it went.
 
-The step is compiled once into a program of operations (`cosim.run.program`), the only description
-of what the master does in a communication step; `cosim.run.stepping` runs it from start to stop on
-one of its two interpreters (`cosim.run.interpreters`), handling the FMI statuses they hand back.
+The step is compiled from the plan alone into a program of operations (`cosim.run.program`), the
+only description of what the master does in a communication step; `link` (`cosim.run.link`) gives
+it this run's instances and buffers, and `cosim.run.stepping` runs it from start to stop on one of
+its two interpreters (`cosim.run.interpreters`), handling the FMI statuses they hand back.
+`cosim.run.simulation.run` assembles a run from these, in that order.
 
 Algorithms (recorded in the result metadata):
 
@@ -22,10 +24,11 @@ algebraic loop of direct feedthrough is solved by repeating that settling sweep
 
 Kernels (``kernel``, recorded in the metadata): "native" runs the program in the compiled loop
 of `cosim.kernel`, which hands back to Python each operation it cannot make (a Model Exchange
-doStep, an isolated component's calls, a String route, a mapping or input table, an algebraic
-loop's iteration: counted by reason in the metadata's ``python_operations``), with bit-identical
-results; "python" runs every operation in Python; "auto" (default) the compiled loop when the
-library is built and it has an operation to make, else Python, saying why (``kernel_reason``).
+doStep, an isolated component's calls, a String route, a transformation without a C form, an
+input table, an algebraic loop's iteration: counted by reason in the metadata's
+``python_operations``), with bit-identical results; "python" runs every operation in Python;
+"auto" (default) the compiled loop when the library is built and it has an operation to make,
+else Python, saying why (``kernel_reason``).
 """
 from __future__ import annotations
 
@@ -35,77 +38,44 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import kernel as native
+from ..errors import ComponentLost, RunError
 from ..model.fmu import FMUDescription
-from ..errors import ComponentLost, RunError, SetupError
-from .exchange import TypedBuffers, exchange_buffers
 from ..model.grid import Grid
+from ..model.structure import Plan
 from .instances import Instance, Unzipped, open_instance
 from .instances.base import STATUS, fmi_failure
 from .instances.isolated import Isolation
 from .instances.reuse import InstancePool
-from .interpreters import Interpreter, NativeInterpreter, PythonInterpreter
+from .interpreters import Choice, check_kernel, choose_interpreter
 from .interrupts import StopRequest
-from .loops import LoopSettings, LoopSolver, Watched
+from .link import LinkedProgram, link
+from .loops import LoopSettings
+from .program import StepProgram
 from ..record.observers import Recorder
-from .program import Program, compile_step
 from .stepping import Stepping
-from ..model.structure import Plan
 
-__all__ = ["ALGORITHMS", "KERNELS", "Execution", "Grid"]
-
-ALGORITHMS = ("jacobi", "gauss-seidel")
-KERNELS = ("auto", "native", "python")
-
-_NOTICES: set[str] = set()
-
-
-def _notice_once(reason: str) -> None:
-    """Warn once per process that the Python loop runs for ``reason`` (the library is missing)."""
-    if reason not in _NOTICES:
-        _NOTICES.add(reason)
-        warnings.warn(f"{reason}; running the Python stepping loop (same results, slower).", RuntimeWarning,
-                      stacklevel=3)
+__all__ = ["Execution"]
 
 
 class Execution:
-    """One run of a plan on a grid with an algorithm, feeding a recorder: `instantiate` (and
-    compile the step), `initialize`, `run`, `close`; `metadata` says how it ran."""
+    """One run of a plan on a grid: `instantiate`, `link` the compiled step to the instances,
+    `initialize`, `run` into a recorder, `close`; `metadata` says how it ran.  ``kernel`` and
+    ``threads`` (checked here, `cosim.run.interpreters.check_kernel`): which interpreter runs the
+    step, and on how many threads; ``isolation``: each component in a process of its own
+    (`cosim.run.instances.isolated`); ``pool``: instances kept across runs
+    (`cosim.run.instances.reuse`)."""
 
     def __init__(self, plan: Plan, grid: Grid, algorithm: str = "jacobi", fmu_log: str = "errors",
                  loop_settings: LoopSettings | None = None, isolation: Isolation | None = None,
                  kernel: str = "auto", threads: int = 1, pool: InstancePool | None = None):
-        if algorithm not in ALGORITHMS:
-            raise SetupError(f"unknown algorithm '{algorithm}'; choose one of {', '.join(ALGORITHMS)}.",
-                             element="algorithm")
-        if kernel not in KERNELS:
-            raise SetupError(f"unknown kernel '{kernel}'; choose one of {', '.join(KERNELS)}.", element="--kernel")
-        if not (isinstance(threads, int) and threads >= 1):
-            raise SetupError(f"the number of threads must be a whole number of at least 1; got {threads!r}.",
-                             element="--threads")
-        if threads > 1 and (algorithm != "jacobi" or kernel == "python"):
-            raise SetupError(f"--threads {threads} steps components in parallel within a Jacobi step of the "
-                             f"compiled kernel; this run is {algorithm} with the {kernel} kernel.",
-                             element="--threads", hint="Run with --threads 1, or Jacobi and --kernel auto.")
-        if (kernel == "native" or threads > 1) and native.library()[0] is None:
-            raise SetupError(f"the compiled kernel cannot run this system: {native.library()[1]}.",
-                             element="--kernel",
-                             hint="Run with --kernel auto (which then runs the Python loop) or --kernel python.")
+        check_kernel(algorithm, kernel, threads)
         self.plan = plan
         self.grid = grid
         self.algorithm = algorithm
         self.fmu_log = fmu_log
+        self.loop_settings = loop_settings or LoopSettings()
         #: each component in a process of its own (``--isolate``), or all in this one (None)
         self.isolation = isolation
-        self.order = list(plan.components)
-        self.buffers: list[TypedBuffers] = exchange_buffers(plan, self.order)
-        #: the input table's values into the input buffers at a time (`cosim.plan.inputs.InputFeed`)
-        self._feed = plan.input_table.feed(self.buffers, grid) if plan.input_table is not None else None
-        self.loop_solver = self._loop_solver(loop_settings or LoopSettings()) \
-            if plan.algebraic_loops and plan.loop_mode == "iterate" else None
-        if plan.algebraic_loops and plan.loop_mode == "delay":
-            warnings.warn("algebraic loop broken by one step of delay (--loops delay): "
-                          + "; ".join(loop.describe() for loop in plan.algebraic_loops), RuntimeWarning, stacklevel=2)
         self.instances: dict[str, Instance] = {}
         #: instances kept across runs (`cosim.run.instances.reuse`): taken from it, given back at `close`
         self.pool = pool if isolation is None else None
@@ -117,13 +87,12 @@ class Execution:
         self.message = ""
         self.kernel_requested = kernel
         self.threads = threads
-        #: the interpreter that runs ("native" or "python"), decided when the step is compiled, and
-        #: under "auto" why the Python one runs
-        self.kernel, self.kernel_reason = "python", ""
-        #: the compiled step (`instantiate`), and what runs it
-        self.program: Program | None = None
-        self._python: PythonInterpreter | None = None
-        self._interpreter: Interpreter | None = None
+        if plan.algebraic_loops and plan.loop_mode == "delay":
+            warnings.warn("algebraic loop broken by one step of delay (--loops delay): "
+                          + "; ".join(loop.describe() for loop in plan.algebraic_loops), RuntimeWarning, stacklevel=2)
+        #: the step linked to the instances (`link`), and the interpreter chosen to run it
+        self.linked: LinkedProgram | None = None
+        self.choice: Choice | None = None
         self._stepping: Stepping | None = None
 
     @property
@@ -131,23 +100,11 @@ class Execution:
         """The last communication point recorded (the start time before the first step)."""
         return self._stepping.last_time if self._stepping is not None else self.grid.start
 
-    def _loop_solver(self, settings: LoopSettings) -> LoopSolver:
-        """`cosim.run.loops.LoopSolver` over the exchange's output buffers: the loop outputs of each type."""
-        loop_outputs = {f"{c}.{v}": (c, v) for loop in self.plan.algebraic_loops for c, v in loop.outputs}
-        watched = []
-        for ty in self.buffers:
-            if not ty.strings:
-                positions = [i for i, n in enumerate(ty.out_names) if n in loop_outputs]
-                watched.append(Watched(ty.Y, np.array(positions, dtype=np.intp), ty.type_name == "Real",
-                                       [loop_outputs[ty.out_names[i]] for i in positions]))
-        return LoopSolver(self.plan.algebraic_loops, watched, settings, self.plan.feedthrough_sequence)
-
     # ----------------------------------------------------------------- set-up
 
     def instantiate(self) -> None:
-        """Instantiate every component (or take it from the pool), then compile the step and
-        choose its interpreter."""
-        for name in self.order:
+        """Instantiate every component (or take it from the pool)."""
+        for name in self.plan.components:
             desc = self.plan.fmus[name]
             kept = self.pool.take(name, desc, self.fmu_log) if self.pool is not None else None
             if kept is not None:
@@ -158,41 +115,14 @@ class Execution:
             inst = opened(name, desc, self._unzipped(desc.path), self.plan.solvers.get(name))
             self.instances[name] = inst
             inst.instantiate(self.fmu_log)
-        self.program = compile_step(self.plan, self.buffers, self.instances, self.algorithm, self.loop_solver,
-                                    self._feed, self.threads)
-        self._python = PythonInterpreter(self.program, self.grid)
-        self._interpreter = self._choose_interpreter()
-        self._stepping = Stepping(self.program, self.grid, self._interpreter)
 
-    def _choose_interpreter(self) -> Interpreter:
-        """The compiled loop unless ``--kernel python``; under "auto" Python when the library is
-        missing (one notice per process) or no operation has a C form, saying why."""
-        if self.kernel_requested == "python":
-            return self._python
-        lib, reason = native.library()
-        if lib is None:
-            _notice_once(reason)
-            self.kernel_reason = reason
-            return self._python
-        in_python = self.program.python_operations()
-        if self.kernel_requested == "auto" and sum(in_python.values()) == len(self.program.top_level()):
-            self.kernel_reason = "no operation of the step has a C form: " + "; ".join(in_python)
-            return self._python
-        sources = [(ty.address(buf, 0), n, ty.integer) for ty in self.buffers if not ty.strings
-                   for buf, n in ((ty.Ybuf, len(ty.Y)), (ty.Ubuf, len(ty.U)))]
-        self.kernel = "native"
-        return NativeInterpreter(self.program, self.grid, self._python, sources, self.threads)
-
-    def recorder_sources(self) -> tuple[list[str], list[np.ndarray]]:
-        """The recorded signals' names and the arrays that hold them, in the order rows are
-        written (each type's outputs, then its inputs)."""
-        names, arrays = [], []
-        for ty in self.buffers:
-            if ty.strings:
-                continue
-            names += ty.out_names + ty.in_names
-            arrays += [ty.Y, ty.U]
-        return names, arrays
+    def link(self, program: StepProgram) -> LinkedProgram:
+        """The compiled step on this run's instances (`cosim.run.link.link`), and its interpreter
+        (`cosim.run.interpreters.choose_interpreter`)."""
+        self.linked = link(program, self.instances, self.grid, self.loop_settings, self.threads)
+        self.choice = choose_interpreter(self.linked, self.grid, self.kernel_requested, self.threads)
+        self._stepping = Stepping(self.linked, self.grid, self.choice.interpreter)
+        return self.linked
 
     def initialize(self) -> None:
         """Set up the experiment, set the start values, enter initialisation mode, read the
@@ -207,17 +137,17 @@ class Execution:
         for name, inst in self.instances.items():
             self._guard(name, t0, "entering initialization mode", inst.enter_initialization_mode)
         self._read_input_starts(t0)
-        self._python.exchange(t0)
+        self.choice.python.exchange(t0)
         for name, inst in self.instances.items():
             self._guard(name, t0, "exiting initialization mode", inst.exit_initialization_mode)
-        self._python.exchange(t0)
+        self.choice.python.exchange(t0)
 
     def _read_input_starts(self, t0: float) -> None:
         """Unconnected inputs keep the FMU's (or the binding's) start value: every input is read
         into the input buffers before the first exchange."""
-        for comp in self.order:
+        for comp in self.plan.components:
             inst = self.instances[comp]
-            for ty in self.buffers:
+            for ty in self.linked.buffers:
                 start, n, vr = ty.in_slices[comp]
                 if n:
                     get = ty.get_call(inst.get[ty.type_name], ty.Ubuf, start, n)
@@ -257,8 +187,8 @@ class Execution:
 
     def close(self) -> None:
         """End the compiled loop's threads, then free the instances (or give them back to the pool)."""
-        if self._interpreter is not None:
-            self._interpreter.close()
+        if self.choice is not None:
+            self.choice.interpreter.close()
         for inst in self.instances.values():
             if self.pool is not None:
                 self.pool.give(inst, self.status == "completed", self.fmu_log)
@@ -273,8 +203,8 @@ class Execution:
         return meta
 
     def _loop_metadata(self) -> dict | None:
-        if self.loop_solver is not None:
-            return self.loop_solver.metadata()
+        if self.linked is not None and self.linked.loop_solver is not None:
+            return self.linked.loop_solver.metadata()
         if self.plan.algebraic_loops:
             return {"mode": "delay", "loops": [loop.describe() for loop in self.plan.algebraic_loops]}
         return None
@@ -282,16 +212,17 @@ class Execution:
     def metadata(self) -> dict:
         """How the run went and ran: algorithm, interpreter (``kernel``, and ``python_operations``
         or ``kernel_reason``), threads, loops, grid, status, components, reuse and parameters."""
-        program = self.program
-        in_python = program.python_operations() if program is not None and self.kernel == "native" else {}
-        kernel = {"kernel": self.kernel} | ({"kernel_reason": self.kernel_reason} if self.kernel_reason else {}) \
+        linked, choice = self.linked, self.choice
+        name, reason = (choice.name, choice.reason) if choice is not None else ("python", "")
+        in_python = linked.python_operations() if linked is not None and name == "native" else {}
+        kernel = {"kernel": name} | ({"kernel_reason": reason} if reason else {}) \
             | ({"python_operations": in_python} if in_python else {}) \
-            | ({"threads": self.threads, "parallel_components": list(program.parallel_components),
-                "serial_components": dict(program.serial)} if self.threads > 1 and program is not None else {})
+            | ({"threads": self.threads, "parallel_components": list(linked.parallel_components),
+                "serial_components": dict(linked.serial)} if self.threads > 1 and linked is not None else {})
         return {
             "algorithm": self.algorithm, **kernel,
-            "gauss_seidel_order": self.plan.gauss_seidel_order if self.algorithm == "gauss-seidel" else None,
-            "feedthrough_sequence": self.plan.feedthrough_sequence,
+            "gauss_seidel_order": list(self.plan.gauss_seidel_order) if self.algorithm == "gauss-seidel" else None,
+            "feedthrough_sequence": list(self.plan.feedthrough_sequence),
             "algebraic_loops": self._loop_metadata(),
             "start_time": self.grid.start, "stop_time": self.grid.stop, "step_size": self.grid.step,
             "status": self.status, "last_time": self.last_time, "message": self.message,

@@ -16,16 +16,24 @@ stop request after a recorded row; or the end of the steps asked for.
 """
 from __future__ import annotations
 
+import warnings
+from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
 from .. import kernel as native
+from ..errors import SetupError
+from ..plan.prepare import ALGORITHMS
 from ..model.grid import Grid
 from .interrupts import StopRequest
 from ..record.observers import Recorder
-from .program import Program
+from .link import LinkedProgram
 
 #: why an interpreter returned: the steps asked for are done, an FMI status to handle, a stop request
 END, STATUS, STOP = "end", "status", "stop"
+#: which interpreter runs the step (``--kernel``)
+KERNELS = ("auto", "native", "python")
+
+_NOTICES: set[str] = set()
 
 
 class Event(NamedTuple):
@@ -66,7 +74,7 @@ class PythonInterpreter:
 
     name = "python"
 
-    def __init__(self, program: Program, grid: Grid):
+    def __init__(self, program: LinkedProgram, grid: Grid):
         self.program, self.grid = program, grid
         ops = program.operations
         top = program.top_level()
@@ -138,7 +146,7 @@ class NativeInterpreter:
 
     name = "native"
 
-    def __init__(self, program: Program, grid: Grid, python: PythonInterpreter,
+    def __init__(self, program: LinkedProgram, grid: Grid, python: PythonInterpreter,
                  sources: list[tuple[int, int, bool]], threads: int = 1):
         self.program, self.grid, self.python = program, grid, python
         self.kernel = native.Kernel([op.native for op in program.operations], sources, grid,
@@ -195,3 +203,62 @@ class NativeInterpreter:
 
     def close(self) -> None:
         self.kernel.close()
+
+
+def check_kernel(algorithm: str, kernel: str, threads: int) -> None:
+    """Refuse an unknown algorithm or kernel, a number of threads that is not a whole number of at
+    least 1, threads on anything but a Jacobi step of the compiled loop, and the compiled loop
+    asked for (``native``, or threads) where the library is missing."""
+    if algorithm not in ALGORITHMS:
+        raise SetupError(f"unknown algorithm '{algorithm}'; choose one of {', '.join(ALGORITHMS)}.",
+                         element="algorithm")
+    if kernel not in KERNELS:
+        raise SetupError(f"unknown kernel '{kernel}'; choose one of {', '.join(KERNELS)}.", element="--kernel")
+    if not (isinstance(threads, int) and threads >= 1):
+        raise SetupError(f"the number of threads must be a whole number of at least 1; got {threads!r}.",
+                         element="--threads")
+    if threads > 1 and (algorithm != "jacobi" or kernel == "python"):
+        raise SetupError(f"--threads {threads} steps components in parallel within a Jacobi step of the "
+                         f"compiled kernel; this run is {algorithm} with the {kernel} kernel.",
+                         element="--threads", hint="Run with --threads 1, or Jacobi and --kernel auto.")
+    if (kernel == "native" or threads > 1) and native.library()[0] is None:
+        raise SetupError(f"the compiled kernel cannot run this system: {native.library()[1]}.",
+                         element="--kernel",
+                         hint="Run with --kernel auto (which then runs the Python loop) or --kernel python.")
+
+
+@dataclass(frozen=True)
+class Choice:
+    """The interpreter a run's step is made by (``name``: "native" or "python"; ``reason``: under
+    "auto", why Python), and the Python interpreter, which makes initialisation's exchange and the
+    operations the compiled loop hands back."""
+    interpreter: Interpreter
+    python: PythonInterpreter
+    name: str
+    reason: str = ""
+
+
+def choose_interpreter(program: LinkedProgram, grid: Grid, kernel: str = "auto", threads: int = 1) -> Choice:
+    """The compiled loop unless ``kernel`` is "python"; under "auto" Python when the library is
+    missing (one notice per process) or no operation has a C form, saying why."""
+    python = PythonInterpreter(program, grid)
+    if kernel == "python":
+        return Choice(python, python, "python")
+    lib, reason = native.library()
+    if lib is None:
+        _notice_once(reason)
+        return Choice(python, python, "python", reason)
+    in_python = program.python_operations()
+    if kernel == "auto" and sum(in_python.values()) == len(program.top_level()):
+        return Choice(python, python, "python", "no operation of the step has a C form: " + "; ".join(in_python))
+    sources = [(ty.address(buf, 0), n, ty.integer) for ty in program.buffers if not ty.strings
+               for buf, n in ((ty.Ybuf, len(ty.Y)), (ty.Ubuf, len(ty.U)))]
+    return Choice(NativeInterpreter(program, grid, python, sources, threads), python, "native")
+
+
+def _notice_once(reason: str) -> None:
+    """Warn once per process that the Python loop runs for ``reason`` (the library is missing)."""
+    if reason not in _NOTICES:
+        _NOTICES.add(reason)
+        warnings.warn(f"{reason}; running the Python stepping loop (same results, slower).", RuntimeWarning,
+                      stacklevel=4)

@@ -1,6 +1,6 @@
 """What a run ended with (issue 29): the value `cosim.run.simulation.run` returns, and that a run
 which failed half way hands on with its exception (``error.run_outcome``), so nothing recorded
-before the failure is lost.  Callers (the CLI, a sweep's worker, `cosim.plan.single`) read it; no
+before the failure is lost.  Callers (the CLI, a sweep's worker, `cosim.run.simulation.simulate`) read it; no
 one writes the execution's status or edits an error's text to report a run.
 """
 from __future__ import annotations

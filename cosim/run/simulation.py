@@ -1,150 +1,57 @@
-"""The run as a user asks for it: read, locate, validate, then execute and record.
+"""The run as a user asks for it: prepared (`cosim.plan.prepare`), then executed and recorded.
 
-`prepare` does everything that can fail before an FMU is instantiated: `validate`
-(read, locate the FMUs, build the `cosim.model.structure.Plan`) and `resolve_grid` (the
-time grid and algorithm from the arguments and the SSD); `simulate` runs a prepared
-system and returns the samples as a NumPy structured array (like ``fmpy.simulate_fmu``),
-writing them to a CSV as it goes if asked.
+`run` executes a `cosim.plan.prepare.Prepared` run and records it (the observers, the journal, the
+metadata), returning its `cosim.run.outcome.RunOutcome`; `simulate` (and `simulate_fmu`, its name
+in fmpy's words) prepares and runs in one call and returns the samples as a NumPy structured array
+(like ``fmpy.simulate_fmu``), writing them to a result file as it goes if asked.
 """
 from __future__ import annotations
 
-import fnmatch
 import functools
 import math
 import os
 import warnings
 from collections.abc import Mapping, Sequence
 from contextlib import nullcontext
-from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..read import ssp
-from ..model.fmu import unit_of
-from ..errors import ComponentLost, CosimError, OutOfMemory, OutputError, RunError, SetupError, did_you_mean
-from .execution import ALGORITHMS, Execution, Grid
+from ..errors import ComponentLost, CosimError, OutOfMemory, OutputError, RunError, SetupError
+from ..model.structure import LoopMode, Plan
+from ..plan.prepare import Prepared, prepare
+from ..record.journal import RunJournal
+from ..record.metadata import signal_info
+from ..record.observers import DerivedColumns, MemorySink, Recorder, SystemOutputColumns, file_sink
+from ..safeio import lock_output
+from .execution import Execution
+from .program import compile as compile_program
 from .instances import Unzipped
 from .instances.isolated import Isolation
 from .instances.reuse import InstancePool
 from .interrupts import StopRequest
-from ..record.journal import RunJournal
-from ..record.observers import DerivedColumns, MemorySink, Recorder, SystemOutputColumns, file_sink
-from .outcome import RunOutcome
-from ..plan.build import build_plan
-from ..read.resources import locate_fmus
-from ..safeio import lock_output
 from .loops import LoopSettings
-from ..model.structure import LoopMode, Plan
-
-
-@dataclass(frozen=True)
-class Prepared:
-    """A validated plan on a resolved grid: what `run` executes."""
-    plan: Plan
-    grid: Grid
-    algorithm: str
-    step_source: str
-    parameter_sets: tuple[str, ...] = ()     # the --param-set files, in the order applied
-
-    def close(self) -> None:
-        """Remove the extraction folder of an .ssp archive the plan owns (`Plan.close`)."""
-        self.plan.close()
-
-    def __enter__(self) -> Prepared:
-        """``with prepare(...) as prepared:`` the caller owns the extracted archive until the block ends."""
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-def validate(path: str | Path, *, parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
-             use_providers: bool = True, loops: LoopMode = "iterate") -> Plan:
-    """Read, locate and check a system against its FMUs (`cosim.plan.build.build_plan`; ``loops``:
-    how algebraic loops are run, `cosim.run.loops`); nothing is instantiated.  The plan owns an
-    extracted archive until it is closed."""
-    structure = ssp.load(path)
-    try:
-        extra = [p for ps in parameter_sets for p in ssp.read_ssv(ps)]
-        fmu_paths = locate_fmus(structure, [Path(d) for d in fmu_dirs], use_providers=use_providers)
-        ssp.read_component_bindings(structure, fmu_paths)
-        return build_plan(structure, fmu_paths, extra, loops)
-    except BaseException:
-        structure.close()
-        raise
-
-
-def resolve_grid(plan: Plan, *, start_time: float | None = None, stop_time: float | None = None,
-                 step_size: float | None = None, algorithm: str | None = None,
-                 options: Mapping[str, str] | None = None) -> Prepared:
-    """The time grid and algorithm of a run: the arguments given, else the SSD's default
-    experiment and annotations (`cosim.model.structure.Experiment`); a missing stop time or step
-    size, or an unknown algorithm, is refused.  ``options``: the command-line option each
-    given argument came from, which a refused value is blamed on ("start time", "stop time",
-    "step size" -> e.g. "--stop"; default: --start, --stop and --step for those given)."""
-    experiment, file = plan.experiment, plan.files.display
-    start = start_time if start_time is not None else (experiment.start_time or 0.0)
-    stop = stop_time if stop_time is not None else experiment.stop_time
-    if stop is None:
-        raise SetupError("no stop time: the SSD has no ssd:DefaultExperiment stopTime; pass --stop.", file=file)
-    if step_size is not None:
-        step, source = step_size, "command line"
-    elif experiment.step_size is not None:
-        step, source = experiment.step_size, experiment.step_size_source
-    else:
-        raise SetupError(
-            "no step size: pass --step, or add one to ssd:DefaultExperiment/ssd:Annotations — ours "
-            f"(<ssc:Annotation type=\"{ssp.GREYFMU_ANNOTATION}\"><greyfmu:Simulation "
-            f"xmlns:greyfmu=\"{ssp.GREYFMU_NS}\" stepSize=\"0.1\"/></ssc:Annotation>), OSP's "
-            "osp:FixedStepAlgorithm baseStepSize or OpenModelica's oms:FixedStepMaster stepSize.",
-            file=file, element="ssd:DefaultExperiment")
-    algo = algorithm or experiment.algorithm or "jacobi"
-    if algo not in ALGORITHMS:
-        raise SetupError(f"unknown algorithm '{algo}'; choose one of {', '.join(ALGORITHMS)}.", file=file)
-    try:
-        grid = Grid(start, stop, step)
-    except SetupError as e:  # name the option or the SSD element the offending time came from
-        values = {"start time": start_time, "stop time": stop_time, "step size": step_size}
-        if options is None:
-            options = {"start time": "--start", "stop time": "--stop", "step size": "--step"}
-        if e.element in options and values.get(e.element) is not None:
-            raise SetupError(e.detail, element=f"{options[e.element]} {values[e.element]:g}", hint=e.hint) from None
-        element = {"stop time": "ssd:DefaultExperiment stopTime",
-                   "start time": "ssd:DefaultExperiment startTime"}.get(e.element, e.element)
-        raise SetupError(e.detail, file=file, element=element, hint=e.hint) from None
-    return Prepared(plan, grid, algo, source)
-
-
-def prepare(path: str | Path, *, start_time: float | None = None, stop_time: float | None = None,
-            step_size: float | None = None, algorithm: str | None = None,
-            parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
-            use_providers: bool = True, loops: LoopMode = "iterate") -> Prepared:
-    """`validate`, then `resolve_grid`; nothing is instantiated."""
-    plan = validate(path, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs, use_providers=use_providers,
-                    loops=loops)
-    try:
-        prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step_size,
-                                algorithm=algorithm)
-        return replace(prepared, parameter_sets=tuple(str(p) for p in parameter_sets))
-    except BaseException:
-        plan.close()
-        raise
+from .outcome import RunOutcome
 
 
 def simulate(path: str | Path, *, start_time: float | None = None, stop_time: float | None = None,
              step_size: float | None = None, algorithm: str | None = None,
              parameter_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
+             start_values: Mapping[str, object] | None = None, input_file: str | Path | None = None,
+             output_interval: float | None = None, fmi_type: str | None = None,
              output: str | Path | None = None, progress: bool = False,
              use_providers: bool = True, fmu_log: str = "errors", loops: LoopMode = "iterate",
              loop_settings: LoopSettings | None = None, isolate: bool = False,
              call_timeout: float | None = None, kernel: str = "auto", threads: int = 1) -> np.ndarray:
-    """Run an SSP system and return every connector at every communication point.
+    """Run an SSP system (or one FMU) and return every connector at every communication point.
 
     The result is a structured array with a ``time`` field and one field per
     connector named ``component.variable`` (in a nested system the component is
     its path relative to the root system, ``loop.controller.u``), plus one per
-    output connector of the root system, under its own name.  With ``output`` the samples are
+    output connector of the root system, under its own name.  ``start_values`` by name
+    (``{"controller.Kc": 2}``; ``{"gain": 3}`` for one FMU: the names of ``--start-value``),
+    ``input_file`` an input table (`cosim.plan.inputs`), ``output_interval`` and ``fmi_type``
+    fmpy's options (`cosim.plan.prepare.prepare`).  With ``output`` the samples are
     also written to that CSV (or Parquet file, by its suffix) as the run goes
     (metadata in ``<output>.json``): to ``<output>.part``, renamed onto ``output`` when the run
     ends, and under ``<output>.lock`` (`cosim.safeio.lock_output`), so another process writing
@@ -160,9 +67,12 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     ``kernel`` and ``threads``: which stepping loop runs, see `run`.
     """
     isolation_of(isolate, call_timeout)  # refused before anything is read
+    texts = [f"{name}={str(value).lower() if isinstance(value, bool) else value}"
+             for name, value in (start_values or {}).items()]
     prepared = prepare(path, start_time=start_time, stop_time=stop_time, step_size=step_size,
                        algorithm=algorithm, parameter_sets=parameter_sets, fmu_dirs=fmu_dirs,
-                       use_providers=use_providers, loops=loops)
+                       use_providers=use_providers, loops=loops, start_values=texts, input_file=input_file,
+                       output_interval=output_interval, fmi_type=fmi_type)
     with prepared, lock_output(output, option="output") if output is not None else nullcontext():
         outcome = run(prepared, output=output, progress=progress, fmu_log=fmu_log,
                       loop_settings=loop_settings, isolate=isolate,
@@ -170,6 +80,10 @@ def simulate(path: str | Path, *, start_time: float | None = None, stop_time: fl
     if outcome.status == "discarded":
         warnings.warn(outcome.message, RuntimeWarning, stacklevel=2)
     return outcome.result
+
+
+#: ``fmpy.simulate_fmu``'s name for `simulate`: one FMU (or a system) as ``cosim run`` runs it
+simulate_fmu = simulate
 
 
 def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool = False,
@@ -202,15 +116,16 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     isolation = isolation_of(isolate, call_timeout)
     plan = prepared.plan
     memory = MemorySink(keep)
-    derived = DerivedColumns.of(list(plan.system_outputs.values()), ["time"] + plan.columns)
+    derived = DerivedColumns.of(list(plan.system_outputs.values()), ["time", *plan.columns])
     observers = [SystemOutputColumns(derived, [memory] + ([file_sink(output)] if output is not None else []))]
     execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, isolation,
                           kernel, threads, pool)
+    program = compile_program(plan, prepared.algorithm)   # from the plan alone
     recorder = None
     bar = None
     try:
         execution.instantiate()
-        names, arrays = execution.recorder_sources()
+        names, arrays = execution.link(program).recorder_sources()
         journaled = output is not None and journal
         recorder = Recorder(names, arrays, plan.columns, observers,
                             journal=_journal(output, plan, derived, _metadata(prepared, execution)) if journaled else None)
@@ -290,7 +205,7 @@ def isolation_of(isolate: bool, call_timeout: float | None) -> Isolation | None:
 def _journal(output: str | Path, plan: Plan, derived: DerivedColumns, metadata: dict) -> RunJournal:
     """The journal of a run writing ``output`` (`cosim.record.journal.RunJournal`): its header holds what
     `cosim.record.journal.recover` needs to write the result files without the plan."""
-    return RunJournal(output, ["time"] + plan.columns, derived, metadata,
+    return RunJournal(output, ["time", *plan.columns], derived, metadata,
                       temporary=[Unzipped.folder()] if Unzipped.folder() else [])
 
 
@@ -342,7 +257,7 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
             meta["undriven_system_outputs"] = undriven
     meta["isolation"] = execution.isolation.metadata() if execution.isolation is not None else None
     meta["step_size_source"] = prepared.step_source
-    meta["units"] = plan.units
+    meta["units"] = dict(plan.units)
     meta["parameter_sets"] = [_portable(p, *named) for p in prepared.parameter_sets]
     for component in meta.get("components", {}).values():
         component["fmu"] = _portable(component["fmu"], scenario, Path.cwd())
@@ -350,43 +265,3 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
                                  for sv in plan.start_values}
     meta.update(signal_info(plan))
     return meta
-
-
-def signal_info(plan: Plan) -> dict:
-    """What a plot or report needs to label a result: each recorded connector's description
-    (from its FMU), the connections (``src.var -> dst.var``) and the transformation of each that
-    has one (`cosim.model.transforms.Transform.text`, of the source's name)."""
-    variables = {f"{c}.{v.name}": v for c in plan.outputs for v in plan.outputs[c] + plan.inputs[c]}
-    connections = [r.label for r in plan.routes]
-    transforms = {r.label: r.transform.text(r.source) for r in plan.routes
-                  if not r.transform.identity}
-    return {"descriptions": {n: v.description for n, v in variables.items() if v.description},
-            "connections": connections, "transforms": transforms,
-            # sampled outputs (FMI variability discrete): held between samples, drawn as steps
-            "discrete": sorted(n for n, v in variables.items() if v.variability == "discrete"),
-            "parameter_descriptions": {f"{sv.component}.{sv.variable.name}": sv.variable.description
-                                       for sv in plan.start_values if sv.variable.description},
-            "parameter_units": {f"{sv.component}.{sv.variable.name}": unit_of(sv.variable)
-                                for sv in plan.start_values if unit_of(sv.variable)}}
-
-
-def signal_units(plan: Plan) -> dict[str, tuple[str, bool]]:
-    """Each recorded signal's unit and whether it is "as wired" (`cosim.present.plots.units`)."""
-    from ..present.plots import units
-
-    info = signal_info(plan)
-    return units({"units": plan.units, "connections": info["connections"], "transforms": info["transforms"],
-                  "components": {name: {"fmu": str(d.path)} for name, d in plan.fmus.items()}})
-
-
-def select(names: Sequence[str], patterns: Sequence[str], option: str = "--signals") -> list[str]:
-    """Names matching any glob pattern, in the order of ``names``; an unmatched pattern is an error
-    naming the ``option`` it was given with."""
-    chosen = []
-    for pattern in patterns:
-        matched = [n for n in names if fnmatch.fnmatchcase(n, pattern)]
-        if not matched:
-            raise SetupError(f"no signal matches '{pattern}'.", element=option,
-                             hint=did_you_mean(pattern, names) or f"Signals: {', '.join(names[:12])}.")
-        chosen += [n for n in matched if n not in chosen]
-    return chosen

@@ -26,7 +26,8 @@ from .instances.base import fmi_failure
 from .interpreters import STATUS, STOP, Event, Interpreter
 from .interrupts import StopRequest
 from ..record.observers import Recorder
-from .program import OP_STEP, Program
+from .link import LinkedProgram
+from .program import OP_STEP
 
 FMI_WARNING, FMI_DISCARD = 1, 2
 
@@ -42,7 +43,7 @@ class Ending:
 class Stepping:
     """Steps ``program`` from start to stop of ``grid`` on ``interpreter`` (see the module docstring)."""
 
-    def __init__(self, program: Program, grid: Grid, interpreter: Interpreter):
+    def __init__(self, program: LinkedProgram, grid: Grid, interpreter: Interpreter):
         self.program, self.grid, self.interpreter = program, grid, interpreter
 
     @property

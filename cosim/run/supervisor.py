@@ -1,6 +1,6 @@
 """`cosim run` in a child process watched by its parent: a crash loses nothing, a hang ends.
 
-The parent forks after the system is validated (`cosim.run.simulation.prepare`); the child runs
+The parent forks after the system is prepared (`cosim.plan.prepare.prepare`); the child runs
 it, its rows in the journal (`cosim.record.journal`) as they are recorded.  When the child ends
 without having finished its result files (killed by a signal: ``abort()``, a segfault;
 ``_exit()`` from inside an FMU), the parent turns the journal into the CSV/Parquet and the

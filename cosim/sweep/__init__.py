@@ -51,8 +51,9 @@ from typing import Any
 from ..errors import CosimError
 from ..record.outputs import check_sweep_folder
 from ..safeio import lock_output, max_unpacked_bytes
-from ..run.simulation import Grid, Prepared, signal_units
-from ..plan.single import Scenario, load_scenario, prepare_scenario
+from ..model.grid import Grid
+from ..plan.prepare import Prepared, Scenario, load_scenario, prepare_scenario
+from ..present.plots import signal_units
 from .batch import BatchedTable
 from .cluster import check_scheduler, dispatch_cluster
 from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
@@ -117,7 +118,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
     """Run every combination of ``sets`` (name -> values, strings parsed by the variable's type)
     times ``seeds`` and write the results table (see the module docstring).  ``start_values``
     (``component.variable=value``) and ``input_file`` (an input table) apply to every run as
-    `cosim run`'s --start-value and --input-file do (`cosim.plan.single.prepare_run`).
+    `cosim run`'s --start-value and --input-file do (`cosim.plan.prepare.prepare`).
     ``run_files``: write each run's ``runs/<id>.csv``, ``.json`` and ``.ssv`` (False: the table
     only, and a rerun reruns every run); ``reuse``: each worker keeps the scenario and the FMU
     instances across its runs (`cosim.sweep.worker`; False: every run read and instantiated afresh).

@@ -20,8 +20,8 @@ import numpy as np
 from ..errors import CosimError, Errc, SetupError
 from ..present.metrics import METRICS, step_response
 from ..safeio import unpack_limit
-from ..run.simulation import Prepared, run
-from ..plan.single import prepare_run
+from ..plan.prepare import Prepared, prepare
+from ..run.simulation import run
 from .values import Metric
 from .worker import kept_for, prepare_task, release
 
@@ -76,10 +76,10 @@ def execute(task: Task) -> dict[str, Any]:
                 prepared = task.prepared if task.prepared is not None else prepare_task(task, kept)
                 outcome = run(prepared, output=output, pool=kept.pool)
             else:
-                with prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
-                                 step_size=task.step, algorithm=task.algorithm,
-                                 parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
-                                 start_values=task.start_values, input_file=task.input_file) as prepared:
+                with prepare(task.scenario, start_time=task.start, stop_time=task.stop,
+                             step_size=task.step, algorithm=task.algorithm,
+                             parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
+                             start_values=task.start_values, input_file=task.input_file) as prepared:
                     outcome = run(prepared, output=output)
         result = outcome.result
         if outcome.status == "discarded":

@@ -24,7 +24,7 @@ from typing import Any
 from ..present.pack import pack
 from ..errors import SetupError
 from ..safeio import extract_archive, file_name, write_atomic
-from ..run.simulation import Prepared
+from ..plan.prepare import Prepared
 from ..read.ssp import SSD_NAME
 from .dispatch import Task, execute
 

@@ -8,8 +8,8 @@ of (one at a time):
 - for a task that does not carry its plan (`cosim.sweep.dispatch.Task.prepared`: a local sweep
   prepares every run's plan in its own process and ships it pickled), the scenario read, its
   FMUs located and its shared parameter sets and input table read
-  (`cosim.plan.single.load_scenario`): each run's plan is then made from it with the run's own
-  parameter set (`cosim.plan.single.prepare_scenario`, the same checks as ``cosim run``'s), so the
+  (`cosim.plan.prepare.load_scenario`): each run's plan is then made from it with the run's own
+  parameter set (`cosim.plan.prepare.prepare_scenario`, the same checks as ``cosim run``'s), so the
   swept values may be parameters or start values of any kind: nothing about the plan is kept
   from one run to the next but what the run's values cannot change;
 - its FMU instances, reset after each completed run and re-initialised by the next
@@ -28,8 +28,7 @@ import atexit
 from dataclasses import dataclass
 
 from ..run.instances.reuse import InstancePool
-from ..run.simulation import Prepared
-from ..plan.single import Scenario, load_scenario, prepare_scenario
+from ..plan.prepare import Prepared, Scenario, load_scenario, prepare_scenario
 
 
 @dataclass

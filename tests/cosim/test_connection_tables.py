@@ -13,7 +13,8 @@ import pytest
 import cosim
 from cosim.cli import main
 from cosim.errors import RunError, SetupError
-from cosim.run.simulation import prepare, run
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 from tablefmus import LEVELS, VARIABLES, build_tables_fmu
 
 NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '

@@ -143,7 +143,7 @@ def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(
 
 def test_checks_passed_are_kept_by_content_and_failures_are_not(tmp_path, c_fmus, monkeypatch):
     import cosim.read.loadable
-    from cosim.plan.build import _describe
+    from cosim.read.description import describe_fmu as _describe
 
     root = tmp_path / "cache"
     monkeypatch.setenv("COSIM_FMU_CACHE", str(root))

@@ -22,7 +22,8 @@ from cfmus import build_c_fmu
 from cosim.errors import SetupError
 from cosim.run.interrupts import stop_on_signals
 from cosim.kernel import ABI_VERSION, _Program, library
-from cosim.run.simulation import prepare, run
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 from runhelpers import assert_same, run_kernel as _run
 from ssdgen import ssd_text, write_system
 
@@ -235,7 +236,7 @@ def test_what_c_cannot_call_python_makes_within_the_compiled_loop(tmp_path, bloc
 
 def test_without_the_library_auto_runs_python_with_one_notice(tmp_path, blocks):
     folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.1)
-    script = (f"import warnings, cosim\nfrom cosim.run.simulation import prepare, run\n"
+    script = (f"import warnings, cosim\nfrom cosim.plan.prepare import prepare\nfrom cosim.run.simulation import run\n"
               f"warnings.simplefilter('always')\n"
               f"for _ in range(2):\n"
               f"    p = prepare({str(folder)!r})\n"
@@ -330,34 +331,36 @@ def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, mon
 
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 def test_the_step_is_one_program_both_interpreters_run(tmp_path, blocks, algorithm):
-    """`cosim.run.program.compile_step` on a live execution: Jacobi's doSteps first, or Gauss–Seidel's
-    routes, sets, doStep and gets per component in dependency order; then the exchange (gets,
-    the settling of the feedthrough chain, the routes, the sets); every operation of these C
-    FMUs has a C form, FMI 3.0 doSteps a post-step."""
+    """`cosim.run.program.compile` from the plan: Jacobi's doSteps first, or Gauss–Seidel's routes,
+    sets, doStep and gets per component in dependency order; then the exchange (gets, the settling
+    of the feedthrough chain, the routes, the sets).  Linked to live C FMUs (`cosim.run.link`),
+    every operation has a C form, FMI 3.0 doSteps a post-step."""
     from cosim.run.execution import Execution
-    from cosim.run.program import OP_GET, OP_ROUTE, OP_SET, OP_STEP
+    from cosim.run.program import OP_GET, OP_ROUTE, OP_SET, OP_STEP, compile
 
     prepared = prepare(_chain(tmp_path, blocks, ["Block", "Block3", "Block"], stop=0.1), algorithm=algorithm)
+    program = compile(prepared.plan, algorithm)
+    step = [(op.kind, op.component) for op in program.ops[:program.step_ops]]
+    if algorithm == "jacobi":
+        assert step == [(OP_STEP, "b0"), (OP_STEP, "b1"), (OP_STEP, "b2")]
+    else:
+        order = prepared.plan.gauss_seidel_order
+        assert [c for kind, c in step if kind == OP_STEP] == list(order)
+        for comp in order:  # its inputs before its doStep, its outputs after
+            kinds = [kind for kind, c in step if c == comp]
+            assert kinds.index(OP_STEP) > kinds.index(OP_SET) and kinds[-1] == OP_GET
+    exchange = [op.kind for op in program.ops[program.step_ops:]]
+    assert exchange[0] == OP_GET and exchange[-1] == OP_SET and OP_ROUTE in exchange
+    assert program.top_level() == list(range(len(program.ops)))
     execution = Execution(prepared.plan, prepared.grid, algorithm)
     try:
         execution.instantiate()
-        program = execution.program
-        ops = program.operations
-        step = [(op.kind, op.component) for op in ops[:program.step_ops]]
-        if algorithm == "jacobi":
-            assert step == [(OP_STEP, "b0"), (OP_STEP, "b1"), (OP_STEP, "b2")]
-        else:
-            order = prepared.plan.gauss_seidel_order
-            assert [c for kind, c in step if kind == OP_STEP] == order
-            for comp in order:  # its inputs before its doStep, its outputs after
-                kinds = [kind for kind, c in step if c == comp]
-                assert kinds.index(OP_STEP) > kinds.index(OP_SET) and kinds[-1] == OP_GET
-        exchange = [op.kind for op in ops[program.step_ops:]]
-        assert exchange[0] == OP_GET and exchange[-1] == OP_SET and OP_ROUTE in exchange
-        assert all(op.native is not None for op in ops) and program.python_operations() == {}
-        assert [op.component for op in ops if op.post_step is not None] == ["b1"]   # fmi3DoStep's out-arguments
-        assert program.top_level() == list(range(len(ops)))
-        assert execution.kernel == "native"
+        linked = execution.link(program)
+        assert [(op.kind, op.component, op.type_name) for op in linked.operations] == \
+            [(op.kind, op.component, op.type_name) for op in program.ops]
+        assert all(op.native is not None for op in linked.operations) and linked.python_operations() == {}
+        assert [op.component for op in linked.operations if op.post_step is not None] == ["b1"]   # fmi3DoStep's out-arguments
+        assert execution.choice.name == "native"
     finally:
         execution.close()
         prepared.close()

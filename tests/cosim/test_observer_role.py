@@ -21,7 +21,8 @@ from cosim.record.observers import (CsvSink, DerivedColumns, MemorySink, Observe
                              SystemOutputColumns, file_sink)
 from cosim.run.outcome import RunOutcome
 from cosim.record.results import read
-from cosim.run.simulation import prepare, run
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 from cosim.model.structure import RecordedOutput
 from cosim.model.transforms import Affine
 from ssdgen import ssd_text, write_system

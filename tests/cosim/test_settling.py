@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from cosim.plan.prepare import prepare
 from cosim.run import simulation
 from cosim.model.transforms import IDENTITY
 from cosim.plan.graph import Route, settling_shortcuts
@@ -57,7 +58,7 @@ def feedthrough_loop(tmp_path, twin_fmus):
 def test_the_shortcuts_change_no_value(feedthrough_loop, algorithm):
     results = []
     for shortcuts in (True, False):
-        prepared = simulation.prepare(feedthrough_loop, algorithm=algorithm)
+        prepared = prepare(feedthrough_loop, algorithm=algorithm)
         try:
             assert prepared.plan.read_in_settling_only == {"sum", "g1", "g2"}
             if not shortcuts:  # the Plan is frozen: a copy without the shortcuts

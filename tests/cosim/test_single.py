@@ -1,4 +1,4 @@
-"""`cosim run X.fmu` and the options of fmpy simulate (issue 30, item 1; `cosim.plan.single`,
+"""`cosim run X.fmu` and the options of fmpy simulate (issue 30, item 1; `cosim.plan.prepare`, `cosim.read.single`,
 `cosim.plan.inputs`): one FMU without an SSD, an input table (fmpy's format and interpolation rules),
 start values, the output interval and the FMI type, checked against ``fmpy.simulate_fmu`` given
 the same FMU, table and values, on a C FMU compiled here (tests/single_fmus.py)."""
@@ -13,7 +13,8 @@ from fmpy.simulation import Input
 from fmpy.util import read_csv
 
 from cosim.cli import main
-from cosim.plan.inputs import interpolate, read_input_table
+from cosim.read.inputs import read_input_table
+from cosim.run.feed import interpolate
 from cosim.record.results import read
 from single_fmus import build_drive
 from ssdgen import ssd_text, write_system

@@ -14,8 +14,10 @@ from cosim.model.frozen import FrozenMap
 from cosim.model.transforms import IDENTITY, Affine, Chain, Table, Unmapped, chain, compose, from_json
 from cosim.plan.build import build_plan
 from cosim.read import ssp
+from cosim.read.description import describe_fmus
 from cosim.read.resources import locate_fmus
-from cosim.run.simulation import resolve_grid, run
+from cosim.plan.prepare import resolve_grid
+from cosim.run.simulation import run
 from ssdgen import ssd_text, write_system
 
 TABLE = Table(FrozenMap({1: 10, 2: 20, 3: 30}), False, "ssc:IntegerMappingTransformation (line 4)")
@@ -112,7 +114,7 @@ def test_a_new_kind_is_one_class_every_consumer_takes(tmp_path, twin_fmus):
     structure.system_outputs = {n: dataclasses.replace(o, hops=tuple(dataclasses.replace(h, transform=clamp)
                                                                       for h in o.hops))
                                 for n, o in structure.system_outputs.items()}
-    plan = build_plan(structure, locate_fmus(structure, use_providers=False))
+    plan = build_plan(structure, describe_fmus(structure, locate_fmus(structure, use_providers=False)))
     assert [r.transform for r in plan.routes] == [clamp] and plan.system_outputs["out"].transform == clamp
     results = {}
     for kernel in ("python", "native"):

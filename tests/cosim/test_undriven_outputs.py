@@ -19,7 +19,8 @@ import pytest
 import cosim
 from cfmus import build_c_fmu, fmi2_description
 from cosim.cli import main
-from cosim.run.simulation import prepare, run
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 from ssdgen import write_system
 
 CLOCK_BODY = ("static void start(S *s) {}\n"

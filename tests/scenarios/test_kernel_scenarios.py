@@ -9,7 +9,8 @@ import pytest
 
 from cosim.errors import SetupError
 from cosim.kernel import library
-from cosim.run.simulation import prepare, run
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 from runhelpers import assert_same, run_kernel as _run
 from peers import gemseo_fmu_dir
 

@@ -292,6 +292,6 @@ def test_a_nested_output_feeding_nothing_is_harmless(built_fmus, tmp_path):
                       + _connection("load", "y", "loop", "d", OUTER_TF))
     prepared = cosim.prepare(write(tmp_path / "n", text))
     try:
-        assert len(prepared.plan.routes) == 4 and not prepared.plan.structure.system_outputs
+        assert len(prepared.plan.routes) == 4 and not prepared.plan.system_outputs
     finally:
         prepared.close()

@@ -18,7 +18,8 @@ import pytest
 from pythonfmu.builder import FmuBuilder
 
 from cosim.errors import SetupError
-from cosim.run.simulation import prepare, run
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 from cosim.model.transforms import IDENTITY, Affine
 from cosim.model.units import BUILTIN, conversion, make_unit
 from testfmus import edited_copy
