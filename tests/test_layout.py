@@ -1,68 +1,19 @@
-"""The master's tests run with only what they test (issue 29): `tests/cosim/` needs the C test
-FMUs (tests/cfmus.py, compiled here) and the third-party exports, never pythonfmu.
-
-The guard runs the whole of `tests/cosim/` (about 30 s) in a child pytest whose
-``sitecustomize.py`` makes ``pythonfmu``, ``pythonfmu3`` and ``greyfmu.build`` unimportable,
-as on a machine with only the master installed; the tests that need them live in
-`tests/scenarios/` (our FMUs, the `ssp/` scenarios, the pythonfmu FMUs of tests/fmus) and
-`tests/slaves/`.
-"""
+"""The layout of the project as the tests rely on it: what may import fmpy, what the data model
+imports, that docs/architecture.md names every module, and that without pythonfmu the master names
+the provider it cannot load.  That `tests/cosim/` runs without pythonfmu is checked around each of
+its tests (tests/cosim/conftest.py, tests/blocker.py; issue 29 ran all of tests/cosim a second time
+in a child pytest for it, issue 40 checks it in the run itself)."""
 from __future__ import annotations
 
 import ast
-import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
+from blocker import environment
+
 ROOT = Path(__file__).resolve().parents[1]
-#: tests of tests/cosim that ran (passed, or skipped for want of a tmpfs, Dask or the compiled
-#: kernel) under the blocker when the pythonfmu ones were moved out (issue 29: 235 passed; 332
-#: once the tests needing only "some" source, gain, sum or lag ran on the C twins of our Step, Gain,
-#: Sum and FirstOrderFilter, tests/twin_fmus.py; 338 with main's test_undriven_outputs.py; 339 with the
-#: plan pickle round trip of test_plan.py; 354 with the step program's tests: both interpreters on
-#: iterated loops, FMI 3.0 conversions, Binary, tables, and the program's shape; 355 with two local
-#: clusters at once; 356 with test_docstrings.py)
-AT_LEAST = 356
-
-BLOCKER = '''"""Make pythonfmu, pythonfmu3 and greyfmu.build unimportable (tests/test_layout.py)."""
-import sys
-
-BLOCKED = ("pythonfmu", "pythonfmu3", "greyfmu.build")
-
-
-class Blocker:
-    def find_spec(self, name, path=None, target=None):
-        if any(name == b or name.startswith(b + ".") for b in BLOCKED):
-            raise ImportError(f"{name} is blocked by tests/test_layout.py")
-        return None
-
-
-sys.meta_path.insert(0, Blocker())
-'''
-
-
-def _blocked_env(tmp_path: Path) -> dict[str, str]:
-    (tmp_path / "sitecustomize.py").write_text(BLOCKER)
-    paths = [str(tmp_path), *filter(None, [os.environ.get("PYTHONPATH")])]
-    return dict(os.environ, PYTHONPATH=os.pathsep.join(paths))
-
-
-def test_the_blocker_hides_pythonfmu(tmp_path):
-    env = _blocked_env(tmp_path)
-    for module in ("pythonfmu", "pythonfmu3", "greyfmu.build"):
-        done = subprocess.run([sys.executable, "-c", f"import {module}"], env=env, capture_output=True, text=True)
-        assert done.returncode == 1 and f"{module} is blocked by tests/test_layout.py" in done.stderr, done.stderr
-
-
-def test_tests_cosim_pass_without_pythonfmu(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "pytest", "tests/cosim", "-q", "-x", "-p", "no:cacheprovider"],
-                          cwd=ROOT, env=_blocked_env(tmp_path), capture_output=True, text=True, timeout=600)
-    tail = done.stdout[-3000:] + done.stderr[-2000:]
-    assert done.returncode == 0, tail
-    counts = {what: int(n) for n, what in re.findall(r"(\d+) (passed|skipped|failed|errors?)\b", done.stdout)}
-    assert counts.get("passed", 0) + counts.get("skipped", 0) >= AT_LEAST, tail
 
 
 def test_a_provider_that_cannot_be_imported_is_named_not_raised(tmp_path, twin_fmus):
@@ -73,7 +24,7 @@ def test_a_provider_that_cannot_be_imported_is_named_not_raised(tmp_path, twin_f
     from ssdgen import ssd_text, write_system
 
     folder = write_system(tmp_path / "sys", {}, ssd_text("t", {"g": ("Gain.fmu", {"u": "input", "y": "output"})}, []))
-    env = _blocked_env(tmp_path)
+    env = environment(tmp_path / "blocker")
     missing = subprocess.run([sys.executable, "-m", "cosim.cli", "validate", str(folder)], cwd=ROOT, env=env,
                              capture_output=True, text=True, timeout=120)
     assert missing.returncode == 2 and "Traceback" not in missing.stderr, missing.stderr

@@ -36,12 +36,11 @@ import time as _time
 import warnings
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import ComponentLost, RunError
 from ..model.fmu import FMUDescription
 from ..model.grid import Grid
 from ..model.structure import Plan
+from ..record.observers import Recorder
 from .instances import Instance, Unzipped, open_instance
 from .instances.base import STATUS, fmi_failure
 from .instances.isolated import Isolation
@@ -51,7 +50,6 @@ from .interrupts import StopRequest
 from .link import LinkedProgram, link
 from .loops import LoopSettings
 from .program import StepProgram
-from ..record.observers import Recorder
 from .stepping import Stepping
 
 __all__ = ["Execution"]

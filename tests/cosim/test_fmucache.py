@@ -19,6 +19,8 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
 from native_systems import FAMILIES, build_family, native_system, write_native_system  # noqa: E402
+import subprocess
+from cosim.read.fmucache import MARKER, digest
 
 
 @pytest.fixture(scope="module")
@@ -165,3 +167,35 @@ def test_checks_passed_are_kept_by_content_and_failures_are_not(tmp_path, c_fmus
         with pytest.raises(SetupError, match="no binary for this platform"):
             _describe(broken, "here", "x.ssd", "any")
     assert len(list((root / "verdicts").glob(f"{digest(broken)}-*"))) == 2   # archive and schema, not library
+
+
+# --------------------------------------------------------------------------- on our FMUs (pythonfmu)
+
+
+_RACE = """
+import sys, time
+from pathlib import Path
+from cosim.read.fmucache import unpacked
+go = Path(sys.argv[3])
+while not go.exists():
+    time.sleep(0.001)
+print(unpacked(Path(sys.argv[1]), Path(sys.argv[2])))
+"""
+
+
+@pytest.mark.pythonfmu
+def test_concurrent_processes_populating_the_cache_make_one_complete_entry(tmp_path, built_fmus):
+    fmu, root, go = built_fmus["PID"], tmp_path / "cache", tmp_path / "go"
+    procs = [subprocess.Popen([sys.executable, "-c", _RACE, str(fmu), str(root), str(go)], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, cwd=ROOT) for _ in range(4)]
+    go.touch()
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert [p.returncode for p in procs] == [0] * 4, [err for _, err in outs]
+    entry = root / digest(fmu)
+    assert {out.strip() for out, _ in outs} == {str(entry / "fmu")}
+    assert _entries(root) == [entry.name]    # no temporary folder left behind
+    assert (entry / MARKER).is_file()
+    with zipfile.ZipFile(fmu) as archive:
+        for info in archive.infolist():
+            if not info.is_dir():
+                assert (entry / "fmu" / info.filename).read_bytes() == archive.read(info), info.filename

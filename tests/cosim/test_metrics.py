@@ -141,3 +141,19 @@ def test_the_reasons_line_reads_back_as_the_mapping_it_was_written_from():
     line = Response(values={}, undefined=undefined).reasons()
     assert reasons_of(line) == undefined
     assert reasons_of("") == {} and reasons_of(None) == {}
+
+
+# --------------------------------------------------------------------------- on our FMUs (pythonfmu)
+
+
+@pytest.mark.pythonfmu
+def test_metrics_cli_on_a_real_run(tmp_path, capsys):
+    csv = tmp_path / "r.csv"
+    assert main(["run", "ssp/pid_fopdt", "-q", "-o", str(csv), "--stop", "150"]) == 0
+    capsys.readouterr()
+    assert main(["metrics", str(csv), "--signal", "plant.y", "--setpoint", "setpoint.y", "--json"]) == 0
+    import json
+    m, = json.loads(capsys.readouterr().out)       # one event: the set-point step at 10 s
+    assert 30 < m["overshoot"] < 37 and 0 < m["settling_time"] < 140
+    assert main(["metrics", str(csv), "--signal", "plant.yy", "--setpoint", "setpoint.y"]) == 2
+    assert "no signal matches 'plant.yy'" in capsys.readouterr().err
