@@ -36,8 +36,8 @@ RUNNER = """
 import json, sys
 import cosim
 assert cosim.__file__.startswith(sys.argv[4]), (cosim.__file__, sys.argv[4])
-try:
-    from cosim.run.simulation import run
+try:   # the tree before issue 40's stages; after it, cosim.run.simulation
+    from cosim.simulation import run
 except ImportError:
     from cosim.run.simulation import run
 prepared = cosim.prepare(sys.argv[1], stop_time=float(sys.argv[2]), use_providers=False)

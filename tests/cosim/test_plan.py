@@ -165,3 +165,26 @@ def test_check_values_gives_the_masters_messages_without_a_second_plan(chain):
         check_values(plan, [ParameterValue("nothing.k", "Real", 5.0, "sweep", 0)])
     with pytest.raises(SetupError, match="causality 'output'"):
         check_values(plan, [ParameterValue("gain.y", "Real", 5.0, "sweep", 0)])
+
+
+def test_looking_up_an_array_element_leaves_the_description_as_it_was():
+    """Issue 40: `FMUDescription.variable` added an FMI 3.0 array element to the description's own
+    dicts (and to its output dependencies), on the copy a module cache shared with every later
+    plan.  Now the lookup returns the element and changes nothing; `with_element` returns a new
+    description that knows it."""
+    from pathlib import Path
+
+    from cosim.model.fmu import ArrayElement, FMUDescription, Variable
+
+    array = Variable("x", 7, "Float64", "input", "continuous", dimensions=("3",))
+    out = Variable("y", 8, "Float64", "output", "continuous")
+    desc = FMUDescription(Path("/nowhere/A.fmu"), "fmi3-cs", "3.0", "{g}", None, "A",
+                          FrozenMap({"x": array, "y": out}), FrozenMap({"y": ("x",)}), (), None, (), False, 0, 0,
+                          False)
+    element = desc.variable("x[2]", "here", "x.ssd")
+    assert isinstance(element, ArrayElement) and (element.index, element.vr) == (1, 0xFFFFFFFF)
+    assert desc.elements == {} and desc.output_dependencies == {"y": ("x",)} and isinstance(hash(desc), int)
+    known = desc.with_element(element)
+    assert known.elements == {0xFFFFFFFF: element} and known.output_dependencies == {"y": ("x", "x[2]")}
+    assert known.variable("x[2]", "here", "x.ssd") is element and desc.elements == {}
+    assert known.variable("x[3]", "here", "x.ssd").vr == 0xFFFFFFFE   # the next free reference
