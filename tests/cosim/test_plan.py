@@ -188,3 +188,16 @@ def test_looking_up_an_array_element_leaves_the_description_as_it_was():
     assert known.elements == {0xFFFFFFFF: element} and known.output_dependencies == {"y": ("x", "x[2]")}
     assert known.variable("x[2]", "here", "x.ssd") is element and desc.elements == {}
     assert known.variable("x[3]", "here", "x.ssd").vr == 0xFFFFFFFE   # the next free reference
+
+
+def test_start_values_are_typed_before_the_plan_which_is_built_once(chain, monkeypatch):
+    """Issue 40: with --start-value the plan was built twice (once to type the values); the
+    descriptions type them now, and `cosim.simulate` takes them as `cosim run` does."""
+    import cosim
+    import cosim.plan.prepare
+
+    built = []
+    plan = cosim.plan.prepare.build_plan
+    monkeypatch.setattr(cosim.plan.prepare, "build_plan", lambda *a, **kw: built.append(1) or plan(*a, **kw))
+    result = cosim.simulate(chain, start_values={"gain.k": 4.0, "step.t_step": 0.2}, use_providers=False)
+    assert built == [1] and result["gain.y"][-1] == 4.0 * 2.5

@@ -15,6 +15,7 @@ from fmpy.validation import validate_fmu
 
 from cosim.read.description import describe
 from cosim.errors import SetupError
+from cosim.model.transforms import Affine
 from cosim.model.units import BUILTIN, conversion, fmu_units, make_unit
 from greyfmu.build import FMU_SOURCES, BuildError, _enumeration_items, build_fmus, fmu_names, slave_class
 
@@ -148,7 +149,7 @@ def test_a_generic_signal_declared_dimensionless_would_be_refused_or_rescaled():
     force input), and converts a % output into "1" by 0.01; without a unit it takes the value as is."""
     with pytest.raises(SetupError, match="the dimensions differ"):
         conversion(BUILTIN["1"], BUILTIN["N"])
-    assert conversion(BUILTIN["%"], BUILTIN["1"]) == (0.01, 0.0)
+    assert conversion(BUILTIN["%"], BUILTIN["1"]) == Affine(0.01, 0.0)
 
 
 def test_the_fmi3_pid_declares_its_integral_mode_as_an_enumeration(tmp_path):
