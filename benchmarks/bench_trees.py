@@ -10,7 +10,9 @@ each (the machine is shared: the best is the run least disturbed).  Cases: the C
 benchmarks/native_systems.py (no FMU runs Python), ``independent`` and ``chained`` systems of
 ``--sizes`` FMUs, and a chain whose connections carry an ``ssc:LinearTransformation`` (routes with
 a factor and offset), on the compiled loop and on the Python interpreter.  Printed: µs per step on
-each tree (metadata ``loop_seconds`` / steps) and the ratio new/old.
+each tree (metadata ``loop_seconds`` / steps: wall time) and the ratio new/old, and the same of the
+loop's CPU time (``time.thread_time`` around ``Stepping.run``, on both trees: the share of a loaded
+machine a run gets does not enter it).
 """
 from __future__ import annotations
 
@@ -36,16 +38,32 @@ RUNNER = """
 import json, sys
 import cosim
 assert cosim.__file__.startswith(sys.argv[4]), (cosim.__file__, sys.argv[4])
+import time
 try:   # the tree before issue 40's stages; after it, cosim.run.simulation
     from cosim.simulation import run
+    from cosim.stepping import Stepping
 except ImportError:
     from cosim.run.simulation import run
+    from cosim.run.stepping import Stepping
+cpu = []
+stepping = Stepping.run
+
+
+def timed(self, *args, **kw):   # the stepping loop's CPU time (this thread's: the compiled loop runs on it)
+    started = time.thread_time()
+    try:
+        return stepping(self, *args, **kw)
+    finally:
+        cpu.append(time.thread_time() - started)
+
+
+Stepping.run = timed
 prepared = cosim.prepare(sys.argv[1], stop_time=float(sys.argv[2]), use_providers=False)
 with prepared:
     outcome = run(prepared, kernel=sys.argv[3], journal=False)
 meta = outcome.metadata
 assert meta["kernel"] == sys.argv[3], meta.get("kernel_reason")
-print(json.dumps({"loop": meta["loop_seconds"], "last": float(outcome.result[-1][1])}))
+print(json.dumps({"loop": meta["loop_seconds"], "cpu": cpu[0], "last": float(outcome.result[-1][1])}))
 """
 
 
@@ -100,18 +118,21 @@ def main() -> None:
                     for which in (("old", "new") if round_ % 2 == 0 else ("new", "old")):
                         got = run(trees[which], ssd, stop, kernel)
                         lasts.add(got["last"])
-                        key = (label, kernel, which)
-                        best[key] = min(best.get(key, float("inf")), got["loop"] / args.steps * 1e6)
+                        for measure in ("loop", "cpu"):
+                            key = (label, kernel, which, measure)
+                            best[key] = min(best.get(key, float("inf")), got[measure] / args.steps * 1e6)
                     if len(lasts) != 1:
                         raise RuntimeError(f"{label}, {kernel}: the trees' results differ: {lasts}")
     after = os.getloadavg()
     print(f"{args.steps} steps of {STEP * 1e3:g} ms, best of {args.repeat} (trees alternating), µs per step; "
           f"old {trees['old']}, new {trees['new']}; load average {load[0]:.2f} before, {after[0]:.2f} after")
-    print(f"{'case':32} {'kernel':7} {'old':>8} {'new':>8} {'new/old':>8}")
+    print(f"{'case':32} {'kernel':7} {'old':>8} {'new':>8} {'new/old':>8}   CPU: {'old':>8} {'new':>8} {'new/old':>8}")
     for label in systems:
         for kernel in KERNELS:
-            old, new = best[(label, kernel, "old")], best[(label, kernel, "new")]
-            print(f"{label:32} {kernel:7} {old:8.3f} {new:8.3f} {new / old:8.2f}")
+            old, new = best[(label, kernel, "old", "loop")], best[(label, kernel, "new", "loop")]
+            old_cpu, new_cpu = best[(label, kernel, "old", "cpu")], best[(label, kernel, "new", "cpu")]
+            print(f"{label:32} {kernel:7} {old:8.3f} {new:8.3f} {new / old:8.2f}        {old_cpu:8.3f} {new_cpu:8.3f} "
+                  f"{new_cpu / old_cpu:8.2f}")
 
 
 if __name__ == "__main__":

@@ -47,8 +47,7 @@ class _Op(ctypes.Structure):
                 ("event", ctypes.c_void_p), ("terminate", ctypes.c_void_p), ("early", ctypes.c_void_p),
                 ("last", ctypes.c_void_p),
                 ("src", ctypes.c_void_p), ("dst", ctypes.c_void_p), ("factor", ctypes.c_void_p),
-                ("offset", ctypes.c_void_p), ("tables", ctypes.c_void_p), ("Y", ctypes.c_void_p),
-                ("U", ctypes.c_void_p)]
+                ("offset", ctypes.c_void_p), ("Y", ctypes.c_void_p), ("U", ctypes.c_void_p)]
 
 
 class _Table(ctypes.Structure):
@@ -196,7 +195,8 @@ class Kernel:
                     held += [k, v]
                     t.keys, t.values, t.n, t.boolean = k.ctypes.data, v.ctypes.data, len(k), int(boolean)
                 self._keep.append(held)
-                o.src, o.dst, o.tables, o.n, o.Y, o.U = src.ctypes.data, dst.ctypes.data, ctypes.addressof(tables), \
+                # kernel.c's Op holds the tables where a route's factors are (a union)
+                o.src, o.dst, o.factor, o.n, o.Y, o.U = src.ctypes.data, dst.ctypes.data, ctypes.addressof(tables), \
                     len(src), op.Y, op.U
             elif op.route is not None:
                 src, dst, factor, offset, identity = op.route

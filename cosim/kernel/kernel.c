@@ -52,7 +52,7 @@ typedef int (*fmi3Exchange)(void *, const unsigned int *, size_t, void *, size_t
  * (when not NULL) is true returns to Python whatever its status.
  * OP_ROUTE: U[dst[j]] = Y[src[j]] (identity) or Y[src[j]] * factor[j] + offset[j], on doubles
  * or (integer) on C ints, as fmi2Integer and fmi2Boolean are.  OP_MAP: U[dst[j]] = the value
- * tables[j] maps Y[src[j]] to (C ints).  ``thread``: with a pool, which thread makes a doStep of
+ * tables[j] maps Y[src[j]] to (C ints; ``tables`` shares its place with ``factor``).  ``thread``: with a pool, which thread makes a doStep of
  * the parallel phase (0: the calling thread). */
 /* A mapping table (cosim.model.transforms.Table): ``n`` keys in ascending order and their values;
  * ``boolean``: a key is looked up as 0 or 1 (any value but 0 as 1). */
@@ -71,8 +71,11 @@ typedef struct {
     bool *event, *terminate, *early;
     double *last;
     const intptr_t *src, *dst;
-    const double *factor, *offset;
-    const Table *tables;
+    union { /* OP_ROUTE's factors, or OP_MAP's tables: Op keeps the size it had before tables */
+        const double *factor;
+        const Table *tables;
+    };
+    const double *offset;
     void *Y, *U;
 } Op;
 
@@ -206,10 +209,8 @@ static int operate(const Op *o, double t, double h) {
         if (o->api == 2)
             return ((fmi2Exchange)o->fn)(o->instance, o->vr, o->n, o->values);
         return ((fmi3Exchange)o->fn)(o->instance, o->vr, o->n, o->values, o->n);
-    case OP_MAP:
-        return (int)map_values(o);
-    default:
-        return (int)route(o);
+    default: /* the switch of the doSteps, gets and sets as before OP_MAP: a route is the rarer case */
+        return (int)(o->kind == OP_MAP ? map_values(o) : route(o));
     }
 }
 
