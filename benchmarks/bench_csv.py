@@ -3,10 +3,10 @@
     python benchmarks/bench_csv.py [--rows 4096] [--columns 10] [--chunks 20] [--repeat 5]
 
 Writes ``--chunks`` chunks of ``--rows`` x ``--columns`` float64 (a time column and random
-walks, like a run's signals) to a CSV through `cosim.observers.CsvSink`, with the rows formatted
+walks, like a run's signals) to a CSV through `cosim.record.observers.CsvSink`, with the rows formatted
 by Arrow's C++ writer (the writer before issue 27, and the one used when pyarrow is installed),
-by `cosim.csvformat.format_rows` (used without pyarrow: C, ``cosim/kernel/csvrows.c``) and by
-its Python fallback `cosim.csvformat.format_rows_python` (no compiled kernel library); all write
+by `cosim.record.csvformat.format_rows` (used without pyarrow: C, ``cosim/kernel/csvrows.c``) and by
+its Python fallback `cosim.record.csvformat.format_rows_python` (no compiled kernel library); all write
 the same bytes (tests/cosim/test_csvformat.py).  The three are timed ``--repeat`` times,
 interleaved so a busy machine slows them alike; prints the best time per value of each, the
 median and spread of the ratios to Arrow and the load average before and after.
@@ -22,7 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim import csvformat, observers
+from cosim.record import csvformat
+
+from cosim.record import observers
 
 #: the formatters compared: Arrow's writer, then `format_rows` (C) and its Python fallback
 WRITERS = {"pyarrow": None, "compiled": csvformat.format_rows,

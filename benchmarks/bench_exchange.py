@@ -6,7 +6,7 @@ compiled exchange of ``fmus/_slave.py``.
 Two builds of the same benchmark FMU (benchmarks/fmus/Exchange.py: 16 Real inputs, 16 Real
 outputs y_i = u_i): ``Exchange`` uses ``GreyfmuSlave``'s exchange, ``ExchangeGeneric``
 pythonfmu 0.7.0's generic ``Fmi2Slave.get_real``/``set_real``.  Both are called as
-cosim.execution calls them: fmpy's raw ctypes function with a preallocated array of 1, 4 or
+cosim.run.execution calls them: fmpy's raw ctypes function with a preallocated array of 1, 4 or
 16 value references and a value array, one batched call per exchange.  Each figure is the
 best of ``--repeat`` loops of ``--calls`` calls, in µs per call, including the ctypes call
 and pythonfmu's C++ wrapper (list building, method lookup, log buffer), which are the same

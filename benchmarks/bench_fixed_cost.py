@@ -17,20 +17,20 @@ the **first** run in the process, and, in the process that ran it, the best of `
 runs (``warm``: what a sweep or a test session pays per run).  cosim is measured with an empty
 FMU cache (``COSIM_FMU_CACHE`` a new folder: every FMU unpacked) and with the cache populated
 (``unpacked``), through `cosim.simulate` itself, and (``instances reused``) as a sweep worker
-runs: the scenario read once, the instances reset and kept across runs (`cosim.instances.reuse`;
+runs: the scenario read once, the instances reset and kept across runs (`cosim.run.instances.reuse`;
 a warm run's ``free`` is then terminate and fmi2Reset): each stage is the time spent in the function
 that does it (exclusive of the stages it calls, timed by wrapping it):
 
 =================  ==========================================================================
-read               `cosim.ssp.load`: the SSD (and SSVs), schema-validated
-locate             `cosim.resources.locate_fmus`
-check/plan         `cosim.plan.build_plan`: the FMUs checked (`cosim.loadable`), their
-                   model descriptions read (`cosim.description`), the plan made
-unpack             `cosim.instances.Unzipped`: the FMU cache entry looked up or made
-load               `cosim.instances.open_instance`: the library loaded (dlopen) by fmpy
+read               `cosim.read.ssp.load`: the SSD (and SSVs), schema-validated
+locate             `cosim.read.resources.locate_fmus`
+check/plan         `cosim.plan.build.build_plan`: the FMUs checked (`cosim.read.loadable`), their
+                   model descriptions read (`cosim.read.description`), the plan made
+unpack             `cosim.run.instances.Unzipped`: the FMU cache entry looked up or made
+load               `cosim.run.instances.open_instance`: the library loaded (dlopen) by fmpy
 instantiate        fmi2Instantiate (the instance classes' ``instantiate``)
-exec set-up        `cosim.execution.Execution`: buffers, routing, the compiled kernel's calls
-record set-up      `cosim.observers.Recorder`
+exec set-up        `cosim.run.execution.Execution`: buffers, routing, the compiled kernel's calls
+record set-up      `cosim.record.observers.Recorder`
 initialise         `Execution.initialize`: setup, start values, initialisation mode
 write              `Recorder.close`: the result array and metadata
 free               `Execution.close`: fmi2FreeInstance
@@ -89,17 +89,18 @@ class Timers:
 
 def install(timers: Timers) -> None:
     """Wrap the functions of each stage (the table of the module docstring)."""
-    import cosim.execution
-    import cosim.simulation
-    import cosim.ssp
-    from cosim.execution import Execution
-    from cosim.instances import FMI2Instance, FMI3Instance, ME3Instance, MEInstance, Unzipped
-    from cosim.observers import Recorder
+    import cosim.plan.prepare
+    import cosim.read.ssp
+    import cosim.run.execution
+    from cosim.run.execution import Execution
+    from cosim.run.instances import FMI2Instance, FMI3Instance, ME3Instance, MEInstance, Unzipped
+    from cosim.record.observers import Recorder
 
-    cosim.ssp.load = timers.wrap("read", cosim.ssp.load)
-    cosim.simulation.locate_fmus = timers.wrap("locate", cosim.simulation.locate_fmus)
-    cosim.simulation.build_plan = timers.wrap("check/plan", cosim.simulation.build_plan)
-    cosim.execution.open_instance = timers.wrap("load", cosim.execution.open_instance)
+    cosim.read.ssp.load = timers.wrap("read", cosim.read.ssp.load)
+    cosim.plan.prepare.locate_fmus = timers.wrap("locate", cosim.plan.prepare.locate_fmus)
+    cosim.plan.prepare.describe_fmus = timers.wrap("check/plan", cosim.plan.prepare.describe_fmus)
+    cosim.plan.prepare.build_plan = timers.wrap("check/plan", cosim.plan.prepare.build_plan)
+    cosim.run.execution.open_instance = timers.wrap("load", cosim.run.execution.open_instance)
     for owner, name, stage in ((Unzipped, "__call__", "unpack"), (Execution, "__init__", "exec set-up"),
                                (Execution, "_compile_calls", "exec set-up"), (Recorder, "__init__", "record set-up"),
                                (Execution, "initialize", "initialise"), (Execution, "run", "steps"),
@@ -142,20 +143,18 @@ def reused_runs(path: str, stop: float, step: float, warm: int) -> dict:
     """As `cosim_runs`, but as a sweep worker runs (`cosim.sweep.worker`): the scenario read and
     located once, each run's plan made from it, the instances kept in an `InstancePool` (a warm
     run's "free" is terminate + fmi2Reset, its "instantiate" nothing)."""
-    import cosim.single
-    from cosim.instances.reuse import InstancePool
-    from cosim.simulation import run
+    import cosim.plan.prepare
+    from cosim.run.instances.reuse import InstancePool
+    from cosim.run.simulation import run
 
     timers = Timers()
     install(timers)
-    cosim.single.locate_fmus = timers.wrap("locate", cosim.single.locate_fmus)
-    cosim.single.build_plan = timers.wrap("check/plan", cosim.single.build_plan)
     pool, kept = InstancePool(), []
 
     def simulate() -> None:
         if not kept:
-            kept.append(cosim.single.load_scenario(path))
-        run(cosim.single.prepare_scenario(kept[0], stop_time=stop, step_size=step), pool=pool)
+            kept.append(cosim.plan.prepare.load_scenario(path))
+        run(cosim.plan.prepare.prepare_scenario(kept[0], stop_time=stop, step_size=step), pool=pool)
     timed = timers.wrap("total", simulate)
 
     def once() -> dict[str, float]:
@@ -235,7 +234,7 @@ def child(args: argparse.Namespace) -> None:
 
 def systems(folder: Path) -> dict[str, dict]:
     """Each system: the folder cosim runs, the packed .ssp the peers run, stop and step."""
-    from cosim import ssp as cosim_ssp
+    from cosim.read import ssp as cosim_ssp
     from cosim.cli import main as cosim_main
     from native_systems import FAMILIES, build_family, native_system, write_native_system
 

@@ -1,9 +1,9 @@
 """Cost of ``--isolate`` (issue 17): µs per communication step with every component in a
-process of its own (`cosim.instances.isolated`) against the same run in one process.
+process of its own (`cosim.run.instances.isolated`) against the same run in one process.
 
     python benchmarks/bench_isolate.py [--steps 5000] [--repeat 7]
 
-Two systems, run to memory (no file) through `cosim.simulation.run`, the stepping loop timed
+Two systems, run to memory (no file) through `cosim.run.simulation.run`, the stepping loop timed
 (metadata ``loop_seconds``), in-process and isolated runs interleaved so a busy machine slows
 both alike:
 
@@ -61,7 +61,7 @@ def lag_chain(folder: Path) -> Path:
 def loop_us(path, steps: int, step: float, isolate: bool) -> float:
     prepared = cosim.prepare(path, stop_time=steps * step, step_size=step)
     try:
-        _, meta = cosim.simulation.run(prepared, keep=[], isolate=isolate)
+        _, meta = cosim.run.simulation.run(prepared, keep=[], isolate=isolate)
     finally:
         prepared.close()
     return meta["loop_seconds"] / steps * 1e6

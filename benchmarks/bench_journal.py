@@ -1,6 +1,6 @@
 """Cost of the crash-safe journal (issue 17): ``pid_fopdt`` run to a CSV with and without
-its memory-mapped journal (`cosim.journal`), and with and without the supervising parent
-process of `cosim run` (`cosim.supervisor`: one fork per run, nothing per step).
+its memory-mapped journal (`cosim.record.journal`), and with and without the supervising parent
+process of `cosim run` (`cosim.run.supervisor`: one fork per run, nothing per step).
 
     python benchmarks/bench_journal.py [--steps 50000] [--repeat 15]
 
@@ -33,7 +33,7 @@ STEP = 0.1
 def loop_seconds(ssp: str, stop: float, output: Path, journal: bool) -> float:
     prepared = cosim.prepare(ssp, stop_time=stop, use_providers=False)
     try:
-        _, meta = cosim.simulation.run(prepared, output=output, journal=journal)
+        _, meta = cosim.run.simulation.run(prepared, output=output, journal=journal)
     finally:
         prepared.close()
     return meta["loop_seconds"]

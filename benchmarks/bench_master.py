@@ -75,7 +75,7 @@ def floor_spec(plan):
 def time_cosim(ssp: str | Path, stop: float) -> float:
     prepared = cosim.prepare(ssp, stop_time=stop, use_providers=False)
     try:
-        _, meta = cosim.simulation.run(prepared)
+        _, meta = cosim.run.simulation.run(prepared)
     finally:
         prepared.close()
     return meta["loop_seconds"]

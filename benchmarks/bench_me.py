@@ -23,13 +23,14 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # the root first: tests/cosim w
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 
-from cosim import simulation
+from cosim.plan.prepare import prepare
+from cosim.run import simulation
 
 
 def loop_seconds(path: Path, repeat: int, **options) -> tuple[float, int]:
     best, steps = float("inf"), 0
     for _ in range(repeat):
-        prepared = simulation.prepare(path, **options)
+        prepared = prepare(path, **options)
         try:
             _, metadata = simulation.run(prepared)
         finally:

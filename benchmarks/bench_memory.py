@@ -6,7 +6,7 @@ The system: a Ramp source (y = 0.37·t, 17 significant digits per sample) drivin
 an ``Exchange`` FMU (benchmarks/fmus/Exchange.py, y_i = u_i), whose 12 outputs drive 12
 inputs of a second one: 1 + 2·(12 + 12) = 49 connectors plus time = 50 recorded columns.
 Each variant runs in a fresh Python process (so ``ru_maxrss`` is that run's peak resident
-memory), through ``cosim.simulation.run`` as ``cosim run --output`` does (only ``time`` kept
+memory), through ``cosim.run.simulation.run`` as ``cosim run --output`` does (only ``time`` kept
 in memory): ``none`` writes no file (the baseline), ``csv`` a CSV, ``parquet`` a Parquet file.
 The writer's overhead is (run time with the file − run time without) / run time without,
 with the run time from instantiation to the closed file, best of ``--repeat``.
@@ -48,7 +48,7 @@ def child(folder: str, output: str | None) -> None:
     prepared = cosim.prepare(folder, use_providers=False)
     try:
         started = time.perf_counter()
-        result, metadata = cosim.simulation.run(prepared, output=output, keep=[])
+        result, metadata = cosim.run.simulation.run(prepared, output=output, keep=[])
         seconds = time.perf_counter() - started
     finally:
         prepared.close()

@@ -11,7 +11,7 @@ or the mass, then N - 1 direct-feedthrough blocks in series: our C ``Lag`` or Op
 What each peer does, records and how it is timed (the stepping loop alone for every peer:
 loading, unzipping, instantiation and initialisation are excluded):
 
-* ``cosim python`` / ``cosim native``: ``cosim.simulation.run`` with ``kernel="python"`` or
+* ``cosim python`` / ``cosim native``: ``cosim.run.simulation.run`` with ``kernel="python"`` or
   ``"native"`` (today's Python loop or the compiled one; the keyword is passed only when this
   cosim has it), every connector (outputs and inputs) recorded in memory; metadata
   ``loop_seconds``.
@@ -60,14 +60,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
 import cosim  # noqa: E402
-import cosim.simulation  # noqa: E402
+import cosim.run.simulation  # noqa: E402
 from c_floor import compile_floor, run_c_floor  # noqa: E402
 from cosim.cli import main as cosim_main  # noqa: E402
 from native_systems import FAMILIES, System, build_container, build_family, native_system, write_native_system  # noqa: E402,E501
 from peers import run_fmpy_ssp, run_libcosim  # noqa: E402
 
 STEP = 1e-3
-#: the cosim kernels this cosim has (``kernel`` keyword of `cosim.simulation.run`)
+#: the cosim kernels this cosim has (``kernel`` keyword of `cosim.run.simulation.run`)
 KERNELS = ("python", "native")
 PEERS = ("cosim python", "cosim native", "C floor", "container", "libcosim", "fmpy.ssp")
 
@@ -114,7 +114,7 @@ def cosim_run(case: Case, stop: float, kernel: str, output: Path | None = None) 
     prepared = cosim.prepare(case.folder, stop_time=stop, use_providers=False)
     try:
         started = _time.perf_counter()
-        result, meta = cosim.simulation.run(prepared, output=output, kernel=kernel)
+        result, meta = cosim.run.simulation.run(prepared, output=output, kernel=kernel)
         wall = _time.perf_counter() - started
     finally:
         prepared.close()

@@ -10,7 +10,7 @@ Two chains, each fed by a Step source, every connector recorded:
   (route, set, re-read each Gain in dependency order), so it makes one more set and get per
   FMU and step than the floor, which lets the chain lag one step per block.
 
-For each N the stepping loop of ``cosim.simulation.run`` is timed (metadata ``loop_seconds``,
+For each N the stepping loop of ``cosim.run.simulation.run`` is timed (metadata ``loop_seconds``,
 best of ``--repeat``, the repeats interleaved over the sizes), and so is `floor.run_floor` (a
 hand-written ctypes Jacobi loop) on the same FMUs.  ``numpy.polyfit`` fits time = a + b·N; b
 is the cost per FMU and step, the difference of the two slopes the master's own overhead per

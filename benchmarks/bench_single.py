@@ -6,7 +6,7 @@ The FMU is the C ``Drive`` of tests/single_fmus.py (four inputs, five outputs, a
 ``--steps`` communication steps of 1 ms, once with its start values only and once with an input
 table (tests/cosim/test_single.py's), in one process.  Each number is the best of ``--repeat``
 whole calls (reading the model description, instantiating, stepping, results in memory, no
-files): `cosim.single.prepare_run` + `cosim.simulation.run`, and ``fmpy.simulate_fmu`` with the
+files): `cosim.plan.prepare.prepare` + `cosim.run.simulation.run`, and ``fmpy.simulate_fmu`` with the
 same output interval.  Prints µs per step and the ratio cosim / fmpy.
 """
 from __future__ import annotations
@@ -23,8 +23,8 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # the root first: tests/cosim w
 import fmpy  # noqa: E402
 from fmpy.util import read_csv  # noqa: E402
 
-from cosim.simulation import run  # noqa: E402
-from cosim.single import prepare_run  # noqa: E402
+from cosim.run.simulation import run  # noqa: E402
+from cosim.plan.prepare import prepare  # noqa: E402
 from single_fmus import build_drive  # noqa: E402
 
 STEP = 1e-3
@@ -33,7 +33,7 @@ TABLE = "time,u,d,k,b\n0,0,0,0,0\n20,1,0.5,1,1\n50,1,2,3,1\n50,-1,4,5,0\n100,0.5
 
 def time_cosim(fmu: Path, stop: float, table: Path | None) -> tuple[float, str]:
     started = time.perf_counter()
-    prepared = prepare_run(fmu, stop_time=stop, output_interval=STEP, input_file=table)
+    prepared = prepare(fmu, stop_time=stop, output_interval=STEP, input_file=table)
     try:
         _, meta = run(prepared)
     finally:

@@ -127,8 +127,8 @@ def dask_cluster(workers: int, folder: Path):
 def shipping_overhead(scenario: str, runs: int, stop: float, folder: Path) -> tuple[float, float, float]:
     """Seconds shipping adds around the first run and (mean) around the others, and a run's own seconds."""
     from cosim.safeio import max_unpacked_bytes
-    from cosim.simulation import prepare
-    from cosim.structure import ParameterValue
+    from cosim.plan.prepare import prepare
+    from cosim.model.structure import ParameterValue
     from cosim.sweep.dispatch import Task
     from cosim.sweep.shipping import deliver, execute_shipped, package_of, parameter_set_bytes
     from cosim.sweep.values import Metric, write_ssv

@@ -8,7 +8,7 @@ as cosim loads them).
 Python instantiates, sets the start values and initialises; the step loop (fmi2DoStep, one
 batched fmi2GetReal and fmi2SetReal per instance, the routing, the record of every output and
 input into a C array) runs in C and times itself.  ``settle=True`` is cosim's exchange (direct
-feedthrough settled in dependency order within the instant, cosim/execution.py), ``False`` plain
+feedthrough settled in dependency order within the instant, cosim/run/execution.py), ``False`` plain
 Jacobi (libcosim, the fmu-manipulation-toolbox container).  Initialisation is cosim's: the
 exchange once in initialization mode and once after it; row 0 of the results is the state after
 it, row k the state after step k, t_k on cosim's grid.

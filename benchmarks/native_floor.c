@@ -6,7 +6,7 @@
  * every input value, appended to a C array).  The exchange is one batched fmi2GetReal and one
  * batched fmi2SetReal per instance, with the routing an index array (u[j] = y[source[j]]):
  *
- *   settle = 1  cosim's exchange (cosim/execution.py): read the outputs of the instances without
+ *   settle = 1  cosim's exchange (cosim/run/execution.py): read the outputs of the instances without
  *               direct feedthrough; then, in dependency order, route into each feedthrough
  *               instance, set its inputs and re-read its outputs; then route and set the inputs
  *               of the others.  A chain of feedthrough blocks settles within the instant.
@@ -14,7 +14,7 @@
  *               then route and set every input; a feedthrough chain lags one step per block.
  *
  * Instances are given in the order the exchange visits them (dependency order).  Times are
- * cosim's grid (cosim/execution.py, Grid.time): t_k = start + k*h, computed, never accumulated,
+ * cosim's grid (cosim/run/execution.py, Grid.time): t_k = start + k*h, computed, never accumulated,
  * and t_n = stop; each step is h_k = t_{k+1} - t_k.  The loop alone is timed, with
  * CLOCK_MONOTONIC.  Every FMI status above fmi2Warning stops the run and is reported.
  */

@@ -16,10 +16,10 @@ def __getattr__(name: str):
     """`simulate` and `prepare` are imported on first use (PEP 562), so that a submodule that
     needs no FMU machinery stays cheap to import: the pytest plugin `cosim.pytest_plugin` is
     loaded into every pytest session of anyone who installs the package."""
-    if name in ("simulate", "prepare"):
-        from . import simulation
+    if name in ("simulate", "simulate_fmu"):
+        from .run import simulation
         return getattr(simulation, name)
-    if name == "simulate_fmu":
-        from . import single
-        return single.simulate_fmu
+    if name == "prepare":
+        from .plan.prepare import prepare
+        return prepare
     raise AttributeError(f"module 'cosim' has no attribute {name!r}")

@@ -99,6 +99,11 @@ def _parser() -> argparse.ArgumentParser:
     info = sub.add_parser("info", help="list components, connections and parameters")
     common(info)
     info.add_argument("--fmi-type", choices=["CoSimulation", "ModelExchange"], help=FMI_TYPE_HELP)
+    info.add_argument("--program", action="store_true",
+                      help="also print the step's program: the operations of one communication step, compiled "
+                           "from the plan (no FMU is loaded)")
+    info.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"],
+                      help="the algorithm whose step --program prints (default: the SSD's, else jacobi)")
 
     metrics = sub.add_parser("metrics", help="IAE, ISE, ITAE, overshoot, rise and settling time of a result")
     metrics.add_argument("result", help="result CSV or Parquet file written by cosim run")
@@ -204,7 +209,7 @@ FMI_TYPE_HELP = "the interface of an FMU that has both (default: CoSimulation); 
 
 
 def input_options(run: argparse.ArgumentParser) -> None:
-    """--start-value and --input-file (`cosim.single`, `cosim.inputs`), with fmpy simulate's names."""
+    """--start-value and --input-file (`cosim.plan.prepare`, `cosim.plan.inputs`), with fmpy simulate's names."""
     run.add_argument("--start-value", "--start-values", action="append", default=[], metavar="NAME=VALUE",
                      dest="start_values", help="start value of a parameter or input, applied after the parameter "
                      "sets: the variable's name for a single FMU, 'component.variable' in a system (repeatable)")
@@ -214,7 +219,7 @@ def input_options(run: argparse.ArgumentParser) -> None:
 
 
 def single_options(run: argparse.ArgumentParser) -> None:
-    """The options of `cosim.single` and `cosim.inputs`, with fmpy simulate's names."""
+    """The options of `cosim.plan.prepare` and `cosim.plan.inputs`, with fmpy simulate's names."""
     input_options(run)
     run.add_argument("--output-interval", type=float, metavar="SECONDS",
                      help="communication step, at which results are recorded (fmpy's name for --step)")
@@ -262,21 +267,21 @@ def _fail(e: CosimError, debug: bool) -> int:
 
 
 def _run(args) -> int:
-    from .instances import Unzipped
-    from .journal import journal_path
-    from .outputs import RESULT_SUFFIXES, check_not_in_sweep, check_output, plot_suffixes, scenario_files
+    from .run.instances import Unzipped
+    from .record.journal import journal_path
+    from .record.outputs import RESULT_SUFFIXES, check_not_in_sweep, check_output, plot_suffixes, scenario_files
     from .safeio import lock_output, lock_path, partial_path
-    from .simulation import isolation_of
-    from .single import prepare_run
-    from .supervisor import supervise
+    from .plan.prepare import prepare
+    from .run.simulation import isolation_of
+    from .run.supervisor import supervise
 
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         raise SetupError(f"--timeout {args.timeout}: give a positive number of seconds.", element="--timeout")
     isolation_of(args.isolate, args.call_timeout)  # refused before anything is read
-    prepared = prepare_run(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
-                           algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
-                           loops=args.loops, start_values=args.start_values, input_file=args.input_file,
-                           output_interval=args.output_interval, fmi_type=args.fmi_type)
+    prepared = prepare(args.path, start_time=args.start, stop_time=args.stop, step_size=args.step,
+                       algorithm=args.algorithm, parameter_sets=args.param_set, fmu_dirs=args.fmu_dir,
+                       loops=args.loops, start_values=args.start_values, input_file=args.input_file,
+                       output_interval=args.output_interval, fmi_type=args.fmi_type)
     try:
         name = prepared.plan.name or Path(args.path).resolve().stem
         output = Path(args.output) if args.output else _default_result(prepared.plan, name, args.param_set)
@@ -315,7 +320,7 @@ SCENARIO_NAME = "the scenario's name"
 
 def _default_result(plan, name: str, parameter_sets: list[str]) -> Path:
     """``results/<system name>__<set>...csv``, the names checked to be file names."""
-    from .outputs import result_stem
+    from .record.outputs import result_stem
 
     where = dict(file=plan.files.display, element="ssd:SystemStructureDescription name") if plan.name else \
         dict(what=SCENARIO_NAME)
@@ -323,13 +328,15 @@ def _default_result(plan, name: str, parameter_sets: list[str]) -> Path:
 
 
 def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
-    """The run itself (in `cosim.supervisor`'s child, with a progress bar if ``progress``): exit 0,
+    """The run itself (in `cosim.run.supervisor`'s child, with a progress bar if ``progress``): exit 0,
     1 failed or timed out, 130/143 stopped by SIGINT/SIGTERM."""
-    from .interrupts import stop_on_signals
-    from .loops import LoopSettings
-    from .plots import default_panels, plot
-    from .simulation import run, select, signal_info
-    from .single import plotted
+    from .run.interrupts import stop_on_signals
+    from .run.loops import LoopSettings
+    from .present.plots import default_panels, plot
+    from .present.plots import plotted
+    from .record.metadata import signal_info
+    from .record.results import select
+    from .run.simulation import run
 
     plan = prepared.plan
     outputs, inputs = plan.recorded()
@@ -367,7 +374,7 @@ def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
                    metadata=outcome.metadata)
         _say(args, f"cosim: plot: {png}")
     if args.report is not None:
-        from .report import write_report
+        from .present.report import write_report
         page = write_report(output, args.report or output.with_suffix(".html"), panels=panels)
         _say(args, f"cosim: report: {page}")
     return 0
@@ -389,31 +396,21 @@ def _validate(args) -> int:
 
 def _prepare_with_placeholder_grid(args):
     """validate/info/pack need no grid, but check the SSD's: a stop time and step size the SSD
-    does not give are placeholders (a stop 1 s after the start, a step of 1 s)."""
-    from .simulation import resolve_grid, validate
-    from .single import check_fmi_type, is_fmu, prepare_run
+    does not give are placeholders (`cosim.plan.prepare.prepare_scenario`'s ``grid_placeholders``)."""
+    from .plan.prepare import prepare
+    from .read.single import is_fmu
 
-    if is_fmu(args.path):
-        if args.command == "pack":
-            raise SetupError("cosim pack packs an SSP scenario; an FMU alone has no SSD to pack.",
-                             file=args.path, element="cosim pack")
-        return prepare_run(args.path, fmi_type=args.fmi_type, parameter_sets=getattr(args, "param_set", []))
-    check_fmi_type(args.path, getattr(args, "fmi_type", None))
-    plan = validate(args.path, fmu_dirs=args.fmu_dir, parameter_sets=getattr(args, "param_set", []))
-    experiment = plan.experiment
-    try:
-        return resolve_grid(plan, stop_time=(experiment.start_time or 0.0) + 1.0 if experiment.stop_time is None
-                            else None, step_size=1.0 if experiment.step_size is None else None,
-                            options={})  # placeholders: nobody gave them
-    except BaseException:
-        plan.close()
-        raise
+    if is_fmu(args.path) and args.command == "pack":
+        raise SetupError("cosim pack packs an SSP scenario; an FMU alone has no SSD to pack.",
+                         file=args.path, element="cosim pack")
+    return prepare(args.path, fmi_type=getattr(args, "fmi_type", None), fmu_dirs=args.fmu_dir,
+                   parameter_sets=getattr(args, "param_set", []), grid_placeholders=True)
 
 
 def _info(args) -> int:
     with _prepare_with_placeholder_grid(args) as prepared:
         plan = prepared.plan
-        e, hierarchy = plan.experiment, plan.structure.hierarchy
+        e, hierarchy = plan.experiment, plan.hierarchy
         print(f"system {plan.name!r} ({plan.files.display})")
         print(f"  experiment: start {e.start_time}, stop {e.stop_time}, step {e.step_size} "
               f"({e.step_size_source or 'none in the SSD'}), algorithm {e.algorithm or 'jacobi'}")
@@ -421,9 +418,8 @@ def _info(args) -> int:
             print(f"hierarchy (names are paths relative to the root system '{plan.system_name}'):")
             _print_system(hierarchy, 1)
             for o in plan.system_outputs.values():
-                tf = f" (x{o.factor:g} {o.offset:+g})" if (o.factor, o.offset) != (1.0, 0.0) else ""
-                print(f"  recorded: {o.name} = {o.component}.{o.connector}{tf}" if o.component is not None
-                      else f"  recorded: {o.name} = {o.offset:g} (undriven: a constant)")
+                print(f"  recorded: {o.name} = {o.transform.text(o.source)}" if o.component is not None
+                      else f"  recorded: {o.name} = {o.transform.offset:g} (undriven: a constant)")
         print("components:")
         for name, desc in plan.fmus.items():
             print(f"  {name}: {desc.path.name} (FMI {desc.fmi_version}, {desc.generation_tool}, "
@@ -436,13 +432,17 @@ def _info(args) -> int:
                 print(f"    {v.causality:6} {v.type:7} {v.name}" + (f" [{v.unit}]" if v.unit else ""))
         print("connections:")
         for r in plan.routes:
-            tf = f" (x{r.factor:g} {r.offset:+g})" if (r.factor, r.offset) != (1.0, 0.0) else ""
-            print(f"  {r.src}.{r.src_var.name} -> {r.dst}.{r.dst_var.name}{tf}")
+            tf = "" if r.transform.identity else f" = {r.transform.text(r.source)}"
+            print(f"  {r.label}{tf}")
         print("parameters:")
         for sv in plan.start_values:
             print(f"  {sv.component}.{sv.variable.name} = {sv.value}  ({sv.origin})")
         if plan.feedthrough_sequence:
             print("direct feedthrough resolved at each step in the order: " + ", ".join(plan.feedthrough_sequence))
+        if args.program:
+            from .run.program import compile as compile_program
+
+            print("\n".join(compile_program(plan, args.algorithm or prepared.algorithm).listing()))
     return 0
 
 
@@ -457,8 +457,8 @@ def _print_system(node, depth: int) -> None:
 
 
 def _pack(args) -> int:
-    from .outputs import check_output, scenario_files
-    from .pack import pack
+    from .record.outputs import check_output, scenario_files
+    from .present.pack import pack
 
     with _prepare_with_placeholder_grid(args) as prepared:
         output = Path(args.output)
@@ -472,9 +472,9 @@ def _pack(args) -> int:
 def _metrics(args) -> int:
     import json
 
-    from .metrics import EVENT_METRICS, METRICS, Event, event_metrics, find_events, step_response
-    from .results import read
-    from .simulation import select
+    from .present.metrics import EVENT_METRICS, METRICS, Event, event_metrics, find_events, step_response
+    from .record.results import read
+    from .record.results import select
 
     result = read(args.result)
     names = [n for n in result.dtype.names if n != "time"]
@@ -526,10 +526,10 @@ def _metrics(args) -> int:
 
 
 def _report(args) -> int:
-    from .outputs import check_output
-    from .report import write_report
-    from .results import read
-    from .simulation import select
+    from .record.outputs import check_output
+    from .present.report import write_report
+    from .record.results import read
+    from .record.results import select
 
     result = Path(args.result)
     page = Path(args.output or result.with_suffix(".html"))
@@ -544,9 +544,9 @@ def _report(args) -> int:
 
 
 def _compare(args) -> int:
-    from .metrics import compare, parse_tolerance
-    from .results import read
-    from .simulation import select
+    from .present.metrics import compare, parse_tolerance
+    from .record.results import read
+    from .record.results import select
 
     a, b = read(args.reference), read(args.candidate)
     signals = select([n for n in a.dtype.names if n != "time"], args.signals) if args.signals else None
@@ -563,7 +563,7 @@ def _compare(args) -> int:
 
 
 def _sweep(args) -> int:
-    from .outputs import result_stem
+    from .record.outputs import result_stem
     from .sweep import parse_seeds, parse_set, read_table, sweep
 
     sets = dict(parse_set(text) for text in args.sets)
@@ -606,7 +606,7 @@ def _print_warning(message, *_) -> None:
 
 def _print_undefined_metrics(rows, metrics: list[str]) -> None:
     """For each metric column with undefined values: in how many runs, and the first run's reason."""
-    from .metrics import reasons_of
+    from .present.metrics import reasons_of
     from .sweep import parse_metric
 
     done = [row for row in rows if row.get("status") != "failed"]

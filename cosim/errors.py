@@ -36,7 +36,7 @@ class Errc(str, enum.Enum):
     """The process ran out of memory during the run."""
     run_process_lost = "run_process_lost"
     """The process running the system died or was stopped (a crash inside an FMU, ``--timeout``,
-    a supervisor that died): the rows journaled before it are recovered (`cosim.journal`)."""
+    a supervisor that died): the rows journaled before it are recovered (`cosim.record.journal`)."""
     worker_lost = "worker_lost"
     """A sweep's worker process died during the run (BrokenProcessPool, Dask's KilledWorker)."""
     unexpected = "unexpected"
@@ -63,8 +63,8 @@ class CosimError(Exception):
     """Base class: a message built from where the problem is and what was expected."""
 
     code: Errc = Errc.invalid_system
-    #: a failed run's `cosim.outcome.RunOutcome` (what it recorded up to the failure), set by
-    #: `cosim.simulation.run` as the error leaves it; None for an error before any run
+    #: a failed run's `cosim.run.outcome.RunOutcome` (what it recorded up to the failure), set by
+    #: `cosim.run.simulation.run` as the error leaves it; None for an error before any run
     run_outcome: Any = None
 
     def __init__(self, message: str, *, file: str | None = None, element: str | None = None,
@@ -124,7 +124,7 @@ class RunError(CosimError):
 
 
 class ComponentLost(RunError):
-    """A component's own process (``--isolate``, `cosim.instances.isolated`) died during an FMU
+    """A component's own process (``--isolate``, `cosim.run.instances.isolated`) died during an FMU
     call (``outcome`` "crashed") or did not answer within the call timeout ("timeout"): the
     run's status is the outcome."""
 

@@ -2,7 +2,7 @@
 
 pyarrow (``pip install 'greyfmu[parquet]'``, about 170 MB) writes and reads Parquet results and
 a sweep's ``sweep.parquet``; CSV results and sweeps (their ``sweep.csv``, `cosim.sweep.table`)
-need nothing more, and with pyarrow are the same bytes (`cosim.observers.CsvSink`).
+need nothing more, and with pyarrow are the same bytes (`cosim.record.observers.CsvSink`).
 """
 from __future__ import annotations
 

@@ -25,13 +25,13 @@ fmu_dirs=(), signals=None, tolerances=None, rtol=1e-6, atol=1e-9, decimate=None)
   names, relative to the rootdir, or the folder a conftest's own ``cosim_references_dir``
   fixture returns (this repository's tests/conftest.py: ``tests/references``); a path
   (``sub/x.csv``, ``../x.csv``, ``/abs/x.csv``) fails the test, so no test writes outside the
-  folder.  References are written in one rename (`cosim.results.write`).
+  folder.  References are written in one rename (`cosim.record.results.write`).
   Default: ``<test name>.csv`` there (parametrised tests: ``test_x[id].csv``, characters
   other than letters, digits, ``_.-[]`` replaced by ``_``).
 - ``stop``, ``step``, ``param_sets``, ``fmu_dirs``: as for ``cosim.simulate``.
 - ``signals``: globs selecting the compared (and stored) signals, default every connector.
 - ``tolerances``: ``{glob: (rtol, atol) or {"rtol": .., "atol": ..}}``; the most specific key
-  matching a signal wins (`cosim.metrics.tolerance_for`), others get ``rtol``/``atol``.  A
+  matching a signal wins (`cosim.present.metrics.tolerance_for`), others get ``rtol``/``atol``.  A
   sample passes when |candidate − reference| <= atol + rtol·|reference|.
 - ``decimate``: keep every n-th sample (first included) in the reference and the comparison,
   to keep long references small.
@@ -41,7 +41,7 @@ The test fails when the grids differ (saying how), when a reference signal is no
 lists each failing signal with the first failing time, value, reference, difference and
 tolerance, the reference's path and where the candidate was written (every connector of the
 run, in the test's ``tmp_path``).  A run error or an invalid scenario fails the test with
-cosim's message.  The comparison is `cosim.metrics.compare`, the same as ``cosim compare``.
+cosim's message.  The comparison is `cosim.present.metrics.compare`, the same as ``cosim compare``.
 
 The module imports nothing but pytest at import time (cosim, NumPy and fmpy are imported
 when the fixture is first called), since pytest loads it into every session.
@@ -58,7 +58,7 @@ import pytest
 if TYPE_CHECKING:
     import numpy as np
 
-    from .metrics import ToleranceSpec
+    from .present.metrics import ToleranceSpec
 
 UPDATE_OPTION = "--cosim-update-references"
 REFERENCES_INI = "cosim_references"
@@ -127,8 +127,9 @@ class Regression:
         """Run ``scenario`` and check it against (or with --cosim-update-references, write) the
         reference; returns the run's result (every connector, every step)."""
         from .errors import CosimError
-        from .metrics import check_tolerance_keys
-        from .simulation import select, simulate
+        from .present.metrics import check_tolerance_keys
+        from .record.results import select
+        from .run.simulation import simulate
 
         path = self.references / self._reference_name(reference)
         if path in self.used:
@@ -171,7 +172,7 @@ class Regression:
                   f"folder ({self.references}).")
 
     def _write(self, result: np.ndarray, chosen: list[str], path: Path) -> None:
-        from .results import write
+        from .record.results import write
 
         how = "rewritten" if path.exists() else "written"
         write(result, path, chosen)
@@ -180,8 +181,8 @@ class Regression:
     def _check(self, result: np.ndarray, chosen: list[str], path: Path, where: str,
                tolerances: Mapping[str, ToleranceSpec], rtol: float, atol: float) -> None:
         from .errors import CosimError
-        from .metrics import compare
-        from .results import read
+        from .present.metrics import compare
+        from .record.results import read
 
         if not path.is_file():
             _fail(f"cosim regression: no reference for {where}. Write it from this run with "

@@ -168,7 +168,7 @@ def parse_size(text: str, source: str) -> int:
 def unpack_limit(max_unpacked_bytes: int | None) -> Iterator[None]:
     """Within the block, archives are read with this limit (None: the environment or default).
 
-    Used by the CLI's ``--max-unpacked``, which cannot reach `cosim.ssp.load` through
+    Used by the CLI's ``--max-unpacked``, which cannot reach `cosim.read.ssp.load` through
     every call in between.
     """
     token = _limit_override.set(max_unpacked_bytes)
@@ -198,7 +198,7 @@ def _size_text(n: int) -> str:
 
 def _limit_hint() -> str:
     return (f"If the archive is trusted, raise the limit with --max-unpacked SIZE, the environment variable "
-            f"{MAX_UNPACKED_ENV} or cosim.ssp.load(..., max_unpacked_bytes=N).")
+            f"{MAX_UNPACKED_ENV} or cosim.read.ssp.load(..., max_unpacked_bytes=N).")
 
 
 def check_member_name(name: str, archive: Path | str) -> None:
@@ -237,7 +237,7 @@ def extract_archive(path: Path, dest: Path, limit: int | None = None, required: 
     for info in infos:
         fmu = _target(dest, info.filename)
         # one that is no zip archive at all (empty, truncated) is refused by the component that
-        # uses it, naming both (cosim.loadable.check_fmu_file); an unused one is never opened
+        # uses it, naming both (cosim.read.loadable.check_fmu_file); an unused one is never opened
         if info.filename.lower().endswith(".fmu") and not info.is_dir() and zipfile.is_zipfile(fmu):
             check_archive(fmu, limit, display=f"{path}!{info.filename}")
 

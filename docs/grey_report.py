@@ -3,7 +3,7 @@
     python docs/grey_report.py
 
 Figures: Simulation 3.2 (Figs. 3.2/3.3), 3.3 (Figs. 3.4-3.6), 3.4 (Figs. 3.7/3.8), 3.5-3.7
-(Figs. 3.9-3.11), grey PI vs PI, Fig. 3.12's basic scheme, GM(3/t,1) identification.  Metrics from cosim.metrics.
+(Figs. 3.9-3.11), grey PI vs PI, Fig. 3.12's basic scheme, GM(3/t,1) identification.  Metrics from cosim.present.metrics.
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ sys.path.insert(0, str(ROOT))
 os.chdir(ROOT)
 
 import cosim  # noqa: E402
-from cosim.metrics import step_metrics  # noqa: E402
+from cosim.present.metrics import step_metrics  # noqa: E402
 from greyfmu.grey import GM11  # noqa: E402
 from figure_files import save_figure  # noqa: E402
 

@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 import cosim  # noqa: E402
 from greyfmu.control import boiler_groups  # noqa: E402
 from greyfmu.plants import HeaderParameters, least_fuel_firing, steady_firing  # noqa: E402
-from cosim.ssp import ParameterValue  # noqa: E402
+from cosim.read.ssp import ParameterValue  # noqa: E402
 from cosim.sweep import write_ssv  # noqa: E402
 from figure_files import save_figure  # noqa: E402
 

@@ -1,8 +1,12 @@
-"""Shared fixtures."""
+"""Shared fixtures, and the record of the suite's time: every run writes each test's time (set-up,
+call and tear-down) and each file's to build/test-durations.json (`pytest_sessionfinish`), and the
+slowest files in its summary; ``@pytest.mark.slow`` marks a test of more than about 20 s."""
 
+import json
 import os
 import subprocess
 import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -13,7 +17,7 @@ from hypothesis import settings
 # COSIM_FUZZ=nightly or `pytest --hypothesis-profile nightly`; every example must end in 5 s.
 settings.register_profile("default", max_examples=100, deadline=5000)
 settings.register_profile("nightly", max_examples=2000, deadline=5000)
-#: the tests' FMU cache (cosim.fmucache): one folder per session, shared with the processes
+#: the tests' FMU cache (cosim.read.fmucache): one folder per session, shared with the processes
 #: the tests start, not the user's ~/.cache
 _FMU_CACHE = tempfile.TemporaryDirectory(prefix="cosim-test-fmu-cache-")
 os.environ.setdefault("COSIM_FMU_CACHE", _FMU_CACHE.name)
@@ -95,10 +99,10 @@ def _installed_pythonfmu3_first() -> None:
 def _release_pythonfmu_state_before_fmpy_unloads() -> None:
     """Tests also run our FMUs through fmpy.simulate_fmu, which unloads each library when it
     is done: empty pythonfmu 0.7.0's static interpreter state first, as cosim does (see
-    cosim.instances.pythonfmu_state.release_pythonfmu_state: otherwise the unload can corrupt the heap)."""
+    cosim.run.instances.pythonfmu_state.release_pythonfmu_state: otherwise the unload can corrupt the heap)."""
     from fmpy.fmi1 import _FMU
 
-    from cosim.instances.pythonfmu_state import release_pythonfmu_state
+    from cosim.run.instances.pythonfmu_state import release_pythonfmu_state
 
     unload = _FMU.freeLibrary
 
@@ -109,3 +113,42 @@ def _release_pythonfmu_state_before_fmpy_unloads() -> None:
     _FMU.freeLibrary = free_library
     yield
     _FMU.freeLibrary = unload
+
+
+#: each test's time in this session (set-up, call and tear-down), by node id
+_DURATIONS: dict[str, float] = {}
+_STARTED = time.monotonic()
+
+
+def pytest_runtest_logreport(report) -> None:
+    _DURATIONS[report.nodeid] = _DURATIONS.get(report.nodeid, 0.0) + report.duration
+
+
+def _by_file() -> dict[str, float]:
+    files: dict[str, float] = {}
+    for nodeid, seconds in _DURATIONS.items():
+        file = nodeid.split("::", 1)[0]
+        files[file] = files.get(file, 0.0) + seconds
+    return dict(sorted(files.items(), key=lambda kv: -kv[1]))
+
+
+def pytest_sessionfinish(session, exitstatus) -> None:
+    """build/test-durations.json: the wall time of the session, the time of each file and test,
+    slowest first (written by the process that reports: with pytest-xdist, the controller)."""
+    if hasattr(session.config, "workerinput") or not _DURATIONS:
+        return
+    path = Path(session.config.rootpath) / "build" / "test-durations.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tests = dict(sorted(_DURATIONS.items(), key=lambda kv: -kv[1]))
+    path.write_text(json.dumps({"wall_seconds": round(time.monotonic() - _STARTED, 3),
+                                "test_seconds": round(sum(tests.values()), 3), "tests": len(tests),
+                                "files": {f: round(s, 3) for f, s in _by_file().items()},
+                                "slowest": {t: round(s, 3) for t, s in tests.items()}}, indent=1) + "\n")
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
+    if hasattr(config, "workerinput") or len(_DURATIONS) < 2:
+        return
+    files = list(_by_file().items())[:5]
+    terminalreporter.write_line("test durations (build/test-durations.json): " + ", ".join(
+        f"{Path(f).name} {s:.0f} s" for f, s in files) + f"; {sum(_DURATIONS.values()):.0f} s in all tests")

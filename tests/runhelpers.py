@@ -11,7 +11,8 @@ import numpy as np
 
 from cosim.cli import main
 from cosim.errors import RunError
-from cosim.simulation import prepare, run
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 
 
 def cli_exit(capsys, code: int, *argv: str) -> str:

@@ -45,6 +45,7 @@ def close(a: np.ndarray, b: np.ndarray, what: str) -> None:
     np.testing.assert_allclose(a, b, rtol=0, atol=ROUNDING, err_msg=what)
 
 
+@pytest.mark.slow   # 36 s on the shared 2-core machine (build/test-durations.json)
 def test_every_peer_ran_every_case_and_the_table_has_a_row_each(cases):
     assert [(c.system.family.name, c.system.label) for c in cases] == [
         (bench_native.FAMILIES[f].name, label) for f in ("c", "om") for label in ("independent 2", "chained 2")]

@@ -1,68 +1,19 @@
-"""The master's tests run with only what they test (issue 29): `tests/cosim/` needs the C test
-FMUs (tests/cfmus.py, compiled here) and the third-party exports, never pythonfmu.
-
-The guard runs the whole of `tests/cosim/` (about 30 s) in a child pytest whose
-``sitecustomize.py`` makes ``pythonfmu``, ``pythonfmu3`` and ``greyfmu.build`` unimportable,
-as on a machine with only the master installed; the tests that need them live in
-`tests/scenarios/` (our FMUs, the `ssp/` scenarios, the pythonfmu FMUs of tests/fmus) and
-`tests/slaves/`.
-"""
+"""The layout of the project as the tests rely on it: what may import fmpy, what the data model
+imports, that docs/architecture.md names every module, and that without pythonfmu the master names
+the provider it cannot load.  That `tests/cosim/` runs without pythonfmu is checked around each of
+its tests (tests/cosim/conftest.py, tests/blocker.py; issue 29 ran all of tests/cosim a second time
+in a child pytest for it, issue 40 checks it in the run itself)."""
 from __future__ import annotations
 
 import ast
-import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
+from blocker import environment
+
 ROOT = Path(__file__).resolve().parents[1]
-#: tests of tests/cosim that ran (passed, or skipped for want of a tmpfs, Dask or the compiled
-#: kernel) under the blocker when the pythonfmu ones were moved out (issue 29: 235 passed; 332
-#: once the tests needing only "some" source, gain, sum or lag ran on the C twins of our Step, Gain,
-#: Sum and FirstOrderFilter, tests/twin_fmus.py; 338 with main's test_undriven_outputs.py; 339 with the
-#: plan pickle round trip of test_plan.py; 354 with the step program's tests: both interpreters on
-#: iterated loops, FMI 3.0 conversions, Binary, tables, and the program's shape; 355 with two local
-#: clusters at once; 356 with test_docstrings.py)
-AT_LEAST = 356
-
-BLOCKER = '''"""Make pythonfmu, pythonfmu3 and greyfmu.build unimportable (tests/test_layout.py)."""
-import sys
-
-BLOCKED = ("pythonfmu", "pythonfmu3", "greyfmu.build")
-
-
-class Blocker:
-    def find_spec(self, name, path=None, target=None):
-        if any(name == b or name.startswith(b + ".") for b in BLOCKED):
-            raise ImportError(f"{name} is blocked by tests/test_layout.py")
-        return None
-
-
-sys.meta_path.insert(0, Blocker())
-'''
-
-
-def _blocked_env(tmp_path: Path) -> dict[str, str]:
-    (tmp_path / "sitecustomize.py").write_text(BLOCKER)
-    paths = [str(tmp_path), *filter(None, [os.environ.get("PYTHONPATH")])]
-    return dict(os.environ, PYTHONPATH=os.pathsep.join(paths))
-
-
-def test_the_blocker_hides_pythonfmu(tmp_path):
-    env = _blocked_env(tmp_path)
-    for module in ("pythonfmu", "pythonfmu3", "greyfmu.build"):
-        done = subprocess.run([sys.executable, "-c", f"import {module}"], env=env, capture_output=True, text=True)
-        assert done.returncode == 1 and f"{module} is blocked by tests/test_layout.py" in done.stderr, done.stderr
-
-
-def test_tests_cosim_pass_without_pythonfmu(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "pytest", "tests/cosim", "-q", "-x", "-p", "no:cacheprovider"],
-                          cwd=ROOT, env=_blocked_env(tmp_path), capture_output=True, text=True, timeout=600)
-    tail = done.stdout[-3000:] + done.stderr[-2000:]
-    assert done.returncode == 0, tail
-    counts = {what: int(n) for n, what in re.findall(r"(\d+) (passed|skipped|failed|errors?)\b", done.stdout)}
-    assert counts.get("passed", 0) + counts.get("skipped", 0) >= AT_LEAST, tail
 
 
 def test_a_provider_that_cannot_be_imported_is_named_not_raised(tmp_path, twin_fmus):
@@ -73,7 +24,7 @@ def test_a_provider_that_cannot_be_imported_is_named_not_raised(tmp_path, twin_f
     from ssdgen import ssd_text, write_system
 
     folder = write_system(tmp_path / "sys", {}, ssd_text("t", {"g": ("Gain.fmu", {"u": "input", "y": "output"})}, []))
-    env = _blocked_env(tmp_path)
+    env = environment(tmp_path / "blocker")
     missing = subprocess.run([sys.executable, "-m", "cosim.cli", "validate", str(folder)], cwd=ROOT, env=env,
                              capture_output=True, text=True, timeout=120)
     assert missing.returncode == 2 and "Traceback" not in missing.stderr, missing.stderr
@@ -89,9 +40,9 @@ def test_a_provider_that_cannot_be_imported_is_named_not_raised(tmp_path, twin_f
 #: inputs and structure among them): the description reader and the instances, which wrap fmpy's
 #: model description and FMI calls, and three that use a fact of fmpy's (loadable: its platform
 #: folder names; single: its automatic output interval, as `fmpy simulate` picks it; ssp: the SSP
-#: XSDs it ships); every other module reads our own records (cosim.description)
-FMPY_USERS = {"cosim/description.py", "cosim/instances/fmi2.py", "cosim/instances/fmi3.py", "cosim/instances/me.py",
-              "cosim/loadable.py", "cosim/single.py", "cosim/ssp.py"}
+#: XSDs it ships); every other module reads our own records (cosim.read.description)
+FMPY_USERS = {"cosim/read/description.py", "cosim/run/instances/fmi2.py", "cosim/run/instances/fmi3.py", "cosim/run/instances/me.py",
+              "cosim/read/loadable.py", "cosim/read/single.py", "cosim/read/ssp.py"}
 
 
 def test_only_the_description_reader_and_the_instances_import_fmpy():
@@ -103,3 +54,30 @@ def test_only_the_description_reader_and_the_instances_import_fmpy():
             if any(n == "fmpy" or n.startswith("fmpy.") for n in names):
                 importing.add(path.relative_to(ROOT).as_posix())
     assert importing <= FMPY_USERS, sorted(importing - FMPY_USERS)
+
+
+def test_the_data_model_imports_no_fmpy():
+    """The records every stage shares (`cosim.model`: the structure, the Plan, the FMU description
+    records, units, transformations) are plain data: importing them loads no fmpy (issue 40: the
+    records lived in the module that read them with fmpy)."""
+    code = ("import sys, cosim.model.structure, cosim.model.fmu, cosim.model.units, cosim.model.grid; "
+            "print(sorted(m for m in sys.modules if m == 'fmpy' or m.startswith('fmpy.')))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr
+
+
+def test_docs_architecture_has_a_row_for_every_module_and_no_other():
+    """docs/architecture.md's module map (issue 40: wrong in 12 places, 8 modules with no row) names
+    every module of cosim/ once, and no module that does not exist; a package whose __init__.py
+    holds only its docstring needs no row."""
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    table = text.split("## Module map", 1)[1].split("\n## ", 1)[0].split("\n### ", 1)[0]
+    rows = re.findall(r"^\| `(cosim/[^`]+\.py)` \|", table, flags=re.M)
+    modules = set()
+    for path in (ROOT / "cosim").rglob("*.py"):
+        tree = ast.parse(path.read_text())
+        body = tree.body[1:] if tree.body and isinstance(tree.body[0], ast.Expr) else tree.body
+        if path.name != "__init__.py" or body:
+            modules.add(path.relative_to(ROOT).as_posix())
+    assert len(rows) == len(set(rows)), sorted(r for r in rows if rows.count(r) > 1)
+    assert sorted(modules - set(rows)) == [] and sorted(set(rows) - modules) == []

@@ -114,6 +114,7 @@ def test_the_readme_has_the_first_hour_commands():
         assert any(step in c for c in commands), step
 
 
+@pytest.mark.slow   # 80 s on the shared 2-core machine (build/test-durations.json)
 def test_command_1_installs_into_the_venv_and_writes_results_plot_and_report(newcomer):
     clone, output = newcomer
     for suffix in (".csv", ".json", ".png", ".html"):

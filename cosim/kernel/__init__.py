@@ -1,12 +1,13 @@
 """The compiled stepping loop (``kernel.c``) and its ctypes binding; the same library formats
-result CSV rows (``csvrows.c``, used by `cosim.csvformat`).
+result CSV rows (``csvrows.c``, used by `cosim.record.csvformat`).
 
-`cosim.program` compiles a communication step into one list of operations; an operation C can
-run carries its `NativeOp` (doSteps, gets, sets and numeric routes), the others none.
+`cosim.run.program` compiles a communication step into one list of operations; an operation C can
+run carries its `NativeOp` (doSteps, gets, sets, affine routes and routes through mapping tables),
+the others none.
 `Kernel` runs that list step after step in C, writing each recorded row into the recorder's
 chunk buffer, and returns to Python for everything else (an operation without a `NativeOp`,
 flushing, progress, signals, any FMI status above Warning, see ``kernel.c``), which resumes it
-at an operation index (`cosim.interpreters.NativeInterpreter`).
+at an operation index (`cosim.run.interpreters.NativeInterpreter`).
 
 The library is built from ``kernel.c`` when greyfmu is installed (an optional setuptools
 extension, ``setup.py``: no Python C API, loaded here with ctypes); `library` finds it, or
@@ -27,15 +28,16 @@ from pathlib import Path
 
 import numpy as np
 
-OP_STEP, OP_GET, OP_SET, OP_ROUTE, OP_PYTHON = 0, 1, 2, 3, 4
+OP_STEP, OP_GET, OP_SET, OP_ROUTE, OP_PYTHON, OP_MAP = 0, 1, 2, 3, 4, 5
 #: why `Kernel.run` returned (bits): step k_end reached, buffer full, flush due, stop flag set,
-#: an FMI status for Python to handle, a route whose value overflowed (its index in the status),
-#: an operation for Python to run
-KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS, KERNEL_OVERFLOW, KERNEL_YIELD = \
+#: an FMI status for Python to handle, a route whose value C could not make (a factor and offset
+#: that overflowed, a value a table names no target for: its index in the status), an operation
+#: for Python to run
+KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS, KERNEL_UNMADE, KERNEL_YIELD = \
     1, 2, 4, 8, 16, 32, 64
 LIBRARY_ENV = "COSIM_KERNEL_LIBRARY"
 #: KERNEL_ABI_VERSION of kernel.c: the layout of the structures mirrored below
-ABI_VERSION = 2
+ABI_VERSION = 3
 
 
 class _Op(ctypes.Structure):
@@ -46,6 +48,11 @@ class _Op(ctypes.Structure):
                 ("last", ctypes.c_void_p),
                 ("src", ctypes.c_void_p), ("dst", ctypes.c_void_p), ("factor", ctypes.c_void_p),
                 ("offset", ctypes.c_void_p), ("Y", ctypes.c_void_p), ("U", ctypes.c_void_p)]
+
+
+class _Table(ctypes.Structure):
+    _fields_ = [("keys", ctypes.c_void_p), ("values", ctypes.c_void_p), ("n", ctypes.c_size_t),
+                ("boolean", ctypes.c_int)]
 
 
 class _Source(ctypes.Structure):
@@ -83,7 +90,7 @@ def _abi_mismatch(lib: ctypes.CDLL) -> str:
         abi = lib.cosim_kernel_abi
     except AttributeError:
         return "it has no cosim_kernel_abi (older than the ABI check)"
-    mirrors = (_Op, _Source, _Program, _Run)
+    mirrors = (_Op, _Source, _Program, _Run, _Table)
     sizes = (ctypes.c_size_t * len(mirrors))()
     abi.argtypes, abi.restype = [ctypes.POINTER(ctypes.c_size_t)], ctypes.c_int
     version = abi(sizes)
@@ -128,16 +135,18 @@ def library() -> tuple[ctypes.CDLL | None, str]:
 
 @dataclass(frozen=True)
 class NativeOp:
-    """The C form of one operation of a step (`cosim.program.Operation.native`).
+    """The C form of one operation of a step (`cosim.run.program.Operation.native`).
 
     ``kind``: OP_STEP, OP_GET, OP_SET (an FMI call on the instance handle ``instance``, ``api`` 2
     or 3 telling the C signature of the function at address ``fn``; a get or set exchanges ``n``
-    values of references at ``vr`` with the buffer at ``values``) or OP_ROUTE (``route``: source
+    values of references at ``vr`` with the buffer at ``values``), OP_ROUTE (``route``: source
     and destination positions, factor, offset, identity, on the buffers at ``Y`` and ``U`` of C
-    ints when ``integer``, else doubles).  ``post_step``: for a doStep, the addresses of
+    ints when ``integer``, else doubles) or OP_MAP (``route``: source and destination positions;
+    ``tables``: per route the C form of its `cosim.model.transforms.Table`, sorted keys, their
+    values and whether they are Booleans, on C int buffers).  ``post_step``: for a doStep, the addresses of
     fmi3DoStep's out-arguments (eventHandlingNeeded, terminateSimulation, earlyReturn,
     lastSuccessfulTime), zeros for FMI 2.0; a set terminateSimulation returns to Python, which
-    runs the instance's post-step (`cosim.instances.Instance.step_outcome`).  ``thread``: with
+    runs the instance's post-step (`cosim.run.instances.Instance.step_outcome`).  ``thread``: with
     threads, which one makes a doStep of the parallel phase (0: the caller).
     """
     kind: int
@@ -149,6 +158,7 @@ class NativeOp:
     values: int = 0
     post_step: tuple[int, int, int, int] = (0, 0, 0, 0)
     route: tuple | None = None
+    tables: tuple | None = None
     integer: bool = False
     Y: int = 0
     U: int = 0
@@ -176,7 +186,19 @@ class Kernel:
             o.kind, o.api, o.integer, o.thread = op.kind, op.api, int(op.integer), op.thread
             o.fn, o.instance, o.vr, o.n, o.values = op.fn, op.instance, op.vr, op.n, op.values
             o.event, o.terminate, o.early, o.last = op.post_step
-            if op.route is not None:
+            if op.kind == OP_MAP:
+                src, dst = (np.ascontiguousarray(a, dtype=np.intp) for a in op.route)
+                tables = (_Table * len(op.tables))()
+                held = [src, dst, tables]
+                for t, (keys, values, boolean) in zip(tables, op.tables):
+                    k, v = np.array(keys, dtype=np.intc), np.array(values, dtype=np.intc)
+                    held += [k, v]
+                    t.keys, t.values, t.n, t.boolean = k.ctypes.data, v.ctypes.data, len(k), int(boolean)
+                self._keep.append(held)
+                # kernel.c's Op holds the tables where a route's factors are (a union)
+                o.src, o.dst, o.factor, o.n, o.Y, o.U = src.ctypes.data, dst.ctypes.data, ctypes.addressof(tables), \
+                    len(src), op.Y, op.U
+            elif op.route is not None:
                 src, dst, factor, offset, identity = op.route
                 arrays = (np.ascontiguousarray(src, dtype=np.intp), np.ascontiguousarray(dst, dtype=np.intp),
                           np.ascontiguousarray(factor, dtype=np.float64),
@@ -205,7 +227,7 @@ class Kernel:
             flush_at: float) -> int:
         """Steps k .. k_end - 1, step k from its operation ``first``, into the buffer at address
         ``rows`` (``free_rows`` rows free); returns the KERNEL_* bits; `state` holds the step
-        reached, the rows and samples done, and, on KERNEL_STATUS, KERNEL_OVERFLOW and
+        reached, the rows and samples done, and, on KERNEL_STATUS, KERNEL_UNMADE and
         KERNEL_YIELD, the operation (and its status)."""
         r = self.state
         r.k, r.k_end, r.first, r.rows, r.free_rows, r.rows_done = k, k_end, first, rows, free_rows, 0

@@ -1,9 +1,9 @@
-/* Result CSV rows in C (cosim.csvformat): the bytes Arrow's CSV writer writes for float64 columns.
+/* Result CSV rows in C (cosim.record.csvformat): the bytes Arrow's CSV writer writes for float64 columns.
  *
  * Each double is written in the shortest decimal form that reads back to the same bits (Ryu,
  * Adams, "Ryu: fast float-to-string conversion", PLDI 2018: the vendored ryu/d2s.c, its d2d
  * gives the digits and the exponent), laid out as Arrow's writer lays it out (double-
- * conversion's shortest mode, as cosim/csvformat.py states): positional notation for a decimal exponent from -6 to 9, no trailing ".0", else
+ * conversion's shortest mode, as cosim/record/csvformat.py states): positional notation for a decimal exponent from -6 to 9, no trailing ".0", else
  * d[.ddd]e+X / e-X with no leading zero in the exponent; "-0", "inf", "-inf", "nan" (any sign).
  * No Python C API: loaded with ctypes (cosim.kernel.library), which releases the GIL. */
 #include "ryu/d2s.c"

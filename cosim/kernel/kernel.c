@@ -1,14 +1,15 @@
 /* The master's stepping loop in C (cosim.kernel): one communication step's program of operations
- * (cosim.program), run from step k to step k_end, one recorded row after each step.
+ * (cosim.run.program), run from step k to step k_end, one recorded row after each step.
  *
- * cosim.program compiles the step -- the doSteps (Jacobi, or Gauss-Seidel with each component's
+ * cosim.run.program compiles the step -- the doSteps (Jacobi, or Gauss-Seidel with each component's
  * inputs routed and set before and its outputs read after its doStep), the batched gets, the
  * direct-feedthrough settling in dependency order, the routes (y * factor + offset, two
- * roundings: built with -ffp-contract=off), the sets -- into one array of operations, which
- * cosim.interpreters runs either in Python or here: this file only runs it, so the calls, their
+ * roundings: built with -ffp-contract=off; or a value looked up in a mapping table), the sets --
+ * into one array of operations, which
+ * cosim.run.interpreters runs either in Python or here: this file only runs it, so the calls, their
  * order and the arithmetic are the same in both.  An operation this file cannot run (OP_PYTHON:
- * a call Python makes, a String route, a mapping table, an input table, an algebraic loop's
- * iteration) is handed back to Python, which runs it and resumes here after it.
+ * a call Python makes, a String route, a transformation without a C form, an input table, an
+ * algebraic loop's iteration) is handed back to Python, which runs it and resumes here after it.
  *
  * The loop returns to Python (cosim_run's result, bits of KERNEL_*) when:
  *   - step k_end is reached (Python's progress stride);
@@ -17,8 +18,9 @@
  *   - the stop flag is set (a signal: cosim_watch_signals), checked after each recorded row;
  *   - an FMI call returned a status other than OK and Warning, or a doStep's post-step flag
  *     (fmi3DoStep's terminateSimulation) is set: Python handles the status;
- *   - a route's factor and offset turned a finite value into an infinite one (KERNEL_OVERFLOW,
- *     the route's index in ``status``): Python reports it as the Python interpreter does;
+ *   - a route's value could not be made (KERNEL_UNMADE, the route's index in ``status``): its
+ *     factor and offset turned a finite value into an infinite one, or its table names no target
+ *     for the value; Python makes the operation again and reports it as the Python interpreter does;
  *   - the next operation is OP_PYTHON (KERNEL_YIELD).
  * In the last three cases, and for a status Python decides to go on after, Python calls again
  * with ``first``: the operation of step k to resume at.
@@ -35,9 +37,9 @@
 #include <string.h>
 #include <time.h>
 
-enum { OP_STEP = 0, OP_GET = 1, OP_SET = 2, OP_ROUTE = 3, OP_PYTHON = 4 };
+enum { OP_STEP = 0, OP_GET = 1, OP_SET = 2, OP_ROUTE = 3, OP_PYTHON = 4, OP_MAP = 5 };
 enum { KERNEL_END = 1, KERNEL_FULL = 2, KERNEL_FLUSH = 4, KERNEL_STOP = 8, KERNEL_STATUS = 16,
-       KERNEL_OVERFLOW = 32, KERNEL_YIELD = 64 };
+       KERNEL_UNMADE = 32, KERNEL_YIELD = 64 };
 
 typedef int (*fmi2DoStep)(void *, double, double, int);
 typedef int (*fmi3DoStep)(void *, double, double, bool, bool *, bool *, bool *, double *);
@@ -49,8 +51,17 @@ typedef int (*fmi3Exchange)(void *, const unsigned int *, size_t, void *, size_t
  * instance's own, which its post-step reads in Python), and a doStep after which ``terminate``
  * (when not NULL) is true returns to Python whatever its status.
  * OP_ROUTE: U[dst[j]] = Y[src[j]] (identity) or Y[src[j]] * factor[j] + offset[j], on doubles
- * or (integer) on C ints, as fmi2Integer and fmi2Boolean are.  ``thread``: with a pool, which
- * thread makes a doStep of the parallel phase (0: the calling thread). */
+ * or (integer) on C ints, as fmi2Integer and fmi2Boolean are.  OP_MAP: U[dst[j]] = the value
+ * tables[j] maps Y[src[j]] to (C ints; ``tables`` shares its place with ``factor``).  ``thread``: with a pool, which thread makes a doStep of
+ * the parallel phase (0: the calling thread). */
+/* A mapping table (cosim.model.transforms.Table): ``n`` keys in ascending order and their values;
+ * ``boolean``: a key is looked up as 0 or 1 (any value but 0 as 1). */
+typedef struct {
+    const int *keys, *values;
+    size_t n;
+    int boolean;
+} Table;
+
 typedef struct {
     int kind, api, integer, identity, thread;
     void *fn, *instance;
@@ -60,7 +71,11 @@ typedef struct {
     bool *event, *terminate, *early;
     double *last;
     const intptr_t *src, *dst;
-    const double *factor, *offset;
+    union { /* OP_ROUTE's factors, or OP_MAP's tables: Op keeps the size it had before tables */
+        const double *factor;
+        const Table *tables;
+    };
+    const double *offset;
     void *Y, *U;
 } Op;
 
@@ -92,7 +107,7 @@ typedef struct {
 /* What one call does: steps k .. k_end - 1 (k advances past every completed step; step k
  * begins at operation ``first``, the others at 0), rows into ``rows`` (row-major, ``columns``
  * doubles each) up to ``free_rows``; ``samples`` counts every row of the run and is stored into
- * ``count`` after each row (the journal's row counter).  On KERNEL_STATUS, KERNEL_OVERFLOW and
+ * ``count`` after each row (the journal's row counter).  On KERNEL_STATUS, KERNEL_UNMADE and
  * KERNEL_YIELD: ``op`` (and ``status``) of the operation, in step k (not completed). */
 typedef struct {
     long long k, k_end;
@@ -109,17 +124,18 @@ typedef struct {
  * with any change to Op, Source, Program or Run (their sizes are checked too, so a stale
  * library built before an edit is refused rather than read out of step). */
 #ifndef KERNEL_ABI_VERSION
-#define KERNEL_ABI_VERSION 2
+#define KERNEL_ABI_VERSION 3
 #endif
-enum { KERNEL_ABI_STRUCTS = 4 };
+enum { KERNEL_ABI_STRUCTS = 5 };
 
-/* The ABI version; ``sizes`` (KERNEL_ABI_STRUCTS of them) receives sizeof Op, Source, Program
- * and Run, in that order. */
+/* The ABI version; ``sizes`` (KERNEL_ABI_STRUCTS of them) receives sizeof Op, Source, Program,
+ * Run and Table, in that order. */
 int cosim_kernel_abi(size_t *sizes) {
     sizes[0] = sizeof(Op);
     sizes[1] = sizeof(Source);
     sizes[2] = sizeof(Program);
     sizes[3] = sizeof(Run);
+    sizes[4] = sizeof(Table);
     return KERNEL_ABI_VERSION;
 }
 
@@ -159,7 +175,29 @@ static long route(const Op *o) {
     return -1;
 }
 
-/* The status of one operation (for a route: -1, or the index of the route that overflowed). */
+/* Mapped routes; -1, or the index of the first route whose table names no target for its value
+ * (the values up to it routed). */
+static long map_values(const Op *o) {
+    const int *Y = o->Y;
+    int *U = o->U;
+    for (size_t j = 0; j < o->n; j++) {
+        const Table *table = &o->tables[j];
+        int key = Y[o->src[j]];
+        if (table->boolean) key = key != 0;
+        size_t lo = 0, hi = table->n;
+        while (lo < hi) {
+            size_t mid = lo + (hi - lo) / 2;
+            if (table->keys[mid] < key) lo = mid + 1;
+            else hi = mid;
+        }
+        if (lo == table->n || table->keys[lo] != key) return (long)j;
+        U[o->dst[j]] = table->values[lo];
+    }
+    return -1;
+}
+
+/* The status of one operation (for a route: -1, or the index of the route whose value could not
+ * be made). */
 static int operate(const Op *o, double t, double h) {
     switch (o->kind) {
     case OP_STEP:
@@ -171,16 +209,16 @@ static int operate(const Op *o, double t, double h) {
         if (o->api == 2)
             return ((fmi2Exchange)o->fn)(o->instance, o->vr, o->n, o->values);
         return ((fmi3Exchange)o->fn)(o->instance, o->vr, o->n, o->values, o->n);
-    default:
-        return (int)route(o);
+    default: /* the switch of the doSteps, gets and sets as before OP_MAP: a route is the rarer case */
+        return (int)(o->kind == OP_MAP ? map_values(o) : route(o));
     }
 }
 
 /* Whether the loop stops at operation o after status s: a doStep goes on after OK and Warning
  * unless its post-step flag is set (fmi3DoStep asks to terminate); a get or set after any status
- * up to Warning; a route when one of its values overflowed. */
+ * up to Warning; a route when one of its values could not be made. */
 static int stops(const Op *o, int s) {
-    if (o->kind == OP_ROUTE) return s >= 0;
+    if (o->kind == OP_ROUTE || o->kind == OP_MAP) return s >= 0;
     return o->kind == OP_STEP ? (s != 0 && s != 1) || (o->terminate != NULL && *o->terminate) : s > 1;
 }
 
@@ -211,7 +249,7 @@ int cosim_run(const Program *p, Run *r) {
             if (stops(o, s)) {
                 r->op = i;
                 r->status = s;
-                return o->kind == OP_ROUTE ? KERNEL_OVERFLOW : KERNEL_STATUS;
+                return o->kind == OP_ROUTE || o->kind == OP_MAP ? KERNEL_UNMADE : KERNEL_STATUS;
             }
         }
         double *row = r->rows + r->rows_done * p->columns;
@@ -237,7 +275,7 @@ int cosim_run(const Program *p, Run *r) {
 }
 
 /* Signals during a run: SIGINT, SIGTERM and SIGALRM set ``flag`` (to the signal's number) and
- * then go to the handler they had (Python's, which records them in the cosim.interrupts
+ * then go to the handler they had (Python's, which records them in the cosim.run.interrupts
  * StopRequest once the kernel returns), so the loop sees them at the next row. */
 static const int WATCHED[3] = {SIGINT, SIGTERM, SIGALRM};
 static struct sigaction previous[3];

@@ -18,7 +18,7 @@ The sweep holds the locks of its two tables (``OUTPUT/sweep.csv.lock`` and
 ``OUTPUT/sweep.parquet.lock``, `cosim.safeio.lock_output`) while it runs, so a second sweep
 or a `cosim run` writing either table is refused; every file is written as ``<name>.part``
 and renamed into place.  ``OUTPUT`` must be a folder (or not exist yet) and must not hold a
-run's results named ``sweep.*`` (`cosim.outputs.check_sweep_folder`).
+run's results named ``sweep.*`` (`cosim.record.outputs.check_sweep_folder`).
 
 The run id is a hash of everything that decides the result: the scenario's files, every
 FMU's GUID and file contents, the parameter sets, the swept values, the seed and the time
@@ -27,13 +27,13 @@ its result files; change anything and the id changes.
 
 Values go in the way ``--param-set`` values do (SSP 1.0 parameter precedence: applied
 last, beating component- and system-level bindings), and every name and value is checked
-by the master's own validation (`cosim.parameters.check_values`) before the first run starts.
+by the master's own validation (`cosim.plan.parameters.check_values`) before the first run starts.
 Runs go to a local process pool (``spawn`` start method: FMUs loaded in the parent are
 never forked), run serially in this process, or go to a Dask distributed cluster whose
 workers need only this package installed: the scenario is packed once and handed to them,
 and each run's result files come back to this process (`.shipping`, `.cluster`).  Each worker
 keeps the scenario and its FMU instances across its runs, reset between them (`.worker`,
-`cosim.instances.reuse`; ``reuse=False``: every run afresh), with results identical to fresh runs.
+`cosim.run.instances.reuse`; ``reuse=False``: every run afresh), with results identical to fresh runs.
 """
 from __future__ import annotations
 
@@ -49,10 +49,11 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import CosimError
-from ..outputs import check_sweep_folder
+from ..record.outputs import check_sweep_folder
 from ..safeio import lock_output, max_unpacked_bytes
-from ..simulation import Grid, Prepared, signal_units
-from ..single import Scenario, load_scenario, prepare_scenario
+from ..model.grid import Grid
+from ..plan.prepare import Prepared, Scenario, load_scenario, prepare_scenario
+from ..present.plots import signal_units
 from .batch import BatchedTable
 from .cluster import check_scheduler, dispatch_cluster
 from .dispatch import Executor, Task, dispatch, is_cluster, run_metrics
@@ -117,7 +118,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
     """Run every combination of ``sets`` (name -> values, strings parsed by the variable's type)
     times ``seeds`` and write the results table (see the module docstring).  ``start_values``
     (``component.variable=value``) and ``input_file`` (an input table) apply to every run as
-    `cosim run`'s --start-value and --input-file do (`cosim.single.prepare_run`).
+    `cosim run`'s --start-value and --input-file do (`cosim.plan.prepare.prepare`).
     ``run_files``: write each run's ``runs/<id>.csv``, ``.json`` and ``.ssv`` (False: the table
     only, and a rerun reruns every run); ``reuse``: each worker keeps the scenario and the FMU
     instances across its runs (`cosim.sweep.worker`; False: every run read and instantiated afresh).
@@ -173,7 +174,7 @@ def sweep(scenario: str | Path, sets: Mapping[str, Sequence[Value]], *, seeds: S
                 old = before[r.run_id]
                 missing = [m for m in metric_list if any(c not in old for c in m.columns())]
                 if missing:
-                    from ..results import read
+                    from ..record.results import read
                     old = {**old, **run_metrics(read(runs_dir / f"{r.run_id}.csv"), missing)}
                 rows[r.index] = {**old, **fixed[r.run_id][1]}
                 continue

@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import CosimError, Errc, SetupError
-from ..metrics import METRICS, step_response
+from ..present.metrics import METRICS, step_response
 from ..safeio import unpack_limit
-from ..simulation import Prepared, run
-from ..single import prepare_run
+from ..plan.prepare import Prepared, prepare
+from ..run.simulation import run
 from .values import Metric
 from .worker import kept_for, prepare_task, release
 
@@ -43,7 +43,7 @@ class Task:
     max_unpacked: int
     #: ``--start-value`` texts (``component.variable=value``), applied after the parameter sets
     start_values: tuple[str, ...] = ()
-    #: the ``--input-file`` table (`cosim.inputs`), or None
+    #: the ``--input-file`` table (`cosim.plan.inputs`), or None
     input_file: str | None = None
     #: how many of ``parameter_sets`` (the first) every run of the sweep shares; the others are the run's own
     shared_sets: int = 0
@@ -76,10 +76,10 @@ def execute(task: Task) -> dict[str, Any]:
                 prepared = task.prepared if task.prepared is not None else prepare_task(task, kept)
                 outcome = run(prepared, output=output, pool=kept.pool)
             else:
-                with prepare_run(task.scenario, start_time=task.start, stop_time=task.stop,
-                                 step_size=task.step, algorithm=task.algorithm,
-                                 parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
-                                 start_values=task.start_values, input_file=task.input_file) as prepared:
+                with prepare(task.scenario, start_time=task.start, stop_time=task.stop,
+                             step_size=task.step, algorithm=task.algorithm,
+                             parameter_sets=task.parameter_sets, fmu_dirs=task.fmu_dirs,
+                             start_values=task.start_values, input_file=task.input_file) as prepared:
                     outcome = run(prepared, output=output)
         result = outcome.result
         if outcome.status == "discarded":

@@ -1,7 +1,7 @@
 """The sweep's summary figure, ``sweep.png`` beside ``sweep.csv``: each step metric against each
 swept parameter (a row of panels per metric, a column per parameter; with one parameter, the
 metrics in a grid of up to three columns), each y label the metric, its signal and its unit
-(`cosim.metrics.metric_unit`).  At each value of the parameter the dots are every completed
+(`cosim.present.metrics.metric_unit`).  At each value of the parameter the dots are every completed
 run there (the other parameters and the seeds as spread), the line joins their medians and,
 where some value has more than one run, the band spans their minimum to maximum."""
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 from collections.abc import Mapping
 from typing import Any
 
-from ..metrics import metric_unit
+from ..present.metrics import metric_unit
 from ..safeio import atomic_path
 
 
@@ -51,7 +51,7 @@ def summary_figure(rows: Sequence[dict[str, Any]], swept: Sequence[str], metrics
 def draw(rows: Sequence[dict[str, Any]], swept: Sequence[str], metrics: Sequence[str], title: str,
          units: Mapping[str, str | None] | None = None):
     """The figure (a matplotlib Figure) from the table's rows (``units``: each signal's unit, as
-    `cosim.plots.units` resolves it); None without metrics or completed runs."""
+    `cosim.present.plots.units` resolves it); None without metrics or completed runs."""
     done = [r for r in rows if r["status"] == "completed"]
     if not metrics or not swept or not done:
         return None

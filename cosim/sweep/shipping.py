@@ -21,11 +21,11 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..pack import pack
+from ..present.pack import pack
 from ..errors import SetupError
 from ..safeio import extract_archive, file_name, write_atomic
-from ..simulation import Prepared
-from ..ssp import SSD_NAME
+from ..plan.prepare import Prepared
+from ..read.ssp import SSD_NAME
 from .dispatch import Task, execute
 
 
@@ -42,7 +42,7 @@ class Package:
 
 
 def package_of(prepared: Prepared) -> Package:
-    """The prepared scenario packed as `cosim.pack.pack` writes it (FMUs already built)."""
+    """The prepared scenario packed as `cosim.present.pack.pack` writes it (FMUs already built)."""
     with tempfile.TemporaryDirectory(prefix="cosim-pack-") as tmp:
         data = pack(prepared.plan, Path(tmp) / "scenario.ssp").read_bytes()
     return Package(hashlib.sha256(data).hexdigest(), data)

@@ -5,7 +5,7 @@ finish, and read back from ``sweep.csv`` to skip finished runs.
 ``sweep.csv`` is written here, not by Arrow, in the bytes Arrow's CSV writer gives the same typed
 table (so it is the same file with or without pyarrow): RFC 4180, a quoted header, strings
 always quoted (``"`` doubled), a missing value (null) as an empty unquoted field, floats as
-`cosim.csvformat.format_float` writes them, integers in decimal, booleans ``true``/``false``.
+`cosim.record.csvformat.format_float` writes them, integers in decimal, booleans ``true``/``false``.
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..csvformat import format_float
+from ..record.csvformat import format_float
 from ..errors import SetupError
 from ..extras import has_pyarrow, require_pyarrow
 from ..safeio import atomic_path, write_atomic

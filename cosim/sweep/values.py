@@ -5,35 +5,27 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from itertools import product
 from pathlib import Path
 
-import numpy as np
-
-from ..description import exchange_type
+from ..model.fmu import exchange_type
 from ..errors import SetupError, did_you_mean
-from ..metrics import METRICS
-from ..parameters import check_values, split_system_name
+from ..present.metrics import METRICS
+from ..plan.parameters import check_values, split_system_name
+from ..plan.values import MAX_RUNS, Value, typed_values
 from ..safeio import write_atomic
-from ..simulation import Prepared
-from ..ssp import NS
-from ..structure import ParameterValue
+from ..plan.prepare import Prepared
+from ..read.ssp import NS
+from ..model.structure import ParameterValue
 
-Value = float | int | bool | str
-_RANGE = re.compile(r"^\s*([-+0-9.eE]+)\s*:\s*([-+0-9.eE]+)\s*:\s*(\d+)\s*$")
 SOURCE = "cosim sweep --set"
-#: the range of an FMI 2.0 Integer (fmi2Integer is a C int)
-INTEGER_RANGE = (-2**31, 2**31 - 1)
-#: the most runs one sweep may plan (a typo such as --seeds 1..1000000000 is refused, not allocated)
-MAX_RUNS = 1_000_000
 
 
 @dataclass(frozen=True)
 class Metric:
-    """Step metrics of ``signal`` following ``setpoint`` (see `cosim.metrics.step_metrics`)."""
+    """Step metrics of ``signal`` following ``setpoint`` (see `cosim.present.metrics.step_metrics`)."""
     signal: str
     setpoint: str
 
@@ -41,7 +33,7 @@ class Metric:
         return [f"{self.signal}:{m}" for m in METRICS]
 
     def reason_column(self) -> str:
-        """The column saying why a metric of this signal is undefined (`cosim.metrics.Response.reasons`)."""
+        """The column saying why a metric of this signal is undefined (`cosim.present.metrics.Response.reasons`)."""
         return f"undefined({self.signal})"
 
 
@@ -79,54 +71,6 @@ def parse_metric(text: str | Metric | tuple[str, str]) -> Metric:
     if not sep or not signal or not setpoint:
         raise SetupError(f"'{text}' is not SIGNAL:SETPOINT (e.g. plant.y:setpoint.y).", element="--metrics")
     return Metric(signal, setpoint)
-
-
-def typed_values(raw: Value, var_type: str, name: str, element: str = "--set") -> list[Value]:
-    """A --set item (or a seed, ``element="--seeds"``) as values of the FMU variable's type; a range
-    item gives several."""
-    where = {"element": element, "variable": name}
-    if isinstance(raw, str) and var_type in ("Real", "Integer") and (m := _RANGE.match(raw)):
-        start, stop, count = float(m[1]), float(m[2]), int(m[3])
-        if not (math.isfinite(start) and math.isfinite(stop)) or not 1 <= count <= MAX_RUNS:
-            raise SetupError(f"the range {raw} needs finite ends and a count from 1 to {MAX_RUNS}.", **where)
-        points = np.linspace(start, stop, count)
-        if var_type == "Integer":
-            if not all(float(p).is_integer() for p in points):
-                raise SetupError(f"the range {raw} does not fall on integers; {name} is an Integer.", **where)
-            return [int(p) for p in points]
-        return [float(p) for p in points]
-    try:
-        if var_type == "Real" and not isinstance(raw, bool):
-            if not math.isfinite(number := float(raw)):
-                raise SetupError(f"'{raw}' is not a finite number; {name} is a Real.", **where)
-            return [number]
-        if var_type == "Integer" and not isinstance(raw, bool):
-            return [_integer(raw, where)]
-        elif var_type == "Boolean":
-            if isinstance(raw, bool):
-                return [raw]
-            if str(raw).lower() in ("true", "1", "false", "0"):
-                return [str(raw).lower() in ("true", "1")]
-        elif var_type == "String":
-            return [str(raw)]
-    except ValueError:
-        pass
-    raise SetupError(f"'{raw}' is not a {var_type} value, which the FMU declares for this variable.", **where)
-
-
-def _integer(raw: Value, where: dict[str, str]) -> int:
-    """An Integer item (``12``, ``1e3``) inside the FMI 2.0 Integer range."""
-    try:
-        number = raw if isinstance(raw, int) else int(str(raw).strip())
-    except ValueError:
-        as_float = float(raw)
-        if not as_float.is_integer():
-            raise
-        number = int(as_float)
-    lo, hi = INTEGER_RANGE
-    if not lo <= number <= hi:
-        raise SetupError(f"{number} is outside the range of an FMI 2.0 Integer [{lo}, {hi}].", **where)
-    return number
 
 
 def _check_size(typed: Mapping[str, Sequence[Value]], seeds: Sequence[int]) -> None:

@@ -8,13 +8,13 @@ of (one at a time):
 - for a task that does not carry its plan (`cosim.sweep.dispatch.Task.prepared`: a local sweep
   prepares every run's plan in its own process and ships it pickled), the scenario read, its
   FMUs located and its shared parameter sets and input table read
-  (`cosim.single.load_scenario`): each run's plan is then made from it with the run's own
-  parameter set (`cosim.single.prepare_scenario`, the same checks as ``cosim run``'s), so the
+  (`cosim.plan.prepare.load_scenario`): each run's plan is then made from it with the run's own
+  parameter set (`cosim.plan.prepare.prepare_scenario`, the same checks as ``cosim run``'s), so the
   swept values may be parameters or start values of any kind: nothing about the plan is kept
   from one run to the next but what the run's values cannot change;
 - its FMU instances, reset after each completed run and re-initialised by the next
-  (`cosim.instances.reuse.InstancePool`), when the task asks (``Task.reuse``);
-- the unpacked FMUs (`cosim.instances.Unzipped`, once per process anyway).
+  (`cosim.run.instances.reuse.InstancePool`), when the task asks (``Task.reuse``);
+- the unpacked FMUs (`cosim.run.instances.Unzipped`, once per process anyway).
 
 The key of what is kept is the sweep's identity digest (`Task.sweep_key`: the contents of the
 scenario's files, of every FMU, of the shared parameter sets and input table, the grid, the
@@ -27,9 +27,8 @@ from __future__ import annotations
 import atexit
 from dataclasses import dataclass
 
-from ..instances.reuse import InstancePool
-from ..simulation import Prepared
-from ..single import Scenario, load_scenario, prepare_scenario
+from ..run.instances.reuse import InstancePool
+from ..plan.prepare import Prepared, Scenario, load_scenario, prepare_scenario
 
 
 @dataclass

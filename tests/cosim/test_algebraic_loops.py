@@ -1,4 +1,4 @@
-"""Algebraic loops of direct feedthrough (issue 21, item 8; `cosim.loops`), on C FMUs
+"""Algebraic loops of direct feedthrough (issue 21, item 8; `cosim.run.loops`), on C FMUs
 compiled here (tests/cfmus.py) whose outputs omit ``dependencies``, as 20-sim's and many
 third-party plant FMUs do (FMI 2.0 §2.2.8 then makes them depend on every input).
 
@@ -20,7 +20,7 @@ import pytest
 import cosim
 from cfmus import build_c_fmu, fmi2_description
 from cosim.errors import RunError
-from cosim.loops import LoopSettings
+from cosim.run.loops import LoopSettings
 from ssdgen import ssd_text, write_system
 
 H, STOP = 0.01, 2.0
@@ -210,5 +210,5 @@ def test_the_iteration_runs_the_same_in_both_interpreters(tmp_path, cfmus, syste
     for name in python.dtype.names:
         np.testing.assert_array_equal(python[name], native[name], err_msg=name)
     assert n_meta["kernel"] == "native" and p_meta["kernel"] == "python"
-    assert list(n_meta["python_operations"]) == ["an algebraic loop solved by iteration (--loops iterate, cosim.loops)"]
+    assert list(n_meta["python_operations"]) == ["an algebraic loop solved by iteration (--loops iterate, cosim.run.loops)"]
     assert n_meta["algebraic_loops"] == p_meta["algebraic_loops"] and n_meta["algebraic_loops"]["solves"] > 1

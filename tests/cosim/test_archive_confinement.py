@@ -1,12 +1,12 @@
-"""An .ssp archive may refer only to its own members (cosim.ssp.resolve_uri): an archive
+"""An .ssp archive may refer only to its own members (cosim.read.ssp.resolve_uri): an archive
 from elsewhere must not make the master read files outside it."""
 from pathlib import Path
 
 import pytest
 
-from cosim import ssp
+from cosim.read import ssp
 from cosim.errors import SetupError
-from cosim.resources import locate_fmus
+from cosim.read.resources import locate_fmus
 from runhelpers import edited_archive
 
 SSD = Path("ssp/pid_fopdt/SystemStructure.ssd")
@@ -43,3 +43,21 @@ def test_a_megabyte_long_value_does_not_make_a_megabyte_message(tmp_path):
         structure.close()
     text = str(err.value)
     assert len(text) < 4100 and "characters cut" in text and text.startswith(str(path))
+
+
+# --------------------------------------------------------------------------- on our FMUs (pythonfmu)
+
+
+@pytest.mark.pythonfmu
+@pytest.mark.parametrize("source", ["../../../../etc/passwd", "file:///etc/passwd", "/etc/passwd"])
+def test_fmu_source_outside_the_archive_is_refused(tmp_path, source, built_fmus):
+    ssv = {"controller.ssv": (SSD.parent / "controller.ssv").read_text()}
+    path = edited_archive(tmp_path, SSD, 'source="resources/PID.fmu"', f'source="{source}"', ssv)
+    structure = ssp.load(path)
+    try:
+        with pytest.raises(SetupError) as err:
+            locate_fmus(structure)
+    finally:
+        structure.close()
+    text = str(err.value)
+    assert "points outside the .ssp archive" in text and str(path) in text and "controller" in text

@@ -7,7 +7,7 @@ import zipfile
 import pytest
 
 from cosim.cli import main
-from cosim.results import read
+from cosim.record.results import read
 from ssdgen import ssd_text, write_system
 
 COMPONENTS = {"step": ("Step.fmu", {"y": "output"}), "gain": ("Gain.fmu", {"u": "input", "y": "output"})}

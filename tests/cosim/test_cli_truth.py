@@ -52,7 +52,7 @@ def test_readme_synopsis_and_help_name_the_same_options(name):
 
 
 def test_help_says_what_the_code_does(capsys):
-    """--threads is implemented (cosim.execution, the compiled kernel's pool); cosim runs more than
+    """--threads is implemented (cosim.run.execution, the compiled kernel's pool); cosim runs more than
     FMI 2.0 Co-Simulation."""
     with pytest.raises(SystemExit):
         main(["run", "--help"])

@@ -13,7 +13,8 @@ import pytest
 import cosim
 from cosim.cli import main
 from cosim.errors import RunError, SetupError
-from cosim.simulation import prepare, run
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 from tablefmus import LEVELS, VARIABLES, build_tables_fmu
 
 NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
@@ -97,17 +98,16 @@ N, FLAG, MODE = [1, 2, 3, 4], [0, 1, 0, 1], [1, 2, 3, 1]
 
 def test_integer_boolean_enumeration_tables_on_connections(tmp_path, tables_fmu):
     """Each table maps the value on its connection; the Enumeration one by item name (low → high,
-    mid → low, high → mid).  The compiled loop hands the tables to Python (auto and native alike)
-    and says so, naming the connection; the same values as the Python loop."""
+    mid → low, high → mid).  The compiled loop maps them itself (issue 40: it handed every table
+    to Python), the same values as the Python loop."""
     folder = _system(tmp_path, tables_fmu, flat_ssd())
     res, meta = _run(folder, "auto")
     assert list(res["a.n"]) == N and list(res["a.flag"]) == FLAG and list(res["a.mode"]) == MODE
     assert list(res["b.n_echo"]) == [10 * n for n in N]
     assert list(res["b.flag_echo"]) == [1 - f for f in FLAG]
     assert list(res["b.mode_echo"]) == [{1: 3, 2: 1, 3: 2}[m] for m in MODE]
-    assert meta["kernel"] == "native"
-    assert ("connection a.n -> b.n_in maps its values through ssc:IntegerMappingTransformation (line 2) (mapping "
-            "tables are applied by Python, cosim.maptables)") in meta["python_operations"]
+    assert meta["kernel"] == "native" and "python_operations" not in meta, meta.get("python_operations")
+    assert meta["transforms"]["a.n -> b.n_in"] == "map(a.n; 1→10, 2→20, 3→30, 4→40)"
     for kernel in ("python", "native"):
         other, _ = _run(folder, kernel)
         for name in res.dtype.names:
@@ -132,15 +132,18 @@ def test_tables_compose_through_a_system_connector(tmp_path, tables_fmu):
     assert list(res["sub.b.n_echo"]) == [10 * (n + 1) for n in N]
 
 
-def test_a_value_no_map_entry_names_stops_the_run(tmp_path, tables_fmu):
-    """a.n = 3 at t = 0.2 has no MapEntry: the run ends there, naming the transformation and the value."""
+@pytest.mark.parametrize("kernel", ["python", "native"])
+def test_a_value_no_map_entry_names_stops_the_run(tmp_path, tables_fmu, kernel):
+    """a.n = 3 at t = 0.2 has no MapEntry: the run ends there, naming the transformation and the
+    value, in both interpreters (the compiled loop finds it and hands the route to Python)."""
     partial = ('<ssc:IntegerMappingTransformation><ssc:MapEntry source="1" target="10"/>'
                '<ssc:MapEntry source="2" target="20"/></ssc:IntegerMappingTransformation>')
     folder = _system(tmp_path, tables_fmu, flat_ssd(integer=partial))
     with pytest.raises(RunError, match=r"connection a.n -> b.n_in: a.n = 3 at t = 0.2 is not a source value of "
                                        r"ssc:IntegerMappingTransformation \(line 2\) \(its sources: 1, 2\)") as err:
-        cosim.simulate(folder)
+        cosim.simulate(folder, kernel=kernel)
     assert err.value.time == pytest.approx(0.2)
+    assert list(err.value.result["b.n_echo"]) == [10, 20]
 
 
 @pytest.mark.parametrize("change, message", [
@@ -160,17 +163,35 @@ def test_table_errors_name_the_connection_and_transformation(tmp_path, tables_fm
     assert "Traceback" not in err
 
 
-def test_a_table_on_the_way_to_a_root_output_connector_is_refused(tmp_path, tables_fmu, capsys):
+@pytest.mark.parametrize("kernel", ["python", "native"])
+def test_a_table_on_the_way_to_a_root_output_connector_maps_its_column(tmp_path, tables_fmu, kernel):
+    """The root output ``out`` records a.n through the table (issue 40: refused, the recorded
+    columns knew factor and offset only); a Boolean one through its table too."""
+    text = _ssd('<ssd:Connectors><ssd:Connector name="out" kind="output"><ssc:Integer/></ssd:Connector>'
+                '<ssd:Connector name="flag" kind="output"><ssc:Boolean/></ssd:Connector>'
+                f'</ssd:Connectors><ssd:Elements>{_component("a")}</ssd:Elements>'
+                f'<ssd:Connections>{_connection("a.n", "out", INTEGER)}{_connection("a.flag", "flag", BOOLEAN)}'
+                '</ssd:Connections>')
+    res, meta = _run(_system(tmp_path, tables_fmu, text), kernel)
+    assert list(res["out"]) == [10 * n for n in N] and list(res["flag"]) == [1 - f for f in FLAG]
+    assert meta["system_outputs"] == {"out": "map(a.n; 1→10, 2→20, 3→30, 4→40)",
+                                      "flag": "map(a.flag; false→true, true→false)"}
+
+
+def test_a_value_a_root_output_table_does_not_name_is_nan_with_a_warning(tmp_path, tables_fmu):
+    partial = ('<ssc:IntegerMappingTransformation><ssc:MapEntry source="1" target="10"/>'
+               '<ssc:MapEntry source="2" target="20"/></ssc:IntegerMappingTransformation>')
     text = _ssd('<ssd:Connectors><ssd:Connector name="out" kind="output"><ssc:Integer/></ssd:Connector>'
                 f'</ssd:Connectors><ssd:Elements>{_component("a")}</ssd:Elements>'
-                f'<ssd:Connections>{_connection("a.n", "out", INTEGER)}</ssd:Connections>')
-    assert main(["validate", str(_system(tmp_path, tables_fmu, text))]) == 2
-    err = capsys.readouterr().err
-    assert "ssc:IntegerMappingTransformation (line 2) on the connection at line 2" in err
-    assert "not on the path to a root-system output connector" in err
+                f'<ssd:Connections>{_connection("a.n", "out", partial)}</ssd:Connections>')
+    with pytest.warns(RuntimeWarning, match="root output connector 'out': map"):
+        res, _ = _run(_system(tmp_path, tables_fmu, text), "auto")
+    assert list(res["out"][:2]) == [10, 20] and np.isnan(res["out"][2:]).all()
 
 
-def test_a_table_after_a_system_connector_given_a_value_is_refused(tmp_path, tables_fmu, capsys):
+def test_a_table_after_a_system_connector_given_a_value(tmp_path, tables_fmu):
+    """The value 2 given to the open connector ``nin`` reaches b.n_in through the table (20; issue
+    40: refused), and an input table's column naming ``nin`` does too (1, 2, 3 -> 10, 20, 30)."""
     binding = ('<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>'
                '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
                'version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="nin"><ssv:Integer value="2"/>'
@@ -179,7 +200,14 @@ def test_a_table_after_a_system_connector_given_a_value_is_refused(tmp_path, tab
     text = _ssd('<ssd:Connectors><ssd:Connector name="nin" kind="input"><ssc:Integer/></ssd:Connector>'
                 f'</ssd:Connectors>{binding}<ssd:Elements>{_component("b")}</ssd:Elements>'
                 f'<ssd:Connections>{_connection("nin", "b.n_in", INTEGER)}</ssd:Connections>')
-    assert main(["validate", str(_system(tmp_path, tables_fmu, text))]) == 2
-    err = capsys.readouterr().err
-    assert "ssc:IntegerMappingTransformation (line 2) on the connection at line 2" in err
-    assert "not on a value given to system connector 'nin'" in err and "ssv:Parameter 'nin'" in err, err
+    folder = _system(tmp_path, tables_fmu, text)
+    res, _ = _run(folder, "auto")
+    assert set(res["b.n_echo"]) == {20}
+    table = tmp_path / "in.csv"
+    table.write_text("time,nin\n0,1\n0.1,2\n0.2,3\n0.3,3\n")
+    res = cosim.simulate_fmu(folder, input_file=table)
+    assert list(res["b.n_echo"]) == [10, 10, 20, 30]   # an echo shows the input set at the point before
+    table.write_text("time,nin\n0,1\n0.1,7\n")
+    with pytest.raises(SetupError, match=r"7 reaches b.n_in through map\(x; 1→10, 2→20, 3→30, 4→40\), which "
+                                         r"names no target for it"):
+        cosim.simulate_fmu(folder, input_file=table)

@@ -2,9 +2,11 @@
 import numpy as np
 import pytest
 
-from cosim import kernel, observers
-from cosim.csvformat import format_float, format_rows, format_rows_python
-from cosim.observers import CsvSink
+from cosim import kernel
+
+from cosim.record import observers
+from cosim.record.csvformat import format_float, format_rows, format_rows_python
+from cosim.record.observers import CsvSink
 
 pytest.importorskip("pyarrow")
 

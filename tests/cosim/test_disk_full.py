@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from cosim.cli import main
-from cosim.results import read
+from cosim.record.results import read
 from ssdgen import ssd_text, write_system
 
 
@@ -25,7 +25,7 @@ def system(tmp_path, twin_fmus) -> Path:
 @pytest.mark.parametrize("suffix, arrow", [(".csv", True), (".csv", False), (".parquet", True)])
 def test_a_result_on_a_full_device_is_named(tmp_path, system, capsys, monkeypatch, suffix, arrow):
     """``arrow`` False: the CSV writer used without pyarrow (issue 27)."""
-    from cosim import observers
+    from cosim.record import observers
 
     monkeypatch.setattr(observers, "ARROW_CSV", arrow)
     target = tmp_path / f"full{suffix}"

@@ -1,4 +1,4 @@
-"""cosim.flatten on its own: a `RawStructure` built in the test (no XML, no FMU) in, a
+"""cosim.read.flatten on its own: a `RawStructure` built in the test (no XML, no FMU) in, a
 `SystemStructure` out, and nothing it was given changed."""
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 
 from cosim.errors import SetupError
-from cosim.flatten import flatten
-from cosim.structure import (
+from cosim.read.flatten import flatten
+from cosim.model.transforms import Affine
+from cosim.model.structure import (
     Component,
     Connection,
     Connector,
@@ -32,7 +33,8 @@ def component(name: str, **kinds: str) -> Component:
 def connection(start: str, end: str, factor: float = 1.0, offset: float = 0.0, line: int = 1) -> Connection:
     """``"ctrl.u"`` names a connector of an element, ``".r"`` one of the enclosing system."""
     (a, ca), (b, cb) = start.split("."), end.split(".")
-    return Connection(a or None, ca, b or None, cb, factor, offset, (factor, offset) != (1.0, 0.0), False, line)
+    transform = Affine(factor, offset) if (factor, offset) != (1.0, 0.0) else None
+    return Connection(a or None, ca, b or None, cb, transform, False, line)
 
 
 def system(name: str, components=(), systems=(), connections=(), connectors=(), parameters=()) -> RawSystem:
@@ -77,8 +79,8 @@ def test_a_chain_through_system_connectors_becomes_one_connection_with_its_hops(
     flat = flatten(loop_in_a_subsystem())
     ends = {(c.start_element, c.start_connector, c.end_element, c.end_connector): c for c in flat.connections}
     through = ends[("setpoint", "y", "loop.ctrl", "r")]
-    assert (through.factor, through.offset) == (3.0, 1.0)
-    assert [h.line for h in through.hops] == [5, 10] and through.hops[0].end_system == "loop.r"
+    assert [(h.line, h.transform) for h in through.hops] == [(5, Affine(3.0, 1.0)), (10, None)]
+    assert through.hops[0].end_system == "loop.r" and through.transform is None   # its hops carry them
     assert "lines 5, 10 through system connector loop.r" in through.describe()
     assert ("loop.plant", "y", "loop.ctrl", "y") in ends and len(flat.connections) == 3
 
@@ -86,7 +88,7 @@ def test_a_chain_through_system_connectors_becomes_one_connection_with_its_hops(
 def test_a_root_output_is_an_alias_of_the_component_output_with_the_hops_on_the_way():
     out = flatten(loop_in_a_subsystem()).system_outputs["y"]
     assert (out.name, out.component, out.connector) == ("y", "loop.plant", "y")
-    assert [(h.line, h.factor, h.end_unit) for h in out.hops] == [(13, 2.0, "degC"), (6, 1.0, None)]
+    assert [(h.line, h.transform, h.end_unit) for h in out.hops] == [(13, Affine(2.0), "degC"), (6, None, None)]
 
 
 def test_parameters_of_inner_systems_come_first_so_outer_bindings_win():
@@ -114,7 +116,7 @@ def test_a_system_connector_driven_twice_is_refused_naming_both_lines():
 
 
 def test_an_undriven_root_output_is_recorded_without_a_source():
-    """SSP 1.0 requires no connector to be connected (issue 30): cosim.plan records it as a constant."""
+    """SSP 1.0 requires no connector to be connected (issue 30): cosim.plan.build records it as a constant."""
     root = system("root", components=[component("a", y="output")], connectors=[connector("out", "output")])
     out = flatten(raw(root)).system_outputs["out"]
     assert (out.component, out.connector, out.undriven, out.declared.name) == (None, None, "no connection drives it",

@@ -1,4 +1,4 @@
-"""The shared cache of unpacked FMUs (`cosim.fmucache`): results as with a fresh unpack, safe
+"""The shared cache of unpacked FMUs (`cosim.read.fmucache`): results as with a fresh unpack, safe
 between concurrent processes, a new entry for new content, a broken entry rebuilt."""
 from __future__ import annotations
 
@@ -12,13 +12,15 @@ import pytest
 
 import cosim
 from cosim.errors import SetupError
-from cosim.fmucache import MARKER, digest, unpacked
-from cosim.instances import Unzipped
+from cosim.read.fmucache import MARKER, digest, unpacked
+from cosim.run.instances import Unzipped
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
 from native_systems import FAMILIES, build_family, native_system, write_native_system  # noqa: E402
+import subprocess
+from cosim.read.fmucache import MARKER, digest
 
 
 @pytest.fixture(scope="module")
@@ -120,9 +122,9 @@ def test_the_size_limit_in_force_applies_to_a_cached_entry(tmp_path, c_fmus, mon
 
 def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(tmp_path, c_fmus, monkeypatch):
     """Loading the providers imports their packages (tens of ms of a run's fixed cost)."""
-    import cosim.resources
-    from cosim import ssp
-    from cosim.resources import locate_fmus
+    import cosim.read.resources
+    from cosim.read import ssp
+    from cosim.read.resources import locate_fmus
 
     asked: list[str] = []
 
@@ -130,7 +132,7 @@ def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(
         asked.append(name)
         return c_fmus["Lag"] if name == "Lag.fmu" else None
 
-    monkeypatch.setattr(cosim.resources, "providers", lambda: ([counting_provider], []))
+    monkeypatch.setattr(cosim.read.resources, "providers", lambda: ([counting_provider], []))
     system = _chain(c_fmus, tmp_path / "ssp")   # m1 (VanDerPol) then b2, b3 (Lag)
     structure = ssp.load(system)
     assert set(locate_fmus(structure).values()) == {system / "resources" / "VanDerPol.fmu",
@@ -142,19 +144,19 @@ def test_providers_are_asked_only_for_fmus_not_beside_the_ssd_and_once_per_name(
 
 
 def test_checks_passed_are_kept_by_content_and_failures_are_not(tmp_path, c_fmus, monkeypatch):
-    import cosim.loadable
-    from cosim.plan import _describe
+    import cosim.read.loadable
+    from cosim.read.description import describe_fmu as _describe
 
     root = tmp_path / "cache"
     monkeypatch.setenv("COSIM_FMU_CACHE", str(root))
-    monkeypatch.setattr(cosim.loadable, "_passed", set())   # a process that checked nothing yet
-    monkeypatch.setattr("cosim.description._cache", {})
+    monkeypatch.setattr(cosim.read.loadable, "_passed", set())   # a process that checked nothing yet
+    monkeypatch.setattr("cosim.read.description._cache", {})
     fmu = c_fmus["Lag"]
     desc = _describe(fmu, "here", "x.ssd", "any")
     kept = sorted(p.name.split("-")[0] for p in (root / "verdicts").iterdir())
     assert kept == [digest(fmu)] * 3    # archive and entities, FMI schema, library
-    monkeypatch.setattr(cosim.loadable, "_passed", set())   # another process: the verdicts are used
-    monkeypatch.setattr("cosim.description._cache", {})
+    monkeypatch.setattr(cosim.read.loadable, "_passed", set())   # another process: the verdicts are used
+    monkeypatch.setattr("cosim.read.description._cache", {})
     again = _describe(fmu, "here", "x.ssd", "any")
     assert list(again.variables) == list(desc.variables)
     with zipfile.ZipFile(fmu) as archive:   # the same FMU without its library: refused, every time
@@ -165,3 +167,35 @@ def test_checks_passed_are_kept_by_content_and_failures_are_not(tmp_path, c_fmus
         with pytest.raises(SetupError, match="no binary for this platform"):
             _describe(broken, "here", "x.ssd", "any")
     assert len(list((root / "verdicts").glob(f"{digest(broken)}-*"))) == 2   # archive and schema, not library
+
+
+# --------------------------------------------------------------------------- on our FMUs (pythonfmu)
+
+
+_RACE = """
+import sys, time
+from pathlib import Path
+from cosim.read.fmucache import unpacked
+go = Path(sys.argv[3])
+while not go.exists():
+    time.sleep(0.001)
+print(unpacked(Path(sys.argv[1]), Path(sys.argv[2])))
+"""
+
+
+@pytest.mark.pythonfmu
+def test_concurrent_processes_populating_the_cache_make_one_complete_entry(tmp_path, built_fmus):
+    fmu, root, go = built_fmus["PID"], tmp_path / "cache", tmp_path / "go"
+    procs = [subprocess.Popen([sys.executable, "-c", _RACE, str(fmu), str(root), str(go)], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, cwd=ROOT) for _ in range(4)]
+    go.touch()
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert [p.returncode for p in procs] == [0] * 4, [err for _, err in outs]
+    entry = root / digest(fmu)
+    assert {out.strip() for out, _ in outs} == {str(entry / "fmu")}
+    assert _entries(root) == [entry.name]    # no temporary folder left behind
+    assert (entry / MARKER).is_file()
+    with zipfile.ZipFile(fmu) as archive:
+        for info in archive.infolist():
+            if not info.is_dir():
+                assert (entry / "fmu" / info.filename).read_bytes() == archive.read(info), info.filename

@@ -1,8 +1,8 @@
-"""The ordering algorithms of cosim.graph on their own: plain names and routes, no FMU.
+"""The ordering algorithms of cosim.plan.graph on their own: plain names and routes, no FMU.
 
-A route here is a `cosim.structure.Route` between fmpy `ModelVariable`s built in the
+A route here is a `cosim.model.structure.Route` between fmpy `ModelVariable`s built in the
 test; the dependencies are what an FMU's ModelStructure would give
-(`cosim.description.FMUDescription.output_dependencies`).
+(`cosim.model.fmu.FMUDescription.output_dependencies`).
 """
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from fmpy.model_description import ModelVariable
 
 from cosim.errors import SetupError
-from cosim.graph import (
+from cosim.plan.graph import (
     cycle_path,
     feedthrough_sequence,
     gauss_seidel_order,
@@ -19,13 +19,14 @@ from cosim.graph import (
     topological,
     variable_order,
 )
-from cosim.structure import Route
+from cosim.model.structure import Route
+from cosim.model.transforms import IDENTITY
 
 
 def route(src: str, dst: str) -> Route:
     """``"a.y" -> "b.u"``: output y of a to input u of b."""
     (a, y), (b, u) = src.split("."), dst.split(".")
-    return Route(a, ModelVariable(name=y, causality="output"), b, ModelVariable(name=u, causality="input"), 1.0, 0.0)
+    return Route(a, ModelVariable(name=y, causality="output"), b, ModelVariable(name=u, causality="input"), IDENTITY)
 
 
 def test_tarjan_finds_each_loop_and_the_single_nodes():

@@ -2,8 +2,12 @@
 chain of ~1000 FMUs raised RecursionError)."""
 from __future__ import annotations
 
+import pytest
 
-from cosim.graph import tarjan, topological
+from cosim.cli import main
+from cosim.plan.graph import tarjan, topological
+from ssdgen import ssd_text, write_system
+from testfmus import build_test_fmus
 
 
 def test_tarjan_and_topological_order_a_deep_chain_without_recursion():
@@ -20,3 +24,20 @@ def test_tarjan_matches_the_textbook_example():
     edges = {"a": ["b"], "b": ["c", "e", "f"], "c": ["d", "g"], "d": ["c", "h"], "e": ["a", "f"],
              "f": ["g"], "g": ["f", "h"], "h": ["h"]}
     assert [sorted(c) for c in tarjan(list("abcdefgh"), edges)] == [["h"], ["f", "g"], ["c", "d"], ["a", "b", "e"]]
+
+
+# --------------------------------------------------------------------------- on our FMUs (pythonfmu)
+
+
+N = 10_000
+
+
+@pytest.mark.pythonfmu
+def test_a_10000_fmu_feedthrough_chain_validates(tmp_path_factory, capsys):
+    fmus = build_test_fmus(tmp_path_factory.mktemp("chainfmus"))
+    comps = {f"c{i}": ("Failing.fmu", {"u": "input", "y": "output"}) for i in range(N)}
+    connections = [(f"c{i}", "y", f"c{i + 1}", "u") for i in range(N - 1)]
+    folder = write_system(tmp_path_factory.mktemp("chain") / "sys", {"Failing.fmu": fmus["Failing"]},
+                          ssd_text("chain", comps, connections))
+    assert main(["validate", str(folder)]) == 0, capsys.readouterr().err
+    assert f"valid — {N} FMUs, {N - 1} connections" in capsys.readouterr().out

@@ -20,11 +20,14 @@ import pytest
 
 from cfmus import build_c_fmu
 from cosim.errors import SetupError
-from cosim.interrupts import stop_on_signals
+from cosim.run.interrupts import stop_on_signals
 from cosim.kernel import ABI_VERSION, _Program, library
-from cosim.simulation import prepare, run
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 from runhelpers import assert_same, run_kernel as _run
 from ssdgen import ssd_text, write_system
+from cosim.kernel import library
+from peers import gemseo_fmu_dir
 
 ROOT = Path(__file__).parents[2]
 pytestmark = pytest.mark.skipif(library()[0] is None, reason=f"no compiled kernel: {library()[1]}")
@@ -235,7 +238,7 @@ def test_what_c_cannot_call_python_makes_within_the_compiled_loop(tmp_path, bloc
 
 def test_without_the_library_auto_runs_python_with_one_notice(tmp_path, blocks):
     folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.1)
-    script = (f"import warnings, cosim\nfrom cosim.simulation import prepare, run\n"
+    script = (f"import warnings, cosim\nfrom cosim.plan.prepare import prepare\nfrom cosim.run.simulation import run\n"
               f"warnings.simplefilter('always')\n"
               f"for _ in range(2):\n"
               f"    p = prepare({str(folder)!r})\n"
@@ -308,8 +311,8 @@ def test_threads_step_in_parallel_bit_identical(tmp_path, blocks, parameters):
 def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, monkeypatch):
     """flush_seconds = 0: the kernel's clock says a flush is due after every row, so each row
     reaches the sinks on its own, as the Python loop's `Recorder.record` does."""
-    import cosim.simulation
-    from cosim.observers import Recorder
+    import cosim.run.simulation
+    from cosim.record.observers import Recorder
 
     flushes = {}
 
@@ -322,7 +325,7 @@ def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, mon
             self.flushes[0] += 1
             super().flush()
 
-    monkeypatch.setattr(cosim.simulation, "Recorder", Counting)
+    monkeypatch.setattr(cosim.run.simulation, "Recorder", Counting)
     folder = _chain(tmp_path, blocks, ["Block"] * 2, stop=0.5)
     python, compiled = _both(folder)
     assert flushes[0][0] == flushes[1][0] >= 50  # one per row (and the last at closing)
@@ -330,34 +333,100 @@ def test_the_flush_deadline_returns_to_python_at_every_row(tmp_path, blocks, mon
 
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 def test_the_step_is_one_program_both_interpreters_run(tmp_path, blocks, algorithm):
-    """`cosim.program.compile_step` on a live execution: Jacobi's doSteps first, or Gauss–Seidel's
-    routes, sets, doStep and gets per component in dependency order; then the exchange (gets,
-    the settling of the feedthrough chain, the routes, the sets); every operation of these C
-    FMUs has a C form, FMI 3.0 doSteps a post-step."""
-    from cosim.execution import Execution
-    from cosim.program import OP_GET, OP_ROUTE, OP_SET, OP_STEP
+    """`cosim.run.program.compile` from the plan: Jacobi's doSteps first, or Gauss–Seidel's routes,
+    sets, doStep and gets per component in dependency order; then the exchange (gets, the settling
+    of the feedthrough chain, the routes, the sets).  Linked to live C FMUs (`cosim.run.link`),
+    every operation has a C form, FMI 3.0 doSteps a post-step."""
+    from cosim.run.execution import Execution
+    from cosim.run.program import OP_GET, OP_ROUTE, OP_SET, OP_STEP, compile
 
     prepared = prepare(_chain(tmp_path, blocks, ["Block", "Block3", "Block"], stop=0.1), algorithm=algorithm)
+    program = compile(prepared.plan, algorithm)
+    step = [(op.kind, op.component) for op in program.ops[:program.step_ops]]
+    if algorithm == "jacobi":
+        assert step == [(OP_STEP, "b0"), (OP_STEP, "b1"), (OP_STEP, "b2")]
+    else:
+        order = prepared.plan.gauss_seidel_order
+        assert [c for kind, c in step if kind == OP_STEP] == list(order)
+        for comp in order:  # its inputs before its doStep, its outputs after
+            kinds = [kind for kind, c in step if c == comp]
+            assert kinds.index(OP_STEP) > kinds.index(OP_SET) and kinds[-1] == OP_GET
+    exchange = [op.kind for op in program.ops[program.step_ops:]]
+    assert exchange[0] == OP_GET and exchange[-1] == OP_SET and OP_ROUTE in exchange
+    assert program.top_level() == list(range(len(program.ops)))
     execution = Execution(prepared.plan, prepared.grid, algorithm)
     try:
         execution.instantiate()
-        program = execution.program
-        ops = program.operations
-        step = [(op.kind, op.component) for op in ops[:program.step_ops]]
-        if algorithm == "jacobi":
-            assert step == [(OP_STEP, "b0"), (OP_STEP, "b1"), (OP_STEP, "b2")]
-        else:
-            order = prepared.plan.gauss_seidel_order
-            assert [c for kind, c in step if kind == OP_STEP] == order
-            for comp in order:  # its inputs before its doStep, its outputs after
-                kinds = [kind for kind, c in step if c == comp]
-                assert kinds.index(OP_STEP) > kinds.index(OP_SET) and kinds[-1] == OP_GET
-        exchange = [op.kind for op in ops[program.step_ops:]]
-        assert exchange[0] == OP_GET and exchange[-1] == OP_SET and OP_ROUTE in exchange
-        assert all(op.native is not None for op in ops) and program.python_operations() == {}
-        assert [op.component for op in ops if op.post_step is not None] == ["b1"]   # fmi3DoStep's out-arguments
-        assert program.top_level() == list(range(len(ops)))
-        assert execution.kernel == "native"
+        linked = execution.link(program)
+        assert [(op.kind, op.component, op.type_name) for op in linked.operations] == \
+            [(op.kind, op.component, op.type_name) for op in program.ops]
+        assert all(op.native is not None for op in linked.operations) and linked.python_operations() == {}
+        assert [op.component for op in linked.operations if op.post_step is not None] == ["b1"]   # fmi3DoStep's out-arguments
+        assert execution.choice.name == "native"
     finally:
         execution.close()
         prepared.close()
+
+
+# --------------------------------------------------------------------------- on our FMUs (pythonfmu)
+
+
+ALL_SCENARIOS = sorted(p.parent.name for p in (ROOT / "ssp").glob("*/SystemStructure.ssd"))
+
+
+FAMILIES = {"btg_boiler_following", "dpi_wood_berry", "grey_sim33", "gs_sim2_1", "osmm_mfrls", "pid_fopdt",
+            "pid_mass_damper", "pid_mass_damper_me", "sopdt_nmp", "units_demo"}
+
+
+SCENARIOS = ALL_SCENARIOS if os.environ.get("COSIM_KERNEL_SCENARIOS") == "all" else \
+    [s for s in ALL_SCENARIOS if s in FAMILIES]
+
+
+@pytest.mark.pythonfmu
+def test_the_default_scenarios_exist():
+    assert FAMILIES <= set(ALL_SCENARIOS)
+
+
+@pytest.mark.pythonfmu
+@pytest.mark.parametrize("scenario, parameter_sets", [(s, ()) for s in SCENARIOS]
+                         + [("pid_fopdt", ("pi_only.ssv",)), ("grey_sim33", ("ph40.ssv",))])
+def test_scenarios_run_the_same_in_both_loops(scenario, parameter_sets):
+    """A scenario of ssp/ (pythonfmu FMUs, and OpenModelica's from gemseo-fmu) for 100 steps,
+    both loops, sample by sample."""
+    folder, fmu_dirs = ROOT / "ssp" / scenario, [gemseo_fmu_dir()]
+    sets = [folder / p for p in parameter_sets]
+    step = prepare(folder, fmu_dirs=fmu_dirs)
+    try:
+        stop = step.grid.start + 100 * step.grid.step
+    finally:
+        step.close()
+    results = {}
+    for kernel in ("python", "auto"):
+        prepared = prepare(folder, stop_time=stop, fmu_dirs=fmu_dirs, parameter_sets=sets)
+        try:
+            results[kernel] = run(prepared, kernel=kernel)
+        finally:
+            prepared.close()
+    assert_same(results["python"][0], results["auto"][0])
+    meta = results["auto"][1]
+    kinds = {c["interface"] for c in meta["components"].values()}
+    assert meta["kernel"] == "native", meta.get("kernel_reason")
+    in_python = " ".join(meta.get("python_operations", {}))
+    assert ("Model Exchange" in in_python) == bool(kinds - {"fmi2-cs", "fmi3-cs"})
+    assert ("algebraic loop" in in_python) == ((meta["algebraic_loops"] or {}).get("mode") == "iterate")
+
+
+@pytest.mark.pythonfmu
+def test_threads_keep_pythonfmu_components_serial_and_refuse_gauss_seidel(tmp_path):
+    folder = ROOT / "ssp" / "pid_fopdt"
+    python, threaded = _run(folder, "python", tmp_path), None
+    prepared = prepare(folder, stop_time=1.0)
+    try:
+        threaded = run(prepared, threads=2)
+        with pytest.raises(SetupError, match=r"--threads 2 steps components in parallel within a Jacobi step"):
+            run(prepare(folder, stop_time=1.0, algorithm="gauss-seidel"), threads=2)
+    finally:
+        prepared.close()
+    assert threaded[1]["parallel_components"] == []
+    assert all("pythonfmu FMU" in why for why in threaded[1]["serial_components"].values())
+    assert_same(threaded[0], python[0][:len(threaded[0])])

@@ -1,4 +1,4 @@
-"""`cosim.instances.loading.quick`: fmpy's FMU classes, their FMI functions loaded from a table
+"""`cosim.run.instances.loading.quick`: fmpy's FMU classes, their FMI functions loaded from a table
 made once per class, equal to what fmpy's own ``_loadFunctions`` sets on each instance."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import pytest
 from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 
-from cosim.instances.loading import quick
+from cosim.run.instances.loading import quick
 
 
 class _Library:

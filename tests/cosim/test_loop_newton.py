@@ -1,5 +1,5 @@
 """Algebraic loops the fixed point cannot solve in its budget, solved by Newton's method
-(`cosim.loops`, MINPACK hybrd through scipy.optimize.root; issue 30, item 5), on C FMUs
+(`cosim.run.loops`, MINPACK hybrd through scipy.optimize.root; issue 30, item 5), on C FMUs
 compiled here (tests/cfmus.py) with true direct feedthrough:
 
 * a nested loop of two blocks, A: ya = 1 + t + 0.6 a1 + 0.35 a2 and B: z1 = b,
@@ -26,7 +26,7 @@ from scipy.optimize import brentq
 import cosim
 from cfmus import build_c_fmu, fmi2_description
 from cosim.errors import RunError
-from cosim.loops import LoopSettings
+from cosim.run.loops import LoopSettings
 from ssdgen import ssd_text, write_system
 
 #: name -> (variables (name, value reference, causality, start), dependencies, C body)

@@ -53,7 +53,7 @@ def test_gauss_seidel_is_a_different_but_consistent_coupling(mass_spring, gemseo
 
 
 def test_add_wired_into_a_loop_is_an_algebraic_loop(tmp_path, gemseo):
-    """y_a = y_b + 1, y_b = y_a + 0 has no solution: the loop iteration (cosim.loops: the sweeps,
+    """y_a = y_b + 1, y_b = y_a + 0 has no solution: the loop iteration (cosim.run.loops: the sweeps,
     Newton, the sweeps again) fails at initialisation, naming every variable on the loop (before
     issue 21 it was refused unrun)."""
     comps = {"a": ("add.fmu", {"u1": "input", "u2": "input", "y": "output"}),

@@ -8,7 +8,7 @@ import pytest
 
 from cosim.cli import main
 from cosim.errors import SetupError
-from cosim.metrics import Tolerance, compare, step_metrics, tolerance_for
+from cosim.present.metrics import Tolerance, compare, step_metrics, tolerance_for
 
 
 def first_order(T=5.0, t0=2.0, dt=1e-3, stop=80.0):
@@ -133,7 +133,7 @@ def test_the_reasons_line_reads_back_as_the_mapping_it_was_written_from():
     """A sweep table's undefined(SIGNAL) column (`Response.reasons`) reads back as the mapping
     (`reasons_of`), also when a reason holds "; " or ": " or a line break, as the CLI's summary
     of undefined metrics needs (it split the line at every "; " before)."""
-    from cosim.metrics import Response, reasons_of
+    from cosim.present.metrics import Response, reasons_of
 
     undefined = {"overshoot": "the response never passes the set-point; it stays below: 0.4",
                  "settling_time": "the response is still outside ±2 %\nof the step at 140 s",
@@ -141,3 +141,19 @@ def test_the_reasons_line_reads_back_as_the_mapping_it_was_written_from():
     line = Response(values={}, undefined=undefined).reasons()
     assert reasons_of(line) == undefined
     assert reasons_of("") == {} and reasons_of(None) == {}
+
+
+# --------------------------------------------------------------------------- on our FMUs (pythonfmu)
+
+
+@pytest.mark.pythonfmu
+def test_metrics_cli_on_a_real_run(tmp_path, capsys):
+    csv = tmp_path / "r.csv"
+    assert main(["run", "ssp/pid_fopdt", "-q", "-o", str(csv), "--stop", "150"]) == 0
+    capsys.readouterr()
+    assert main(["metrics", str(csv), "--signal", "plant.y", "--setpoint", "setpoint.y", "--json"]) == 0
+    import json
+    m, = json.loads(capsys.readouterr().out)       # one event: the set-point step at 10 s
+    assert 30 < m["overshoot"] < 37 and 0 < m["settling_time"] < 140
+    assert main(["metrics", str(csv), "--signal", "plant.yy", "--setpoint", "setpoint.y"]) == 2
+    assert "no signal matches 'plant.yy'" in capsys.readouterr().err

@@ -1,7 +1,7 @@
 """Recording as one role (issue 29): every sink, the root-output columns and the journal are a
-`cosim.observers.Observer` fed by one `Recorder`; the derived columns have one formula (the
-live run's and a journal's recovery give the same bytes); `cosim.simulation.run` returns a
-frozen `cosim.outcome.RunOutcome`, and a run that fails half way leaves every row up to the
+`cosim.record.observers.Observer` fed by one `Recorder`; the derived columns have one formula (the
+live run's and a journal's recovery give the same bytes); `cosim.run.simulation.run` returns a
+frozen `cosim.run.outcome.RunOutcome`, and a run that fails half way leaves every row up to the
 failure in every observer and in the outcome its error carries.  The FMU is a C FMU compiled
 here (tests/cfmus.py), whose step returns fmi2Error once it would pass t = 0.5."""
 from __future__ import annotations
@@ -16,13 +16,15 @@ import pytest
 
 from cfmus import build_c_fmu, fmi2_description
 from cosim.errors import Errc, RunError
-from cosim.journal import RunJournal, journal_path, recover
-from cosim.observers import (CsvSink, DerivedColumns, MemorySink, Observer, ParquetSink, Recorder,
+from cosim.record.journal import RunJournal, journal_path, recover
+from cosim.record.observers import (CsvSink, DerivedColumns, MemorySink, Observer, ParquetSink, Recorder,
                              SystemOutputColumns, file_sink)
-from cosim.outcome import RunOutcome
-from cosim.results import read
-from cosim.simulation import prepare, run
-from cosim.structure import RecordedOutput
+from cosim.run.outcome import RunOutcome
+from cosim.record.results import read
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
+from cosim.model.structure import RecordedOutput
+from cosim.model.transforms import Affine
 from ssdgen import ssd_text, write_system
 
 RAMP_BODY = ("static void start(S *s) {}\n"
@@ -45,7 +47,7 @@ def _system(tmp_path: Path, ramp: Path, stop: float) -> Path:
 
 def _outputs() -> list[RecordedOutput]:
     """Two root outputs on the recorded columns: 1.8 a.y + 32 (degC -> degF) and 0 time + 2.5."""
-    return [RecordedOutput("f", "a", "y", 1.8, 32.0, "degF"), RecordedOutput("held", None, None, 0.0, 2.5, None)]
+    return [RecordedOutput("f", "a", "y", Affine(1.8, 32.0), "degF"), RecordedOutput("held", None, None, Affine(0.0, 2.5), None)]
 
 
 def _record(recorder: Recorder, values: np.ndarray, rows: int) -> None:
@@ -140,7 +142,7 @@ def test_a_run_failing_half_way_keeps_its_rows_in_every_observer_and_in_the_outc
 
 
 def test_an_error_extended_after_the_run_is_a_new_error_of_the_same_kind():
-    """What `cosim.simulation.run` says when the metadata JSON fails after the disk filled up:
+    """What `cosim.run.simulation.run` says when the metadata JSON fails after the disk filled up:
     a copy with the text appended (class, code, file and run outcome kept), the original as it was."""
     from cosim.errors import OutOfMemory
 

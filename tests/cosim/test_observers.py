@@ -12,9 +12,11 @@ import pytest
 
 import cosim
 from cosim.cli import main
-from cosim.observers import CsvSink, MemorySink, ParquetSink, Recorder, file_sink
-from cosim.results import read
+from cosim.record.observers import CsvSink, MemorySink, ParquetSink, Recorder, file_sink
+from cosim.record.results import read
 from ssdgen import ssd_text, write_system
+from pythonfmu.builder import FmuBuilder
+from testfmus import HERE as TEST_FMU_SOURCES
 
 NAMES = ["time", "a.y", "b.u", "b.y"]
 METADATA = {"algorithm": "jacobi", "status": "completed", "steps": 7, "nested": {"x": [1, 2]}}
@@ -120,7 +122,7 @@ def test_metrics_and_compare_read_parquet_as_csv(tmp_path, twin_fmus, capsys):
     assert metrics[0] == metrics[1] and metrics[0]["IAE"] == pytest.approx(2.0, rel=1e-2)
     assert main(["compare", str(tmp_path / "r.csv"), str(tmp_path / "r.parquet"), "--rtol", "0", "--atol", "0"]) == 0
     for suffix in (".csv", ".parquet"):
-        again = read(cosim.results.write(result, tmp_path / f"w{suffix}"))
+        again = read(cosim.record.results.write(result, tmp_path / f"w{suffix}"))
         for name in result.dtype.names:
             assert_bitwise_equal(again[name], result[name])
     assert not (tmp_path / "w.json").exists()
@@ -156,7 +158,7 @@ def test_recorder_reads_the_clock_at_every_row():
     """A slow run is flushed every flush_seconds, not only every 256 rows (issue 17)."""
     import time as _t
 
-    from cosim.observers import MemorySink, Recorder
+    from cosim.record.observers import MemorySink, Recorder
 
     values = np.zeros(1)
     sink = MemorySink()
@@ -165,3 +167,38 @@ def test_recorder_reads_the_clock_at_every_row():
     _t.sleep(0.06)
     recorder.record(1.0)
     assert sum(len(c) for c in sink.chunks) == 2  # flushed after the second row, not the 256th
+
+
+# --------------------------------------------------------------------------- on our FMUs (pythonfmu)
+
+
+@pytest.fixture(scope="module")
+def failing_fmu(tmp_path_factory):
+    return FmuBuilder.build_FMU(TEST_FMU_SOURCES / "Failing.py", dest=tmp_path_factory.mktemp("failing"),
+                                needsExecutionTool="false")
+
+
+@pytest.mark.pythonfmu
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_a_run_failing_half_way_leaves_its_rows_readable(tmp_path, built_fmus, failing_fmu, suffix, capsys):
+    """Failing.fmu refuses the step from t = 5 s (fmi2Fatal); 5001 rows, more than one 4096-row chunk."""
+    components = {"f": ("Failing.fmu", {"u": "input", "y": "output"}),
+                  "lag": ("FirstOrderFilter.fmu", {"u": "input", "y": "output"})}
+    text = ssd_text("failing", components, [("f", "y", "lag", "u")], stop=10.0, step=0.001,
+                    parameters={"f": {"fail_time": 5.0}})
+    folder = write_system(tmp_path / "sys", {"Failing.fmu": failing_fmu,
+                                             "FirstOrderFilter.fmu": built_fmus["FirstOrderFilter"]}, text)
+    output = tmp_path / f"out{suffix}"
+    assert main(["run", str(folder), "-q", "-o", str(output)]) == 1
+    assert "fmi2DoStep returned Fatal at t = 5" in capsys.readouterr().err
+    if suffix == ".csv":
+        result = read(output)
+        time, y = result["time"], result["f.y"]
+    else:
+        parquet = pq.ParquetFile(output)
+        assert parquet.metadata.num_row_groups == 2
+        table = parquet.read()
+        time, y = table.column("time").to_numpy(), table.column("f.y").to_numpy()
+        assert json.loads(pq.read_metadata(output).metadata[b"cosim"])["status"] == "failed"
+    assert len(time) == 5001 and time[-1] == pytest.approx(5.0) and y[-1] == pytest.approx(5.0)
+    assert json.loads(output.with_suffix(".json").read_text())["status"] == "failed"

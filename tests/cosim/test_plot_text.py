@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
-from cosim.plots import plain
+from cosim.present.plots import plain
 from ssdgen import ssd_text, write_system
 from testfmus import edited_copy
 
@@ -41,7 +41,7 @@ def test_plain_escapes_every_dollar():
 def test_a_plot_that_cannot_be_finished_leaves_the_earlier_one(tmp_path):
     """The image goes through ``<plot>.part`` and one rename: a save that fails half way (here
     the ``.part`` name is taken by a folder) raises and leaves the earlier plot as it was."""
-    from cosim.plots import plot
+    from cosim.present.plots import plot
 
     result = np.array([(0.0, 1.0), (1.0, 2.0)], dtype=[("time", float), ("gain.y", float)])
     path = plot(result, [["gain.y"]], tmp_path / "r.png", scenario="s")

@@ -11,8 +11,9 @@ import pytest
 from cosim.cli import main
 from cosim.errors import RunError
 from cosim.kernel import library
-from cosim.results import read
-from cosim.simulation import prepare, run
+from cosim.record.results import read
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
 from ssdgen import ssd_text, write_system
 
 #: the C twins of our Step and FirstOrderFilter (tests/twin_fmus.py); the plant only receives u

@@ -1,4 +1,4 @@
-"""The exchange's shortcuts in settling direct feedthrough (cosim.graph.settling_shortcuts):
+"""The exchange's shortcuts in settling direct feedthrough (cosim.plan.graph.settling_shortcuts):
 which FMI calls are left out, and that leaving them out changes no value."""
 from __future__ import annotations
 
@@ -7,13 +7,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cosim import simulation
-from cosim.graph import Route, settling_shortcuts
+from cosim.plan.prepare import prepare
+from cosim.run import simulation
+from cosim.model.transforms import IDENTITY
+from cosim.plan.graph import Route, settling_shortcuts
 from ssdgen import ssd_text, write_system
 
 
 def _routes(*pairs: tuple[str, str]) -> list[Route]:
-    return [Route(src, None, dst, None, 1.0, 0.0) for src, dst in pairs]
+    return [Route(src, None, dst, None, IDENTITY) for src, dst in pairs]
 
 
 def test_a_chain_is_read_and_set_once_per_block():
@@ -56,7 +58,7 @@ def feedthrough_loop(tmp_path, twin_fmus):
 def test_the_shortcuts_change_no_value(feedthrough_loop, algorithm):
     results = []
     for shortcuts in (True, False):
-        prepared = simulation.prepare(feedthrough_loop, algorithm=algorithm)
+        prepared = prepare(feedthrough_loop, algorithm=algorithm)
         try:
             assert prepared.plan.read_in_settling_only == {"sum", "g1", "g2"}
             if not shortcuts:  # the Plan is frozen: a copy without the shortcuts

@@ -1,5 +1,5 @@
-"""`cosim run X.fmu` and the options of fmpy simulate (issue 30, item 1; `cosim.single`,
-`cosim.inputs`): one FMU without an SSD, an input table (fmpy's format and interpolation rules),
+"""`cosim run X.fmu` and the options of fmpy simulate (issue 30, item 1; `cosim.plan.prepare`, `cosim.read.single`,
+`cosim.plan.inputs`): one FMU without an SSD, an input table (fmpy's format and interpolation rules),
 start values, the output interval and the FMI type, checked against ``fmpy.simulate_fmu`` given
 the same FMU, table and values, on a C FMU compiled here (tests/single_fmus.py)."""
 from __future__ import annotations
@@ -13,8 +13,9 @@ from fmpy.simulation import Input
 from fmpy.util import read_csv
 
 from cosim.cli import main
-from cosim.inputs import interpolate, read_input_table
-from cosim.results import read
+from cosim.read.inputs import read_input_table
+from cosim.run.feed import interpolate
+from cosim.record.results import read
 from single_fmus import build_drive
 from ssdgen import ssd_text, write_system
 
@@ -248,7 +249,7 @@ def test_booleans_may_be_written_true_and_false(tmp_path):
 
 
 def test_interpolation_is_fmpys():
-    """`cosim.inputs.interpolate` against ``fmpy.simulation.Input.interpolate`` at sample times,
+    """`cosim.plan.inputs.interpolate` against ``fmpy.simulation.Input.interpolate`` at sample times,
     between them, at the event, before and after the table, left and right."""
     t = np.array([0.0, 0.25, 1.0, 1.0, 1.55, 2.0])
     table = np.array([[0.0, 1.0, 1.0, -1.0, 0.5, 0.5], [0.0, 1.0, 3.0, 5.0, -2.0, 5.0]])

@@ -13,7 +13,7 @@ import zipfile
 import pytest
 
 import cosim
-from cosim import ssp
+from cosim.read import ssp
 from cosim.cli import main
 from cosim.errors import SetupError
 from tablefmus import VARIABLES as TABLE_VARIABLES, build_tables_fmu
@@ -523,7 +523,7 @@ def test_a_component_based_binding_of_an_fmu_found_through_fmu_dir(tmp_path, fmu
     """The FMU is not beside the SSD but in a --fmu-dir folder: the .ssv is read from the FMU
     found there (once located), mapped, in its place among the component's bindings (later wins).
     The FMU providers are switched off: GainInside is no FMU of theirs (and greyfmu's needs pythonfmu)."""
-    monkeypatch.setattr(cosim.resources, "providers", lambda: ([], []))
+    monkeypatch.setattr(cosim.read.resources, "providers", lambda: ([], []))
     text = ssd(gain_bindings=f"<ssd:ParameterBindings>{bindings}</ssd:ParameterBindings>")
     folder = _system(tmp_path, {"Step.fmu": fmus["Step.fmu"]}, text.replace("resources/Gain.fmu",
                                                                             "resources/GainInside.fmu"))

@@ -14,6 +14,8 @@ import pytest
 import cosim
 from cfmus import build_c_fmu
 from ssdgen import ssd_text, write_system
+from cosim.errors import SetupError
+from testfmus import build_test_fmus, build_test_fmus3, edited_copy
 
 ENDS2 = """<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="Ends" guid="{5c3a1e00-0000-4000-8000-000000000021}"
@@ -86,3 +88,34 @@ def test_a_discard_inside_the_step_ends_at_the_last_good_time(tmp_path, ends):
     with pytest.warns(RuntimeWarning, match=r"fmi2LastSuccessfulTime = 8\.9 at t = 8\.8 .*last good time 8\.8"):
         res = cosim.simulate(folder)
     assert len(res) == 45 and res["time"][-1] == pytest.approx(8.8)
+
+
+# --------------------------------------------------------------------------- on our FMUs (pythonfmu)
+
+
+@pytest.fixture(scope="module")
+def pyfmus(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("pyfmus")
+    return {**build_test_fmus(tmp / "fmi2"), **build_test_fmus3(tmp / "fmi3")}
+
+
+@pytest.mark.pythonfmu
+def test_string_parameter_on_fmi2(tmp_path, pyfmus):
+    """A String binding reaches an FMI 2.0 FMU (Labels: length = len(text))."""
+    comps = {"lab": ("Labels.fmu", {"text": "input", "length": "output"})}
+    folder = write_system(tmp_path / "s", {"Labels.fmu": pyfmus["Labels"]},
+                          ssd_text("str", comps, [], stop=0.2, step=0.1, parameters={"lab": {"text": "abcde"}}))
+    res = cosim.simulate(folder)
+    np.testing.assert_array_equal(res["lab.length"], 5)
+
+
+@pytest.mark.pythonfmu
+def test_scheduled_execution_only_fmi3_is_refused_as_such(tmp_path, pyfmus):
+    """An FMI 3.0 FMU with only <ScheduledExecution>: the refusal names that interface."""
+    se = edited_copy(pyfmus["Echo3"], tmp_path / "SE.fmu",
+                     lambda text: text.replace("<CoSimulation", "<ScheduledExecution"))
+    comps = {"e": ("SE.fmu", {})}
+    folder = write_system(tmp_path / "s", {"SE.fmu": se}, ssd_text("se", comps, [], stop=0.2, step=0.1))
+    with pytest.raises(SetupError, match="only a Scheduled Execution interface") as refused:
+        cosim.simulate(folder)
+    assert "Model Exchange" not in str(refused.value).split("only a Scheduled")[0]

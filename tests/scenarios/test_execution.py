@@ -1,15 +1,17 @@
-"""cosim.execution on its own: the time grid, and an `Execution` driven step by step on a plan
-of small real FMUs, each instance kind checked against the `cosim.instances.Instance` protocol."""
+"""cosim.run.execution on its own: the time grid, and an `Execution` driven step by step on a plan
+of small real FMUs, each instance kind checked against the `cosim.run.instances.Instance` protocol."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from cosim.errors import RunError, SetupError
-from cosim.execution import Execution, Grid
-from cosim.instances import FMI2Instance, FMI3Instance, Instance, MEInstance
-from cosim.observers import MemorySink, Recorder
-from cosim.simulation import validate
+from cosim.model.grid import Grid
+from cosim.run.execution import Execution
+from cosim.run.program import compile
+from cosim.run.instances import FMI2Instance, FMI3Instance, Instance, MEInstance
+from cosim.record.observers import MemorySink, Recorder
+from cosim.plan.prepare import prepare
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 from testfmus import build_test_fmus, build_test_fmus3
@@ -40,7 +42,8 @@ def _plan(tmp_path, fmus, components, connections, model_exchange=(), **kw):
     for name in model_exchange:
         text = text.replace(f'<ssd:Component name="{name}" ', f'<ssd:Component name="{name}" '
                             'implementation="ModelExchange" ')
-    return validate(write_system(tmp_path / "sys", files, text), use_providers=False)
+    with prepare(write_system(tmp_path / "sys", files, text), use_providers=False, grid_placeholders=True) as prepared:
+        return prepared.plan
 
 
 def test_an_execution_steps_and_records_a_plan(tmp_path, fmus):
@@ -52,14 +55,13 @@ def test_an_execution_steps_and_records_a_plan(tmp_path, fmus):
     try:
         execution.instantiate()
         assert all(isinstance(inst, FMI2Instance) and inst.api == "fmi2" for inst in execution.instances.values())
-        names, arrays = execution.recorder_sources()
+        names, arrays = execution.link(compile(plan)).recorder_sources()
         recorder = Recorder(names, arrays, plan.columns, [memory])
         execution.initialize()
         execution.run(recorder)
         recorder.close(execution.metadata())
     finally:
         execution.close()
-        plan.close()
     result = memory.array()
     assert execution.status == "completed" and execution.last_time == 0.5 and execution.instances == {}
     assert list(result["time"]) == [0.0, 0.125, 0.25, 0.375, 0.5]
@@ -86,7 +88,6 @@ def test_every_instance_kind_is_an_instance(tmp_path, fmus):
         assert execution.instances["plant"].settings == plan.solvers["plant"]
     finally:
         execution.close()
-        plan.close()
 
 
 def test_a_failing_step_names_the_instances_api_and_the_time(tmp_path, fmus):
@@ -94,7 +95,7 @@ def test_a_failing_step_names_the_instances_api_and_the_time(tmp_path, fmus):
     execution = Execution(plan, Grid(0.0, 1.0, 0.1))
     try:
         execution.instantiate()
-        names, arrays = execution.recorder_sources()
+        names, arrays = execution.link(compile(plan)).recorder_sources()
         execution.initialize()
         with pytest.raises(RunError, match=r"fmi2DoStep returned Fatal at t = 0.2") as err:
             execution.run(Recorder(names, arrays, plan.columns, [MemorySink(None)]))
@@ -102,4 +103,3 @@ def test_a_failing_step_names_the_instances_api_and_the_time(tmp_path, fmus):
         assert np.isclose(execution.last_time, 0.2)
     finally:
         execution.close()
-        plan.close()

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from pythonfmu.builder import FmuBuilder
 
-from cosim.results import read
+from cosim.record.results import read
 from ssdgen import ssd_text, write_system
 
 FAULTY = Path(__file__).parents[1] / "fmus" / "Faulty.py"
@@ -154,7 +154,7 @@ def test_folders_left_by_a_dead_process_are_removed_by_the_next_run(tmp_path, fa
 def test_a_journal_left_by_a_crashed_api_run_is_recovered(tmp_path, faulty):
     """`cosim.simulate` has no supervising parent: the journal stays, and `recover` writes the
     result files from it with status 'crashed' (none of the 11 completed rows lost)."""
-    from cosim.journal import journal_path, recover
+    from cosim.record.journal import journal_path, recover
 
     folder = _scenario(tmp_path, faulty, 1, fault_time=5.0)
     out = tmp_path / "api.parquet"
@@ -174,7 +174,7 @@ def test_a_journal_left_by_a_crashed_api_run_is_recovered(tmp_path, faulty):
 
 def _wait_for_journal_rows(journal: Path, rows: int, proc: subprocess.Popen) -> None:
     """Until the run's journal holds ``rows`` rows (the CSV gets them only at a flush)."""
-    from cosim.journal import read_journal
+    from cosim.record.journal import read_journal
 
     deadline = time.monotonic() + 60
     while True:
@@ -192,7 +192,7 @@ def test_sigint_abandons_a_hung_fmu_call_and_keeps_the_rows(tmp_path, faulty, se
     """Issue 26: an FMU hung in fmi2DoStep; SIGINT asks the run to stop, and a second SIGINT (or
     `INTERRUPT_GRACE` s without the run gone) abandons the call: every completed row and the
     JSON are written, exit 130."""
-    from cosim.supervisor import INTERRUPT_GRACE
+    from cosim.run.supervisor import INTERRUPT_GRACE
 
     folder = _scenario(tmp_path, faulty, 4, fault_time=3.0, stop=25.0)
     csv = tmp_path / "out.csv"
@@ -231,7 +231,7 @@ def test_the_run_dies_with_its_killed_parent(tmp_path, faulty, fault, status_row
     """Issue 26: ``kill -9`` of the supervising parent ends its child too (``PR_SET_PDEATHSIG``
     and the pipe watch): a stepping child stops at its next communication point and writes its
     files, a hung one writes the journal's rows and ends ``INTERRUPT_GRACE`` s later."""
-    from cosim.supervisor import INTERRUPT_GRACE
+    from cosim.run.supervisor import INTERRUPT_GRACE
 
     folder = _scenario(tmp_path, faulty, fault, fault_time=3.0 if fault == 4 else 0.0, stop=1000.0,
                        step=0.5 if fault == 4 else 0.1, delay=0.01)

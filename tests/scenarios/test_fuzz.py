@@ -6,8 +6,8 @@ numbers and random text; wrong namespaces; truncation; control characters; deep
 nesting; huge values; wrong encoding declarations; byte order marks; entity
 declarations) and of ``.ssp`` archives built from them (random bytes, truncation,
 flipped bytes, traversal and duplicate member names, other compression methods,
-encrypted or symbolic-link members).  Properties: `cosim.ssp.load` and
-`cosim.ssp.read_ssv` raise nothing but `SetupError`, whose message names the file;
+encrypted or symbolic-link members).  Properties: `cosim.read.ssp.load` and
+`cosim.read.ssp.read_ssv` raise nothing but `SetupError`, whose message names the file;
 each example ends within the Hypothesis deadline (5 s); ``cosim validate`` exits 2
 with one message and no traceback.
 
@@ -33,8 +33,9 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from lxml import etree
 
-import cosim.resources
-from cosim import safeio, ssp
+import cosim.read.resources
+from cosim import safeio
+from cosim.read import ssp
 from cosim.cli import main
 from cosim.errors import SetupError
 
@@ -289,7 +290,7 @@ def fmus_in_resources(workspace, built_fmus, monkeypatch) -> Path:
         link = workspace / scenario.name / "resources"
         if not link.exists():
             link.symlink_to(fmu_dir, target_is_directory=True)
-    monkeypatch.setattr(cosim.resources, "providers", lambda: ([], []))
+    monkeypatch.setattr(cosim.read.resources, "providers", lambda: ([], []))
     return workspace
 
 

@@ -14,7 +14,7 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 import cosim
-from cosim.metrics import step_metrics
+from cosim.present.metrics import step_metrics
 
 SSP = Path(__file__).resolve().parents[2] / "ssp"
 CASES = (1, 2, 3)

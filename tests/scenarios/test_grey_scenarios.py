@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import cosim
-from cosim.metrics import step_metrics
+from cosim.present.metrics import step_metrics
 from greyfmu.grey.ago import ago
 from greyfmu.grey.gm11 import gm11_coefficients
 

@@ -1,4 +1,4 @@
-"""``--isolate`` (issue 17): each component in a process of its own (`cosim.instances.isolated`).
+"""``--isolate`` (issue 17): each component in a process of its own (`cosim.run.instances.isolated`).
 
 A crashing FMU (abort, segfault, _exit: tests/fmus/Faulty.py) is that component's failure,
 named with its FMU file, the FMI call, the signal or exit status and t, the rows up to the
@@ -24,7 +24,7 @@ import pytest
 import cosim
 from cfmus import build_c_fmu
 from cosim.errors import ComponentLost
-from cosim.results import read
+from cosim.record.results import read
 from ssdgen import ssd_text, write_system
 from testfmus import build_test_fmus
 from typefmus import BYTES3, BYTES3_BODY, MODES2, MODES2_BODY, OUTPUTS3, TYPES3, TYPES3_BODY

@@ -217,7 +217,7 @@ def test_fmu_failing_mid_run_keeps_results(tmp_path, fmus, capsys):
     assert code == 1 and "Traceback" not in err and "cosim: the run failed (model_error): " in err
     assert "component 'f' (Failing.fmu)" in err and "fmi2DoStep returned Fatal at t = 0.25" in err
     assert "refusing the step from t = 0.25" in err and "results up to the last good step kept in" in err
-    from cosim.results import read
+    from cosim.record.results import read
     res = read(csv)
     assert res["time"][-1] == pytest.approx(0.25) and len(res) == 251
     assert res["f.y"][-1] == pytest.approx(0.25)
@@ -234,7 +234,7 @@ def test_discard_ends_the_run_cleanly_at_the_last_good_time(tmp_path, fmus, caps
     assert main(["run", str(folder), "-q", "-o", str(csv)]) == 0
     out = capsys.readouterr()
     assert "Discard" in out.err and "last good time 0.3" in out.err
-    from cosim.results import read
+    from cosim.record.results import read
     assert list(read(csv)["time"]) == pytest.approx([0, 0.1, 0.2, 0.3])
     import json
     meta = json.loads(csv.with_suffix(".json").read_text())

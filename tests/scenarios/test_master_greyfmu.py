@@ -8,7 +8,7 @@ import pytest
 
 import cosim
 from cosim.cli import main
-from cosim.results import read
+from cosim.record.results import read
 from ssdgen import ssd_text, write_system
 
 SCENARIO = "ssp/pid_fopdt"

@@ -1,4 +1,4 @@
-"""Nested systems and system-level connectors (SSP 1.0), flattened by cosim.flatten.
+"""Nested systems and system-level connectors (SSP 1.0), flattened by cosim.read.flatten.
 
 The nested scenarios are ssp/pid_fopdt with its controller and plant moved into a
 subsystem ``loop`` (and, two levels deep, ``loop`` inside ``outer``); the setpoint and
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import cosim
-from cosim import ssp
+from cosim.read import ssp
 from cosim.cli import main
 from cosim.errors import SetupError
 
@@ -145,19 +145,21 @@ def test_nested_gives_the_flat_samples(flat, tmp_path, levels):
     assert meta["root_system"] == "root"
     assert meta["parameters"][f"{path}.plant.tau"] == 4.0   # root binding beat loop's 5 and the component's 6
     assert meta["parameters"][f"{path}.plant.K"] == 0.2     # loop's binding beat the component's 0.3
-    assert meta["system_outputs"] == {"y": f"1 * {path}.plant.y + 0"}
+    assert meta["system_outputs"] == {"y": f"{path}.plant.y"}
 
 
 def test_flattened_routes_compose_the_transformations(built_fmus, tmp_path):
-    s = ssp.load(write(tmp_path / "n", nested_ssd(2)))
-    routes = {(c.start_element, c.start_connector, c.end_element, c.end_connector): (c.factor, c.offset)
-              for c in s.connections}
-    assert routes[("load", "y", "outer.loop.plant", "d")] == pytest.approx(COMPOSED_TF, abs=1e-15)
-    assert routes[("setpoint", "y", "outer.loop.controller", "r")] == (1.0, 0.0)
-    assert routes[("outer.loop.plant", "y", "outer.loop.controller", "y")] == (1.0, 0.0)
-    assert len(routes) == 4
+    folder = write(tmp_path / "n", nested_ssd(2))
+    s = ssp.load(folder)
     route = next(c for c in s.connections if c.start_element == "load")
     assert "through system connector outer.d, outer.loop.d" in route.describe()
+    with cosim.prepare(folder) as prepared:
+        routes = {(r.src, r.src_var.name, r.dst, r.dst_var.name): r.transform for r in prepared.plan.routes}
+    composed = routes[("load", "y", "outer.loop.plant", "d")]
+    assert (composed.factor, composed.offset) == pytest.approx(COMPOSED_TF, abs=1e-15)
+    assert routes[("setpoint", "y", "outer.loop.controller", "r")].identity
+    assert routes[("outer.loop.plant", "y", "outer.loop.controller", "y")].identity
+    assert len(routes) == 4
 
 
 def test_parameter_set_names_a_dotted_component_path(built_fmus, tmp_path):
@@ -237,7 +239,7 @@ def test_info_shows_the_hierarchy(built_fmus, tmp_path, capsys):
         "      outer.loop (system: input r, input d, output y)",
         "        outer.loop.controller", "        outer.loop.plant",
         "  recorded: y = outer.loop.plant.y"]
-    assert "  load.y -> outer.loop.plant.d (x-1 -0.15)" in lines
+    assert "  load.y -> outer.loop.plant.d = -1*load.y - 0.15" in lines
 
 
 def test_pack_keeps_the_nested_ssd_and_reloads(built_fmus, tmp_path):
@@ -290,6 +292,6 @@ def test_a_nested_output_feeding_nothing_is_harmless(built_fmus, tmp_path):
                       + _connection("load", "y", "loop", "d", OUTER_TF))
     prepared = cosim.prepare(write(tmp_path / "n", text))
     try:
-        assert len(prepared.plan.routes) == 4 and not prepared.plan.structure.system_outputs
+        assert len(prepared.plan.routes) == 4 and not prepared.plan.system_outputs
     finally:
         prepared.close()

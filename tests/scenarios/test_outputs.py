@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from cosim.cli import main
-from cosim.results import read
+from cosim.record.results import read
 from runhelpers import refused as _refused
 
 SCENARIO = Path("ssp/pid_fopdt")
@@ -29,10 +29,9 @@ def scenario(tmp_path) -> Path:
 def test_the_scenario_s_own_files_are_never_written_over(scenario, capsys, command):
     before = {p: p.read_bytes() for p in scenario.rglob("*") if p.is_file()}
     ssd = scenario / "SystemStructure.ssd"
-    from cosim.simulation import validate
-    plan = validate(scenario)
-    fmu = plan.fmus["controller"].path  # found by the FMU provider (build/fmus), not in the folder
-    plan.close()
+    from cosim.plan.prepare import prepare
+    with prepare(scenario) as prepared:
+        fmu = prepared.plan.fmus["controller"].path  # found by the FMU provider (build/fmus), not in the folder
     fmu_bytes = fmu.read_bytes()
     for target in (ssd, scenario / "controller.ssv", fmu):
         err = _refused(capsys, command, str(scenario), "-o", str(target))

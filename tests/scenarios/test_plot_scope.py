@@ -9,8 +9,8 @@ import pytest
 from matplotlib.collections import PolyCollection
 
 from cosim.cli import main
-from cosim.plots import axis_label, default_panels, figure, limits, sampled, units
-from cosim.results import read
+from cosim.present.plots import axis_label, default_panels, figure, limits, sampled, units
+from cosim.record.results import read
 from peers import gemseo_fmu_dir
 
 
@@ -53,7 +53,7 @@ def test_units_pass_through_gain_and_sum_blocks_both_ways():
     meta = {"units": {"sensor.y": "K", "gain.u": None, "gain.y": None, "sum.u1": None, "sum.y": None, "c.u": None},
             "components": {"gain": {"fmu": "Gain.fmu"}, "sum": {"fmu": "Sum.fmu"}, "sensor": {"fmu": "T.fmu"},
                            "c": {"fmu": "PID.fmu"}},
-            "connections": ["sensor.y -> gain.u", "gain.y -> sum.u1", "c.u -> x.u (x2 +0)"]}
+            "connections": ["sensor.y -> gain.u", "gain.y -> sum.u1", "c.u -> x.u"], "transforms": {"c.u -> x.u": "2*c.u"}}
     found = units(meta)
     assert found["sum.y"] == ("K", True) and found["gain.u"] == ("K", True) and found["sensor.y"] == ("K", False)
     assert "c.u" not in found                          # a scaled connection does not pass a unit
@@ -102,7 +102,7 @@ def test_a_saturating_output_shows_its_limits(mass_damper):
 
 
 def test_the_report_gives_metric_units_from_the_signal(mass_damper, tmp_path):
-    from cosim.report import render
+    from cosim.present.report import render
 
     result, meta = mass_damper
     page = render(result, meta, source=str(tmp_path / "md.csv"))

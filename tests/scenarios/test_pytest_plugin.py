@@ -93,7 +93,7 @@ def test_option_and_ini_listed_in_help(pytester):
 def test_plugin_module_imports_neither_numpy_nor_fmpy(pytester):
     """pytest loads the plugin in every session of anyone who installs the package: it must stay cheap."""
     result = pytester.run(sys.executable, "-c", "import sys, cosim.pytest_plugin; "
-                          "print(sorted(m for m in ('numpy', 'fmpy', 'cosim.simulation') if m in sys.modules))")
+                          "print(sorted(m for m in ('numpy', 'fmpy', 'cosim.run.simulation') if m in sys.modules))")
     assert result.ret == 0
     assert result.stdout.lines[-1] == "[]"
 

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim import ssp
+from cosim.read import ssp
 from peers import gemseo_fmu_dir
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
-from cosim.plots import default_panels, label, setpoints
+from cosim.present.plots import default_panels, label, setpoints
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -128,7 +128,8 @@ def test_default_panels_of_a_plant_with_several_loops():
     an unconnected set-point input is still a set-point."""
     meta = {"connections": ["pressure_sp.y -> fuel_pi.r", "p_meas.y -> fuel_pi.y", "pressure_sp.y -> fuel_grey.r",
                             "p_meas.y -> fuel_grey.y", "demand.y -> turbine.r", "plant.E -> turbine.y",
-                            "plant.L -> level.y (x0.001 -0.2)", "fuel_pi.u -> fuel_cmd.u1", "turbine.u -> plant.governor"],
+                            "plant.L -> level.y", "fuel_pi.u -> fuel_cmd.u1", "turbine.u -> plant.governor"],
+            "transforms": {"plant.L -> level.y": "0.001*plant.L - 0.2"},
             "descriptions": {"pressure_sp.y": "Weighted sum of the inputs", "p_meas.y": "Weighted sum of the inputs",
                              "fuel_pi.r": "Set-point", "fuel_pi.y": "Measured process output"}}
     names = ["pressure_sp.y", "p_meas.y", "demand.y", "plant.E", "plant.L", "fuel_pi.u", "fuel_pi.r", "fuel_pi.y",

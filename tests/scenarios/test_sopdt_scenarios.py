@@ -16,7 +16,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
 import cosim
-from cosim.metrics import step_metrics
+from cosim.present.metrics import step_metrics
 from greyfmu.control.scheduling import ITAE
 
 SSP = Path(__file__).resolve().parents[2] / "ssp"

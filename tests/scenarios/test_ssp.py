@@ -7,7 +7,7 @@ import zipfile
 import pytest
 
 import cosim
-from cosim import ssp
+from cosim.read import ssp
 from cosim.errors import SetupError
 
 SCENARIO = "ssp/pid_fopdt"

@@ -1,4 +1,4 @@
-"""Unit conversion: the unit math of cosim.units, the refusals, and runs through the master.
+"""Unit conversion: the unit math of cosim.model.units, the refusals, and runs through the master.
 
 The end-to-end runs use two real pythonfmu FMUs built from tests/unitfmus/ (UnitSource:
 y_i = a_i + b·t; UnitSink: v_i = u_i) whose variables get their units written into the model
@@ -18,8 +18,10 @@ import pytest
 from pythonfmu.builder import FmuBuilder
 
 from cosim.errors import SetupError
-from cosim.simulation import prepare, run
-from cosim.units import BUILTIN, IDENTITY, conversion, make_unit, then
+from cosim.plan.prepare import prepare
+from cosim.run.simulation import run
+from cosim.model.transforms import IDENTITY, Affine
+from cosim.model.units import BUILTIN, conversion, make_unit
 from testfmus import edited_copy
 
 HERE = Path(__file__).parents[1] / "unitfmus"
@@ -157,8 +159,7 @@ def unit(name: str):
 
 
 def convert(value: float, src: str, dst: str) -> float:
-    a, b = conversion(unit(src), unit(dst))
-    return a * value + b
+    return conversion(unit(src), unit(dst)).apply(value)
 
 
 def test_celsius_kelvin_fahrenheit_both_ways():
@@ -171,7 +172,7 @@ def test_celsius_kelvin_fahrenheit_both_ways():
 
 
 def test_pressure_percent_and_process_units():
-    assert conversion(unit("kgf/cm2"), unit("MPa")) == (pytest.approx(0.0980665, rel=1e-15), 0.0)
+    assert conversion(unit("kgf/cm2"), unit("MPa")) == Affine(pytest.approx(0.0980665, rel=1e-15), 0.0)
     assert conversion(unit("kgf/cm²"), unit("kgf/cm2")) == IDENTITY
     assert convert(1.0, "MPa", "kgf/cm2") == pytest.approx(1 / 0.0980665, rel=1e-15)
     assert convert(1.0, "bar", "kPa") == pytest.approx(100.0, rel=1e-15)
@@ -183,9 +184,9 @@ def test_pressure_percent_and_process_units():
 
 
 def test_conversion_then_linear_transformation_compose_into_one_affine_map():
-    a, b = then(conversion(unit("degC"), unit("K")), (2.0, 1.0))   # SSP: convert first, then factor·x + offset
-    assert a * 25.0 + b == pytest.approx(2.0 * (25.0 + 273.15) + 1.0, rel=1e-15)
-    assert then(IDENTITY, (3.0, -1.0)) == (3.0, -1.0)
+    composed = conversion(unit("degC"), unit("K")).then(Affine(2.0, 1.0))   # SSP: convert first, then factor·x + offset
+    assert isinstance(composed, Affine) and composed.apply(25.0) == pytest.approx(2.0 * (25.0 + 273.15) + 1.0, rel=1e-15)
+    assert IDENTITY.then(Affine(3.0, -1.0)) == Affine(3.0, -1.0)
 
 
 def test_different_dimensions_are_refused_naming_both_units_and_dimensions():

@@ -238,7 +238,7 @@ COSIM_LOGGER = '''
 import collections, sys
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
-from cosim.instances.fmi2 import _LOG_TARGETS, _callbacks
+from cosim.run.instances.fmi2 import _LOG_TARGETS, _callbacks
 
 fmu = sys.argv[1]
 md = read_model_description(fmu)

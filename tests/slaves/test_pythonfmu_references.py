@@ -163,6 +163,7 @@ EXIT = textwrap.dedent(
 VALGRIND = shutil.which("valgrind")
 
 
+@pytest.mark.slow   # 62 s on the shared 2-core machine (build/test-durations.json)
 def test_exit_touches_no_freed_memory_of_the_fmu_libraries(tmp_path: Path) -> None:
     """pythonfmu3 0.3.4 (PID3) and pythonfmu 0.7.0 (PID, under the FMI 2.0 loader) free their
     static interpreter state at exit and then read and decrement it from the library's destructor

@@ -1,4 +1,4 @@
-"""The discrete-state iteration of Model Exchange FMUs (cosim.instances.me) is bounded and as
+"""The discrete-state iteration of Model Exchange FMUs (cosim.run.instances.me) is bounded and as
 tolerant as fmpy's; issue 30, item 4.  The FMUs are compiled here (tests/cfmus.py) and bend
 the standard on purpose:
 
@@ -19,7 +19,7 @@ import pytest
 
 import cosim
 from cfmus import build_c_fmu
-from cosim.instances.me import MAX_DISCRETE_ITERATIONS
+from cosim.run.instances.me import MAX_DISCRETE_ITERATIONS
 from ssdgen import ssd_text, write_system
 
 FMI2_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>

@@ -1,4 +1,4 @@
-"""FMI 3.0 Model Exchange FMUs hosted by the master like FMI 2.0 ones (cosim.instances.me,
+"""FMI 3.0 Model Exchange FMUs hosted by the master like FMI 2.0 ones (cosim.run.instances.me,
 `ME3Instance`, on fmpy's FMU3Model and CVODE), with state events; issue 21, item 6.  The FMU is
 a bouncing ball compiled here (tests/cfmus.py); references: fmpy.simulate_fmu on the same FMU
 and the analytic first flight."""

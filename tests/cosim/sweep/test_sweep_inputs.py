@@ -3,7 +3,7 @@ same scenario with the same input table and start values, sample for sample (bit
 and the table's contents and the start values are part of the run id.
 
 The scenario is a pair of C FMUs (``Drive``: y = gain * u, yk echoes the input k) whose inputs
-come from the table by ``component.input`` (`cosim.inputs`, fmpy's table rules).
+come from the table by ``component.input`` (`cosim.plan.inputs`, fmpy's table rules).
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from single_fmus import build_drive
 from ssdgen import ssd_text, write_system
 
 from cosim.cli import main
-from cosim.results import read
+from cosim.record.results import read
 from cosim.sweep import sweep
 
 TABLE = "time,src.u,dst.k\n0,0,1\n0.5,1,1\n0.5,1,3\n1,2,3\n"

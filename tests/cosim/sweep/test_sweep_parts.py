@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from cosim import ssp
+from cosim.read import ssp
 from cosim.errors import SetupError
-from cosim.structure import ParameterValue
+from cosim.model.structure import ParameterValue
 from cosim.sweep import read_table, sweep, write_ssv
 from cosim.sweep.table import schema_of, write_table
-from cosim.sweep.values import Metric, parse_metric, typed_values
+from cosim.plan.values import typed_values
+from cosim.sweep.values import Metric, parse_metric
 from ssdgen import ssd_text, write_system
 
 

@@ -1,4 +1,4 @@
-"""FMI 3.0 Co-Simulation FMUs in the same system as FMI 2.0 ones (cosim.instances.fmi3).
+"""FMI 3.0 Co-Simulation FMUs in the same system as FMI 2.0 ones (cosim.run.instances.fmi3).
 
 Real FMUs only: gemseo-fmu's FMU3Model.fmu (PythonFMU3), our PID3 (fmus/fmi3, pythonfmu3),
 the FMI 2.0 FMUs of fmus/, and the test-only FMUs of tests/fmus (Labels: String ports,

@@ -1,4 +1,4 @@
-"""Model Exchange FMUs integrated by the master (cosim.instances.me) on OpenModelica exports from gemseo-fmu.
+"""Model Exchange FMUs integrated by the master (cosim.run.instances.me) on OpenModelica exports from gemseo-fmu.
 
 Mass_Damper.fmu is m = 1 kg, c = 1e4 N/m, d = 10 N·s/m (modelDescription parameters), y = damper.s_rel
 with y(0) = 0 and rest at −0.5 m: y'' + 10 y' + 1e4 (y + 0.5) = f, poles −5 ± 99.9i.  Its Co-Simulation
@@ -16,9 +16,11 @@ import numpy as np
 import pytest
 
 import cosim
-from cosim import simulation
-from cosim.execution import Execution
-from cosim.observers import MemorySink, Recorder
+from cosim.plan.prepare import prepare
+from cosim.run import simulation
+from cosim.run.execution import Execution
+from cosim.run.program import compile
+from cosim.record.observers import MemorySink, Recorder
 from peers import gemseo_fmu_dir
 from ssdgen import ssd_text, write_system
 from testfmus import edited_copy
@@ -88,13 +90,13 @@ def extrapolate(y_h: np.ndarray, y_h2: np.ndarray, y_h4: np.ndarray) -> np.ndarr
 
 
 def run_keeping_instances(path: Path, **options) -> tuple[np.ndarray, dict[str, dict[str, int]], dict]:
-    """Run like cosim.simulation.run but read each ME instance's event counts before it is freed."""
-    prepared = simulation.prepare(path, **options)
+    """Run like cosim.run.simulation.run but read each ME instance's event counts before it is freed."""
+    prepared = prepare(path, **options)
     execution = Execution(prepared.plan, prepared.grid, prepared.algorithm)
     memory = MemorySink()
     try:
         execution.instantiate()
-        names, arrays = execution.recorder_sources()
+        names, arrays = execution.link(compile(prepared.plan, prepared.algorithm)).recorder_sources()
         recorder = Recorder(names, arrays, names, [memory])
         execution.initialize()
         execution.run(recorder)
@@ -216,7 +218,7 @@ def test_implementation_model_exchange_on_a_cs_only_fmu_is_refused(tmp_path, bui
     text = with_implementation(ssd_text("s", {"src": ("Step.fmu", {"y": "output"})}, []), "src", "ModelExchange")
     path = write_system(tmp_path / "s", {"Step.fmu": built_fmus["Step"]}, text)
     with pytest.raises(cosim.SetupError) as err:
-        simulation.prepare(path)
+        prepare(path)
     message = str(err.value)
     assert "SystemStructure.ssd" in message and "ssd:Component 'src'" in message
     assert "implementation='ModelExchange' but Step.fmu has no Model Exchange interface" in message
@@ -226,7 +228,7 @@ def test_unknown_implementation_is_caught_by_the_ssp_schema(tmp_path, built_fmus
     text = with_implementation(ssd_text("s", {"src": ("Step.fmu", {"y": "output"})}, []), "src", "Hybrid")
     path = write_system(tmp_path / "s", {"Step.fmu": built_fmus["Step"]}, text)
     with pytest.raises(cosim.SetupError) as err:
-        simulation.prepare(path)
+        prepare(path)
     assert "SSP 1.0 schema" in str(err.value) and "implementation" in str(err.value) and "Hybrid" in str(err.value)
 
 
@@ -252,7 +254,7 @@ def test_an_me_only_fmu_runs_through_me_and_refuses_cosimulation(tmp_path, built
     np.testing.assert_array_equal(result["plant.y"], explicit["plant.y"])
     refused = write_system(tmp_path / "cs", fmus, with_implementation(text, "plant", "CoSimulation"))
     with pytest.raises(cosim.SetupError) as err:
-        simulation.prepare(refused)
+        prepare(refused)
     assert "implementation='CoSimulation' but Mass_Damper.fmu has no Co-Simulation interface" in str(err.value)
 
 
@@ -267,7 +269,7 @@ def test_discrete_inputs_of_an_me_component_are_refused_before_running(tmp_path,
                                "plant", "ModelExchange")
     path = write_system(tmp_path / "s", {"Mass_Damper.fmu": fmu}, text)
     with pytest.raises(cosim.SetupError) as err:
-        simulation.prepare(path)
+        prepare(path)
     message = str(err.value)
     assert "ssd:Component 'plant'" in message and "variable 'f'" in message
     assert "discrete-time inputs (f)" in message and "Event Mode" in message
@@ -277,12 +279,12 @@ def test_solver_annotation_on_a_cs_component_or_with_unknown_attributes_is_refus
     text = ssd_text("s", {"src": ("Step.fmu", {"y": "output"})}, [])
     path = write_system(tmp_path / "cs", {"Step.fmu": built_fmus["Step"]}, with_solver(text, "src", 'rtol="1e-8"'))
     with pytest.raises(cosim.SetupError) as err:
-        simulation.prepare(path)
+        prepare(path)
     assert "org.greyfmu.solver" in str(err.value) and "Model Exchange components only" in str(err.value)
     bad = force_step_system(tmp_path / "bad", built_fmus, gemseo, "ModelExchange", stop=0.1, step=0.01,
                             solver='rtol="1e-8" method="RK45"')
     with pytest.raises(cosim.SetupError) as err:
-        simulation.prepare(bad)
+        prepare(bad)
     assert "unknown attribute(s) method of greyfmu:Solver" in str(err.value)
 
 

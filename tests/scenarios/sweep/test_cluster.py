@@ -103,6 +103,7 @@ def _same_rows(remote: list[dict], local) -> None:
             assert (math.isnan(a[key]) and math.isnan(b[key])) or abs(a[key] - b[key]) <= 1e-12, key
 
 
+@pytest.mark.slow   # 28 s on the shared 2-core machine (build/test-durations.json)
 def test_a_worker_that_sees_no_scenario_and_no_output_folder_runs_the_sweep(cluster, tmp_path):
     reason = _unshare_works()
     if reason is not None:
@@ -138,6 +139,7 @@ def test_a_worker_that_sees_no_scenario_and_no_output_folder_runs_the_sweep(clus
         assert json.loads((out / "runs" / f"{row['run_id']}.json").read_text())["status"] == "completed"
 
 
+@pytest.mark.slow   # 117 s on the shared 2-core machine (build/test-durations.json)
 def test_a_worker_killed_during_a_sweep_costs_only_a_retry_of_its_runs(cluster, tmp_path):
     sets = {"plant.K": ["0.1", "0.15", "0.2", "0.25"], "controller.Kc": ["6", "8"]}
     stop = 3000.0           # about a second a run: the kill lands while both workers are busy

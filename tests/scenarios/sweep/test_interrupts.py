@@ -39,6 +39,7 @@ def test_an_fmu_that_aborts_its_process_fails_only_its_own_run(aborting, tmp_pat
     assert len(read_table(tmp_path / "sweep.parquet")) == 5
 
 
+@pytest.mark.slow   # 22 s on the shared 2-core machine (build/test-durations.json)
 def test_ctrl_c_stops_the_sweep_at_once_and_keeps_the_finished_runs(aborting, tmp_path):
     out = tmp_path / "out"
     # 8 runs of some seconds each on 2 processes (2.4 million steps: the compiled kernel ran 120 000 in

@@ -19,8 +19,8 @@ from ssdgen import ssd_text, write_system
 
 from cosim.cli import main
 from cosim.errors import SetupError
-from cosim.metrics import METRICS, step_metrics
-from cosim.results import read
+from cosim.present.metrics import METRICS, step_metrics
+from cosim.record.results import read
 from cosim.sweep import parse_seeds, parse_set, read_table, sweep
 
 SETS = {"controller.Kc": ["4", "8"], "plant.T": ["15", "20"]}
@@ -248,7 +248,7 @@ def test_a_one_parameter_sweep_figure_is_a_grid_with_units_and_no_band_without_r
     labels without units, and a 'min-max band' drawn through single runs."""
     import matplotlib.image
 
-    from cosim.metrics import metric_unit
+    from cosim.present.metrics import metric_unit
     from cosim.sweep.figure import metric_label
 
     result = sweep(scenario, {"plant.T": ["15", "20"]}, metrics=[METRIC], output=tmp_path, executor="serial",

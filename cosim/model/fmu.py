@@ -1,0 +1,193 @@
+"""FMUs as the master sees them before any is instantiated: the records of a checked model
+description (`FMUDescription`, its `Variable` and `DeclaredType` records, `DefaultExperiment`,
+`UnitDefinition`), values of our own that `cosim.read.description.describe` makes
+from fmpy's parse.  Nothing here imports fmpy: a `cosim.model.structure.Plan` holding them is plain
+data (a sweep pickles it for its workers, `cosim.sweep.dispatch`).  `FMUDescription.kind` is the
+interface the master drives: an FMI 2.0 Co-Simulation FMU (``fmi2-cs``), an FMI 3.0 Co-Simulation
+FMU (``fmi3-cs``) or an FMI 2.0 or 3.0 Model Exchange FMU integrated by the master (``fmi2-me``,
+``fmi3-me``); `cosim.run.instances` holds the live instances of each kind.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Literal
+
+from ..errors import SetupError, did_you_mean
+from .frozen import FrozenMap
+
+#: The interface the master drives an FMU through (`cosim.read.description.describe`).
+Kind = Literal["fmi2-cs", "fmi3-cs", "fmi2-me", "fmi3-me"]
+#: The kinds the master integrates (Model Exchange, `cosim.run.instances.me`).
+MODEL_EXCHANGE: tuple[Kind, ...] = ("fmi2-me", "fmi3-me")
+#: How the master exchanges a variable (`exchange_type`): the FMI 2.0 type names.
+ExchangeType = Literal["Real", "Integer", "Boolean", "String", "Binary"]
+#: The exchange types, in the order the exchange buffers and their gets and sets go in.
+EXCHANGE_TYPES: tuple[ExchangeType, ...] = ("Real", "Integer", "Boolean", "String", "Binary")
+
+
+@dataclass(frozen=True)
+class DeclaredType:
+    """A variable's ``declaredType`` (FMI 2.0 §2.2.3 SimpleType, FMI 3.0 §2.4.4 TypeDefinitions):
+    its name, unit and, for an Enumeration, its items (name, value)."""
+    name: str
+    unit: str | None = None
+    items: tuple[tuple[str, int], ...] = ()
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One ScalarVariable (FMI 2.0 §2.2.7) or FMI 3.0 variable (§2.4.7), the attributes the master
+    reads, as the model description gives them (``start``, ``min`` and ``max`` as their text)."""
+    name: str
+    #: the valueReference
+    vr: int
+    #: the FMI type name: Real, Integer, Boolean, String, Enumeration; Float64, Int32, Binary, ...
+    type: str
+    causality: str
+    variability: str
+    initial: str | None = None
+    #: its own ``unit`` attribute (`unit_of`: else its declared type's)
+    unit: str | None = None
+    start: str | None = None
+    min: str | None = None
+    max: str | None = None
+    description: str | None = None
+    declared_type: DeclaredType | None = None
+    #: an FMI 3.0 array's extents, each the ``start`` of its Dimension or of the structural
+    #: parameter it names (§2.4.7.5); () for a scalar
+    dimensions: tuple[str | None, ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True)
+class ArrayElement(Variable):
+    """One element of an FMI 3.0 array variable, exchanged as a scalar of its own."""
+    array: Variable = field(repr=False)
+    #: 0-based position in the array's values (FMI 3.0 serialises arrays row-major, §2.4.7.5)
+    index: int = 0
+    size: int = 1
+
+
+@dataclass(frozen=True)
+class UnitDefinition:
+    """One ``UnitDefinitions/Unit`` (FMI 2.0 §2.2.2): its BaseUnit's exponents in the order of
+    `cosim.model.units.BASE_UNITS`, factor and offset (``base`` None: the Unit has no BaseUnit)."""
+    name: str
+    base: tuple[int, ...] | None
+    factor: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class DefaultExperiment:
+    """The model description's ``DefaultExperiment``, its attributes as text (None: not given)."""
+    start_time: str | None
+    stop_time: str | None
+    step_size: str | None
+    tolerance: str | None
+
+
+@dataclass(frozen=True)
+class FMUDescription:
+    """A checked model description, as values, and the interface the master drives it through.
+    Immutable: the elements of FMI 3.0 arrays that connectors name are added by `with_element`,
+    which returns a new description (`cosim.plan.build` keeps the one with its connectors')."""
+    path: Path
+    kind: Kind
+    fmi_version: str
+    guid: str
+    generation_tool: str | None
+    #: the modelIdentifier of the interface ``kind`` drives
+    model_identifier: str
+    variables: FrozenMap[str, Variable]
+    #: For each output: the inputs it depends on at the same instant (FMI 2.0 ModelStructure).
+    #: An output without a ``dependencies`` attribute depends on every input (FMI 2.0 §2.2.8).
+    output_dependencies: FrozenMap[str, tuple[str, ...]]
+    unit_definitions: tuple[UnitDefinition, ...]
+    default_experiment: DefaultExperiment | None
+    log_categories: tuple[str, ...]
+    #: the Co-Simulation interface's canBeInstantiatedOnlyOncePerProcess (False without one)
+    instantiated_once_per_process: bool
+    #: Model Exchange: numberOfContinuousStates, numberOfEventIndicators, needsCompletedIntegratorStep
+    continuous_states: int
+    event_indicators: int
+    needs_completed_integrator_step: bool
+    #: Array elements named by connectors (``vector[2]``), by the value reference the master
+    #: gives them (not the FMU's; cosim.run.instances.fmi3 maps it back to the array and the index).
+    elements: FrozenMap[int, ArrayElement] = FrozenMap()
+
+    def variable(self, name: str, where: str, file: str) -> Variable:
+        """The variable called ``name``, or the element ``name`` names of an FMI 3.0 array (one
+        `with_element` added, else a new one with the next free value reference)."""
+        var = self.variables.get(name)
+        if var is not None:
+            return var
+        match = _ELEMENT.fullmatch(name)
+        if match is not None and match.group(1) in self.variables and self.variables[match.group(1)].dimensions:
+            return self._element(self.variables[match.group(1)], match.group(2), name, where, file)
+        raise SetupError(f"the FMU {self.path.name} has no variable '{name}'.", file=file,
+                         element=where, variable=name, hint=did_you_mean(name, self.variables))
+
+    def with_element(self, element: ArrayElement) -> FMUDescription:
+        """This description knowing ``element`` (from `variable`) by its value reference, an input
+        element among the inputs an output depends on where its array is, an output element
+        depending on what its array depends on."""
+        if element.vr in self.elements:
+            return self
+        array = element.array.name
+        deps = {out: ins + (element.name,) if array in ins else ins for out, ins in self.output_dependencies.items()}
+        if array in deps:
+            deps[element.name] = deps[array]
+        return replace(self, elements=FrozenMap({**self.elements, element.vr: element}),
+                       output_dependencies=FrozenMap(deps))
+
+    def _element(self, array: Variable, index_text: str, name: str, where: str, file: str) -> ArrayElement:
+        """One element of a one-dimensional FMI 3.0 array, 1-based as in Modelica and in the
+        FMI 2.0 structured names of scalarised arrays (``x[1]`` is the first element)."""
+        known = next((e for e in self.elements.values() if e.name == name), None)
+        if known is not None:
+            return known
+        if len(array.dimensions) != 1 or array.type in ("String", "Binary"):
+            raise SetupError(f"'{array.name}' is a {len(array.dimensions)}-dimensional {array.type} array; only "
+                             "elements of one-dimensional numeric and Boolean arrays can be connected.",
+                             file=file, element=where, variable=name)
+        size = int(array.dimensions[0])
+        if not index_text.strip().isdigit() or not 1 <= int(index_text) <= size:
+            raise SetupError(f"'{index_text}' is not an element of {array.name}, an array of {size} values in "
+                             f"{self.path.name}; elements are numbered {array.name}[1] .. {array.name}[{size}].",
+                             file=file, element=where, variable=name)
+        used = {v.vr for v in self.variables.values()} | set(self.elements)
+        vr = 0xFFFFFFFF
+        while vr in used:
+            vr -= 1
+        return ArrayElement(name=name, vr=vr, type=array.type, description=array.description,
+                            causality=array.causality, variability=array.variability, initial=array.initial,
+                            declared_type=array.declared_type, unit=array.unit, min=array.min, max=array.max,
+                            array=array, index=int(index_text) - 1, size=size)
+
+
+_ELEMENT = re.compile(r"(.+)\[([^\]]*)\]")
+
+#: The exchange types of the master (the FMI 2.0 type names) for the FMI types it connects.
+_EXCHANGE_TYPES: dict[str, ExchangeType] = {
+    "Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String", "Enumeration": "Integer",
+    "Float64": "Real", "Float32": "Real", "Int8": "Integer", "UInt8": "Integer", "Int16": "Integer",
+    "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer", "Int64": "Integer", "UInt64": "Integer",
+    "Binary": "Binary"}
+
+
+def exchange_type(variable: Variable) -> ExchangeType | None:
+    """How the master exchanges ``variable``: "Real" (C double), "Integer" (C int), "Boolean"
+    or "String", for FMI 2.0 variables of those types and Enumeration (an Integer, FMI 2.0
+    §2.2.3), FMI 3.0 Float64 and Float32 (Real), Int8..UInt64 and Enumeration (Integer; a value
+    beyond 32 bits is refused when read, `cosim.run.instances.fmi3`), Boolean, String and Binary
+    (exchanged, not recorded); None for the type it does not connect (FMI 3.0 Clock)."""
+    return _EXCHANGE_TYPES.get(variable.type)
+
+
+def unit_of(v: Variable) -> str | None:
+    """A variable's unit: its own, else its declared type's (FMI 2.0 §2.2.7); None: no unit."""
+    if v.unit:
+        return v.unit
+    return v.declared_type.unit if v.declared_type is not None and v.declared_type.unit else None

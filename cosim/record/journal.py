@@ -1,0 +1,203 @@
+"""The run journal: every recorded row in the kernel's hands before the next FMU call.
+
+The `cosim.record.observers.Recorder` fills its rows directly in a memory-mapped window of
+``<output>.journal`` and stores the row count in the file's header after each row, so a
+process that dies (``abort()``, a segfault, ``_exit()``, SIGKILL) loses none of the rows
+it completed: the pages belong to the kernel's page cache the moment they are written.
+`RunJournal` is the journal as a run's `cosim.record.observers.Observer` (the recorder's buffer).
+`recover` turns a journal left behind into the result file beside it (CSV or Parquet) and
+its JSON with status ``crashed`` (or the status given, e.g. ``timeout``); `cosim.run.supervisor` does
+that for `cosim run` after its child process ended without finishing.  A run that ends
+normally, fails or is interrupted writes its files itself and deletes the journal.
+
+File layout (little-endian): ``COSIMJ01``; int64 row count; int64 columns; int64 offset of
+the rows; int64 length of the JSON header; the JSON header (result path, column names in
+journal order, the permutation to the result's order, derived columns, metadata so far);
+then the rows, float64, in windows of ``chunk_rows`` reserved with ``posix_fallocate`` (a
+full disk is an ``OSError`` when a window is reserved, never a SIGBUS when a row is written).
+"""
+from __future__ import annotations
+
+import json
+import mmap
+import os
+import shutil
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import Errc
+
+if TYPE_CHECKING:
+    from .observers import DerivedColumns
+
+MAGIC = b"COSIMJ01"
+_HEADER = 40
+SUFFIX = ".journal"
+#: the prefix of the FMU extraction folders (`cosim.run.instances.Unzipped`) a recovery removes
+UNZIP_PREFIX = "cosim-fmu-"
+
+
+def journal_path(output: str | Path) -> Path:
+    """The journal of a result file: ``<output>.journal`` beside it."""
+    output = Path(output)
+    return output.with_name(output.name + SUFFIX)
+
+
+class Journal:
+    """A journal being written: `window` hands out the next ``chunk_rows`` x ``columns``
+    float64 block mapped onto the file; `count` is the header's row counter."""
+
+    def __init__(self, path: str | Path, header: dict, columns: int, chunk_rows: int):
+        self.path = Path(path)
+        text = json.dumps(header, default=str).encode()
+        self.offset = -(-(_HEADER + len(text)) // mmap.ALLOCATIONGRANULARITY) * mmap.ALLOCATIONGRANULARITY
+        self.columns, self.chunk_rows = columns, chunk_rows
+        self._file = open(self.path, "w+b")
+        head = MAGIC + np.array([0, columns, self.offset, len(text)], dtype="<i8").tobytes() + text
+        try:
+            self._file.write(head)
+            self._file.flush()
+        except OSError as e:
+            raise self._named(e) from None
+        self._reserve(0, self.offset)
+        self._head = mmap.mmap(self._file.fileno(), _HEADER)
+        #: the row counter in the mapped header (the recorder stores the rows done after each row)
+        self.count = np.frombuffer(self._head, dtype="<i8", count=1, offset=8)
+        self._windows = 0
+
+    def window(self) -> np.ndarray:
+        """The next block of rows, reserved on disk (OSError ENOSPC if the disk is full)."""
+        nbytes = self.chunk_rows * self.columns * 8
+        start = self.offset + self._windows * nbytes
+        self._reserve(start, nbytes)
+        self._windows += 1
+        # a plain ndarray on the mapping (np.memmap's Python-level indexing would cost ~20 % of a step)
+        window = mmap.mmap(self._file.fileno(), nbytes, offset=start)
+        return np.frombuffer(window, dtype="<f8").reshape(self.chunk_rows, self.columns)
+
+    def _reserve(self, start: int, nbytes: int) -> None:
+        try:
+            os.posix_fallocate(self._file.fileno(), start, nbytes)
+        except OSError as e:
+            raise self._named(e) from None
+
+    def _named(self, e: OSError) -> OSError:
+        """``e`` naming the journal (the message says which file could not grow)."""
+        return OSError(e.errno, e.strerror, str(self.path))
+
+    def close(self) -> None:
+        """Delete the journal (the result files are complete); the mappings go with their
+        last reference."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+            self.path.unlink(missing_ok=True)
+
+
+class RunJournal:
+    """The journal of a run writing ``output``, as a `cosim.record.observers.Observer` of the rows as
+    the recorder's buffer holds them (time, then the sources; ``open`` names them): `open`
+    creates ``<output>.journal`` with the header `recover` needs without the plan (the result's
+    ``names``, time first, the permutation to them, the ``derived`` columns, the run's
+    ``metadata`` so far, the ``temporary`` FMU extraction folders), `window` hands the
+    recorder its next block of ``chunk_rows`` rows, `count` is the row counter it stores after
+    every row, and `close` deletes the journal."""
+
+    def __init__(self, output: str | Path, names: Sequence[str], derived: DerivedColumns, metadata: dict,
+                 temporary: Sequence[str] = (), chunk_rows: int | None = None):
+        from .observers import CHUNK_ROWS
+
+        self.output = Path(output)
+        self.names = list(names)
+        self.derived = derived
+        self.metadata = metadata
+        self.temporary = list(temporary)
+        self.chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
+        self._journal: Journal | None = None
+
+    def open(self, names: list[str]) -> None:
+        """Create the journal for buffer rows laid out as ``names`` (OSError if it cannot be written)."""
+        from .observers import column_order
+
+        permutation = column_order(names[1:], self.names[1:]).tolist()
+        header = {"output": str(self.output.resolve()), "names": self.names, "permutation": permutation,
+                  "derived": self.derived.header(), "metadata": self.metadata, "temporary": self.temporary}
+        self._journal = Journal(journal_path(self.output), header, len(names), self.chunk_rows)
+
+    @property
+    def count(self) -> np.ndarray:
+        """The row counter in the mapped header."""
+        return self._journal.count
+
+    def window(self) -> np.ndarray:
+        """The next block of rows, mapped onto the journal (OSError ENOSPC if the disk is full)."""
+        return self._journal.window()
+
+    def write(self, rows: np.ndarray) -> None:
+        """Nothing to copy: ``rows`` are the journal's own mapped window, filled in place and
+        counted row by row, so they are in the kernel's page cache already."""
+
+    def close(self, metadata: dict) -> None:
+        """Delete the journal: the run's own observers hold its rows and ``metadata`` now."""
+        if self._journal is not None:
+            self._journal.close()
+            self._journal = None
+
+
+def read_journal(path: str | Path) -> tuple[dict, np.ndarray]:
+    """The header and the rows (journal column order) of a journal file."""
+    data = Path(path).read_bytes()
+    if data[:8] != MAGIC:
+        raise ValueError(f"{path}: not a cosim journal")
+    rows, columns, offset, length = np.frombuffer(data, dtype="<i8", count=4, offset=8)
+    header = json.loads(data[_HEADER:_HEADER + length])
+    available = max(0, (len(data) - offset) // (8 * columns))
+    rows = min(int(rows), int(available))
+    table = np.frombuffer(data, dtype="<f8", count=rows * columns, offset=offset).reshape(rows, columns)
+    return header, table
+
+
+def recover(path: str | Path, status: str = "crashed", message: str = "") -> tuple[Path, int]:
+    """Write the result file and JSON of a journal left by a run that did not finish, with
+    ``status`` and ``message`` in the metadata; delete the journal and the FMU extraction
+    folder it names.  Returns the result path and the number of rows."""
+    from .observers import DerivedColumns, file_sink
+
+    header, table = read_journal(path)
+    derived = DerivedColumns.from_header(header.get("derived", []))
+    rows = derived.extend(table[:, header["permutation"]])
+    names = header["names"] + list(derived.names)
+    output = result_of(Path(path))
+    sink = file_sink(output)
+    sink.open(names)
+    if len(rows):
+        sink.write(rows)
+    metadata = dict(header.get("metadata", {}))
+    metadata.update(status=status, message=message, error=Errc.run_process_lost.value, samples=len(rows),
+                    last_time=float(rows[-1, 0]) if len(rows) else None)
+    sink.close(metadata)
+    Path(path).unlink()
+    for folder in header.get("temporary", []):
+        if _extraction_folder(Path(folder)):
+            shutil.rmtree(folder, ignore_errors=True)
+    return output, len(rows)
+
+
+def result_of(journal: Path) -> Path:
+    """The result file a journal belongs to: beside it, its name without ``.journal``.  The
+    header's own ``output`` is not used: a journal is a file on disk like any other, and what
+    it says must not decide where a result is written."""
+    if not journal.name.endswith(SUFFIX) or journal.name == SUFFIX:
+        raise ValueError(f"{journal}: a journal's name ends in {SUFFIX} after its result's name")
+    journal = journal.resolve()
+    return journal.with_name(journal.name[:-len(SUFFIX)])
+
+
+def _extraction_folder(folder: Path) -> bool:
+    """True for a folder named as the FMU extraction folders of `cosim.run.instances.Unzipped` are
+    (``cosim-fmu-<pid>-...``, in the crashed process's ``$TMPDIR``): the only folders a recovery
+    removes, whatever the header names."""
+    return folder.name.startswith(UNZIP_PREFIX) and folder.is_dir() and not folder.is_symlink()
