@@ -37,6 +37,8 @@ from pythonfmu.builder import FmuBuilder, get_model_class
 
 from greyfmu.dropin import BuildError, drop_in
 from greyfmu.loader import PLATFORMS, compiler
+from greyfmu.names import canonical_name, unknown_message
+from greyfmu.wiring import annotate
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPOSITORY_ROOT = PACKAGE_DIR.parent
@@ -45,7 +47,8 @@ SLAVE_BASE = FMU_SOURCES / "_slave.py"
 FMI3_SOURCES = FMU_SOURCES / "fmi3"
 SLAVE_BASE3 = FMI3_SOURCES / "_slave3.py"
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
-BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "loader", "licenses", "__pycache__", "*.pyc")
+BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "catalogue.py", "names.py", "wiring.py", "loader",
+              "licenses", "__pycache__", "*.pyc")
 """Files and folders of the greyfmu package that build FMUs and are not embedded in them."""
 ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
 """The time stamp of every archive entry, so that rebuilding changes no byte but what changed."""
@@ -101,10 +104,10 @@ def build_fmus(
     FMU paths in the order of ``names``.
     """
     available = fmu_names() + fmi3_fmu_names()
-    requested = fmu_names() if names is None else list(names)
+    requested = fmu_names() if names is None else [canonical_name(name, available) for name in names]
     unknown = [name for name in requested if name not in available]
     if unknown:
-        raise UnknownFmuError(f"unknown FMU {', '.join(unknown)}; valid names: {', '.join(available)}")
+        raise UnknownFmuError(unknown_message(unknown, available))
     out_dir = DEFAULT_OUT_DIR if out_dir is None else Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     newest_common_source = _newest_mtime(PACKAGE_DIR)
@@ -160,14 +163,17 @@ def provide_fmu(file_name: str) -> Path | None:
     ``fmus/`` folder to build from (a non-editable install).
     """
     name = Path(file_name)
-    if name.suffix != ".fmu" or not FMU_SOURCES.is_dir() or name.stem not in fmu_names() + fmi3_fmu_names():
+    if name.suffix != ".fmu" or not FMU_SOURCES.is_dir():
+        return None
+    stem = canonical_name(name.stem, fmu_names() + fmi3_fmu_names())  # greyfmu.names: GreyPredictivePI too
+    if stem not in fmu_names() + fmi3_fmu_names():
         return None
 
     def report(line: str) -> None:
         if ": built" in line:
             print(f"greyfmu: {line}", file=sys.stderr)
 
-    return build_fmus([name.stem], echo=report)[0]
+    return build_fmus([stem], echo=report)[0]
 
 
 def _build_one(script: Path, fmu: Path) -> None:
@@ -188,7 +194,8 @@ def _build_one(script: Path, fmu: Path) -> None:
         )
         script_class = slave_class(script)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
-        _rewrite_model_description(Path(built), partial, script_class.output_dependencies, script_class.requirements)
+        _rewrite_model_description(Path(built), partial, script_class.output_dependencies, script_class.requirements,
+                                   script_class)
         os.replace(partial, fmu)
 
 
@@ -215,13 +222,14 @@ def _forget_embedded_copies(script: Path) -> None:
 
 
 def _rewrite_model_description(source: Path, target: Path, output_dependencies: dict[str, list[str]],
-                               requirements: tuple[str, ...]) -> None:
+                               requirements: tuple[str, ...], script_class: type | None = None) -> None:
     with zipfile.ZipFile(source) as archive:
         entries = {info.filename: archive.read(info) for info in archive.infolist()}
     root = ElementTree.fromstring(entries["modelDescription.xml"])
     model = root.get("modelName")
     _declare_output_dependencies(root, model, output_dependencies)
     _declare_units(root, model)
+    annotate(root, script_class)  # greyfmu.wiring: sample time and what to wire, for cosim's warnings
     _write_archive(target, drop_in(entries, root, requirements))
 
 
@@ -294,6 +302,7 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
         _declare_output_dependencies3(root, model, slave_class.output_dependencies)
         _declare_units(root, model, tag="Float64")
         _describe_enumerations3(root, model, slave_class(instance_name="greyfmu-build", resources=str(FMI3_SOURCES)).choices)
+        annotate(root, slave_class)  # greyfmu.wiring
         ElementTree.indent(root)
         entries["modelDescription.xml"] = ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")

@@ -13,6 +13,8 @@ from greyfmu.signals import SampleClock
 
 class PID3(GreyfmuSlave3, Fmi3Slave):  # pythonfmu3 finds the slave class by a textual Fmi3Slave base
     output_dependencies = {"u": [], "e": []}
+    sample_time = "Ts"
+    wiring = {"r": "setpoint", "y": "measurement", "u": "manipulated"}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
