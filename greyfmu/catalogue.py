@@ -53,7 +53,7 @@ class Entry:
     @property
     def summary(self) -> str:
         """The description's first sentence, cut at a word near 110 characters."""
-        first = re.split(r"(?<=[.;:])\s", self.description, maxsplit=1)[0].rstrip(".;:")
+        first = re.split(r"(?<=[.;:])\s(?=[A-Z])", self.description, maxsplit=1)[0].rstrip(".;:")
         return first if len(first) <= 110 else first[:107].rsplit(" ", 1)[0] + " …"
 
 

@@ -53,3 +53,14 @@ def unknown_message(unknown: Sequence[str], available: Sequence[str]) -> str:
         parts.append(f"{name} (did you mean {' or '.join(close)}?)" if close else name)
     return (f"unknown FMU {', '.join(parts)}; `greyfmu info` lists the {len(available)} FMUs "
             "(docs/catalogue.md describes each)")
+
+
+def provided_file_names() -> list[str]:
+    """The FMU file names greyfmu's FMU provider makes (entry point ``cosim.fmu_names``): cosim's
+    "did you mean" for an FMU file an SSD names and nothing provides (``resources/GreyPredictivPI.fmu``)."""
+    from greyfmu.build import FMU_SOURCES, fmi3_fmu_names, fmu_names
+
+    if not FMU_SOURCES.is_dir():
+        return []
+    names = fmu_names() + fmi3_fmu_names()
+    return [f"{name}.fmu" for name in names + list(aliases(names))]

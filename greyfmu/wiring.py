@@ -104,7 +104,7 @@ def annotate(root: ElementTree.Element, slave_class: type) -> None:
 
     def check(name: str | None, causality: str, what: str) -> None:
         if name is not None and (name not in variables or variables[name].get("causality") != causality):
-            raise WiringError(f"{model}: {what} names {name!r}, which is not a {causality} of the FMU")
+            raise WiringError(f"{model}: {what} names {name!r}, which is not one of the FMU's {causality}s")
 
     check(facts.sample_time, "parameter", "sample_time")
     check(facts.sample_offset, "parameter", "sample_offset")
@@ -132,12 +132,15 @@ def annotate(root: ElementTree.Element, slave_class: type) -> None:
 
 
 def _container(root: ElementTree.Element, tag: str) -> ElementTree.Element:
-    """The model description's annotations element, made right before ModelVariables if missing
-    (its place in both FMI 2.0 §2.2.1 and FMI 3.0 §2.4.1)."""
+    """The model description's annotations element, made where the schema puts it if missing: FMI
+    2.0's VendorAnnotations right before ModelVariables (§2.2.1), FMI 3.0's Annotations last (§2.4.1)."""
     found = root.find(tag)
     if found is None:
         found = ElementTree.Element(tag)
-        root.insert(list(root).index(root.find("ModelVariables")), found)
+        if tag == "Annotations":
+            root.append(found)
+        else:
+            root.insert(list(root).index(root.find("ModelVariables")), found)
     return found
 
 

@@ -36,6 +36,7 @@ from .inputs import InputTable, bind_table, connector_values, read_input_table, 
 from ..read.loadable import check_fmu_file, check_library
 from .parameters import split_system_name
 from .build import build_plan
+from .loopcheck import check_loops
 from ..read.resources import locate_fmus
 from ..run.simulation import Prepared, resolve_grid
 from ..model.structure import (
@@ -217,6 +218,7 @@ def prepare_scenario(scenario: Scenario, *, parameter_sets: Sequence[str | Path]
         stop_time, step, source = _fmu_defaults(plan, start_time, stop_time, step, source)
     prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step,
                             algorithm=algorithm, options=options)
+    check_loops(prepared.plan, prepared.grid)  # cosim.plan.loopcheck: sampling and wiring the FMUs declare
     return replace(prepared, step_source=source or prepared.step_source,
                    parameter_sets=scenario.parameter_sets + tuple(str(p) for p in parameter_sets))
 
