@@ -80,3 +80,13 @@ def test_an_fmu_file_nobody_has_gets_did_you_mean(capsys, tmp_path, built_fmus):
     assert "Did you mean 'GreyPredictivePI.fmu'" in err
     ssd.write_text(text.replace("resources/PID.fmu", "resources/GreyPredictivePI.fmu"))
     assert main(["validate", str(ssd)]) == 0, capsys.readouterr().err   # the alias is GrayPredictivePI.fmu
+
+
+def test_help_and_counts_read_as_text(capsys, built_fmus, tmp_path):
+    """Issue 45 item 8: no reStructuredText markup in --help, '1 FMU' not '1 FMUs'."""
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    assert "``" not in capsys.readouterr().out
+    assert main(["run", str(built_fmus["Step"]), "-o", str(tmp_path / "s.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "1 FMU, 0 connections" in out and "FMUs" not in out
