@@ -32,6 +32,7 @@ from ..record.journal import RunJournal
 from ..record.observers import DerivedColumns, MemorySink, Recorder, SystemOutputColumns, file_sink
 from .outcome import RunOutcome
 from ..plan.build import build_plan
+from ..plan.loopcheck import check_loops
 from ..read.resources import locate_fmus
 from ..safeio import lock_output
 from .loops import LoopSettings
@@ -126,6 +127,7 @@ def prepare(path: str | Path, *, start_time: float | None = None, stop_time: flo
     try:
         prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step_size,
                                 algorithm=algorithm)
+        check_loops(prepared.plan, prepared.grid)  # cosim.plan.loopcheck, as prepare_scenario does
         return replace(prepared, parameter_sets=tuple(str(p) for p in parameter_sets))
     except BaseException:
         plan.close()

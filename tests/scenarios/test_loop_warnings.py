@@ -82,3 +82,11 @@ def test_the_cli_prints_one_line_each_and_strict_refuses(capsys, built_fmus, tmp
     assert err.count("cosim: warning:") == 1 and "controller.Ts = 0.1 s" in err
     err = refused(capsys, "run", str(SCENARIO), "--step", "0.3", "--stop", "1", "-o", str(out), "--strict")
     assert "controller.Ts = 0.1 s" in err and "(--strict makes this warning an error)" in err
+
+
+def test_the_python_api_and_the_regression_fixture_warn_too(built_fmus):
+    """cosim.simulate (which cosim_regression calls) prepares through cosim.run.simulation.prepare."""
+    import cosim
+
+    with pytest.warns(LoopWarning, match="controller.Ts = 0.1 s"):
+        cosim.simulate(SCENARIO, stop_time=1.0, step_size=0.3)
