@@ -141,6 +141,10 @@ def new_scenario(folder: str | Path, plant: str | Path, controller: str = "PID",
     if facts is None and not {"r", "y", "u"} <= set(control.variables):
         raise SetupError(f"{controller_path.name} carries no org.greyfmu annotation and has no ports r, y, u: "
                          "cosim new cannot tell its set-point, measurement and output.", element="--controller")
+    if not (setpoints and measurements and manipulated):
+        raise SetupError(f"{controller_path.name} is not a controller: its org.greyfmu annotation names no set-point "
+                         "input, measurement input and manipulated output.", element="--controller",
+                         hint="`greyfmu info` lists the controllers.")
     inputs, outputs = _real(plant_desc, "input"), _real(plant_desc, "output")
     if not inputs or not outputs:
         raise SetupError(f"{plant.name} needs a Real input and a Real output to close a loop around "

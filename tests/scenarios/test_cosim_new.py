@@ -54,6 +54,8 @@ def test_new_says_what_is_left_to_wire(capsys, tmp_path, mass_damper, built_fmus
     assert "already holds a SystemStructure.ssd" in err
     err = refused(capsys, "new", str(tmp_path / "x"), "--plant", str(mass_damper), "--controller", "GainSchedPID")
     assert "no controller FMU 'GainSchedPID'" in err
+    err = refused(capsys, "new", str(tmp_path / "x"), "--plant", str(mass_damper), "--controller", "GreyPredictor")
+    assert "GreyPredictor.fmu is not a controller" in err
 
 
 def test_info_lists_any_fmus_parameters_with_units_defaults_and_ranges(capsys, mass_damper):
