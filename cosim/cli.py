@@ -14,12 +14,12 @@ import warnings
 from importlib.metadata import version
 from pathlib import Path
 
-from .errors import CosimError, RunError, SetupError
+from .errors import CosimError, CosimWarning, RunError, SetupError
 from .safeio import parse_size, unpack_limit
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="cosim", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="cosim", description=__doc__.splitlines()[0].replace("``", ""))
     p.add_argument("--debug", action="store_true", help="show Python tracebacks")
     p.add_argument("--version", action="version", version=f"cosim (greyfmu) {version('greyfmu')}")
     sub = p.add_subparsers(dest="command", required=True)
@@ -33,6 +33,9 @@ def _parser() -> argparse.ArgumentParser:
                         "(default: $COSIM_MAX_UNPACKED_BYTES or 2G)")
         sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
 
+    def strict(sp):
+        sp.add_argument("--strict", action="store_true", help=STRICT_HELP)
+
     run = sub.add_parser("run", help="run a system and write CSV results (and a plot)")
     common(run)
     run.add_argument("--start", "--start-time", type=_seconds, dest="start",
@@ -42,6 +45,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation; an FMU's "
                                                 "DefaultExperiment stepSize, else fmpy's automatic interval)")
     single_options(run)
+    strict(run)
     run.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="default: jacobi")
     run.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                      help="parameter set applied last, names 'component.variable' (repeatable)")
@@ -93,6 +97,7 @@ def _parser() -> argparse.ArgumentParser:
     validate = sub.add_parser("validate", help="check a system without running it")
     common(validate)
     validate.add_argument("--fmi-type", choices=["CoSimulation", "ModelExchange"], help=FMI_TYPE_HELP)
+    strict(validate)
     validate.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                           help="parameter set checked as cosim run applies it, last (repeatable)")
 
@@ -155,6 +160,7 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                        help="parameter set applied to every run before the swept values (repeatable)")
     input_options(sweep)
+    strict(sweep)
     sweep.add_argument("--start", type=_seconds, help="start time [s] (default: DefaultExperiment or 0)")
     sweep.add_argument("--stop", type=_seconds, help="stop time [s] (default: DefaultExperiment)")
     sweep.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation)")
@@ -173,6 +179,26 @@ def _parser() -> argparse.ArgumentParser:
                             "the reset FMU instances in each worker across its runs")
     sweep.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
 
+    new = sub.add_parser("new", help="write a scenario that closes a loop of one of our controllers (or any "
+                                     "controller FMU) around your plant FMU, and say what is left to wire")
+    new.add_argument("folder", help="the scenario folder to write (SystemStructure.ssd, controller.ssv, README.md, "
+                                    "resources/)")
+    new.add_argument("--plant", required=True, metavar="PLANT.fmu", help="the plant FMU (any tool's)")
+    new.add_argument("--controller", default="PID", metavar="NAME|X.fmu",
+                     help="one of our controllers by name (greyfmu info lists them) or a controller FMU (default PID)")
+    new.add_argument("--plant-input", metavar="NAME", help="the plant input the controller drives (default: the "
+                                                           "first Real input, by unit where the controller declares one)")
+    new.add_argument("--plant-output", metavar="NAME", help="the plant output the controller measures (default: the "
+                                                            "first Real output, by unit where possible)")
+    new.add_argument("--plant-interface", choices=["CoSimulation", "ModelExchange"],
+                     help="the plant's interface (default: Model Exchange where it has one, integrated by the master)")
+    new.add_argument("--setpoint", type=float, metavar="VALUE", help="the set-point after its step (default: the "
+                                                                      "plant output's start value + 1)")
+    new.add_argument("--step", type=_seconds, help="communication step [s] (default: one that divides the "
+                                                    "controller's sample time, no longer than the plant's own step)")
+    new.add_argument("--stop", type=_seconds, help="stop time [s] (default: the plant's DefaultExperiment, else 10)")
+    new.add_argument("--force", action="store_true", help="overwrite a scenario already in the folder")
+
     completion = sub.add_parser("completion", help="print a shell completion script (e.g. "
                                                    "eval \"$(cosim completion bash)\")")
     completion.add_argument("shell", choices=["bash", "zsh", "tcsh"])
@@ -180,6 +206,9 @@ def _parser() -> argparse.ArgumentParser:
 
 
 QUIET_HELP = "no progress bar and no informational lines: errors and warnings only"
+STRICT_HELP = ("turn cosim's warnings into errors (exit 2, nothing run): a master step that is longer than a sampled "
+               "FMU's sample time or does not divide it, an input the FMU's law reads left unconnected, a sample "
+               "time left at the FMU's default that is not the master step")
 
 
 def _seconds(text: str) -> float:
@@ -235,16 +264,31 @@ def main(argv: list[str] | None = None) -> int:
             # one once (a plan built again for --start-value warns again)
             warnings.simplefilter("default", RuntimeWarning)
             warnings.showwarning = _print_warning
+            _strict(args)
             code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
-                    "report": _report, "compare": _compare, "sweep": _sweep,
+                    "report": _report, "compare": _compare, "sweep": _sweep, "new": _new,
                     "completion": _completion}[args.command](args)
         sys.stdout.flush()  # a closed pipe is reported here, not at interpreter exit
         return code
     except CosimError as e:
         return _fail(e, args.debug)
+    except CosimWarning as w:  # --strict
+        return _fail(SetupError(f"{w} (--strict makes this warning an error)"), args.debug)
     except BrokenPipeError:  # `cosim info | head -1`: the reader has gone; end quietly, as cat does
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+
+
+def _strict(args) -> None:
+    """With --strict, cosim's warnings (`cosim.errors.CosimWarning`) raise instead of printing;
+    called again after a filter for RuntimeWarning, which would otherwise come first."""
+    if getattr(args, "strict", False):
+        warnings.simplefilter("error", CosimWarning)
+
+
+def plural(count: int, noun: str) -> str:
+    """``1 FMU``, ``2 FMUs``."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
 def _completion(args) -> int:
@@ -346,7 +390,7 @@ def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
                             max_iterations=args.loop_iterations, relaxation=args.relaxation,
                             method=args.loop_method)
     grid = prepared.grid
-    _say(args, f"cosim: {name}: {len(plan.components)} FMUs, {len(plan.routes)} connections, "
+    _say(args, f"cosim: {name}: {plural(len(plan.components), 'FMU')}, {plural(len(plan.routes), 'connection')}, "
           f"t = {grid.start:g}..{grid.stop:g} s, step {grid.step:g} s ({prepared.step_source}), "
           f"{prepared.algorithm}")
     try:
@@ -381,14 +425,19 @@ def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
 
 
 def _validate(args) -> int:
+    from .plan.loopcheck import check_loops
+    from .read.single import is_fmu
+
     with _prepare_with_placeholder_grid(args) as prepared:
         plan = prepared.plan
         e = plan.experiment
+        if e.step_size is not None and not is_fmu(args.path):   # a single FMU's was checked by prepare
+            check_loops(plan, prepared.grid)
         stop = f"stop {e.stop_time:g} s" if e.stop_time is not None else "no stop time in the SSD (run needs --stop)"
         step = f"step {e.step_size:g} s ({e.step_size_source})" if e.step_size is not None \
             else "no step size in the SSD (run needs --step)"
-        print(f"cosim: {args.path}: valid — {len(plan.fmus)} FMUs, {len(plan.routes)} connections, "
-              f"{len(plan.start_values)} parameter values; {stop}; {step}")
+        print(f"cosim: {args.path}: valid — {plural(len(plan.fmus), 'FMU')}, {plural(len(plan.routes), 'connection')}, "
+              f"{plural(len(plan.start_values), 'parameter value')}; {stop}; {step}")
         for loop in plan.algebraic_loops:
             print(f"cosim: algebraic loop (run solves it by iteration; --loops delay breaks it): {loop.describe()}")
     return 0
@@ -408,8 +457,21 @@ def _prepare_with_placeholder_grid(args):
 
 
 def _info(args) -> int:
-    with _prepare_with_placeholder_grid(args) as prepared:
+    from .plan.loopcheck import LoopWarning
+    from .read.single import is_fmu
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LoopWarning)   # info says what to wire instead
+        prepared = _prepare_with_placeholder_grid(args)
+    with prepared:
         plan = prepared.plan
+        if is_fmu(args.path):
+            from .present.fmuinfo import fmu_lines
+            from .read.annotations import model_text
+
+            desc = next(iter(plan.fmus.values()))
+            print("\n".join(fmu_lines(desc, model_text(desc.path))))
+            return 0
         e, hierarchy = plan.experiment, plan.hierarchy
         print(f"system {plan.name!r} ({plan.files.display})")
         print(f"  experiment: start {e.start_time}, stop {e.stop_time}, step {e.step_size} "
@@ -578,6 +640,7 @@ def _sweep(args) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("always", RuntimeWarning)   # cosim's own warnings, one line each, as they come
             warnings.showwarning = _print_warning
+            _strict(args)
             result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
                            parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
                            step_size=args.step, fmu_dirs=args.fmu_dir, start_values=args.start_values,
@@ -597,6 +660,21 @@ def _sweep(args) -> int:
           f"{f' and {result.parquet}' if result.parquet else ''}"
           + (f", results in {output / 'runs'}" if args.run_files else ""))
     return 1 if result.failed else 0
+
+
+def _new(args) -> int:
+    from .scaffold import new_scenario
+
+    made = new_scenario(args.folder, args.plant, args.controller, plant_input=args.plant_input,
+                        plant_output=args.plant_output, plant_interface=args.plant_interface, setpoint=args.setpoint, step=args.step, stop=args.stop,
+                        force=args.force)
+    print(f"cosim: new scenario {made.folder}: " + ", ".join(str(f.relative_to(made.folder)) for f in made.files))
+    for line in made.wiring:
+        print(f"  wired: {line}")
+    for line in made.left:
+        print(f"  left to wire: {line}")
+    print(f"cosim: tune the controller in {made.folder / 'controller.ssv'}; run it with: cosim run {made.folder} --plot")
+    return 0
 
 
 def _print_warning(message, *_) -> None:

@@ -28,6 +28,10 @@ class DigitalPI(GreyfmuSlave):
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=4.0, step_size=0.01)
     output_dependencies = {**{f"u{i}": [] for i in range(1, MAX_CHANNELS + 1)},
                            **{f"e{i}": [] for i in range(1, MAX_CHANNELS + 1)}}
+    sample_time = "Ts"
+    wiring = {**{f"r{i}": "setpoint" + (f" if m >= {i}" if i > 1 else "") for i in range(1, MAX_CHANNELS + 1)},
+              **{f"y{i}": "measurement" + (f" if m >= {i}" if i > 1 else "") for i in range(1, MAX_CHANNELS + 1)},
+              **{f"u{i}": "manipulated" for i in range(1, MAX_CHANNELS + 1)}}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

@@ -31,6 +31,7 @@ class FourTank(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=1500.0, step_size=1.0)
     output_dependencies = {"h1": [], "h2": [], "h3": [], "h4": []}
+    sample_time = "Ts"
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

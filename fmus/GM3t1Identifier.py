@@ -22,6 +22,9 @@ class GM3t1Identifier(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=400.0, step_size=0.5)
     output_dependencies = {"ks": [], "wn": [], "zeta": [], "valid": []}
+    sample_time = "Ts"
+    sample_offset = "t_step"
+    wiring = {"y": "measurement"}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

@@ -50,6 +50,9 @@ class GainScheduledPID(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=100.0, step_size=0.1)
     output_dependencies = {"u": [], "e": [], "Kc": [], "Ti": [], "Td": []}
+    sample_time = "Ts"
+    wiring = {"r": "setpoint", "y": "measurement", "W": "scheduling if law in 0 1 2 3",
+              "Kp": "process if law in 4", "T": "process if law in 4", "tau": "process if law in 4", "u": "manipulated"}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

@@ -23,6 +23,8 @@ class GrayPredictivePI(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=300.0, step_size=1.0)
     output_dependencies = {"u": [], "e": [], "e_hat": [], "a": [], "mode": []}
+    sample_time = "Ts"
+    wiring = {"r": "setpoint", "y": "measurement", "u": "manipulated"}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

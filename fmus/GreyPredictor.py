@@ -22,6 +22,8 @@ class GreyPredictor(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=100.0, step_size=1.0)
     output_dependencies = {"x_hat": [], "a": [], "b": [], "mode": []}
+    sample_time = "Ts"
+    wiring = {"x": "measurement"}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

@@ -73,6 +73,9 @@ class OSMMGPC(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=4500.0, step_size=1.0)
     output_dependencies = {"u1": [], "u2": [], "u3": [], "active_group": []}
+    sample_time = "Ts"
+    wiring = {"r1": "setpoint", "r2": "setpoint", "y1": "measurement", "y2": "measurement", "u1": "manipulated",
+              "u2": "manipulated", "u3": "manipulated"}
     requirements = ("numpy", "scipy", "daqp")
 
     def __init__(self, **kwargs: Any) -> None:

@@ -22,6 +22,8 @@ class PID(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=100.0, step_size=0.1)
     output_dependencies = {"u": [], "e": []}
+    sample_time = "Ts"
+    wiring = {"r": "setpoint", "y": "measurement", "u": "manipulated"}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

@@ -25,6 +25,8 @@ class SOPDTPredictive(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=4000.0, step_size=1.0)
     output_dependencies = {"u": [], "e": [], "m": [], "N": []}
+    sample_time = "Ts"
+    wiring = {"r": "setpoint", "y": "measurement", "u": "manipulated"}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

@@ -38,6 +38,8 @@ class TSEstimator(GreyfmuSlave):
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=1500.0, step_size=1.0)
     output_dependencies = {"y_hat1": [], "y_hat2": [], "mae1": [], "mae2": []}
+    sample_time = "Ts"
+    wiring = {f"h{i}": "measurement" for i in range(1, 5)}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

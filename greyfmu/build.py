@@ -34,6 +34,8 @@ from pythonfmu.builder import FmuBuilder, get_model_class
 from greyfmu.dropin import BuildError, drop_in
 from greyfmu.fmi3 import SUFFIX, _enumeration_items, drop_in3, fmi3_name, model_description3  # noqa: F401 (tests)
 from greyfmu.loader import PLATFORMS, compiler
+from greyfmu.names import canonical_name, unknown_message
+from greyfmu.wiring import annotate
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPOSITORY_ROOT = PACKAGE_DIR.parent
@@ -47,8 +49,8 @@ SLAVE_FILES = (SLAVE_BASE, IN_PROCESS, FMU_SOURCES / "_state.py")
 SLAVE_FILES3 = (*SLAVE_FILES, SLAVE_BASE3)
 """The modules every FMI 3.0 FMU embeds next to its slave module (and the greyfmu package)."""
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
-BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "fmi3.py", "privatise.py", "loader", "licenses",
-              "__pycache__", "*.pyc")
+BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "fmi3.py", "privatise.py", "catalogue.py",
+              "names.py", "wiring.py", "loader", "licenses", "__pycache__", "*.pyc")
 """Files and folders of the greyfmu package that build FMUs and are not embedded in them."""
 ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
 """The time stamp of every archive entry, so that rebuilding changes no byte but what changed."""
@@ -114,10 +116,10 @@ def build_fmus(
     FMU paths in the order of ``names``.
     """
     available = fmu_names() + fmi3_fmu_names()
-    requested = fmu_names() if names is None else list(names)
+    requested = fmu_names() if names is None else [canonical_name(name, available) for name in names]
     unknown = [name for name in requested if name not in available]
     if unknown:
-        raise UnknownFmuError(f"unknown FMU {', '.join(unknown)}; valid names: {', '.join(available)}")
+        raise UnknownFmuError(unknown_message(unknown, available))
     out_dir = DEFAULT_OUT_DIR if out_dir is None else Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     newest_common_source = _newest_mtime(PACKAGE_DIR)
@@ -174,14 +176,17 @@ def provide_fmu(file_name: str) -> Path | None:
     ``fmus/`` folder to build from (a non-editable install).
     """
     name = Path(file_name)
-    if name.suffix != ".fmu" or not FMU_SOURCES.is_dir() or name.stem not in fmu_names() + fmi3_fmu_names():
+    if name.suffix != ".fmu" or not FMU_SOURCES.is_dir():
+        return None
+    stem = canonical_name(name.stem, fmu_names() + fmi3_fmu_names())  # greyfmu.names: GreyPredictivePI too
+    if stem not in fmu_names() + fmi3_fmu_names():
         return None
 
     def report(line: str) -> None:
         if ": built" in line:
             print(f"greyfmu: {line}", file=sys.stderr)
 
-    return build_fmus([name.stem], echo=report)[0]
+    return build_fmus([stem], echo=report)[0]
 
 
 def _build_one(script: Path, fmu: Path, fmi3: bool = False) -> None:
@@ -235,8 +240,11 @@ def _rewrite_model_description(source: Path, target: Path, script_class: type, f
     _declare_units(root, model)
     if fmi3:
         choices = script_class(instance_name="greyfmu-build").choices
-        _write_archive(target, drop_in3(entries, model_description3(root, choices), model, script_class.requirements))
+        root3 = model_description3(root, choices)
+        annotate(root3, script_class)  # greyfmu.wiring: sample time and what to wire, for cosim's warnings
+        _write_archive(target, drop_in3(entries, root3, model, script_class.requirements))
     else:
+        annotate(root, script_class)  # greyfmu.wiring
         _write_archive(target, drop_in(entries, root, script_class.requirements))
 
 

@@ -1,4 +1,5 @@
-"""Command line: ``greyfmu build [--out DIR] [--force] [--fmi {2,3}] [NAME...]``."""
+"""Command line: ``greyfmu build [--out DIR] [--force] [--fmi {2,3}] [NAME...]``, ``greyfmu info [NAME]``,
+``greyfmu catalogue [-o FILE]``."""
 
 from __future__ import annotations
 
@@ -21,11 +22,18 @@ def _parser() -> argparse.ArgumentParser:
                        help="with no NAME, the FMI versions to build: 2 (<Name>.fmu, the default) and/or 3 (<Name>3.fmu)")
     build.add_argument("--out", metavar="DIR", default=DEFAULT_OUT_DIR, help=f"output folder (default: {DEFAULT_OUT_DIR})")
     build.add_argument("--force", action="store_true", help="rebuild FMUs that are up to date")
+    info = commands.add_parser("info", help="list the FMUs, or describe one: what it is, inputs and outputs with "
+                                            "units, parameters with unit, default and range, sample time, what to wire")
+    info.add_argument("name", nargs="?", metavar="NAME", help="an FMU (default: list them all)")
+    catalogue = commands.add_parser("catalogue", help="write the FMU catalogue as Markdown (docs/catalogue.md)")
+    catalogue.add_argument("-o", "--output", metavar="FILE", help="file to write (default: standard output)")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.command in ("info", "catalogue"):
+        return _catalogue(args)
     try:
         names = args.names or None
         if names is None and args.fmi:
@@ -41,6 +49,31 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(paths)} FMU(s) in {args.out}")
     for notice in cross_compiler_notices():
         print(notice, file=sys.stderr)
+    return 0
+
+
+def _catalogue(args: argparse.Namespace) -> int:
+    """``greyfmu info [NAME]`` and ``greyfmu catalogue [-o FILE]`` (`greyfmu.catalogue`)."""
+    from greyfmu.catalogue import all_names, entries, markdown, summary_text, text
+    from greyfmu.names import canonical_name, unknown_message
+
+    if args.command == "catalogue":
+        page = markdown(entries())
+        if args.output:
+            with open(args.output, "w", encoding="utf-8") as out:
+                out.write(page)
+            print(f"greyfmu catalogue: {args.output}")
+        else:
+            sys.stdout.write(page)
+        return 0
+    if args.name is None:
+        print(summary_text(entries()))
+        return 0
+    name = canonical_name(args.name, all_names())
+    if name not in all_names():
+        print(f"greyfmu info: {unknown_message([args.name], all_names())}", file=sys.stderr)
+        return 2
+    print(text(entries([name])[0]))
     return 0
 
 

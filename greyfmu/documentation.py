@@ -1,17 +1,28 @@
 """``documentation/index.html`` of an FMU, generated from its model description (build side).
 
 One page per FMU: what it is (the model description's ``description``: the paper, its
-equations and the defaults' source), the default experiment, every variable with causality,
+equations and the defaults' source), the default experiment, its sample time and what to
+wire (the ``org.greyfmu`` annotation, `greyfmu.wiring`), every variable with causality,
 variability, type, unit ("as wired" for a Real declared without one), start, min, max and
 description, the unit definitions, what the target needs
 (Python, modules, how the loader finds them) and the licences shipped with it.
+
+`variables` and `loop_text` read any FMI 2.0 or 3.0 model description: the catalogue
+(`greyfmu.catalogue`, ``greyfmu info``, docs/catalogue.md) shows the same facts from the same
+declarations.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from html import escape
 from xml.etree import ElementTree
 
+from greyfmu.wiring import LoopFacts, loop_facts
+
+TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
+AS_WIRED = "as wired"
+"""The unit column of a Real variable that declares none (see fmus/_slave.py's docstring)."""
 PYTHON_ORDER = (
     "the interpreter named by the environment variable <code>GREYFMU_PYTHON</code> (if set, no other is tried);",
     "the interpreter that built the FMU (<code>resources/greyfmu_build_python.txt</code>), if it exists on this machine;",
@@ -27,8 +38,7 @@ def index_html(root: ElementTree.Element, requirements: tuple[str, ...], loaders
     experiment_text = ", ".join(f"{key} = {escape(value)} s" if key != "tolerance" else f"{key} = {escape(value)}"
                                 for key, value in (experiment.attrib.items() if experiment is not None else []))
     fmi3 = root.get("fmiVersion") == "3.0"
-    variables = list(root.find("ModelVariables")) if fmi3 else root.findall("ModelVariables/ScalarVariable")
-    rows = "\n".join(_variable_row(variable, variable if fmi3 else variable[0]) for variable in variables)
+    rows = "\n".join(_variable_row(variable) for variable in variables(root))
     units = "\n".join(
         f"<tr><td>{escape(unit.get('name'))}</td><td>{escape(_base_unit(unit))}</td></tr>"
         for unit in root.iter("Unit")
@@ -54,6 +64,8 @@ td,th{{border:1px solid #999;padding:0.2em 0.5em;text-align:left;vertical-align:
 <p>{escape(root.get("description", ""))}</p>
 <h2>Default experiment</h2>
 <p>{experiment_text or "none declared"}</p>
+<h2>Sample time and what to wire</h2>
+{escape(loop_text(root)).replace(chr(10), "<br>")}
 <h2>Variables</h2>
 <table>
 <tr><th>name</th><th>causality</th><th>variability</th><th>type</th><th>unit</th><th>start</th><th>min</th><th>max</th>
@@ -98,15 +110,79 @@ WINDOWS_PYTHONFMU = """<p>On Windows the binary is {pythonfmu}'s library (this F
 {modules} installed into that Python.</p>"""
 
 
-def _variable_row(variable: ElementTree.Element, kind: ElementTree.Element) -> str:
-    """One variable's row; ``kind``: the element holding its type, start, unit, min and max (FMI 2.0:
-    the ScalarVariable's child; FMI 3.0: the variable itself)."""
-    cells = [
-        variable.get("name"), variable.get("causality", "local"), variable.get("variability", "continuous"),
-        kind.tag + (f" ({kind.get('declaredType')})" if kind.get("declaredType") else ""),
-        kind.get("unit", "as wired" if kind.tag in ("Real", "Float64") and variable.get("causality") != "independent" else ""), kind.get("start", ""), kind.get("min", ""), kind.get("max", ""),
-        variable.get("description", ""),
-    ]
+@dataclass(frozen=True)
+class VariableInfo:
+    """One variable of a model description (FMI 2.0 ScalarVariable or FMI 3.0 variable element) as
+    the documentation shows it: every attribute as text, '' where absent; ``unit`` is `AS_WIRED`
+    for a Real/Float64 that declares none."""
+    name: str
+    causality: str
+    variability: str
+    type: str
+    unit: str
+    start: str
+    min: str
+    max: str
+    description: str
+
+    @property
+    def range(self) -> str:
+        """``min..max``, ``>= min``, ``<= max`` or ''."""
+        if self.min and self.max:
+            return f"{self.min}..{self.max}"
+        return f">= {self.min}" if self.min else f"<= {self.max}" if self.max else ""
+
+
+def variables(root: ElementTree.Element) -> list[VariableInfo]:
+    """The variables of an FMI 2.0 or 3.0 model description, in its order."""
+    found = []
+    for node in root.find("ModelVariables"):
+        if node.tag == "ScalarVariable":  # FMI 2.0: the type is a child element
+            kind = next(child for child in node if child.tag in TYPES)
+            type_name, attributes = kind.tag, kind
+        else:  # FMI 3.0: the element is the type
+            type_name, attributes = node.tag, node
+        declared = attributes.get("declaredType")
+        real = type_name in ("Real", "Float64", "Float32")
+        found.append(VariableInfo(
+            name=node.get("name"), causality=node.get("causality", "local"),
+            variability=node.get("variability", "continuous" if real or node.tag == "ScalarVariable" else "discrete"),
+            type=type_name + (f" ({declared})" if declared else ""),
+            unit=attributes.get("unit", AS_WIRED if real and node.get("causality") != "independent" else ""),
+            start=attributes.get("start", ""),
+            min=attributes.get("min", ""), max=attributes.get("max", ""), description=node.get("description", "")))
+    return found
+
+
+def loop_text(root: ElementTree.Element) -> str:
+    """What the ``org.greyfmu`` annotation (`greyfmu.wiring`) says, in sentences: the sample time
+    with its default, the inputs to connect, the output that drives the plant."""
+    facts: LoopFacts | None = loop_facts(root)
+    if facts is None:
+        return "Not sampled: it acts at every communication step. No input must be connected."
+    starts = {variable.name: variable for variable in variables(root)}
+    lines = []
+    if facts.sample_time is not None:
+        default = starts[facts.sample_time].start
+        offset = (f", from the time in {facts.sample_offset} (default {starts[facts.sample_offset].start} s)"
+                  if facts.sample_offset else "")
+        lines.append(f"Sampled every {facts.sample_time} (default {default} s){offset}, output held between samples: "
+                     f"a master step that divides {facts.sample_time} keeps the loop the one designed "
+                     "(cosim warns otherwise).")
+    required = [f"{port.name} ({port.role}{', when ' + port.when if port.when else ''})"
+                for port in facts.required_inputs()]
+    driving = [port.name for port in facts.ports if port.causality == "output"]
+    if required:
+        lines.append("Connect " + ", ".join(required) + ": an input left unconnected keeps its start value "
+                     "(cosim warns).")
+    if driving:
+        lines.append("Wire " + ", ".join(driving) + " to the plant's manipulated input.")
+    return "\n".join(lines)
+
+
+def _variable_row(variable: VariableInfo) -> str:
+    cells = [variable.name, variable.causality, variable.variability, variable.type, variable.unit, variable.start,
+             variable.min, variable.max, variable.description]
     return "<tr>" + "".join(f"<td>{escape(cell)}</td>" for cell in cells) + "</tr>"
 
 

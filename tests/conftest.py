@@ -29,7 +29,7 @@ if "COSIM_FUZZ" in os.environ:
 @pytest.fixture(scope="session")
 def debian_python() -> Path:
     """The python of a virtual environment made from Debian's /usr/bin/python3 (static libpython),
-    the project installed (tests/pythons.py, cached under build/); skipped where there is none."""
+    the project installed (tests/pythons.py, cached in ~/.cache/greyfmu/pythons); skipped where there is none."""
     from pythons import Unavailable, debian_venv
 
     try:

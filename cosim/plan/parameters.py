@@ -212,8 +212,10 @@ def _apply_parameter(resolved: dict, comp: str, var_name: str, p: ParameterValue
         lo = float(var.min) if var.min is not None else None
         hi = float(var.max) if var.max is not None else None
         if (lo is not None and value < lo) or (hi is not None and value > hi):
-            raise SetupError(f"value {value} is outside the variable's range [{var.min}, {var.max}] "
-                             f"declared by {desc.path.name}.", file=p.file, element=where, variable=var_name)
+            bound = f"below the variable's minimum {var.min}" if lo is not None and value < lo else \
+                f"above the variable's maximum {var.max}"
+            raise SetupError(f"value {value} is {bound} declared by {desc.path.name}.", file=p.file, element=where,
+                             variable=var_name)
     resolved[(comp, var_name)] = StartValue(comp, var, value, origin)
 
 

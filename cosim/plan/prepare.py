@@ -7,7 +7,8 @@ system, `cosim.read.single`), locates its FMUs, reads the parameter sets and the
 what every run of a scenario shares, and the owner of an ``.ssp``'s extraction folder.
 `prepare_scenario` makes one run of it: the FMUs described, the ``--start-value`` texts typed by
 their variables (`start_value`), the `cosim.model.structure.Plan` built once with all of them, the
-input table bound to it, and the grid resolved (`resolve_grid`) -- a `Prepared`.  `prepare` is
+input table bound to it, and the grid resolved (`resolve_grid`) -- a `Prepared` -- whose loops are
+checked against what our FMUs declare (`cosim.plan.loopcheck`: warnings, errors with ``--strict``).  `prepare` is
 the two in one call, the `Prepared` then owning the scenario (``with prepare(...) as prepared``).
 
 What the command line adds (fmpy simulate's names where it has them): ``--start-value NAME=VALUE``
@@ -35,6 +36,7 @@ from ..read.resources import locate_fmus
 from ..read.single import auto_interval, fmu_structure, is_fmu
 from .build import build_plan
 from .inputs import bind_table, connector_values, with_table
+from .loopcheck import check_loops
 from .parameters import split_system_name
 from .values import typed_values
 
@@ -204,6 +206,8 @@ def prepare_scenario(scenario: Scenario, *, parameter_sets: Sequence[str | Path]
             step = 1.0
     prepared = resolve_grid(plan, start_time=start_time, stop_time=stop_time, step_size=step,
                             algorithm=algorithm, options=options)
+    if not grid_placeholders or single:  # validate checks a system's loops on the SSD's own step only
+        check_loops(prepared.plan, prepared.grid)  # cosim.plan.loopcheck: sampling and wiring the FMUs declare
     return replace(prepared, step_source=source or prepared.step_source,
                    parameter_sets=scenario.parameter_sets + tuple(str(p) for p in parameter_sets))
 

@@ -157,6 +157,18 @@ def axis_label(signals: Sequence[str], metadata: Mapping) -> str:
     return f"{what} {text}" + (" (as wired)" if all(wired for _, wired in present) else "")
 
 
+#: the most characters of a y label line: a panel is 2.2 inches tall, a 9-point character about 5 points wide
+LABEL_LINE = 30
+
+
+def fitted(text: str) -> str:
+    """A y label broken into lines of at most `LABEL_LINE` characters (at spaces), so that it
+    stays within its panel's height and never runs into the next panel's label."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, LABEL_LINE, break_long_words=False)) or text
+
+
 def sampled(signal: str, metadata: Mapping) -> bool:
     """Whether the signal is held between samples: FMI variability discrete (``discrete`` in the
     metadata), or its description says so (metadata written before that was recorded)."""
@@ -259,8 +271,8 @@ def _annotate_loop(ax, result: np.ndarray, metadata: Mapping, setpoint: str, mea
         settle = row.values["settling_time"]
         if settle == settle:
             ax.plot([ev.t0 + settle], [target], "|", color="C2", markersize=14, mew=2)
-            ax.annotate(f"settled {settle:.3g} s", (ev.t0 + settle, target), xytext=(4, 6),
-                        textcoords="offset points", fontsize=7, color="C2")
+            ax.annotate(f"settled at {ev.t0 + settle:.4g} s ({settle:.3g} s after the step)", (ev.t0 + settle, target),
+                        xytext=(4, 6), textcoords="offset points", fontsize=7, color="C2")
         overshoot = row.values["overshoot"]
         window = (t >= ev.t0) & (t <= ev.t1)
         if overshoot == overshoot and overshoot > 0 and window.any():
@@ -312,10 +324,11 @@ def figure(result: np.ndarray, panels: Sequence[Sequence[str]], *, scenario: str
         _mark_events(ax, result, metadata, loops)
         if list(signals) in [list(p) for p in loops]:
             _annotate_loop(ax, result, metadata, *signals)
-        ax.set_ylabel(plain(axis_label(signals, metadata)), fontsize=9)
+        ax.set_ylabel(plain(fitted(axis_label(signals, metadata))), fontsize=9)
         ax.legend(loc="best", fontsize="small")
         ax.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("time [s]")
+    fig.align_ylabels(axes[:, 0])
     axes[0, 0].set_title(plain(title(metadata, scenario)))
     fig.tight_layout()
     return fig

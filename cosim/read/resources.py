@@ -12,6 +12,9 @@ convention).  The file is looked for, in order:
    The master never imports such a package by name;
 3. in the folders given with ``--fmu-dir``.
 
+An FMU found nowhere is an error whose "did you mean" offers the close names among the files
+of those folders and the names the providers make (entry-point group ``cosim.fmu_names``).
+
 The providers are loaded only when a component's FMU is not next to the SSD (loading them
 imports their packages: tens of milliseconds of a run's fixed cost, issue 28).
 """
@@ -21,7 +24,7 @@ from collections.abc import Callable, Sequence
 from importlib.metadata import entry_points
 from pathlib import Path, PurePosixPath
 
-from ..errors import SetupError
+from ..errors import SetupError, did_you_mean
 from ..safeio import is_file
 from .ssp import resolve_uri
 from ..model.structure import Component, SystemStructure
@@ -98,6 +101,22 @@ def _locate(comp: Component, structure: SystemStructure, fmu_dirs: Sequence[Path
         if is_file(candidate):
             return candidate
         looked.append(str(candidate))
+    close = did_you_mean(name, _known_names([direct.parent, *map(Path, fmu_dirs)], asked.use))
     raise SetupError(f"the FMU file '{comp.source}' was not found; looked at " + "; ".join(looked) + ".",
                      file=str(structure.archive or structure.ssd_file), element=where,
-                     hint="Put the FMU in the scenario's resources/ folder or pass --fmu-dir FOLDER.")
+                     hint=(close + " " if close else "") + "Put the FMU in the scenario's resources/ folder or pass "
+                     "--fmu-dir FOLDER.")
+
+
+def _known_names(folders: Sequence[Path], use_providers: bool) -> list[str]:
+    """The FMU file names a "did you mean" offers for one not found: the ``.fmu`` files of the
+    folders looked in, and the names the FMU providers make (entry points ``cosim.fmu_names``:
+    functions returning file names; one that fails to load or answer is left out)."""
+    names = {path.name for folder in folders if folder.is_dir() for path in folder.glob("*.fmu")}
+    if use_providers:
+        for ep in entry_points(group="cosim.fmu_names"):
+            try:
+                names.update(ep.load()())
+            except Exception:  # a broken provider must not hide the error being reported
+                continue
+    return sorted(names)

@@ -72,10 +72,38 @@ def check(query):
                 "libpython3-dev; pyenv: PYTHON_CONFIGURE_OPTS=--enable-shared pyenv install): {}").format(executable, FIX)
     missing = missing_modules(requirements())
     if missing:
-        names = " ".join(entry.split(" ")[0] for entry in missing)
-        return "{} cannot import {}: install with `{} -m pip install {}`, or {}".format(
-            executable, ", ".join(missing), executable, names, FIX)
+        names = [entry.split(" ")[0] for entry in missing]
+        hint = install_hint(names)
+        return "{} cannot import {}: {}".format(executable, ", ".join(missing),
+                                                hint if "GREYFMU_PYTHON" in hint else hint + ", or " + FIX)
     return ""
+
+
+DEBIAN_PACKAGES = {"numpy": "python3-numpy", "scipy": "python3-scipy"}
+"""The Debian/Ubuntu packages of the requirements that have one (daqp has none)."""
+
+
+def externally_managed():
+    """Whether pip refuses to install into this interpreter (PEP 668: an EXTERNALLY-MANAGED file in
+    its standard library folder, outside a virtual environment): Debian's and Ubuntu's python3."""
+    if sys.prefix != sys.base_prefix:
+        return False
+    stdlib = sysconfig.get_path("stdlib")
+    return bool(stdlib) and os.path.isfile(os.path.join(stdlib, "EXTERNALLY-MANAGED"))
+
+
+def install_hint(names):
+    """How to install the missing modules ``names`` into a Python the FMU can use: pip where pip may
+    install, else Debian's packages (when they cover them) or a virtual environment."""
+    executable = sys.executable or "python3"
+    if not externally_managed():
+        return "install with `{} -m pip install {}`".format(executable, " ".join(names))
+    venv = ("make a virtual environment with them (`{} -m venv ~/fmu-python && ~/fmu-python/bin/python -m pip install "
+            "{}`) and set GREYFMU_PYTHON=~/fmu-python/bin/python").format(executable, " ".join(names))
+    if all(name in DEBIAN_PACKAGES for name in names):
+        return "install Debian's packages (`sudo apt-get install {}`; pip refuses this externally managed Python), " \
+               "or {}".format(" ".join(DEBIAN_PACKAGES[name] for name in names), venv)
+    return "this Python is externally managed (pip refuses it): {}".format(venv)
 
 
 def loader_bytes(text):

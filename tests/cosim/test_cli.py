@@ -24,7 +24,7 @@ def test_run_writes_results_and_metadata(tmp_path, twin_fmus, capsys):
     out = tmp_path / "out.csv"
     assert main(["run", str(folder), "-o", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "cosim: pair: 2 FMUs, 1 connections, t = 0..2 s, step 0.5 s (annotation org.greyfmu.simulation)" in printed
+    assert "cosim: pair: 2 FMUs, 1 connection, t = 0..2 s, step 0.5 s (annotation org.greyfmu.simulation)" in printed
     assert f"cosim: results: {out} (5 samples; metadata {out.with_suffix('.json')})" in printed
     result = read(out)
     assert list(result.dtype.names) == ["time", "step.y", "gain.u", "gain.y"] and result["gain.y"][-1] == 4.0
@@ -35,7 +35,7 @@ def test_validate_without_a_step_in_the_ssd_says_so(tmp_path, twin_fmus, capsys)
     item 4: it printed "step 1 s (command line)", a step nobody gave, while run refuses the file)."""
     folder = _system(tmp_path, twin_fmus, step=None)
     assert main(["validate", str(folder)]) == 0
-    assert (f"cosim: {folder}: valid — 2 FMUs, 1 connections, 1 parameter values; stop 1 s; "
+    assert (f"cosim: {folder}: valid — 2 FMUs, 1 connection, 1 parameter value; stop 1 s; "
             "no step size in the SSD (run needs --step)" in capsys.readouterr().out)
     assert main(["run", str(folder), "-o", str(tmp_path / "o.csv"), "-q"]) == 2
     assert "no step size" in capsys.readouterr().err

@@ -144,7 +144,7 @@ def test_validate_takes_parameter_sets(tmp_path, twin_fmus, capsys):
     good = tmp_path / "good.ssv"
     good.write_text(ssv.read_text().replace("gain.nope", "gain.k"))
     assert main(["validate", str(folder), "--param-set", str(good)]) == 0
-    assert "valid — 2 FMUs, 1 connections, 1 parameter values" in capsys.readouterr().out   # gain.k replaced
+    assert "valid — 2 FMUs, 1 connection, 1 parameter value" in capsys.readouterr().out   # gain.k replaced
 
 
 def test_quiet_prints_nothing_but_errors_and_warnings(tmp_path, twin_fmus, capsys):

@@ -233,10 +233,12 @@ def test_an_fmu_that_cannot_run_is_refused_naming_it(drive, tmp_path, capsys):
 
 def test_validate_and_info_of_an_fmu(drive, capsys):
     assert main(["validate", str(drive)]) == 0
-    assert "valid — 1 FMUs, 0 connections" in capsys.readouterr().out
+    assert "valid — 1 FMU, 0 connections" in capsys.readouterr().out
     assert main(["info", str(drive)]) == 0
     out = capsys.readouterr().out
-    assert "Drive: Drive.fmu" in out and "input  Integer k" in out and "output Real    y" in out
+    assert out.startswith("Drive.fmu: Drive, FMI 2.0 fmi2-cs")   # issue 45: the FMU's own variables, any FMU
+    rows = {line.split()[0]: line.split()[1] for line in out.splitlines() if line.startswith("  ")}
+    assert rows["k"] == "Integer" and rows["y"] == "Real" and "parameters (1):" in out
     assert main(["pack", str(drive), "-o", "x.ssp"]) == 2
 
 

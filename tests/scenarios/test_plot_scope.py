@@ -64,9 +64,9 @@ def test_the_fopdt_plot_marks_events_band_peak_limits_and_draws_the_load(fopdt):
     result, meta = fopdt
     panels = default_panels(meta, _names(result))
     assert panels == [["setpoint.y", "plant.y"], ["controller.u"], ["load.y"]]     # the load drawn
-    assert [axis_label(p, meta) for p in panels] == ["Process output (no unit declared)",
-                                                     "Controller output (no unit declared)",
-                                                     "Load disturbance (no unit declared)"]
+    # issue 45: the scenario's connectors declare % of span, so every axis is in engineering units
+    assert [axis_label(p, meta) for p in panels] == ["Process output [%]", "Controller output [%]",
+                                                     "Load disturbance [%]"]
     fig = figure(result, panels, scenario="pid_fopdt", metadata=meta)
     loop, output, load = fig.axes
     for ax in fig.axes:   # a marker at the set-point step (10 s) and at the load step (150 s) on every panel
@@ -77,7 +77,10 @@ def test_the_fopdt_plot_marks_events_band_peak_limits_and_draws_the_load(fopdt):
     ys = band.get_paths()[0].vertices[:, 1]
     assert ys.min() == pytest.approx(0.98) and ys.max() == pytest.approx(1.02)    # ±2 % of the step 0 → 1
     texts = [t.get_text() for t in loop.texts]
-    assert any(t.startswith("overshoot 33.") for t in texts) and any(t.startswith("settled 7") for t in texts)
+    assert any(t.startswith("overshoot 33.") for t in texts)
+    # issue 45: the settling label says the instant on the time axis and the time since the step (10 s)
+    settled, = [t for t in loop.texts if t.get_text().startswith("settled")]
+    assert settled.get_text() == "settled at 82.1 s (72.1 s after the step)" and settled.xy[0] == pytest.approx(82.1, abs=0.05)
     assert "load.y 0 → -1" in texts
     # u_min/u_max = ±100 are far off the output's range (0..13): named, not drawn
     assert limits("controller.u", meta) == {"u_min": -100.0, "u_max": 100.0}
@@ -107,3 +110,17 @@ def test_the_report_gives_metric_units_from_the_signal(mass_damper, tmp_path):
     result, meta = mass_damper
     page = render(result, meta, source=str(tmp_path / "md.csv"))
     assert "<th>IAE [m·s]</th><th>ISE [m²·s]</th><th>ITAE [m·s²]</th>" in page and "<th>peak_error [m]</th>" in page
+
+
+def test_y_labels_of_stacked_panels_stay_within_their_panels(fopdt):
+    """Issue 45: a long y label ("Weighted sum of the inputs [kgf/cm2] (as wired)") ran into the
+    next panel's; labels are wrapped to their panel's height and aligned."""
+    result, meta = fopdt
+    long_meta = {**meta, "descriptions": {**meta["descriptions"],
+                                          "controller.u": "A controller output whose description is long, held"}}
+    fig = figure(result, [["setpoint.y", "plant.y"], ["controller.u"], ["load.y"]], scenario="x", metadata=long_meta)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        label, frame = ax.yaxis.label.get_window_extent(renderer), ax.get_window_extent(renderer)
+        assert label.y0 >= frame.y0 - 1 and label.y1 <= frame.y1 + 1, ax.yaxis.label.get_text()

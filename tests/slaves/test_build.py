@@ -246,10 +246,12 @@ def test_fmu_provider_for_the_master_returns_our_fmus_only(built_fmus):
     assert provide_fmu("FOPDT") is None
 
 
-def test_unknown_fmu_name_is_refused_with_the_valid_names(capsys):
-    assert main(["build", "NoSuchFmu"]) == 2
+def test_unknown_fmu_name_is_refused_with_the_near_ones(capsys):
+    assert main(["build", "Xyzzy"]) == 2
     message = capsys.readouterr().err
-    assert "NoSuchFmu" in message and "FOPDT" in message and "PID" in message
+    assert "unknown FMU Xyzzy;" in message and "`greyfmu info` lists the 26 FMUs, each also as FMI 3.0 <Name>3" in message
+    assert main(["build", "FOPTD"]) == 2   # issue 45: the near name, not all 27
+    assert "unknown FMU FOPTD (did you mean FOPDT" in capsys.readouterr().err
     with pytest.raises(UnknownFmuError):
         build_fmus(["NoSuchFmu"])
 

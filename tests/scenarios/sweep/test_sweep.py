@@ -180,7 +180,7 @@ def test_a_refused_value_is_a_failed_row_and_the_others_complete(scenario, tmp_p
     (["--set", "controler.Kc=1,2"], "Did you mean 'controller'"),
     (["--set", "controller.Kc=fast"], "'fast' is not a Real value"),
     (["--set", "controller.Kc"], "is not NAME=VALUE"),
-    (["--set", "plant.tau=-1"], "outside the variable's range"),
+    (["--set", "plant.tau=-1"], "below the variable's minimum 0.0"),
     (["--seeds", "3..1"], "is not a list of seeds"),
     (["--set", "plant.T=1,2", "--metrics", "plant.yy:setpoint.y"], "Did you mean 'plant.y'"),
     (["--seeds", "1,2", "--seed-parameter", "noise.sed"], "Did you mean 'seed'"),
