@@ -37,6 +37,7 @@ from pythonfmu.builder import FmuBuilder, get_model_class
 
 from greyfmu.dropin import BuildError, drop_in
 from greyfmu.loader import PLATFORMS, compiler
+from greyfmu.lsref import with_reference
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPOSITORY_ROOT = PACKAGE_DIR.parent
@@ -45,7 +46,7 @@ SLAVE_BASE = FMU_SOURCES / "_slave.py"
 FMI3_SOURCES = FMU_SOURCES / "fmi3"
 SLAVE_BASE3 = FMI3_SOURCES / "_slave3.py"
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
-BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "loader", "licenses", "__pycache__", "*.pyc")
+BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "lsref.py", "loader", "licenses", "__pycache__", "*.pyc")
 """Files and folders of the greyfmu package that build FMUs and are not embedded in them."""
 ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
 """The time stamp of every archive entry, so that rebuilding changes no byte but what changed."""
@@ -189,6 +190,7 @@ def _build_one(script: Path, fmu: Path) -> None:
         script_class = slave_class(script)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
         _rewrite_model_description(Path(built), partial, script_class.output_dependencies, script_class.requirements)
+        with_reference(partial, _write_archive)  # extra/org.fmi-standard.fmi-ls-ref (greyfmu.lsref)
         os.replace(partial, fmu)
 
 
@@ -300,6 +302,7 @@ def _build_one_fmi3(script: Path, fmu: Path) -> None:
         with zipfile.ZipFile(partial, "w", compression=zipfile.ZIP_DEFLATED) as archive:
             for name, data in entries.items():
                 archive.writestr(name, data)
+        with_reference(partial, _write_archive)  # extra/org.fmi-standard.fmi-ls-ref (greyfmu.lsref)
         os.replace(partial, fmu)
 
 

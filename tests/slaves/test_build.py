@@ -280,6 +280,8 @@ def test_rebuilding_gives_a_byte_identical_model_description_and_the_same_guid(b
         with zipfile.ZipFile(a) as one, zipfile.ZipFile(b) as other, zipfile.ZipFile(built_fmus[name]) as kept:
             assert one.read("modelDescription.xml") == other.read("modelDescription.xml") \
                 == kept.read("modelDescription.xml")
+            extra = sorted(n for n in one.namelist() if n.startswith("extra/"))   # the reference experiment (issue 43)
+            assert len(extra) == 4 and all(one.read(n) == other.read(n) for n in extra)
     assert read_model_description(str(first[0])).guid != read_model_description(str(first[1])).guid
 
 
@@ -345,7 +347,7 @@ def test_fmu_carries_only_what_it_runs(built_fmus, name):
     assert {entry for entry in names if entry.startswith("resources/greyfmu_pythonfmu/")} == {
         f"resources/greyfmu_pythonfmu/{module}" for module in PYTHONFMU_RUNTIME}
     build_side = {"resources/greyfmu/build.py", "resources/greyfmu/cli.py", "resources/greyfmu/dropin.py",
-                  "resources/greyfmu/documentation.py"}
+                  "resources/greyfmu/documentation.py", "resources/greyfmu/lsref.py"}
     assert not names & build_side
     assert not any(entry.startswith(("resources/greyfmu/loader/", "resources/greyfmu/licenses/")) for entry in names)
     assert {"binaries/linux64/pythonfmu-export.so", f"binaries/linux64/{name}.so", "resources/greyfmu_target.py"} <= names
