@@ -40,6 +40,9 @@ def plotted(verdicts: Sequence[Verdict]) -> list[Verdict]:
 
 
 def _marks(v: Verdict) -> list[tuple[str, object]]:
+    """The labelled violations: the first and the worst (one label when they are the same point)."""
+    if v.first is not None and v.first == v.worst:
+        return [("first and worst", v.first)]
     return [(what, point) for what, point in (("first", v.first), ("worst", v.worst)) if point is not None]
 
 

@@ -71,6 +71,16 @@ def test_cosim_verify_runs_the_experiment_and_matches_the_reference_bit_for_bit(
     assert "max |run − reference|" not in out                   # only failing signals are listed
 
 
+def test_an_fmi3_fmu_carries_one_too_and_passes(capsys):
+    from greyfmu.build import build_fmus
+
+    fmu, = build_fmus(["PID3"])
+    experiment, = read_experiments(fmu)
+    assert experiment.stimuli and set(experiment.tolerances) == {"u", "e"}
+    assert main(["verify", str(fmu)]) == 0
+    assert "PID3.fmu: 1 of 1 reference experiment(s) passed" in capsys.readouterr().out
+
+
 def test_an_altered_fmu_fails_verify_with_the_difference_report(built_fmus, tmp_path, capsys):
     """PID.fmu with its gain's default changed in the slave (the model description, GUID and references
     untouched): cosim verify exits 1, names u, and writes the report (HTML and PNG), by default in the
