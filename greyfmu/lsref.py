@@ -44,6 +44,8 @@ from pathlib import Path
 from xml.etree import ElementTree
 from xml.sax.saxutils import quoteattr
 
+from greyfmu.dropin import BuildError
+
 FOLDER = "extra/org.fmi-standard.fmi-ls-ref/"
 LS_VERSION = "1.0.0-beta.1"
 LS_NAMESPACE = "http://fmi-standard.org/fmi-ls-manifest"
@@ -53,10 +55,6 @@ ANNOTATION = "org.greyfmu.comparison"
 RTOL = 1e-6
 ATOL_SHARE = 1e-6
 ATOL_FLOOR = 1e-9
-
-
-class ReferenceError(RuntimeError):
-    """The reference experiment could not be run on the FMU just built."""
 
 
 def _number(x: float) -> str:
@@ -121,14 +119,14 @@ def run_reference(fmu: Path, rows: list[list[float]], names: list[str], start: f
 
     with tempfile.TemporaryDirectory(prefix="greyfmu-lsref-") as temp:
         table = Path(temp) / "in.csv"
-        if rows and len(names) > 1:
+        if rows:
             table.write_bytes(_csv(names, rows))
         out = Path(temp) / "out.npy"
         done = subprocess.run([sys.executable, "-c", RUNNER, str(fmu), str(table) if table.exists() else "-", str(out),
                                _number(start), _number(stop), _number(step), *outputs],
                               capture_output=True, text=True)
         if done.returncode != 0:
-            raise ReferenceError(f"{fmu.name}: the reference experiment failed in FMPy: {done.stderr.strip()[-2000:]}")
+            raise BuildError(f"{fmu.name}: its reference experiment failed in FMPy: {done.stderr.strip()[-2000:]}")
         return np.load(out).tolist()
 
 

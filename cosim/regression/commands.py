@@ -85,7 +85,7 @@ def verify_command(args) -> int:
     from .lsref import summary, verify
     from .report import write_report
 
-    report = _report_path(args.report or f"{Path(args.fmu).stem}.verify.html", [args.fmu], "--report")
+    report = _report_path(args.report, [args.fmu], "--report") if args.report else None
     with temporary_folder("cosim-verify-") as folder:
         outcomes = verify(args.fmu, Path(folder))
     for line in summary(outcomes):
@@ -94,6 +94,7 @@ def verify_command(args) -> int:
     if failed:
         verdicts = [v for o in failed for v in o.verdicts]
         if verdicts:
+            report = report or _report_path(f"{Path(args.fmu).stem}.verify.html", [args.fmu], "--report")
             page, _ = write_report(verdicts, report, title=f"cosim verify {Path(args.fmu).name}: "
                                                            + ", ".join(o.experiment.name for o in failed))
             print(f"cosim: difference report: {page}")

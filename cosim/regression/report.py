@@ -47,7 +47,6 @@ def _marks(v: Verdict) -> list[tuple[str, object]]:
 
 
 def _plotly_div(verdicts: Sequence[Verdict], title: str) -> str:
-    import plotly.graph_objects as go
     from plotly.subplots import make_subplots
 
     shown = plotted(verdicts)

@@ -102,7 +102,8 @@ def check_metrics(result: np.ndarray, targets: Mapping[str, Mapping], metadata: 
             if metric in OPTIONS:
                 continue
             expected, tolerance = _target(signal, metric, target)
-            measured = response.values.get(metric, float("nan"))
-            verdicts.append(MetricVerdict(signal, metric, expected, tolerance, measured, window,
-                                          response.undefined.get(metric, "")))
+            why = response.undefined.get(metric, "") if metric in response.values else \
+                f"{metric} is measured per event: name one with 'event': k"
+            verdicts.append(MetricVerdict(signal, metric, expected, tolerance,
+                                          response.values.get(metric, float("nan")), window, why))
     return verdicts

@@ -4,18 +4,15 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
-import subprocess
 
 import numpy as np
 import pytest
 
+from browser import CHROMIUM, MISSING, chromium
+
 from cosim.cli import main
 from cosim.results import write
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 RED = (0xd6, 0x27, 0x28)        # the violations' colour, Plotly's and matplotlib's (tab:red)
 
 
@@ -53,14 +50,7 @@ def test_the_page_lists_every_signal_with_its_verdict_and_the_png_shows_the_viol
     assert (np.abs(pixels - RED).sum(axis=-1) < 30).sum() > 50      # the red × of the points outside
 
 
-def _chromium(*args: str, tmp) -> subprocess.CompletedProcess:
-    profile = tmp / "profile"
-    profile.mkdir(exist_ok=True)
-    return subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={profile}", *args], capture_output=True,
-                          text=True, timeout=120)
-
-
-@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (.ci/run installs Debian's chromium)")
+@pytest.mark.skipif(CHROMIUM is None, reason=MISSING)
 def test_chromium_draws_reference_run_tube_and_violations_offline_and_zooms(report, tmp_path):
     """Every host name unresolvable: Plotly draws 4 panels (values and run − reference for the 2 failing
     signals), each with the tube, the reference, the run and the points outside; a relayout zooms the
@@ -74,8 +64,8 @@ Plotly.relayout(gd, {'xaxis.range': [0.9, 1.2]}).then(() => document.body.setAtt
                   gd._fullLayout.xaxis.range, gd._fullLayout.xaxis4.range,
                   gd.layout.annotations.map(a => a.text)])));
 </script></body>"""))
-    dom = _chromium("--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=10000", "--dump-dom",
-                    probe.as_uri(), tmp=tmp_path).stdout
+    dom = chromium("--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=10000", "--dump-dom",
+                   probe.as_uri(), tmp=tmp_path).stdout
     found = re.search(r'data-plot="([^"]*)"', dom)
     assert found, dom[-2000:]
     drawn, names, x1, x4, labels = json.loads(found.group(1).replace("&quot;", '"'))
@@ -85,8 +75,8 @@ Plotly.relayout(gd, {'xaxis.range': [0.9, 1.2]}).then(() => document.body.setAtt
     assert labels.count("first and worst: t = 1.01 s") == 2                                 # valve.y's
     assert labels.count("first: t = 1.5 s") == labels.count("worst: t = 2 s") == 2        # pipe.q's
     shot = tmp_path / "shot.png"
-    _chromium("--window-size=1200,1600", "--virtual-time-budget=10000", f"--screenshot={shot}", report.as_uri(),
-              tmp=tmp_path)
+    chromium("--window-size=1200,1600", "--virtual-time-budget=10000", f"--screenshot={shot}", report.as_uri(),
+             tmp=tmp_path)
     from matplotlib.image import imread
     pixels = (imread(shot)[..., :3] * 255).round().astype(int)
     assert (np.abs(pixels - RED).sum(axis=-1) < 30).sum() > 30     # the markers on screen
