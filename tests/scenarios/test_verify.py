@@ -130,3 +130,17 @@ def test_without_our_tolerances_the_fmi_cross_check_rule_judges(built_fmus, tmp_
         reference = archive.read(FOLDER + "default_ref.csv")
     (tmp_path / "ref.csv").write_bytes(reference)
     assert np.isfinite(read(tmp_path / "ref.csv")["u"]).all()
+
+
+@pytest.mark.parametrize("kc, passes", [(8.0345, True), (8.5, False)])
+def test_an_experiments_parameter_set_is_applied_by_variable_name(built_fmus, tmp_path, kc, passes):
+    """<Parameters source="kc.ssv"/>: an SSV applied as a binding without prefix (FMI-LS-REF 'Role
+    parameter'): the FMU's own gain passes, another one fails against the same references."""
+    ssv = (f'<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
+           f'version="1.0" name="kc"><ssv:Parameters><ssv:Parameter name="Kc"><ssv:Real value="{kc}"/>'
+           '</ssv:Parameter></ssv:Parameters></ssv:ParameterSet>').encode()
+    fmu = edited(built_fmus["PID"], tmp_path / "PID.fmu", {
+        FOLDER + "kc.ssv": ssv,
+        FOLDER + "reference.exp": lambda exp: exp.replace(b'<Stimuli', b'<Parameters source="kc.ssv"/>\n    <Stimuli')})
+    assert read_experiments(fmu)[0].parameters == FOLDER + "kc.ssv"
+    assert main(["verify", str(fmu), "--report", str(tmp_path / "r.html")]) == (0 if passes else 1)
