@@ -10,7 +10,8 @@ modelDescription.xml is then post-processed:
   ``output_dependencies`` (pythonfmu omits it, which means "depends on every input");
 - ``UnitDefinitions`` declares every unit the variables use;
 - then `greyfmu.dropin` makes it a drop-in FMU: greyfmu's loader as the linux64 binary, a
-  stable GUID, version/licence/copyright, ``documentation/`` with index.html and the licences.
+  stable GUID, version/licence/copyright, ``documentation/`` with index.html and the licences;
+- last, `greyfmu.lsref` adds the FMI-LS-REF reference experiment (``extra/``), run on the FMU built.
 
 The embedded greyfmu package leaves out what only builds FMUs (`BUILD_ONLY`).
 
@@ -46,7 +47,8 @@ SLAVE_BASE = FMU_SOURCES / "_slave.py"
 FMI3_SOURCES = FMU_SOURCES / "fmi3"
 SLAVE_BASE3 = FMI3_SOURCES / "_slave3.py"
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
-BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "lsref.py", "loader", "licenses", "__pycache__", "*.pyc")
+BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "lsref.py", "loader", "licenses", "__pycache__",
+              "*.pyc")
 """Files and folders of the greyfmu package that build FMUs and are not embedded in them."""
 ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
 """The time stamp of every archive entry, so that rebuilding changes no byte but what changed."""

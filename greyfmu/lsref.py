@@ -149,8 +149,10 @@ def _experiments(model: str, start: float, stop: float, step: float, inputs: boo
     stimuli_line = '\n    <Stimuli source="default_in.csv"/>' if inputs else ""
     rows = "".join(f"\n          <Tolerance signal={quoteattr(name)} rtol=\"{_number(r)}\" atol=\"{_number(a)}\" "
                    f"time=\"{_number(t)}\"/>" for name, (r, a, t) in tolerances.items())
+    about = quoteattr(f"The reference experiment of {model}, made when the FMU was built: run it and compare "
+                      f"with cosim verify {model}.fmu")
     return f"""<?xml version="1.0" encoding="UTF-8"?>
-<Experiments name={quoteattr(f"{model} reference")} description={quoteattr(f"The reference experiment of {model}, made when the FMU was built: run it and compare with cosim verify {model}.fmu")}>
+<Experiments name={quoteattr(f"{model} reference")} description={about}>
   <Experiment name="default" description="DefaultExperiment, each input stepping once">
     <TransientSimulation startTime="{_number(start)}" stopTime="{_number(stop)}" stepSize="{_number(step)}"/>{stimuli_line}
     <References source="default_ref.csv"/>
