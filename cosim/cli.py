@@ -15,6 +15,7 @@ from importlib.metadata import version
 from pathlib import Path
 
 from .errors import CosimError, CosimWarning, RunError, SetupError
+from .regression.commands import COMMANDS, add_commands
 from .safeio import parse_size, unpack_limit
 
 
@@ -130,16 +131,7 @@ def _parser() -> argparse.ArgumentParser:
     report.add_argument("--signals", nargs="+", metavar="GLOB", help="plot panels, as for cosim run")
     report.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
 
-    compare = sub.add_parser("compare", help="check that two results agree within tolerances (exit 1 if not)")
-    compare.add_argument("reference", help="reference result (CSV or Parquet)")
-    compare.add_argument("candidate", help="result (CSV or Parquet) to check")
-    compare.add_argument("--rtol", type=float, default=1e-6)
-    compare.add_argument("--atol", type=float, default=1e-9)
-    compare.add_argument("--signals", nargs="+", metavar="GLOB", help="signals to compare (default: all)")
-    compare.add_argument("--tolerance", action="append", default=[], metavar="GLOB=RTOL,ATOL",
-                         help="tolerances of the signals matching GLOB, e.g. 'plant.y=1e-6,1e-9' (repeatable; "
-                              "the most specific match wins, others get --rtol/--atol)")
-    compare.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+    add_commands(sub)   # compare, verify (cosim.regression)
 
     pack = sub.add_parser("pack", help="pack a scenario folder into a standard .ssp archive")
     common(pack)
@@ -266,8 +258,8 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _print_warning
             _strict(args)
             code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
-                    "report": _report, "compare": _compare, "sweep": _sweep, "new": _new,
-                    "completion": _completion}[args.command](args)
+                    "report": _report, "sweep": _sweep, "new": _new, "completion": _completion,
+                    **COMMANDS}[args.command](args)
         sys.stdout.flush()  # a closed pipe is reported here, not at interpreter exit
         return code
     except CosimError as e:
@@ -603,25 +595,6 @@ def _report(args) -> int:
         panels = [select(names, g.split(",")) for g in args.signals]
     print(f"cosim: report: {write_report(result, page, panels=panels)}")
     return 0
-
-
-def _compare(args) -> int:
-    from .present.metrics import compare, parse_tolerance
-    from .record.results import read
-    from .record.results import select
-
-    a, b = read(args.reference), read(args.candidate)
-    signals = select([n for n in a.dtype.names if n != "time"], args.signals) if args.signals else None
-    tolerances = dict(parse_tolerance(text) for text in args.tolerance)
-    diffs = compare(a, b, signals=signals, rtol=args.rtol, atol=args.atol, tolerances=tolerances)
-    failed = [d for d in diffs if not d.ok]
-    for d in diffs:
-        print(f"  {'ok  ' if d.ok else 'DIFF'} {d.signal}: max |diff| {d.max_abs:.3g}, max rel {d.max_rel:.3g}")
-        if not d.ok:
-            print(f"       {d.describe()}")
-    print(f"cosim: {len(diffs) - len(failed)} of {len(diffs)} signals agree within rtol {args.rtol:g}, "
-          f"atol {args.atol:g}")
-    return 1 if failed else 0
 
 
 def _sweep(args) -> int:

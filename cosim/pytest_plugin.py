@@ -1,21 +1,25 @@
 """pytest plugin (``pytest11`` entry point): regression fixtures for co-simulation scenarios.
 
 Installing the ``greyfmu`` distribution registers this plugin with pytest; no conftest.py
-is needed.  A test runs a scenario and compares it, signal by signal and sample by sample,
-with a stored reference CSV::
+is needed.  A test runs a scenario and checks it against a stored reference CSV with the
+comparison engine `cosim.regression` (the same as ``cosim compare``), and against control-loop
+metric targets::
 
     def test_pid_loop(cosim_regression):
         result = cosim_regression("ssp/pid_fopdt", stop=60.0,
                                   signals=["plant.y", "controller.u"],
-                                  tolerances={"controller.*": (1e-5, 1e-8)})
+                                  tolerances={"controller.*": {"rtol": 1e-5, "atol": 1e-8, "time": 0.1}},
+                                  metrics={"plant.y": {"overshoot": (20, 2)}})
         # ``result`` is the run's structured array (every connector), for further checks
 
 The first run fails: the reference does not exist yet.  Write it (and rewrite it after an
 intended change) with ``pytest --cosim-update-references``; those tests pass and the
-terminal summary lists the files written.  Commit the references with the tests.
+terminal summary lists the files written and, for each one rewritten, what changed (signals
+added, removed, and out of tolerance with their largest difference).  Commit the references.
 
 ``cosim_regression(scenario, *, reference=None, stop=None, step=None, param_sets=(),
-fmu_dirs=(), signals=None, tolerances=None, rtol=1e-6, atol=1e-9, decimate=None)``
+fmu_dirs=(), signals=None, tolerances=None, rtol=1e-6, atol=1e-9, time=0.0, mode="tube",
+decimate=None, metrics=None)``
 
 - ``scenario``: scenario folder, ``.ssd`` or ``.ssp`` (relative paths are taken from the
   current directory, as ``cosim run`` takes them).
@@ -29,25 +33,35 @@ fmu_dirs=(), signals=None, tolerances=None, rtol=1e-6, atol=1e-9, decimate=None)
   Default: ``<test name>.csv`` there (parametrised tests: ``test_x[id].csv``, characters
   other than letters, digits, ``_.-[]`` replaced by ``_``).
 - ``stop``, ``step``, ``param_sets``, ``fmu_dirs``: as for ``cosim.simulate``.
-- ``signals``: globs selecting the compared (and stored) signals, default every connector.
-- ``tolerances``: ``{glob: (rtol, atol) or {"rtol": .., "atol": ..}}``; the most specific key
-  matching a signal wins (`cosim.present.metrics.tolerance_for`), others get ``rtol``/``atol``.  A
-  sample passes when |candidate − reference| <= atol + rtol·|reference|.
+- ``signals``: globs selecting the compared (and stored) signals, default every connector;
+  ``[]`` compares no samples (metric targets alone, no reference file).
+- ``tolerances``: ``{glob: (rtol, atol), (rtol, atol, time) or {"rtol": .., "atol": .., "time": ..}}``;
+  the most specific key matching a signal wins (`cosim.regression.tolerances.tolerance_for`),
+  others get ``rtol``/``atol``/``time``.  A point passes when |run − reference| <=
+  max(atol, rtol·|reference|) with the reference taken anywhere within ±time s (the tube of
+  `cosim.regression.tube`); the run is checked at the reference's time points.
+- ``mode``: "tube", "csv-compare" or "fmi-cross-check" (`cosim.regression.engine`).
 - ``decimate``: keep every n-th sample (first included) in the reference and the comparison,
   to keep long references small.
+- ``metrics``: ``{signal: {metric: (expected, tolerance), ...}}`` (`cosim.regression.targets`:
+  IAE, ISE, ITAE, overshoot, rise_time, settling_time, peak_error; optional "setpoint",
+  "event", "band").
 
-The test fails when the grids differ (saying how), when a reference signal is not produced
-(or a selected one is not in the reference), or when a signal leaves its band: the message
-lists each failing signal with the first failing time, value, reference, difference and
-tolerance, the reference's path and where the candidate was written (every connector of the
-run, in the test's ``tmp_path``).  A run error or an invalid scenario fails the test with
-cosim's message.  The comparison is `cosim.present.metrics.compare`, the same as ``cosim compare``.
+The test fails when a reference signal is not produced (or a selected one is not in the
+reference), when a signal leaves its tube or a metric misses its target: the message lists
+each failing signal with its first and worst violation (time, value, reference, tube bounds)
+and each missed metric, then the path of the difference report (an HTML page in the test's
+``tmp_path``, interactive and offline, with a PNG beside it; `cosim.regression.report`), the
+reference's path and the run's own CSV.  Each signal's and metric's verdict is a property of
+the test (``record_property``), so JUnit XML (``--junitxml``) carries them.  A run error or an
+invalid scenario fails the test with cosim's message.
 
 The module imports nothing but pytest at import time (cosim, NumPy and fmpy are imported
 when the fixture is first called), since pytest loads it into every session.
 """
 from __future__ import annotations
 
+import fnmatch
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -58,12 +72,12 @@ import pytest
 if TYPE_CHECKING:
     import numpy as np
 
-    from .present.metrics import ToleranceSpec
+    from .regression.tolerances import ToleranceSpec
 
 UPDATE_OPTION = "--cosim-update-references"
 REFERENCES_INI = "cosim_references"
 
-#: (node id, reference path, "written" or "rewritten"), listed in the terminal summary
+#: (node id, reference path, what changed (`changes`)), listed in the terminal summary
 _WRITTEN = pytest.StashKey[list]()
 
 
@@ -85,8 +99,8 @@ def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Co
     written = config.stash.get(_WRITTEN, [])
     if written:
         terminalreporter.write_sep("-", f"cosim: {len(written)} reference(s) written ({UPDATE_OPTION})")
-        for nodeid, path, how in written:
-            terminalreporter.write_line(f"{how} {path} ({nodeid})")
+        for nodeid, path, what in written:
+            terminalreporter.write_line(f"{'written' if what == 'new' else 'rewritten'} {path} ({nodeid}): {what}")
 
 
 def _fail(message: str) -> NoReturn:
@@ -123,11 +137,12 @@ class Regression:
                  param_sets: Sequence[str | Path] = (), fmu_dirs: Sequence[str | Path] = (),
                  signals: Sequence[str] | None = None,
                  tolerances: Mapping[str, ToleranceSpec] | None = None,
-                 rtol: float = 1e-6, atol: float = 1e-9, decimate: int | None = None) -> np.ndarray:
+                 rtol: float = 1e-6, atol: float = 1e-9, time: float = 0.0, mode: str = "tube",
+                 decimate: int | None = None, metrics: Mapping[str, Mapping] | None = None) -> np.ndarray:
         """Run ``scenario`` and check it against (or with --cosim-update-references, write) the
-        reference; returns the run's result (every connector, every step)."""
+        reference, and its ``metrics`` targets; returns the run's result (every connector, every step)."""
         from .errors import CosimError
-        from .present.metrics import check_tolerance_keys
+        from .regression.tolerances import check_tolerance_keys
         from .record.results import select
         from .run.simulation import simulate
 
@@ -144,18 +159,29 @@ class Regression:
             result = simulate(scenario, stop_time=stop, step_size=step, parameter_sets=param_sets,
                               fmu_dirs=fmu_dirs, output=candidate_csv)
             names = [n for n in result.dtype.names if n != "time"]
-            chosen = select(names, list(signals)) if signals else names
+            chosen = names if signals is None else select(names, list(signals)) if signals else []
             check_tolerance_keys(tolerances or {}, chosen)
+            targets = self._metrics(result, metrics or {}, candidate_csv)
         except CosimError as e:
             kept = f"; candidate {candidate_csv}" if candidate_csv.exists() else ""   # samples so far, if any
             what = "the candidate run failed" if e.code.run_failed else "the scenario cannot be run"
             _fail(f"cosim regression: {scenario} (reference {path}{kept}): {what} ({e.code.value}): {e}")
         sampled = result[::int(decimate)] if decimate else result
-        if self.update:
-            self._write(sampled, chosen, path)
+        rule = dict(tolerances=tolerances or {}, rtol=rtol, atol=atol, time=time, mode=mode)
+        if self.update and chosen:
+            self._write(sampled, chosen, path, rule)
+            verdicts = []
         else:
-            self._check(sampled, chosen, path, where, tolerances or {}, rtol, atol)
+            verdicts = self._check(sampled, chosen, path, where, rule) if chosen else []
+        self._conclude(verdicts, targets, path, where)
         return result
+
+    def _metrics(self, result: np.ndarray, metrics: Mapping[str, Mapping], candidate_csv: Path) -> list:
+        """The metric targets' verdicts (`cosim.regression.targets`), the loops read from the run's metadata."""
+        from .regression.targets import check_metrics
+        from .present.report import read_metadata
+
+        return check_metrics(result, metrics, read_metadata(candidate_csv)) if metrics else []
 
     def _reference_name(self, reference: str | Path | None) -> str:
         """The reference's file name in the references folder: ``reference`` must be a file name
@@ -171,17 +197,17 @@ class Regression:
             _fail(f"cosim regression: {self.request.node.nodeid}: {e} Give a file name in the references "
                   f"folder ({self.references}).")
 
-    def _write(self, result: np.ndarray, chosen: list[str], path: Path) -> None:
+    def _write(self, result: np.ndarray, chosen: list[str], path: Path, rule: Mapping) -> None:
+        """Write the reference, and note what changed against the one it replaces (`changes`)."""
         from .record.results import write
 
-        how = "rewritten" if path.exists() else "written"
+        before = changes(path, result, chosen, rule)
         write(result, path, chosen)
-        self.request.config.stash[_WRITTEN].append((self.request.node.nodeid, path, how))
+        self.request.config.stash[_WRITTEN].append((self.request.node.nodeid, path, before))
 
-    def _check(self, result: np.ndarray, chosen: list[str], path: Path, where: str,
-               tolerances: Mapping[str, ToleranceSpec], rtol: float, atol: float) -> None:
+    def _check(self, result: np.ndarray, chosen: list[str], path: Path, where: str, rule: Mapping) -> list:
         from .errors import CosimError
-        from .present.metrics import compare
+        from .regression.engine import compare
         from .record.results import read
 
         if not path.is_file():
@@ -200,14 +226,61 @@ class Regression:
             _fail(f"cosim regression: the signals differ from the reference for {where}:\n" + "\n".join(lines)
                   + f"\nIf the change is intended, rewrite the reference with {UPDATE_OPTION}.")
         try:
-            diffs = compare(stored, result, signals=stored_names, rtol=rtol, atol=atol, tolerances=tolerances)
+            return compare(stored, result, signals=stored_names, **rule)
         except CosimError as e:
             _fail(f"cosim regression: {where}: {e}")
-        failed = [d for d in diffs if not d.ok]
-        if failed:
-            _fail(f"cosim regression: {len(failed)} of {len(diffs)} signals differ from the reference for "
-                  f"{where}:\n" + "\n".join(f"  {d.describe()}" for d in failed)
-                  + f"\nIf the change is intended, rewrite the reference with {UPDATE_OPTION}.")
+
+    def _conclude(self, verdicts: list, targets: list, path: Path, where: str) -> None:
+        """Record each verdict as a JUnit XML property; on a failure, write the difference report
+        (HTML and PNG in the test's tmp_path) and fail naming each failing signal and metric."""
+        from .regression.report import write_report
+
+        for v in verdicts:
+            self.request.node.user_properties.append((f"cosim {v.signal}", v.describe()))
+        for m in targets:
+            self.request.node.user_properties.append((f"cosim {m.signal} {m.metric}", m.describe()))
+        failed = [v for v in verdicts if not v.passed]
+        missed = [m for m in targets if not m.passed]
+        if not failed and not missed:
+            return
+        page, png = write_report(verdicts, self.tmp_path / f"{path.stem}.diff.html", metrics=targets,
+                                 title=f"{self.request.node.nodeid}: {where}")
+        lines = [f"  {v.describe()}" for v in failed] + [f"  {m.describe()}" for m in missed]
+        counts = ([f"{len(failed)} of {len(verdicts)} signals differ from the reference"] if failed else []) + \
+            ([f"{len(missed)} of {len(targets)} metric targets missed"] if missed else [])
+        _fail(f"cosim regression: {' and '.join(counts)} for {where}:\n" + "\n".join(lines)
+              + f"\ndifference report: {page}" + (f" (plot {png})" if png.exists() else "")
+              + (f"\nIf the change is intended, rewrite the reference with {UPDATE_OPTION}." if failed else ""))
+
+
+def changes(path: Path, result: np.ndarray, chosen: list[str], rule: Mapping) -> str:
+    """What writing ``result`` over the reference ``path`` changes, in one line: "new", or the
+    signals added, removed and out of tolerance (each with its largest |new − old|), or "no
+    signal out of tolerance"."""
+    from .errors import CosimError
+    from .regression.engine import compare
+    from .record.results import read
+
+    if not path.is_file():
+        return "new"
+    try:
+        old = read(path)
+    except (OSError, CosimError) as e:
+        return f"the old one could not be read ({e})"
+    names = [n for n in old.dtype.names if n != "time"]
+    parts = [f"{label}: {', '.join(group)}" for label, group in
+             (("added", [n for n in chosen if n not in names]), ("removed", [n for n in names if n not in chosen]))
+             if group]
+    kept = [n for n in names if n in chosen]
+    tolerances = {k: v for k, v in rule["tolerances"].items() if any(fnmatch.fnmatchcase(n, k) for n in kept)}
+    try:
+        verdicts = compare(old, result, signals=kept, **{**rule, "tolerances": tolerances})
+    except CosimError as e:
+        return "; ".join(parts + [str(e)])
+    changed = [f"{v.signal} (worst |new − old| {v.max_abs:.3g}" + (f" at t = {v.worst.time:.6g} s)" if v.worst else ")")
+               for v in verdicts if not v.passed]
+    parts.append(f"changed: {', '.join(changed)}" if changed else "no signal out of tolerance")
+    return "; ".join(parts)
 
 
 @pytest.fixture

@@ -9,8 +9,11 @@ sibling ``<out_dir>/<Name>3.fmu`` from the same slave (`greyfmu.fmi3`, with
 - ``ModelStructure/Outputs/Unknown`` gets ``dependencies`` from the slave class's
   ``output_dependencies`` (pythonfmu omits it, which means "depends on every input");
 - ``UnitDefinitions`` declares every unit the variables use;
+- the ``org.greyfmu`` annotation (`greyfmu.wiring`) says the sample time and what to wire (the FMI
+  2.0 description's VendorAnnotations, the FMI 3.0 one's Annotations);
 - then `greyfmu.dropin` makes it a drop-in FMU: greyfmu's loader as the linux64 binary, a
-  stable GUID, version/licence/copyright, ``documentation/`` with index.html and the licences.
+  stable GUID, version/licence/copyright, ``documentation/`` with index.html and the licences;
+- last, `greyfmu.lsref` adds the FMI-LS-REF reference experiment (``extra/``), run on the FMU built.
 
 The embedded greyfmu package leaves out what only builds FMUs (`BUILD_ONLY`).
 
@@ -34,6 +37,7 @@ from pythonfmu.builder import FmuBuilder, get_model_class
 from greyfmu.dropin import BuildError, drop_in
 from greyfmu.fmi3 import SUFFIX, _enumeration_items, drop_in3, fmi3_name, model_description3  # noqa: F401 (tests)
 from greyfmu.loader import PLATFORMS, compiler
+from greyfmu.lsref import with_reference
 from greyfmu.names import canonical_name, unknown_message
 from greyfmu.wiring import annotate
 
@@ -50,7 +54,7 @@ SLAVE_FILES3 = (*SLAVE_FILES, SLAVE_BASE3)
 """The modules every FMI 3.0 FMU embeds next to its slave module (and the greyfmu package)."""
 DEFAULT_OUT_DIR = REPOSITORY_ROOT / "build" / "fmus"
 BUILD_ONLY = ("build.py", "cli.py", "dropin.py", "documentation.py", "fmi3.py", "privatise.py", "catalogue.py",
-              "names.py", "wiring.py", "loader", "licenses", "__pycache__", "*.pyc")
+              "names.py", "wiring.py", "lsref.py", "loader", "licenses", "__pycache__", "*.pyc")
 """Files and folders of the greyfmu package that build FMUs and are not embedded in them."""
 ARCHIVE_TIME = (1980, 1, 1, 0, 0, 0)
 """The time stamp of every archive entry, so that rebuilding changes no byte but what changed."""
@@ -206,6 +210,7 @@ def _build_one(script: Path, fmu: Path, fmi3: bool = False) -> None:
         script_class = slave_class(script)
         partial = fmu.with_name(f".{fmu.name}.{os.getpid()}.partial")  # same folder: the replace is atomic
         _rewrite_model_description(Path(built), partial, script_class, fmi3)
+        with_reference(partial, _write_archive)  # extra/org.fmi-standard.fmi-ls-ref (greyfmu.lsref)
         os.replace(partial, fmu)
 
 

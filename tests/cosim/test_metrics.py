@@ -1,4 +1,4 @@
-"""cosim metrics and cosim compare, checked on responses with known closed forms."""
+"""cosim metrics, checked on responses with known closed forms (cosim compare: test_regression_engine.py)."""
 from __future__ import annotations
 
 import math
@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
-from cosim.errors import SetupError
-from cosim.present.metrics import Tolerance, compare, step_metrics, tolerance_for
+from cosim.present.metrics import step_metrics
 
 
 def first_order(T=5.0, t0=2.0, dt=1e-3, stop=80.0):
@@ -47,86 +46,6 @@ def test_window_and_disturbance_only_runs():
     assert math.isnan(windowed["settling_time"])          # not settled by t1
     flat = step_metrics(t, y, np.ones_like(t), t0=10.0)   # setpoint unchanged: a disturbance run
     assert math.isnan(flat["overshoot"]) and math.isnan(flat["rise_time"])
-
-
-def _csv(path, t, **signals):
-    names = ["time", *signals]
-    rows = np.column_stack([t, *signals.values()])
-    with open(path, "w") as f:
-        f.write(",".join(f'"{n}"' for n in names) + "\n")
-        np.savetxt(f, rows, fmt="%.17g", delimiter=",")
-    return str(path)
-
-
-def test_compare_cli_exit_codes(tmp_path, capsys):
-    t, y, r = first_order(stop=10.0)
-    a = _csv(tmp_path / "a.csv", t, **{"plant.y": y, "setpoint.y": r})
-    b = _csv(tmp_path / "b.csv", t, **{"plant.y": y * (1 + 1e-9), "setpoint.y": r})
-    c = _csv(tmp_path / "c.csv", t, **{"plant.y": y + 1e-3, "setpoint.y": r})
-    assert main(["compare", a, b]) == 0
-    assert main(["compare", a, c]) == 1
-    out = capsys.readouterr().out
-    assert "DIFF plant.y: max |diff| 0.001" in out and "1 of 2 signals agree" in out
-    assert main(["compare", a, c, "--atol", "2e-3"]) == 0
-    assert main(["compare", a, c, "--signals", "setpoint.*"]) == 0
-    d = _csv(tmp_path / "d.csv", t[:-1], **{"plant.y": y[:-1], "setpoint.y": r[:-1]})
-    assert main(["compare", a, d]) == 2
-    assert "time grids differ" in capsys.readouterr().err
-
-
-def test_compare_function_names_missing_signals():
-    t, y, r = first_order(stop=1.0)
-    a = np.empty(len(t), dtype=[("time", float), ("plant.y", float)])
-    a["time"], a["plant.y"] = t, y
-    with pytest.raises(Exception) as err:
-        compare(a, a, signals=["plant.z"])
-    assert "plant.y" in str(err.value)
-
-
-def test_the_most_specific_tolerance_key_wins():
-    default = Tolerance(1e-6, 1e-9)
-    tolerances = {"*": (1e-1, 0.0), "plant.*": (1e-2, 0.0), "plant.y?": {"rtol": 1e-3}, "plant.y": (1e-4, 1e-5)}
-    assert tolerance_for("plant.y", tolerances, default) == Tolerance(1e-4, 1e-5)       # exact name
-    assert tolerance_for("plant.y2", tolerances, default) == Tolerance(1e-3, 1e-9)      # missing atol: default's
-    assert tolerance_for("plant.u", tolerances, default) == Tolerance(1e-2, 0.0)
-    assert tolerance_for("controller.u", tolerances, default) == Tolerance(1e-1, 0.0)
-    assert tolerance_for("controller.u", {}, default) == default
-    for bad in [{"plant.y": (1e-3,)}, {"plant.y": {"rtol": 1e-3, "atl": 0}}, {"plant.y": (-1.0, 0.0)}]:
-        with pytest.raises(SetupError, match="plant.y"):
-            tolerance_for("plant.y", bad, default)
-
-
-def test_compare_reports_the_first_sample_out_of_band_per_signal():
-    t, y, r = first_order(stop=10.0)
-    a = np.empty(len(t), dtype=[("time", float), ("plant.y", float), ("setpoint.y", float)])
-    a["time"], a["plant.y"], a["setpoint.y"] = t, y, r
-    b = a.copy()
-    b["plant.y"][(t >= 5.0) & (t < 5.0105)] += 1e-4     # 11 samples out from t = 5 s
-    loose, tight = compare(a, b, tolerances={"plant.*": (0.0, 2e-4)}), compare(a, b)
-    assert all(d.ok for d in loose)
-    y_diff = tight[0]
-    assert not y_diff.ok and tight[1].ok and y_diff.samples_out == 11
-    assert y_diff.first_time == pytest.approx(5.0) and y_diff.first_reference == a["plant.y"][5000]
-    assert y_diff.first_value == b["plant.y"][5000] and y_diff.first_bound == pytest.approx(1e-9 + 1e-6 * y[5000])
-    assert "plant.y: first at t = 5 s" in y_diff.describe() and "(rtol 1e-06, atol 1e-09)" in y_diff.describe()
-    with pytest.raises(SetupError, match="'plant.yy'.*matches no compared signal.*Did you mean 'plant.y'"):
-        compare(a, b, tolerances={"plant.yy": (1.0, 1.0)})
-    with pytest.raises(SetupError, match=r"the time grids differ \(10001 samples from 0 to 10 s, step 0.001 s vs "
-                                         r"10001 samples .*; sample 1 is at 0.001 s vs 0.002 s\)"):
-        shifted = a.copy()
-        shifted["time"][1:] += 1e-3
-        compare(a, shifted)
-
-
-def test_compare_cli_per_signal_tolerances(tmp_path, capsys):
-    t, y, r = first_order(stop=10.0)
-    a = _csv(tmp_path / "a.csv", t, **{"plant.y": y, "setpoint.y": r})
-    c = _csv(tmp_path / "c.csv", t, **{"plant.y": y + 1e-3, "setpoint.y": r})
-    assert main(["compare", a, c, "--tolerance", "plant.*=0,2e-3"]) == 0
-    assert main(["compare", a, c, "--tolerance", "plant.*=0,2e-3", "--tolerance", "plant.y=0,1e-4"]) == 1
-    assert "plant.y: first at t = 0 s: value 0.001, reference 0, |diff| 0.001 > 0.0001" in capsys.readouterr().out
-    assert main(["compare", a, c, "--tolerance", "plant.y=1e-3"]) == 2
-    assert "not GLOB=RTOL,ATOL" in capsys.readouterr().err
 
 
 def test_the_reasons_line_reads_back_as_the_mapping_it_was_written_from():

@@ -4,19 +4,15 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from browser import CHROMIUM, MISSING, chromium
+
 from cosim.cli import main
 from cosim.present.plots import default_panels, label, setpoints
-
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
 @pytest.fixture(scope="module")
@@ -60,14 +56,7 @@ def test_the_page_is_for_people_and_holds_no_path_of_this_machine(run):
         assert str(folder) not in page and str(folder) not in meta
 
 
-def _chromium(*args: str, tmp: Path) -> subprocess.CompletedProcess:
-    profile = tmp / "profile"
-    profile.mkdir(exist_ok=True)
-    return subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={profile}", *args], capture_output=True,
-                          text=True, timeout=120)
-
-
-@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (.ci/run installs Debian's chromium)")
+@pytest.mark.skipif(CHROMIUM is None, reason=MISSING)
 def test_chromium_decodes_the_figure_and_the_screenshot_shows_it(run, tmp_path):
     page = run.with_suffix(".html").read_text()
     # a copy of the page with one more script reports what Chromium made of each <img>
@@ -75,14 +64,14 @@ def test_chromium_decodes_the_figure_and_the_screenshot_shows_it(run, tmp_path):
     probe.write_text(page.replace("</body>", "<script>document.body.setAttribute('data-images', JSON.stringify("
                                   "[...document.images].map(i => [i.complete, i.naturalWidth, i.naturalHeight])))"
                                   "</script></body>"))
-    dom = _chromium("--dump-dom", probe.as_uri(), tmp=tmp_path).stdout
+    dom = chromium("--dump-dom", probe.as_uri(), tmp=tmp_path).stdout
     found = re.search(r'data-images="([^"]*)"', dom)
     assert found, dom[-2000:]
     (complete, width, height), = json.loads(found.group(1).replace("&quot;", '"'))
     assert complete and width == 900 and height > 400          # 9 in × 100 dpi, the figure decoded
     shot = tmp_path / "shot.png"
-    _chromium("--window-size=1200,1400", "--virtual-time-budget=10000", f"--screenshot={shot}",
-              run.with_suffix(".html").as_uri(), tmp=tmp_path)
+    chromium("--window-size=1200,1400", "--virtual-time-budget=10000", f"--screenshot={shot}",
+             run.with_suffix(".html").as_uri(), tmp=tmp_path)
     from matplotlib.image import imread
     pixels = (imread(shot)[..., :3] * 255).round().astype(int)
     # the first two line colours (set-point, process output; Plotly's and matplotlib's) are on screen:
@@ -143,7 +132,7 @@ def test_default_panels_of_a_plant_with_several_loops():
     assert label("p_meas.y", meta) == "p_meas.y — Measured process output"   # not the Sum's generic text
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (.ci/run installs Debian's chromium)")
+@pytest.mark.skipif(CHROMIUM is None, reason=MISSING)
 def test_the_interactive_plot_renders_offline_and_zooms(run, tmp_path):
     """Issue 27 item 3: Plotly written into the page; Chromium with every host name unresolvable
     draws the plot (one trace per signal, the zoom button in its toolbar) and zooms it."""
@@ -160,8 +149,8 @@ Plotly.relayout(gd, {'xaxis.range': [140, 170]}).then(() => document.body.setAtt
                   gd.querySelectorAll('.hoverlayer').length,
                   gd.layout.shapes.filter(s => s.type === 'rect').map(s => [s.x0, s.x1, s.y0, s.y1])])));
 </script></body>"""))
-    dom = _chromium("--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=10000", "--dump-dom",
-                    probe.as_uri(), tmp=tmp_path).stdout
+    dom = chromium("--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=10000", "--dump-dom",
+                   probe.as_uri(), tmp=tmp_path).stdout
     found = re.search(r'data-plot="([^"]*)"', dom)
     assert found, dom[-2000:]
     (traces, zoom_button), x1, x2, hover, bands = json.loads(found.group(1).replace("&quot;", '"'))

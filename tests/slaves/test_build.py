@@ -286,6 +286,8 @@ def test_rebuilding_gives_a_byte_identical_model_description_and_the_same_guid(b
         with zipfile.ZipFile(a) as one, zipfile.ZipFile(b) as other, zipfile.ZipFile(built_fmus[name]) as kept:
             assert one.read("modelDescription.xml") == other.read("modelDescription.xml") \
                 == kept.read("modelDescription.xml")
+            extra = sorted(n for n in one.namelist() if n.startswith("extra/"))   # the reference experiment (issue 43)
+            assert len(extra) == 4 and all(one.read(n) == other.read(n) for n in extra)
     assert read_model_description(str(first[0])).guid != read_model_description(str(first[1])).guid
 
 
@@ -358,7 +360,8 @@ def test_fmu_carries_only_what_it_runs(built_fmus, name):
         f"resources/{package}/pythonfmu/{runtime}" for runtime in PYTHONFMU.modules}
     assert {f"resources/{package}/{entry}.py" for entry in (name, "_slave", "_inprocess", "_state")} <= names
     build_side = {f"resources/{package}/greyfmu/{entry}" for entry in
-                  ("build.py", "cli.py", "dropin.py", "documentation.py", "privatise.py")}
+                  ("build.py", "cli.py", "dropin.py", "documentation.py", "privatise.py", "lsref.py", "catalogue.py",
+                   "names.py", "wiring.py", "fmi3.py")}
     assert not names & build_side
     assert not any(entry.startswith((f"resources/{package}/greyfmu/loader/", f"resources/{package}/greyfmu/licenses/"))
                    for entry in names)
