@@ -243,7 +243,7 @@ def test_an_fmi3_fmu_answers_a_hostile_windows_host_as_on_linux(windows_python, 
     """PID3 (the FMI 3.0 build of PID, issue 41): its x86_64-windows binary is greyfmu's FMI 3.0 loader
     (it exports the fmi3 functions, imports no Python), and tests/hostile_host3.c built with mingw-w64
     and run under Wine with no Python gives every case the results and log lines it gives on Linux."""
-    from test_fmi3 import HOST_SOURCE as HOSTILE3, compile_host3, host3_arguments, parse_host3, run_host3
+    from test_fmi3_builds import HOST_SOURCE as HOSTILE3, compile_host3, host3_arguments, parse_host3, run_host3
 
     (fmu,) = build_fmus(["PID3"], out_dir=tmp_path / "built")
     arguments, has = host3_arguments(fmu, tmp_path / "PID3")
