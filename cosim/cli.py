@@ -1,4 +1,4 @@
-"""``cosim``: run, validate, inspect, sweep and pack SSP systems and single FMUs (FMI 2.0, 3.0; CS, ME).
+"""``cosim``: run, validate, inspect, sweep, tune and pack SSP systems and single FMUs (FMI 2.0, 3.0; CS, ME).
 
 Exit status: 0 done, 1 the run failed, crashed or timed out (results up to the last
 good step are kept), 2 the input is wrong (nothing was run), 130/143 the run was
@@ -168,6 +168,9 @@ def _parser() -> argparse.ArgumentParser:
                             "the reset FMU instances in each worker across its runs")
     sweep.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
 
+    from .tune.cli import add_parser as tune_parser
+    tune_parser(sub, common, input_options, _seconds, QUIET_HELP)
+
     completion = sub.add_parser("completion", help="print a shell completion script (e.g. "
                                                    "eval \"$(cosim completion bash)\")")
     completion.add_argument("shell", choices=["bash", "zsh", "tcsh"])
@@ -231,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
             warnings.simplefilter("default", RuntimeWarning)
             warnings.showwarning = _print_warning
             code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
-                    "report": _report, "compare": _compare, "sweep": _sweep,
+                    "report": _report, "compare": _compare, "sweep": _sweep, "tune": _tune,
                     "completion": _completion}[args.command](args)
         sys.stdout.flush()  # a closed pipe is reported here, not at interpreter exit
         return code
@@ -597,6 +600,12 @@ def _sweep(args) -> int:
           f"{f' and {result.parquet}' if result.parquet else ''}"
           + (f", results in {output / 'runs'}" if args.run_files else ""))
     return 1 if result.failed else 0
+
+
+def _tune(args) -> int:
+    from .tune.cli import run
+
+    return run(args, _say, _progress(args), _print_warning)
 
 
 def _print_warning(message, *_) -> None:

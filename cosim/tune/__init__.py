@@ -55,14 +55,14 @@ from ..single import load_scenario, prepare_scenario
 from ..sweep.dispatch import Executor
 from ..sweep.values import _seed_parameters, identity_of
 from .engines import engine
-from .evaluations import Evaluation, Evaluator, Objective, make_task, read_known
+from .evaluations import Evaluation, Evaluator, Objective, make_task, read_known, schema_of
 from .measures import CallableTerm, Constraint, Measurement, MetricTerm, parse_constraint, parse_term, \
     resolve_setpoints, shippable
 from .optimizers import METHODS, DifferentialEvolution, NelderMead
 from .space import Parameter, SearchSpace, as_parameter, parse_parameter
 
 __all__ = ["CallableTerm", "Constraint", "DifferentialEvolution", "MetricTerm", "NelderMead", "Parameter",
-           "TuneResult", "tune"]
+           "TuneResult", "read_evaluations", "tune"]
 
 #: evaluations when none is given
 DEFAULT_EVALUATIONS = 300
@@ -247,7 +247,8 @@ def tune(scenario: str | Path, parameters: Mapping[str, Any] | Sequence[str | Pa
                     "optimizer": {k: v for k, v in vars(optimizer).items()}, "max_evaluations": max_evaluations,
                     "seed": seed, "seeds": list(seeds), "seed_parameters": seed_names,
                     "parameter_sets": [str(p) for p in parameter_sets], "start_values": list(start_values),
-                    "grid": [prepared.grid.start, prepared.grid.stop, prepared.grid.step], "context": digest}
+                    "grid": [prepared.grid.start, prepared.grid.stop, prepared.grid.step], "context": digest,
+                    "columns": [list(c) for c in schema_of(space, goal).columns]}
 
         csv, parquet, meta = output / "tune.csv", output / "tune.parquet", output / "tune.json"
         for table in (csv, parquet):
@@ -286,6 +287,18 @@ def tune(scenario: str | Path, parameters: Mapping[str, Any] | Sequence[str | Pa
         result.seconds = time.perf_counter() - began
         write_atomic(meta, json.dumps({"settings": settings, "result": _summary(result)}, indent=1))
         return result
+
+
+def read_evaluations(folder: str | Path) -> list[dict[str, Any]]:
+    """The rows of a tuning's ``tune.csv`` in ``folder``, each column typed as its ``tune.json`` says."""
+    from ..sweep.table import Schema, read_table
+
+    folder = Path(folder)
+    try:
+        columns = json.loads((folder / "tune.json").read_text())["settings"]["columns"]
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise SetupError(f"not a tuning's folder: no readable tune.json ({e}).", file=str(folder)) from None
+    return read_table(folder / "tune.csv", Schema(tuple(tuple(c) for c in columns)))
 
 
 def _earlier(meta: Path, csv: Path, digest: str, space: SearchSpace, goal: Objective) -> dict[str, Evaluation]:

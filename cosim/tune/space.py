@@ -143,7 +143,7 @@ class SearchSpace:
 
     def values(self, x: Sequence[float]) -> dict[str, float | int]:
         """The parameters' values at point ``x`` (the scenario's own value exactly at its coordinate)."""
-        return {p.name: v if v is not None and float(xi) == p.coordinate(v) else p.value(xi)
+        return {p.name: v if v is not None and _near(float(xi), p) == _near(p.coordinate(v), p) else p.value(xi)
                 for p, v, xi in zip(self.parameters, self.current, x)}
 
     def x0(self) -> np.ndarray | None:
@@ -154,6 +154,13 @@ class SearchSpace:
 
     def describe(self) -> Mapping[str, str]:
         return {p.name: p.text() for p in self.parameters}
+
+
+def _near(x: float, p: Parameter) -> float:
+    """``x`` rounded to 1e-12 of the parameter's range: the optimiser's scaling to its unit box and
+    back moves a coordinate by a few ulps, which must not make the scenario's own value another point."""
+    lo, hi = p.bounds()
+    return round((x - lo) / (hi - lo), 12)
 
 
 def _number(text: str | None) -> float | None:
