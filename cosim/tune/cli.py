@@ -1,7 +1,6 @@
 """``cosim tune``'s options and command (hooked into `cosim.cli`)."""
 from __future__ import annotations
 
-import argparse
 import sys
 import warnings
 from collections.abc import Callable

@@ -16,8 +16,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import sys
-import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,10 +31,6 @@ from ..sweep.table import Schema, read_table, write_table
 from .engines import Engine
 from .measures import ERROR_COLUMN, Constraint, Measurement
 from .space import SearchSpace
-
-#: statuses of an evaluation: its runs completed and every term measured / a run failed / a term undefined
-STATUSES = ("completed", "failed", "unmeasured")
-
 
 @dataclass(frozen=True)
 class Objective:
@@ -55,7 +49,9 @@ class Objective:
 
 @dataclass
 class Evaluation:
-    """One point: its values, what its runs gave and what the optimiser sees (`value`)."""
+    """One point: its values, what its runs gave and what the optimiser sees (`value`).  ``status``:
+    "completed" (every run completed, every term measured), "failed" (a run failed: its error
+    code and message) or "unmeasured" (a term undefined: why)."""
     index: int
     batch: int
     key: str

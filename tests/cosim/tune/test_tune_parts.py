@@ -184,3 +184,13 @@ def test_bad_names_and_signals_are_refused_before_any_run(loop, tmp_path):
         with pytest.raises(SetupError, match=match):
             tune(loop, parameters, objective=objective, executor="serial", output=tmp_path)
     assert not (tmp_path / "tune.csv").exists()
+
+
+def test_a_dask_cluster_gives_the_serial_tuning(loop, tmp_path):
+    pytest.importorskip("distributed")
+    options = dict(objective="ITAE:plant.y:setpoint.y", constraints=["overshoot:plant.y:setpoint.y<=1%"],
+                   method=DifferentialEvolution(popsize=5), max_evaluations=10, report=False)
+    serial = tune(loop, {"gain.k": (0.1, 50, "log")}, executor="serial", output=tmp_path / "s", **options)
+    on_dask = tune(loop, {"gain.k": (0.1, 50, "log")}, executor="local:2", output=tmp_path / "d", **options)
+    assert [(e.values, e.objective, e.constraints) for e in on_dask.evaluations] == \
+        [(e.values, e.objective, e.constraints) for e in serial.evaluations]
