@@ -150,10 +150,7 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                        help="parameter set applied to every run before the swept values (repeatable)")
     input_options(sweep)
-    sweep.add_argument("--start", type=_seconds, help="start time [s] (default: DefaultExperiment or 0)")
-    sweep.add_argument("--stop", type=_seconds, help="stop time [s] (default: DefaultExperiment)")
-    sweep.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation)")
-    sweep.add_argument("--workers", type=int, metavar="N", help="processes of the local pool (default: one per core)")
+    batch_options(sweep)
     sweep.add_argument("--scheduler", metavar="ADDRESS",
                        help="run on a Dask distributed cluster (tcp://host:8786), or 'local:N' for a local "
                             "Dask cluster of N worker processes")
@@ -169,7 +166,7 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
 
     from .tune.cli import add_parser as tune_parser
-    tune_parser(sub, common, input_options, _seconds, QUIET_HELP)
+    tune_parser(sub, common, input_options, batch_options, QUIET_HELP)
 
     completion = sub.add_parser("completion", help="print a shell completion script (e.g. "
                                                    "eval \"$(cosim completion bash)\")")
@@ -204,6 +201,14 @@ def _progress(args) -> bool:
 
 
 FMI_TYPE_HELP = "the interface of an FMU that has both (default: CoSimulation); a single .fmu only"
+
+
+def batch_options(sp: argparse.ArgumentParser) -> None:
+    """--start, --stop, --step and --workers of the commands that make many runs (sweep, tune)."""
+    sp.add_argument("--start", type=_seconds, help="start time [s] (default: DefaultExperiment or 0)")
+    sp.add_argument("--stop", type=_seconds, help="stop time [s] (default: DefaultExperiment)")
+    sp.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation)")
+    sp.add_argument("--workers", type=int, metavar="N", help="processes of the local pool (default: one per core)")
 
 
 def input_options(run: argparse.ArgumentParser) -> None:

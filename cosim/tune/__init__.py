@@ -36,6 +36,7 @@ import hashlib
 import inspect
 import json
 import os
+import shlex
 import sys
 import time
 import warnings
@@ -189,7 +190,7 @@ def tune(scenario: str | Path, parameters: Mapping[str, Any] | Sequence[str | Pa
     Raises `SetupError` before any run for a bad name, bound, term or option.
     """
     began = time.perf_counter()
-    scenario = Path(scenario).resolve()
+    scenario_text, scenario = scenario, Path(scenario).resolve()
     optimizer = METHODS[method]() if isinstance(method, str) and method in METHODS else method
     if not isinstance(optimizer, (DifferentialEvolution, NelderMead)):
         raise SetupError(f"unknown method {method!r}; give one of {', '.join(METHODS)}.", element="--method")
@@ -257,14 +258,11 @@ def tune(scenario: str | Path, parameters: Mapping[str, Any] | Sequence[str | Pa
             for old in (csv, parquet):
                 old.unlink(missing_ok=True)
         write_atomic(meta, json.dumps({"settings": settings}, indent=1))
-        budget = max_evaluations
-        if isinstance(optimizer, DifferentialEvolution):
-            size = optimizer.generation(len(space.parameters))
-            budget = size * max(budget // size, 1)
         bar = None
         if progress:
             from tqdm import tqdm
-            bar = stack.enter_context(tqdm(total=budget, unit="eval", desc=f"tune {scenario.name}", file=sys.stderr))
+            bar = stack.enter_context(tqdm(total=max_evaluations, unit="eval", desc=f"tune {scenario.name}",
+                                           file=sys.stderr))
         sweep_key = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
         task = make_task(prepared, scenario, parameter_sets, fmu_dirs, start_values, inputs, sweep_key,
                          measurement, reuse)
@@ -281,8 +279,13 @@ def tune(scenario: str | Path, parameters: Mapping[str, Any] | Sequence[str | Pa
         evaluations, best = evaluator.evaluations, evaluator.best
         result = TuneResult(evaluations, best, message, time.perf_counter() - began, output, csv, settings=settings)
         if best is not None:
-            result.ssv = _write_outputs(result, prepared, loaded, space, goal, parameter_sets, start_values,
-                                        seed_names, seeds, optimizer.name, report)
+            fixed = [*start_values, *([f"{n}={seeds[0]}" for n in seed_names] if seeds else [])]
+            given = [("--fmu-dir", d) for d in fmu_dirs] + [("--param-set", p) for p in parameter_sets] + \
+                [("--param-set", output / "best.ssv")] + [("--start-value", v) for v in fixed] + \
+                [(o, v) for o, v in (("--input-file", input_file), ("--start", start_time), ("--stop", stop_time),
+                                     ("--step", step_size)) if v is not None]
+            result.command = shlex.join(["cosim", "run", str(scenario_text), *[str(x) for o, v in given for x in (o, v)]])
+            result.ssv = _write_outputs(result, prepared, loaded, space, goal, fixed, seeds, optimizer.name, report)
         result.seconds = time.perf_counter() - began
         write_atomic(meta, json.dumps({"settings": settings, "result": _summary(result)}, indent=1))
         return result
@@ -323,23 +326,17 @@ def _earlier(meta: Path, csv: Path, digest: str, space: SearchSpace, goal: Objec
 
 
 def _write_outputs(result: TuneResult, prepared: Prepared, loaded, space: SearchSpace, goal: Objective,
-                   parameter_sets: Sequence[Path], start_values: Sequence[str], seed_names: Sequence[str],
-                   seeds: Sequence[int], method: str, report: bool) -> Path:
-    """best.ssv, and with ``report`` the best run (best.csv, best.json), convergence.png and tune.html."""
+                   fixed: Sequence[str], seeds: Sequence[int], method: str, report: bool) -> Path:
+    """best.ssv, and with ``report`` the best run (best.csv, best.json; ``fixed``: its start values, the
+    first noise seed's among them), convergence.png and tune.html."""
     from ..report import write_report
     from .output import summary, write_best, write_convergence
 
-    output, best = result.output, result.best
+    output, best, settings = result.output, result.best, result.settings
     ssv = write_best(output / "best.ssv", space, best, name=f"best of cosim tune (evaluation {best.index})")
-    settings = result.settings
-    command = " ".join(["cosim run", _quote(settings["scenario"]), *[f"--param-set {_quote(p)}" for p in parameter_sets],
-                        f"--param-set {_quote(str(ssv))}", *[f"--start-value {_quote(s)}" for s in start_values],
-                        *([f"--start-value {n}={seeds[0]}" for n in seed_names] if seeds else [])])
-    result.command = command
     if not report:
         return ssv
     grid = prepared.grid
-    fixed = [*start_values, *([f"{n}={seeds[0]}" for n in seed_names] if seeds else [])]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)    # the tuning's plan has warned already
         again = prepare_scenario(loaded, parameter_sets=[ssv], start_values=fixed, start_time=grid.start,
@@ -350,14 +347,9 @@ def _write_outputs(result: TuneResult, prepared: Prepared, loaded, space: Search
     result.convergence, png = write_convergence(output / "convergence.png", result.evaluations, space, goal, title)
     section = summary(scenario=Path(settings["scenario"]).name, method=method, message=result.message, space=space,
                       objective=goal, evaluations=result.evaluations, best=best, seeds=seeds, png=png,
-                      command=command, seconds=result.seconds)
+                      command=result.command, seconds=result.seconds)
     result.report = write_report(result.result, output / "tune.html", before=section)
     return ssv
-
-
-def _quote(text: str) -> str:
-    import shlex
-    return shlex.quote(text)
 
 
 def _summary(result: TuneResult) -> dict[str, Any]:

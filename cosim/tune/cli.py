@@ -11,7 +11,8 @@ from . import DEFAULT_EVALUATIONS
 from .optimizers import METHODS, DifferentialEvolution, NelderMead
 
 
-def add_parser(sub, common: Callable, input_options: Callable, seconds: Callable, quiet_help: str) -> None:
+def add_parser(sub, common: Callable, input_options: Callable, batch_options: Callable, quiet_help: str) -> None:
+    """The ``tune`` subcommand, with `cosim.cli`'s option groups."""
     tune = sub.add_parser("tune", help="search the parameters that minimise a control-loop objective under "
                                        "constraints (SciPy's optimisers over parallel co-simulations)")
     common(tune)
@@ -40,6 +41,9 @@ def add_parser(sub, common: Callable, input_options: Callable, seconds: Callable
     tune.add_argument("--tol", type=float, default=DifferentialEvolution.tol,
                       help="differential evolution: stop when the generation's objectives spread less than TOL "
                            f"times their mean (default {DifferentialEvolution.tol})")
+    tune.add_argument("--polish", type=float, default=DifferentialEvolution.polish, metavar="SHARE",
+                      help="differential evolution: the share of --max-evaluations left to refine the best point "
+                           f"with Nelder-Mead (default {DifferentialEvolution.polish}; 0: none)")
     tune.add_argument("--optimizer-seed", type=int, default=0, metavar="N",
                       help="the optimiser's random seed (default 0): the same seed and settings give the same tuning")
     tune.add_argument("--seeds", metavar="1..5|1,5,9",
@@ -50,10 +54,7 @@ def add_parser(sub, common: Callable, input_options: Callable, seconds: Callable
     tune.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                       help="parameter set applied to every run before the tuned values (repeatable)")
     input_options(tune)
-    tune.add_argument("--start", type=seconds, help="start time [s] (default: DefaultExperiment or 0)")
-    tune.add_argument("--stop", type=seconds, help="stop time [s] (default: DefaultExperiment)")
-    tune.add_argument("--step", type=seconds, help="communication step [s] (default: SSD annotation)")
-    tune.add_argument("--workers", type=int, metavar="N", help="processes of the local pool (default: one per core)")
+    batch_options(tune)
     tune.add_argument("--scheduler", metavar="ADDRESS",
                       help="run on a Dask cluster (tls://host:8786), 'local:N' for a local one, or 'serial' for "
                            "this process")
@@ -80,8 +81,10 @@ def run(args, say: Callable[[object, str], None], progress: bool, print_warning:
         raise SetupError(f"--workers {args.workers}: give at least 1.", element="--workers")
     if args.popsize < 1:
         raise SetupError(f"--popsize {args.popsize}: give at least 1.", element="--popsize")
-    method = DifferentialEvolution(popsize=args.popsize, tol=args.tol) if args.method == DifferentialEvolution.name \
-        else NelderMead()
+    if not 0 <= args.polish < 1:
+        raise SetupError(f"--polish {args.polish}: give a share from 0 to below 1.", element="--polish")
+    method = DifferentialEvolution(popsize=args.popsize, tol=args.tol, polish=args.polish) \
+        if args.method == DifferentialEvolution.name else NelderMead()
     output = Path(args.output) if args.output else \
         Path("results") / f"{result_stem(Path(args.path).resolve().stem, args.param_set, what='the scenario name')}_tune"
     try:

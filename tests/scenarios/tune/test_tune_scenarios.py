@@ -40,7 +40,7 @@ def test_cosim_tune_writes_a_best_ssv_that_cosim_run_reproduces(built_fmus, tmp_
     assert rows[0]["controller.Kc"] == 8.0345 and not rows[0]["feasible"]      # the scenario's PID: 33 % overshoot
     # the printed command reproduces the best point's objective and constraint
     command = next(line for line in done.stdout.splitlines() if line.startswith("cosim: run them: "))
-    assert command.endswith(f"--param-set {out / 'best.ssv'}")
+    assert f"--param-set {out / 'best.ssv'} --stop 80.0" in command
     again = _cosim("run", str(PID_FOPDT), "--param-set", str(out / "best.ssv"), "--stop", "80",
                    "-o", str(tmp_path / "again.csv"), "--quiet")
     assert again.returncode == 0, again.stderr
@@ -77,7 +77,7 @@ def test_a_run_that_kills_its_worker_is_a_failed_point_and_the_tuning_goes_on(tm
     system = write_system(tmp_path / "system", {"Aborting.fmu": fmu},
                           ssd_text("crash", {"crash": ("Aborting.fmu", {"y": "output"})}, [], stop=1.0, step=0.05))
     result = tune(system, {"crash.abort_time": (0.2, 1.5)}, objective=final_time,
-                  method=DifferentialEvolution(popsize=5), max_evaluations=5, workers=2, output=tmp_path / "t",
+                  method=DifferentialEvolution(popsize=5, polish=0), max_evaluations=5, workers=2, output=tmp_path / "t",
                   report=False)
     lost = [ev for ev in result.evaluations if ev.values["crash.abort_time"] < 1.0]
     assert len(result.evaluations) == 5 and lost
@@ -89,7 +89,8 @@ def test_a_noisy_plant_is_tuned_on_the_mean_over_its_seeds_and_the_worst_seeds_c
     noisy = ROOT / "ssp" / "pid_fopdt_noise"
     result = tune(noisy, {"controller.Td": (0.0, 3.0)}, objective="ITAE:plant.y:setpoint.y",
                   constraints=["overshoot:plant.y:setpoint.y<=40%"], seeds=[1, 2, 3], stop_time=60,
-                  method=DifferentialEvolution(popsize=5), max_evaluations=5, workers=2, output=tmp_path, report=False)
+                  method=DifferentialEvolution(popsize=5, polish=0), max_evaluations=5, workers=2, output=tmp_path,
+                  report=False)
     ev = result.best
     itae, overshoot = [], []
     for seed in (1, 2, 3):
