@@ -11,10 +11,10 @@
   ``polish`` share of the budget refines the best feasible point with Nelder–Mead (infeasible
   points are +inf to it, a barrier), where SciPy's own ``polish`` runs L-BFGS-B on
   finite-difference gradients without a budget.  The defaults (``currenttobest1bin``,
-  ``popsize`` 5, ``polish`` 0.2) are the study of docs/tuning.md: on a cubic surrogate of
-  the committed FOPDT grid, none of 32 seeds ended more than 2 % above the grid's best in
-  240 evaluations, against 2 of 32 with SciPy's default strategy ``best1bin`` and 5 of 32
-  without the polish at 160 evaluations.
+  ``popsize`` 5, ``polish`` 0.2) come from docs/tune_surrogate_study.py: on a cubic
+  surrogate of the committed FOPDT grid, none of 32 seeds ended more than 2 % above the grid's
+  best in 240 evaluations, against 2 of 32 with SciPy's default strategy ``best1bin`` and 18
+  of 32 without the polish (31 of 32 with SciPy's defaults, popsize 15).
 - `NelderMead`: a local simplex search from the scenario's own values, one point at a time
   (the noise seeds of a point run in parallel); no constraints.
 
