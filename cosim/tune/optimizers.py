@@ -92,7 +92,7 @@ class DifferentialEvolution:
             polish=False, vectorized=True, updating="deferred",
             x0=None if x0 is None else np.where(integral, np.round(x0), x0),
             integrality=integral if integral.any() else None, **_random(differential_evolution, seed), **extra)
-        message = str(result.message)
+        message = str(result.message).rstrip(".")
         best = evaluator.best
         left = budget - len(evaluator.evaluations)
         if polish and left > len(space.parameters) + 1 and best is not None and best.feasible:
