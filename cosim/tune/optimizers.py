@@ -59,7 +59,7 @@ class DifferentialEvolution:
         integral = space.integrality()
         polish = 0 if integral.any() else int(budget * self.polish)
         if budget - polish < size:
-            raise SetupError(f"--max-evaluations {budget} leaves less than one generation of differential evolution "
+            raise SetupError(f"{budget} evaluations leave less than one generation of differential evolution "
                              f"({size} points: --popsize {self.popsize} x {len(space.parameters)} parameters) before "
                              f"the Nelder-Mead polish ({polish}); raise it or lower --popsize.",
                              element="--max-evaluations")
