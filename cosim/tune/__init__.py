@@ -200,8 +200,8 @@ def tune(scenario: str | Path, parameters: Mapping[str, Any] | Sequence[str | Pa
         else [as_parameter(name, spec) for name, spec in parameters.items()]
     weighted = _objective_terms(objective)
     limits = _constraints(constraints)
-    fixed = {text.partition("=")[0].strip() for text in start_values}
-    clash = sorted(fixed & {p.name for p in wanted})
+    started = {text.partition("=")[0].strip() for text in start_values}
+    clash = sorted(started & {p.name for p in wanted})
     if clash:
         raise SetupError(f"{', '.join(clash)} is both tuned and given a start value.", element="--start-value")
     parameter_sets = [Path(p).resolve() for p in parameter_sets]
@@ -283,7 +283,7 @@ def tune(scenario: str | Path, parameters: Mapping[str, Any] | Sequence[str | Pa
             given = [("--fmu-dir", d) for d in fmu_dirs] + [("--param-set", p) for p in parameter_sets] + \
                 [("--param-set", output / "best.ssv")] + [("--start-value", v) for v in fixed] + \
                 [(o, v) for o, v in (("--input-file", input_file), ("--start", start_time), ("--stop", stop_time),
-                                     ("--step", step_size)) if v is not None]
+                                     ("--step", step_size), ("--algorithm", algorithm)) if v is not None]
             result.command = shlex.join(["cosim", "run", str(scenario_text), *[str(x) for o, v in given for x in (o, v)]])
             result.ssv = _write_outputs(result, prepared, loaded, space, goal, fixed, seeds, optimizer.name, report)
         result.seconds = time.perf_counter() - began

@@ -194,3 +194,32 @@ def test_a_dask_cluster_gives_the_serial_tuning(loop, tmp_path):
     on_dask = tune(loop, {"gain.k": (0.1, 50, "log")}, executor="local:2", output=tmp_path / "d", **options)
     assert [(e.values, e.objective, e.constraints) for e in on_dask.evaluations] == \
         [(e.values, e.objective, e.constraints) for e in serial.evaluations]
+
+
+def test_ctrl_c_stops_cosim_tune_with_its_evaluations_kept_and_the_same_command_goes_on(loop, tmp_path):
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "out"
+    command = [COSIM, "tune", str(loop), "--param", "gain.k=0.1:50:log", "--objective", "ITAE:plant.y:setpoint.y",
+               "--popsize", "5", "--polish", "0", "--workers", "2", "-o", str(out)]
+    # as a terminal's foreground job: SIGINT at its default disposition (see tests/scenarios/sweep/test_interrupts.py)
+    default_sigint = [sys.executable, "-c", "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+                      "os.execv(sys.argv[1], sys.argv[1:])"]
+    process = subprocess.Popen(default_sigint + command + ["--max-evaluations", "100000"], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, start_new_session=True)
+    end = time.monotonic() + 300
+    while not ((out / "tune.csv").is_file() and len(read_evaluations(out)) >= 5):
+        assert process.poll() is None and time.monotonic() < end, process.communicate()
+        time.sleep(0.1)
+    os.killpg(process.pid, signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    kept = read_evaluations(out)
+    assert process.returncode == 130 and "Traceback" not in err, err
+    assert f"tuning interrupted; {len(kept)} evaluations are in {out / 'tune.csv'}" in err
+    assert [r["evaluation"] for r in kept] == list(range(len(kept)))
+    # the same tuning again (its first generation): every point answered from the table
+    again = subprocess.run(command + ["--max-evaluations", "5"], capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    assert "cosim: tune: 5 evaluations (0 run now)" in again.stdout
