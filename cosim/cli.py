@@ -1,4 +1,4 @@
-"""``cosim``: run, validate, inspect, sweep and pack SSP systems and single FMUs (FMI 2.0, 3.0; CS, ME).
+"""``cosim``: run, validate, inspect, sweep, tune and pack SSP systems and single FMUs (FMI 2.0, 3.0; CS, ME).
 
 Exit status: 0 done, 1 the run failed, crashed or timed out (results up to the last
 good step are kept), 2 the input is wrong (nothing was run), 130/143 the run was
@@ -153,10 +153,7 @@ def _parser() -> argparse.ArgumentParser:
                        help="parameter set applied to every run before the swept values (repeatable)")
     input_options(sweep)
     strict(sweep)
-    sweep.add_argument("--start", type=_seconds, help="start time [s] (default: DefaultExperiment or 0)")
-    sweep.add_argument("--stop", type=_seconds, help="stop time [s] (default: DefaultExperiment)")
-    sweep.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation)")
-    sweep.add_argument("--workers", type=int, metavar="N", help="processes of the local pool (default: one per core)")
+    batch_options(sweep)
     sweep.add_argument("--scheduler", metavar="ADDRESS",
                        help="run on a Dask distributed cluster (tcp://host:8786), or 'local:N' for a local "
                             "Dask cluster of N worker processes")
@@ -190,6 +187,9 @@ def _parser() -> argparse.ArgumentParser:
                                                     "controller's sample time, no longer than the plant's own step)")
     new.add_argument("--stop", type=_seconds, help="stop time [s] (default: the plant's DefaultExperiment, else 10)")
     new.add_argument("--force", action="store_true", help="overwrite a scenario already in the folder")
+
+    from .tune.cli import add_parser as tune_parser
+    tune_parser(sub, common, input_options, batch_options, QUIET_HELP)
 
     completion = sub.add_parser("completion", help="print a shell completion script (e.g. "
                                                    "eval \"$(cosim completion bash)\")")
@@ -229,6 +229,14 @@ def _progress(args) -> bool:
 FMI_TYPE_HELP = "the interface of an FMU that has both (default: CoSimulation); a single .fmu only"
 
 
+def batch_options(sp: argparse.ArgumentParser) -> None:
+    """--start, --stop, --step and --workers of the commands that make many runs (sweep, tune)."""
+    sp.add_argument("--start", type=_seconds, help="start time [s] (default: DefaultExperiment or 0)")
+    sp.add_argument("--stop", type=_seconds, help="stop time [s] (default: DefaultExperiment)")
+    sp.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation)")
+    sp.add_argument("--workers", type=int, metavar="N", help="processes of the local pool (default: one per core)")
+
+
 def input_options(run: argparse.ArgumentParser) -> None:
     """--start-value and --input-file (`cosim.plan.prepare`, `cosim.plan.inputs`), with fmpy simulate's names."""
     run.add_argument("--start-value", "--start-values", action="append", default=[], metavar="NAME=VALUE",
@@ -258,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _print_warning
             _strict(args)
             code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
-                    "report": _report, "sweep": _sweep, "new": _new, "completion": _completion,
+                    "report": _report, "sweep": _sweep, "new": _new, "tune": _tune, "completion": _completion,
                     **COMMANDS}[args.command](args)
         sys.stdout.flush()  # a closed pipe is reported here, not at interpreter exit
         return code
@@ -648,6 +656,12 @@ def _new(args) -> int:
         print(f"  left to wire: {line}")
     print(f"cosim: tune the controller in {made.folder / 'controller.ssv'}; run it with: cosim run {made.folder} --plot")
     return 0
+
+
+def _tune(args) -> int:
+    from .tune.cli import run
+
+    return run(args, _say, _progress(args), _print_warning)
 
 
 def _print_warning(message, *_) -> None:

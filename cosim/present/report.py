@@ -134,8 +134,9 @@ def _table(rows: Sequence[Sequence[str]], header: Sequence[str]) -> str:
 
 
 def render(result: np.ndarray, metadata: Mapping, *, source: str,
-           panels: Sequence[Sequence[str]] | None = None) -> str:
-    """The page as a string (see the module docstring)."""
+           panels: Sequence[Sequence[str]] | None = None, before: str = "") -> str:
+    """The page as a string (see the module docstring); ``before``: HTML put between the heading
+    and the run (``cosim tune``'s summary of the tuning)."""
     names = [n for n in result.dtype.names if n != "time"]
     scenario = metadata.get("scenario") or Path(source).stem
     all_panels = list(panels) if panels else default_panels(metadata, names)
@@ -150,7 +151,7 @@ def render(result: np.ndarray, metadata: Mapping, *, source: str,
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(heading)}</title><style>{_STYLE}</style></head>
 <body>
 <h1>{html.escape(heading)}</h1>
-<p>Result <code>{html.escape(Path(source).name)}</code>: {len(result)} samples, t = {result["time"][0]:g} … {result["time"][-1]:g} s,
+{before}<p>Result <code>{html.escape(Path(source).name)}</code>: {len(result)} samples, t = {result["time"][0]:g} … {result["time"][-1]:g} s,
 status <b>{html.escape(str(metadata.get("status", "unknown")))}</b>.</p>
 <h2>Plot</h2>
 <p class=undefined>Drag to zoom (double-click: back), shift-drag or the toolbar to pan, the cursor reads every
@@ -173,13 +174,14 @@ signal at its time, a click on a legend entry hides or shows that signal.</p>
 
 
 def write_report(result_path: str | Path, html_path: str | Path,
-                 panels: Sequence[Sequence[str]] | None = None) -> Path:
-    """Read a result and its metadata JSON and write the page (``panels``: as `cosim.present.plots.plot`)."""
+                 panels: Sequence[Sequence[str]] | None = None, before: str = "") -> Path:
+    """Read a result and its metadata JSON and write the page (``panels``: as `cosim.present.plots.plot`;
+    ``before``: as `render`'s)."""
     from ..record.results import read
 
     result_path, html_path = Path(result_path), Path(html_path)
     result = read(result_path)
-    page = render(result, read_metadata(result_path), source=str(result_path), panels=panels)
+    page = render(result, read_metadata(result_path), source=str(result_path), panels=panels, before=before)
     html_path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(html_path, page)
     return html_path

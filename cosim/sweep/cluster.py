@@ -88,20 +88,27 @@ def local_cluster(workers: int):
 def dispatch_cluster(tasks: list[Task], executor, package: Package,
                      done: Callable[[Task, dict[str, Any]], None]) -> None:
     """Hand the runs to a Dask ``Client``, a ``local:N`` cluster or a scheduler address."""
-    Client = distributed().Client
     if not tasks:
         return
+    with client_for(executor) as client:
+        _collect(tasks, client, package, done)
 
+
+@contextmanager
+def client_for(executor):
+    """A Dask ``Client`` of ``executor``: the Client itself, a ``local:N`` cluster made now (closed
+    after), or the scheduler at an address."""
+    Client = distributed().Client
     if isinstance(executor, Client):
-        _collect(tasks, executor, package, done)
+        yield executor
     elif executor.startswith("local:"):
         with local_cluster(local_workers(executor)) as cluster, \
                 Client(cluster, security=cluster.security) as client:
-            _collect(tasks, client, package, done)
+            yield client
     else:
         warn_if_open(executor)
         with _connect(executor) as client:
-            _collect(tasks, client, package, done)
+            yield client
 
 
 def _connect(address: str):
@@ -175,17 +182,30 @@ def warn_if_open(address: str) -> None:
 
 
 def _collect(tasks: list[Task], client, package: Package, done) -> None:
-    """Every run at once; those that ended in ``KilledWorker`` again one at a time (see `_run`);
-    then the workers' unpacked copies of the scenario are removed (`forget_package`)."""
+    """Every run at once (`run_published`), then the workers' unpacked copies of the scenario
+    are removed (`forget_package`)."""
+    with published(client, package) as shipped:
+        run_published(tasks, client, shipped, done)
+
+
+@contextmanager
+def published(client, package: Package):
+    """``package`` published to the cluster (`publish_package`) for the runs inside the block,
+    then forgotten by every worker (`forget_package`)."""
     shipped = publish_package(client, package)
     try:
-        suspects = [task for task, _ in _run(tasks, client, shipped, done)]
-        for task in suspects:
-            for _, outcome in _run([task], client, shipped, done):
-                row = failed_row(task, outcome, Errc.worker_lost)
-                done(task, {**row, "message": f"{row['message']} Rerun alone, it killed its workers again."})
+        yield shipped
     finally:
         forget_package(client, package)
+
+
+def run_published(tasks: list[Task], client, shipped, done) -> None:
+    """Every run at once; those that ended in ``KilledWorker`` again one at a time (see `_run`)."""
+    suspects = [task for task, _ in _run(tasks, client, shipped, done)]
+    for task in suspects:
+        for _, outcome in _run([task], client, shipped, done):
+            row = failed_row(task, outcome, Errc.worker_lost)
+            done(task, {**row, "message": f"{row['message']} Rerun alone, it killed its workers again."})
 
 
 def _run(tasks: list[Task], client, shipped, done) -> list[tuple[Task, Exception]]:

@@ -59,6 +59,9 @@ class Task:
     #: the task: the worker runs it as is, on its kept instances (None: the worker prepares the run
     #: from the files the task names, `cosim.sweep.worker.prepare_task`)
     prepared: Prepared | None = None
+    #: called in the worker on the run's result (None for a failed run): the columns it returns
+    #: join the row (`cosim.tune` measures its objective and constraints there); picklable
+    measure: Callable[[np.ndarray | None], dict[str, Any]] | None = None
 
 
 # --------------------------------------------------------------------------- one run (in a worker)
@@ -88,6 +91,8 @@ def execute(task: Task) -> dict[str, Any]:
         row.update(status="failed", message=str(e), error=e.code.value)
     row["wall_time"] = time.perf_counter() - began
     row.update(run_metrics(result, task.metrics))
+    if task.measure is not None:
+        row.update(task.measure(None if row["status"] == "failed" else result))
     return row
 
 
@@ -114,16 +119,14 @@ def dispatch(tasks: list[Task], executor: Executor, workers: int | None,
         return
     if executor == "serial":
         try:
-            for task in tasks:
-                try:
-                    row = execute(task)
-                except Exception as e:  # noqa: BLE001 -- as in a worker: a failed row, not a stopped sweep
-                    row = failed_row(task, e)
-                done(task, row)
+            run_serially(tasks, done)
         finally:   # this process is the caller's: nothing of the sweep is kept after it
             release()
     elif executor == "process":
-        _pool_sweep(tasks, workers or os.cpu_count() or 1, done)
+        with ProcessPool(workers or os.cpu_count() or 1) as pool:
+            _pool_sweep(tasks, pool, done)
+    elif isinstance(executor, ProcessPool):
+        _pool_sweep(tasks, executor, done)
     elif isinstance(executor, cf.Executor):
         _collect(tasks, executor, done)
     else:
@@ -131,11 +134,22 @@ def dispatch(tasks: list[Task], executor: Executor, workers: int | None,
                          "address, 'local:N', a concurrent.futures.Executor or a distributed.Client.")
 
 
+def run_serially(tasks: list[Task], done: Callable[[Task, dict[str, Any]], None]) -> None:
+    """The runs one after the other in this process, which keeps their scenario and instances
+    (`cosim.sweep.worker`) until `release`."""
+    for task in tasks:
+        try:
+            row = execute(task)
+        except Exception as e:  # noqa: BLE001 -- as in a worker: a failed row, not a stopped sweep
+            row = failed_row(task, e)
+        done(task, row)
+
+
 def is_cluster(executor: Executor) -> bool:
     """Whether the runs go to Dask (an address, ``local:N`` or a Client) rather than a local engine."""
     if isinstance(executor, str):
         return executor not in ("process", "serial")
-    if isinstance(executor, cf.Executor):
+    if isinstance(executor, (cf.Executor, ProcessPool)):
         return False
     return isinstance(executor, distributed().Client)
 
@@ -165,8 +179,42 @@ def _collect(tasks: list[Task], engine: cf.Executor, done) -> None:
         done(task, row)
 
 
-def _pool_sweep(tasks: list[Task], workers: int, done: Callable[[Task, dict[str, Any]], None]) -> None:
-    """The runs on a local pool of ``workers`` spawned processes.
+class ProcessPool:
+    """A local pool of ``workers`` spawned processes (``spawn``: FMUs loaded in the parent are
+    never forked), kept from one `dispatch` to the next (a tuning's batches: each worker keeps
+    its scenario and instances, `cosim.sweep.worker`) until `close`; a pool broken by a dying
+    process is replaced by a fresh one at the next use."""
+
+    def __init__(self, workers: int):
+        self.workers = workers
+        self._executor: cf.ProcessPoolExecutor | None = None
+
+    def executor(self) -> cf.ProcessPoolExecutor:
+        if self._executor is None:
+            self._executor = cf.ProcessPoolExecutor(max_workers=self.workers,
+                                                    mp_context=multiprocessing.get_context("spawn"),
+                                                    initializer=_ignore_interrupt)
+        return self._executor
+
+    def close(self, kill: bool = False) -> None:
+        """Shut the processes down (``kill``: terminate them first, for Ctrl-C or a broken pool)."""
+        executor, self._executor = self._executor, None
+        if executor is None:
+            return
+        if kill:
+            for process in list((executor._processes or {}).values()):   # no public way to kill them
+                process.terminate()
+        executor.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> ProcessPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _pool_sweep(tasks: list[Task], pool: ProcessPool, done: Callable[[Task, dict[str, Any]], None]) -> None:
+    """The runs on a local pool of spawned processes.
 
     A process that dies (an FMU calling abort(), a segfault) breaks the whole pool, and every
     unfinished run raises ``BrokenProcessPool``: the runs that had started then (each worker
@@ -175,14 +223,15 @@ def _pool_sweep(tasks: list[Task], workers: int, done: Callable[[Task, dict[str,
     """
     remaining = tasks
     while remaining:
-        broken, started = _pool_round(remaining, workers, done)
+        broken, started = _pool_round(remaining, pool, done)
         if broken and not started:      # the processes died outside any run: no progress to make
             for task in broken:
                 done(task, failed_row(task, BrokenProcessPool("the pool's worker processes died before "
                                                               "starting this run"), Errc.worker_lost))
             return
         for task in started:
-            _, alone = _pool_round([task], 1, done)
+            with ProcessPool(1) as alone_pool:
+                _, alone = _pool_round([task], alone_pool, done)
             if alone:
                 done(task, failed_row(task, BrokenProcessPool(
                     "the worker process died during this run, and again when it was rerun alone "
@@ -190,14 +239,14 @@ def _pool_sweep(tasks: list[Task], workers: int, done: Callable[[Task, dict[str,
         remaining = [t for t in broken if t not in started]
 
 
-def _pool_round(tasks: list[Task], workers: int, done) -> tuple[list[Task], list[Task]]:
-    """One pool for ``tasks``: the runs a dying process left unfinished, and those of them that had started."""
+def _pool_round(tasks: list[Task], pool: ProcessPool, done) -> tuple[list[Task], list[Task]]:
+    """``tasks`` on ``pool``: the runs a dying process left unfinished, and those of them that had
+    started (the broken pool is shut down, so the next use makes a fresh one)."""
     broken: list[Task] = []
     with tempfile.TemporaryDirectory(prefix="cosim-sweep-started-") as marks:
-        pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                      initializer=_ignore_interrupt)
         try:
-            futures = {pool.submit(_execute_marked, task, marks): task for task in tasks}
+            executor = pool.executor()
+            futures = {executor.submit(_execute_marked, task, marks): task for task in tasks}
             for future in cf.as_completed(list(futures)):
                 task = futures[future]
                 try:
@@ -209,11 +258,10 @@ def _pool_round(tasks: list[Task], workers: int, done) -> tuple[list[Task], list
                     row = failed_row(task, e)
                 done(task, row)
         except BaseException:  # Ctrl-C: stop the runs now instead of waiting for them
-            for process in list(pool._processes.values()):   # the pool offers no public way to kill them
-                process.terminate()
+            pool.close(kill=True)
             raise
-        finally:
-            pool.shutdown(wait=True, cancel_futures=True)
+        if broken:
+            pool.close(kill=True)
         started = [t for t in broken if (Path(marks) / t.run_id).exists()]
     return broken, started
 
