@@ -86,6 +86,8 @@ RUNS: dict[str, Run] = {
     "osmm_mfrls": Run(300.0, ("u1.y", "u2.y", "plant.h1", "plant.h2", "mfrls.y_hat1", "mfrls.y_hat2",
                               "global_frls.y_hat1", "local_frls.y_hat1")),   # PRBS from 100 s, 300 steps of 1 s
     "pid_fopdt": Run(60.0, PID_LOOP),                 # setpoint step at 10 s, 600 steps of 0.1 s
+    # pid_fopdt with seeded measurement noise (noise.seed 1 in the SSD): the step at 10 s, 600 steps of 0.1 s
+    "pid_fopdt_noise": Run(60.0, ("setpoint.y", "plant.y", "measurement.y", "controller.u")),
     # Mass_Damper.fmu (OpenModelica, from gemseo-fmu): setpoint step at 0.5 s; 3000 steps of 0.2 ms (the
     # scenario's step, its CS export's stability limit), every 10th sample stored (300 rows).
     "pid_mass_damper": Run(0.6, ("setpoint.y", "plant.y", "controller.u"), decimate=10,
