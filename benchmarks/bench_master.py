@@ -7,7 +7,7 @@ recorded) for ``--steps`` steps of 0.1 s in each master, and a wider system: fiv
 PID/FOPDT loops in a cascade (10 FMUs, each in 3 or more connections).  Each number is
 the best of ``--repeat`` runs of the stepping loop alone (loading and unzipping excluded
 for every master).  The FMUs are the same pythonfmu builds for all; their Python
-``do_step`` dominates the floor.  Prints µs per step and the ratios the README reports.
+``do_step`` dominates the floor.  Prints µs per step and the ratios docs/performance.md reports.
 
 fmpy.ssp ignores parameter bindings (docs/peers.md), so it runs with FMU defaults; the
 FMI calls per step are the same, which is what is timed.

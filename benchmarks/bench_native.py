@@ -39,7 +39,7 @@ each cosim kernel; and what writing the result adds, for CSV and Parquet: the wa
 ``run(prepared, output=...)`` (the file plus its journal, what ``cosim run -o`` does) minus that
 of the same run in memory (best of ``--repeat``, `file_overhead`), in percent of the in-memory loop
 time and in µs per step, with the fastest kernel, for systems of 10 FMUs or more.  A peer that cannot run a case gets the reason instead of a number.  ``--markdown``
-prints the README table.
+prints the table of docs/performance.md.
 """
 from __future__ import annotations
 
@@ -250,7 +250,7 @@ def ratio(case: Case, kernel: str, peer: str) -> str:
 
 
 def table(cases: list[Case]) -> list[str]:
-    """The README table (markdown): µs per step, then ratios for each kernel, then file costs."""
+    """The table of docs/performance.md (markdown): µs per step, then ratios for each kernel, then file costs."""
     header = ["FMUs", "system", "N"] + [f"{p} µs" for p in PEERS]
     for kernel in KERNELS:
         header += [f"{kernel}/container", f"{kernel}/libcosim", f"{kernel}/floor"]
@@ -273,7 +273,7 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 10, 100])
     parser.add_argument("--families", nargs="+", default=sorted(FAMILIES), choices=sorted(FAMILIES))
     parser.add_argument("--fmpy-max", type=int, default=10, help="largest system fmpy.ssp runs")
-    parser.add_argument("--markdown", action="store_true", help="print the README table")
+    parser.add_argument("--markdown", action="store_true", help="print the table of docs/performance.md")
     args = parser.parse_args()
     load = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:

@@ -5,9 +5,9 @@ Debian's and Ubuntu's ``/usr/bin/python3`` link libpython statically (its symbol
 from the executable), unlike the ``python3`` the test machines put first on PATH (pyenv, with a
 shared libpython).  The FMUs' loader must recognise either as the Python already running
 (greyfmu/loader/platform.h, ``loaded_python``).  ``debian_venv`` makes a virtual environment
-from ``/usr/bin/python3`` with the project installed (editable, with its ``parquet`` extra) and what the README's first hour
-installs, once: it is kept in ~/.cache/greyfmu/pythons/ (`CACHE`, outside the tree: about 770 MB)
-and reused while its stamp (this repository, that Python's version, pyproject.toml) is unchanged.
+from ``/usr/bin/python3`` with the project installed (editable, with its ``parquet`` extra) and what the
+first hour (docs/first-hour.md) installs, once: it is kept in ~/.cache/greyfmu/pythons/ (`CACHE`,
+outside the tree: about 770 MB) and reused while its stamp (this repository, that Python's version, pyproject.toml) is unchanged.
 """
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "grey
 """Outside the tree (issue 45: the venv is 767 MB, more than the rest of a clone's build/): one
 folder per checkout, since the venv installs this checkout editable."""
 VENV = CACHE / hashlib.sha256(str(ROOT).encode()).hexdigest()[:12] / "debian-python3"
-# pytest and gemseo-fmu (its OpenModelica FMUs, --no-deps as in the README) for the first-hour commands
+# pytest and gemseo-fmu (its OpenModelica FMUs, --no-deps as in docs/first-hour.md) for the first-hour commands
 EXTRAS = (("pytest",), ("--no-deps", "gemseo-fmu==3.1.1"))
 BARE = ROOT / "build" / "pythons" / "bare-fmpy"
 BARE_PACKAGES = ("fmpy", "numpy", "scipy", "daqp")

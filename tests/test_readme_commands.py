@@ -1,8 +1,10 @@
-"""The README's commands, extracted from it and run as a newcomer would, so the README cannot rot.
+"""The README's commands and the first-hour page's, extracted and run as a newcomer would, so they
+cannot rot.
 
-Every ``bash`` block of the README's "Two commands" and "Your first hour" sections is run, in
-order, in one bash shell (``set -euo pipefail``) in a copy of this repository (the files git
-tracks or would track, with their times, and the FMUs already built).  Command 2,
+Every ``bash`` block of the README's "Two commands" section and of docs/first-hour.md ("Your
+first hour", the documentation site's page) is run, in order, in one bash shell
+(``set -euo pipefail``) in a copy of this repository (the files git tracks or would track, with
+their times, and the FMUs already built).  Command 2,
 ``bash tests/run.sh``, is left out: it is the command that runs this suite (CI runs exactly
 it).
 
@@ -33,17 +35,20 @@ import pytest
 from pythons import DEBIAN_PYTHON
 
 ROOT = Path(__file__).resolve().parents[1]
-SECTIONS = ("## Two commands", "## Your first hour")
+# (page, heading of its section; None: the whole page)
+SECTIONS = ((ROOT / "README.md", "## Two commands"), (ROOT / "docs" / "first-hour.md", None))
 FRESH = os.environ.get("COSIM_README") == "fresh"
 
 
-def readme_commands(text: str) -> list[str]:
+def readme_commands() -> list[str]:
     """The bash blocks of the SECTIONS, comments and ``bash tests/run.sh`` left out."""
     commands = []
-    for heading in SECTIONS:
-        start = text.index(heading + "\n")
-        end = text.find("\n## ", start + len(heading))
-        section = text[start:end if end >= 0 else len(text)]
+    for page, heading in SECTIONS:
+        section = text = page.read_text()
+        if heading is not None:
+            start = text.index(heading + "\n")
+            end = text.find("\n## ", start + len(heading))
+            section = text[start:end if end >= 0 else len(text)]
         for block in re.findall(r"```bash\n(.*?)```", section, flags=re.S):
             commands += [line for line in block.splitlines()
                          if line.strip() and not line.lstrip().startswith("#") and line.strip() != "bash tests/run.sh"]
@@ -77,8 +82,8 @@ def _reuse_environment(clone: Path, python: str) -> None:
 
 @pytest.fixture(scope="module", params=["default", "debian"])
 def newcomer(request, tmp_path_factory):
-    """The README's commands run in a copy of the repository; returns (clone, output)."""
-    commands = readme_commands((ROOT / "README.md").read_text())
+    """The README's and first-hour page's commands run in a copy of the repository; returns (clone, output)."""
+    commands = readme_commands()
     clone = tmp_path_factory.mktemp("clone")
     _copy_repository(clone)
     bin_dir = str(Path(sys.executable).parent)
@@ -105,7 +110,7 @@ def newcomer(request, tmp_path_factory):
 
 
 def test_the_readme_has_the_first_hour_commands():
-    commands = readme_commands((ROOT / "README.md").read_text())
+    commands = readme_commands()
     steps = [c.split("#")[0].strip() for c in commands[:5]]
     assert steps == ['PY=$(command -v python3 || command -v python)', '"$PY" -m venv .venv', ". .venv/bin/activate",
                      "python -m pip install -q -e .", "cosim run ssp/pid_fopdt --plot --report"]
@@ -128,7 +133,7 @@ def test_metrics_give_one_row_per_event(newcomer):
     rows = re.findall(r"^  (\d) (set-point setpoint\.y 0 → 1|disturbance load\.y 0 → -1) +\S+ +(.*)$", output, re.M)
     assert [r[:2] for r in rows] == [("1", "set-point setpoint.y 0 → 1"), ("2", "disturbance load.y 0 → -1")]
     overshoot = float(rows[0][2].split()[3])
-    assert 33 <= overshoot < 34                                    # the README says 33 %
+    assert 33 <= overshoot < 34                                    # docs/first-hour.md says 33 %
 
 
 def test_parameter_sets_and_the_third_party_plant_get_their_own_results(newcomer):

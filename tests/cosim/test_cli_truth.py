@@ -1,6 +1,6 @@
-"""One CLI truth (issue 27, item 3): the README's synopsis and each subcommand's --help name the
-same options, the help says what the code does, and the command line's own values, --quiet,
-the progress bar, --version and shell completion behave as documented."""
+"""One CLI truth (issue 27, item 3): the synopsis of docs/master.md (once the README's) and each
+subcommand's --help name the same options, the help says what the code does, and the command
+line's own values, --quiet, the progress bar, --version and shell completion behave as documented."""
 from __future__ import annotations
 
 import argparse
@@ -26,8 +26,8 @@ def _subcommands() -> dict[str, argparse.ArgumentParser]:
 
 
 def _synopsis() -> dict[str, set[str]]:
-    """The options of each `cosim SUB` of the README's synopsis block (## The master), comments left out."""
-    block = (ROOT / "README.md").read_text().split("## The master", 1)[1].split("```", 2)[1]
+    """The options of each `cosim SUB` of the synopsis block of docs/master.md (# The master), comments left out."""
+    block = (ROOT / "docs" / "master.md").read_text().split("# The master", 1)[1].split("```", 2)[1]
     options: dict[str, set[str]] = {}
     current = None
     for line in block.splitlines():
@@ -39,16 +39,16 @@ def _synopsis() -> dict[str, set[str]]:
 
 
 @pytest.mark.parametrize("name", sorted(_subcommands()))
-def test_readme_synopsis_and_help_name_the_same_options(name):
-    """Every option the README gives a subcommand exists, and every option of its --help is in the README
+def test_master_synopsis_and_help_name_the_same_options(name):
+    """Every option docs/master.md gives a subcommand exists, and every option of its --help is in it
     (an option with an alias, e.g. --stop/--stop-time, by any of its names)."""
     documented = _synopsis().get(name, set())
     actions = [a for a in _subcommands()[name]._actions
                if a.option_strings and a.help != argparse.SUPPRESS and "--help" not in a.option_strings]
     known = {o for a in actions for o in a.option_strings}
-    assert documented <= known, f"cosim {name}: the README names options it lacks: {sorted(documented - known)}"
+    assert documented <= known, f"cosim {name}: docs/master.md names options it lacks: {sorted(documented - known)}"
     missing = [a.option_strings for a in actions if not documented & set(a.option_strings)]
-    assert not missing, f"cosim {name}: options of --help the README does not document: {missing}"
+    assert not missing, f"cosim {name}: options of --help docs/master.md does not document: {missing}"
 
 
 def test_help_says_what_the_code_does(capsys):

@@ -1,4 +1,4 @@
-"""docs/regression_example, the worked example of the README's "Regression tests" section, copied into a
+"""docs/regression_example, the worked example of docs/regression.md, copied into a
 fresh folder as a user copies it into their repository and run with pytest there (a subprocess): it passes
 as shipped, and fails, naming the signal and the difference report, once its reference no longer matches."""
 from __future__ import annotations

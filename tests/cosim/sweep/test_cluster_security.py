@@ -218,8 +218,8 @@ def test_a_sweep_on_an_open_scheduler_warns_once_naming_it(tmp_path, capsys, whe
 
 
 def _readme_tls_recipe() -> str:
-    """The README's bash block that starts a ``dask scheduler``."""
-    blocks = re.findall(r"```bash\n(.*?)```", (ROOT / "README.md").read_text(), flags=re.S)
+    """The bash block of docs/sweeps.md ("Whom a cluster obeys", once the README's) that starts a ``dask scheduler``."""
+    blocks = re.findall(r"```bash\n(.*?)```", (ROOT / "docs" / "sweeps.md").read_text(), flags=re.S)
     [block] = [b for b in blocks if "dask scheduler" in b]
     return block
 

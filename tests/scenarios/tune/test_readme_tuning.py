@@ -1,6 +1,7 @@
-"""The README's worked example of ``cosim tune`` (section "Tuning"): our PID FMU tuned against
-the OpenModelica Mass_Damper FMU of gemseo-fmu, run as written (in a folder with ``ssp/``), and
-the numbers the README states checked against what it prints and writes."""
+"""The worked example of ``cosim tune`` (docs/tuning.md, "Options and a worked example", once the
+README's "Tuning"): our PID FMU tuned against the OpenModelica Mass_Damper FMU of gemseo-fmu, run as
+written (in a folder with ``ssp/``), and the numbers the page states checked against what it prints
+and writes."""
 from __future__ import annotations
 
 import os
@@ -19,8 +20,8 @@ ROOT = Path(__file__).resolve().parents[3]
 
 
 def _block() -> str:
-    """The README's bash block that tunes ssp/pid_mass_damper."""
-    blocks = re.findall(r"```bash\n(.*?)```", (ROOT / "README.md").read_text(), flags=re.S)
+    """The bash block of docs/tuning.md that tunes ssp/pid_mass_damper."""
+    blocks = re.findall(r"```bash\n(.*?)```", (ROOT / "docs" / "tuning.md").read_text(), flags=re.S)
     [block] = [b for b in blocks if "cosim tune ssp/pid_mass_damper" in b]
     return block
 
@@ -36,7 +37,7 @@ def test_the_readmes_mass_damper_tuning_runs_and_says_what_it_finds(built_fmus, 
     rows = read_evaluations(out)
     start, best = rows[0], min((r for r in rows if r["feasible"]), key=lambda r: r["objective"])
     assert start["controller.Kc"] == 10000.0                  # controller.ssv's PID, tried first
-    assert best["objective"] < start["objective"] / 50          # the README: "a hundredth"
+    assert best["objective"] < start["objective"] / 50          # docs/tuning.md: "a hundredth"
     assert best["overshoot:plant.y <= 5"] <= 5
     result = read(tmp_path / "results" / "pid_mass_damper__best.csv")
     metrics = step_metrics(result["time"], result["plant.y"], result["setpoint.y"])
