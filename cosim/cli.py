@@ -14,7 +14,7 @@ import warnings
 from importlib.metadata import version
 from pathlib import Path
 
-from .errors import CosimError, RunError, SetupError
+from .errors import CosimError, CosimWarning, RunError, SetupError
 from .safeio import parse_size, unpack_limit
 
 
@@ -33,6 +33,9 @@ def _parser() -> argparse.ArgumentParser:
                         "(default: $COSIM_MAX_UNPACKED_BYTES or 2G)")
         sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
 
+    def strict(sp):
+        sp.add_argument("--strict", action="store_true", help=STRICT_HELP)
+
     run = sub.add_parser("run", help="run a system and write CSV results (and a plot)")
     common(run)
     run.add_argument("--start", "--start-time", type=_seconds, dest="start",
@@ -42,6 +45,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation; an FMU's "
                                                 "DefaultExperiment stepSize, else fmpy's automatic interval)")
     single_options(run)
+    strict(run)
     run.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="default: jacobi")
     run.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                      help="parameter set applied last, names 'component.variable' (repeatable)")
@@ -93,6 +97,7 @@ def _parser() -> argparse.ArgumentParser:
     validate = sub.add_parser("validate", help="check a system without running it")
     common(validate)
     validate.add_argument("--fmi-type", choices=["CoSimulation", "ModelExchange"], help=FMI_TYPE_HELP)
+    strict(validate)
     validate.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                           help="parameter set checked as cosim run applies it, last (repeatable)")
 
@@ -155,6 +160,7 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--param-set", action="append", default=[], metavar="X.ssv",
                        help="parameter set applied to every run before the swept values (repeatable)")
     input_options(sweep)
+    strict(sweep)
     sweep.add_argument("--start", type=_seconds, help="start time [s] (default: DefaultExperiment or 0)")
     sweep.add_argument("--stop", type=_seconds, help="stop time [s] (default: DefaultExperiment)")
     sweep.add_argument("--step", type=_seconds, help="communication step [s] (default: SSD annotation)")
@@ -180,6 +186,9 @@ def _parser() -> argparse.ArgumentParser:
 
 
 QUIET_HELP = "no progress bar and no informational lines: errors and warnings only"
+STRICT_HELP = ("turn cosim's warnings into errors (exit 2, nothing run): a master step that is longer than a sampled "
+               "FMU's sample time or does not divide it, an input the FMU's law reads left unconnected, a sample "
+               "time left at the FMU's default that is not the master step")
 
 
 def _seconds(text: str) -> float:
@@ -235,6 +244,7 @@ def main(argv: list[str] | None = None) -> int:
             # one once (a plan built again for --start-value warns again)
             warnings.simplefilter("default", RuntimeWarning)
             warnings.showwarning = _print_warning
+            _strict(args)
             code = {"run": _run, "validate": _validate, "info": _info, "pack": _pack, "metrics": _metrics,
                     "report": _report, "compare": _compare, "sweep": _sweep,
                     "completion": _completion}[args.command](args)
@@ -242,9 +252,18 @@ def main(argv: list[str] | None = None) -> int:
         return code
     except CosimError as e:
         return _fail(e, args.debug)
+    except CosimWarning as w:  # --strict
+        return _fail(SetupError(f"{w} (--strict makes this warning an error)"), args.debug)
     except BrokenPipeError:  # `cosim info | head -1`: the reader has gone; end quietly, as cat does
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+
+
+def _strict(args) -> None:
+    """With --strict, cosim's warnings (`cosim.errors.CosimWarning`) raise instead of printing;
+    called again after a filter for RuntimeWarning, which would otherwise come first."""
+    if getattr(args, "strict", False):
+        warnings.simplefilter("error", CosimWarning)
 
 
 def _completion(args) -> int:
@@ -578,6 +597,7 @@ def _sweep(args) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("always", RuntimeWarning)   # cosim's own warnings, one line each, as they come
             warnings.showwarning = _print_warning
+            _strict(args)
             result = sweep(args.path, sets, seeds=seeds, seed_parameters=args.seed_parameter, metrics=args.metrics,
                            parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
                            step_size=args.step, fmu_dirs=args.fmu_dir, start_values=args.start_values,

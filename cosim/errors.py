@@ -154,3 +154,9 @@ def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:
     if not close:
         return None
     return "Did you mean " + " or ".join(f"'{c}'" for c in close) + "?"
+
+
+class CosimWarning(RuntimeWarning):
+    """A warning of the master's about the system it runs (`cosim.plan.loopcheck.LoopWarning`: a loop
+    changed silently); ``cosim --strict`` turns every one into an error (exit 2), so a warning that
+    should stop a run derives from this class."""

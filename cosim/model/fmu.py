@@ -116,6 +116,9 @@ class FMUDescription:
     #: Array elements named by connectors (``vector[2]``), by the value reference the master
     #: gives them (not the FMU's; cosim.run.instances.fmi3 maps it back to the array and the index).
     elements: FrozenMap[int, ArrayElement] = FrozenMap()
+    #: (rule, warning) for each place its model description breaks a rule of the standard the
+    #: master tolerates (`cosim.read.conformance`), warned about each time the FMU is described
+    bends: tuple[tuple[str, str], ...] = ()
 
     def variable(self, name: str, where: str, file: str) -> Variable:
         """The variable called ``name``, or the element ``name`` names of an FMI 3.0 array (one

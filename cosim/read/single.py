@@ -45,7 +45,8 @@ def fmu_structure(path: str | Path, implementation: str = "any") -> SystemStruct
     fmu = Path(path)
     if not fmu.is_file():
         raise SetupError("no such FMU file.", file=str(fmu), element="cosim run X.fmu")
-    desc = describe_fmu(fmu, "the FMU given", str(fmu), implementation)  # checked as run loads it, named as given
+    # checked as run loads it, named as given; its warnings come when the plan describes it
+    desc = describe_fmu(fmu, "the FMU given", str(fmu), implementation, warn=False)
     name = desc.model_identifier
     connectors = {v.name: Connector(v.name, v.causality, None, None, 0) for v in desc.variables.values()
                   if v.causality in ("input", "output") and exchange_type(v) is not None and not v.dimensions}
