@@ -194,3 +194,9 @@ def unit_of(v: Variable) -> str | None:
     if v.unit:
         return v.unit
     return v.declared_type.unit if v.declared_type is not None and v.declared_type.unit else None
+
+
+def recorded_type(variable: Variable) -> bool:
+    """Whether a result column can hold the variable's values: every exchange type but String and
+    Binary (a result file holds numbers; they are exchanged, not recorded)."""
+    return exchange_type(variable) not in ("String", "Binary")

@@ -14,7 +14,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 
 from ..errors import SetupError, did_you_mean
-from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
+from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, recorded_type, unit_of
 from ..model.frozen import FrozenMap
 from ..model.structure import (
     LOOP_MODES,
@@ -56,6 +56,7 @@ def build_plan(structure: SystemStructure, fmus: Mapping[str, FMUDescription],
     routes = _check_connections(structure, fmus, units)
     start_values = resolve_parameters(structure, fmus, list(extra_parameters), units)
     system_outputs = _system_outputs(structure, outputs, units, [*structure.parameters, *extra_parameters])
+    _warn_unrecorded(structure, outputs, inputs)
     recorded_units = _recorded_units(structure, outputs, inputs, system_outputs)
     dependencies = {name: desc.output_dependencies for name, desc in fmus.items()}
     output_names = {c: [v.name for v in vs] for c, vs in outputs.items()}
@@ -207,6 +208,8 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[Variable
         if var is None:
             raise SetupError(f"it is driven by {out.component}.{out.connector}, which is not an output "
                              "connector of that component.", file=file, element=where, variable=out.name)
+        if not recorded_type(var):  # exchanged, not recorded: named by _warn_unrecorded
+            continue
         if any(f"{c}.{v.name}" == out.name for c, vs in outputs.items() for v in vs):
             raise SetupError(f"the name clashes with the component output {out.name} in the results.",
                              file=file, element=where, variable=out.name)
@@ -253,13 +256,30 @@ def _undriven_output(structure: SystemStructure, out: SystemOutput, where: str,
 
 # --------------------------------------------------------------------------- recording
 
+class NotRecorded(RuntimeWarning):
+    """Variables a run exchanges and does not record (String, Binary): named once per plan."""
+
+
+def _warn_unrecorded(structure: SystemStructure, outputs: dict[str, list[Variable]],
+                     inputs: dict[str, list[Variable]]) -> None:
+    """One warning naming every connector whose values are exchanged and not recorded, and the root
+    output connectors they drive."""
+    names = [f"{c}.{v.name} ({v.type})" for c in outputs for v in outputs[c] + inputs[c] if not recorded_type(v)]
+    names += [f"root output '{out.name}'" for out in structure.system_outputs.values()
+              if out.component is not None and any(v.name == out.connector and not recorded_type(v)
+                                                   for v in outputs[out.component])]
+    if names:
+        warnings.warn(NotRecorded(f"{structure.display}: exchanged, not recorded (a result file holds numbers): "
+                                  f"{', '.join(names)}"), stacklevel=3)
+
+
 def _columns(structure: SystemStructure, outputs: dict[str, list[Variable]],
              inputs: dict[str, list[Variable]]) -> list[str]:
     """The recorded connectors component by component in SSD order, connectors as each component
     lists them: every output and input but String and Binary ones (exchanged, not recorded)."""
     columns = []
     for name, comp in structure.components.items():
-        recorded = {v.name for v in outputs[name] + inputs[name] if exchange_type(v) not in ("String", "Binary")}
+        recorded = {v.name for v in outputs[name] + inputs[name] if recorded_type(v)}
         columns += [f"{name}.{conn}" for conn in comp.connectors if conn in recorded]
     return columns
 

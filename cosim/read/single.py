@@ -17,7 +17,7 @@ from pathlib import Path
 from fmpy.util import auto_interval
 
 from ..errors import SetupError
-from ..model.fmu import exchange_type
+from ..model.fmu import exchange_type, recorded_type
 from ..model.structure import (
     Component,
     Connection,
@@ -55,7 +55,7 @@ def fmu_structure(path: str | Path, implementation: str = "any") -> SystemStruct
     start = float(e.start_time) if e is not None and e.start_time is not None else None
     stop = float(e.stop_time) if e is not None and e.stop_time is not None else None
     step = float(e.step_size) if e is not None and e.step_size is not None else None
-    outputs = [c for c in connectors.values() if c.kind == "output"]
+    outputs = [c for c in connectors.values() if c.kind == "output" and recorded_type(desc.variables[c.name])]
     aliases = {c.name: Connector(c.name, "output", None, None, 0) for c in outputs}
     wires = [Connection(name, c.name, None, c.name, None, False, 0) for c in outputs]
     root = RawSystem(name, 0, aliases, {name: component}, {}, wires, [], [name])
