@@ -10,6 +10,10 @@ A test gives the model description and the model's C body; the body defines
   (0 OK, 2 Discard); it may set ``s->terminate`` and lower ``s->last`` (the last successful time, t + h
   unless it does).
 
+An FMI 2.0 body may log through the host's logger: ``s->callbacks`` is the
+fmi2CallbackFunctions given at instantiation (its first member the variadic logger, its last the
+componentEnvironment), ``s->name`` the instance name.
+
 Variables are addressed by value reference into ``s->r`` (Real/Float64), ``s->i``
 (Integer/Int32), ``s->b`` (Boolean) and, FMI 3.0 only, ``s->f`` (Float32) and ``s->l``
 (Int8..UInt64, Enumeration), 64 of each, and Binary values of up to 16 bytes in
@@ -32,7 +36,8 @@ COMMON = r"""
 #include <string.h>
 #include <stdbool.h>
 typedef struct { double r[64]; int i[64]; int b[64]; float f[64]; long long l[64];
-                 unsigned char bytes[64][16]; size_t nbytes[64]; double time; int terminate; double last; } S;
+                 unsigned char bytes[64][16]; size_t nbytes[64]; double time; int terminate; double last;
+                 const void *callbacks; char name[64]; } S;
 """
 
 #: the FMI 3.0 getters and setters of the other numeric types: Float32 in ``s->f``, the
@@ -56,7 +61,7 @@ static void start(S *s);
 static void calculate(S *s);
 static int step(S *s, double t, double h);
 void *fmi2Instantiate(const char *n, int type, const char *guid, const char *res, const void *cb, int vis, int log) {
-    S *s = calloc(1, sizeof(S)); start(s); return s; }
+    S *s = calloc(1, sizeof(S)); s->callbacks = cb; strncpy(s->name, n ? n : "", 63); start(s); return s; }
 void fmi2FreeInstance(void *c) { free(c); }
 int fmi2SetDebugLogging(void *c, int on, size_t n, const char *cats[]) { return 0; }
 int fmi2SetupExperiment(void *c, int tolDef, double tol, double t0, int stopDef, double stop) {

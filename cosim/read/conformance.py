@@ -55,13 +55,11 @@ input, the conservative reading.
 """
 from __future__ import annotations
 
-import os
 import warnings
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
-import fmpy.model_description
 from lxml import etree
 
 from ..errors import CosimWarning, SetupError
@@ -147,13 +145,14 @@ def _message(fmu: str, rule: str, line: int | None, detail: str) -> str:
         if RULES[rule].tolerated else f"{text}; the master cannot run an FMU that breaks this rule."
 
 
-def check(md, path: Path, *, schema: bool, file: str, where: str) -> tuple[tuple[str, str], ...]:
+def check(md, path: Path, *, schemas: Path | None, file: str, where: str) -> tuple[tuple[str, str], ...]:
     """(rule, warning) of each place fmpy's parse ``md`` of ``path``'s model description breaks a
     tolerated rule; a refused rule raises `SetupError` naming the FMU, the rule and the line.
-    ``schema``: also validate the document against the FMI schema (False: its content passed before)."""
+    ``schemas``: the folder of the FMI XSD files to validate the document against (fmpy's
+    ``schema``), None not to (its content passed before)."""
     found: list[tuple[str, int | None, str]] = []
-    if schema:
-        found += [("schema", line, text) for line, text in schema_problems(path, md.fmiVersion, file, where)]
+    if schemas is not None:
+        found += [("schema", line, text) for line, text in schema_problems(path, md.fmiVersion, schemas, file, where)]
     found += _variable_rules(md)
     for rule, line, detail in found:
         if not RULES[rule].tolerated:
@@ -161,28 +160,27 @@ def check(md, path: Path, *, schema: bool, file: str, where: str) -> tuple[tuple
     return tuple((rule, _message(path.name, rule, line, detail)) for rule, line, detail in found)
 
 
-def schema_problems(path: Path, fmi_version: str, file: str, where: str) -> list[tuple[int, str]]:
+def schema_problems(path: Path, fmi_version: str, schemas: Path, file: str, where: str) -> list[tuple[int, str]]:
     """(line, message) of each place the document is not valid against the FMI schema of its
-    version (the XSD files fmpy ships, as `fmpy.read_model_description` validates)."""
+    version (the XSD files in ``schemas``, fmpy's, as `fmpy.read_model_description` validates)."""
     display = f"{path.name}!modelDescription.xml"
     data = (path / "modelDescription.xml").read_bytes() if path.is_dir() else \
         read_member(path, "modelDescription.xml", file, where)
     root = parse_xml_bytes(data, display).getroot()
     major = "fmi2" if fmi_version == "2.0" else "fmi3"
-    schema = _schema(major)
+    schema = _schema(schemas / major / f"{major}ModelDescription.xsd")
     if schema.validate(root):
         return []
     return [(e.line, e.message) for e in schema.error_log]
 
 
-_schemas: dict[str, etree.XMLSchema] = {}
+_schemas: dict[Path, etree.XMLSchema] = {}
 
 
-def _schema(major: str) -> etree.XMLSchema:
-    if major not in _schemas:
-        folder = Path(os.path.dirname(fmpy.model_description.__file__)) / "schema" / major
-        _schemas[major] = etree.XMLSchema(file=str(folder / f"{major}ModelDescription.xsd"))
-    return _schemas[major]
+def _schema(xsd: Path) -> etree.XMLSchema:
+    if xsd not in _schemas:
+        _schemas[xsd] = etree.XMLSchema(file=str(xsd))
+    return _schemas[xsd]
 
 
 def _variable_rules(md) -> list[tuple[str, int | None, str]]:

@@ -70,7 +70,8 @@ def describe(path: Path, where: str, file: str, implementation: str = "any", val
         raise SetupError(f"cannot read the model description of {path.name}: {e}", file=file,
                          element=where) from None
     kind = _kind(md, path, implementation, where, file)
-    bends = conformance.check(md, path, schema=validate, file=file, where=where)
+    bends = conformance.check(md, path, schemas=Path(fmpy.__file__).parent / "schema" if validate else None,
+                              file=file, where=where)
     if not md.guid or not md.guid.strip():
         raise SetupError(f"{path.name} has an empty GUID in its modelDescription.xml; an FMU without a GUID "
                          "cannot be instantiated.", file=file, element=where)
