@@ -9,6 +9,8 @@ FMU (``fmi3-cs``) or an FMI 2.0 or 3.0 Model Exchange FMU integrated by the mast
 """
 from __future__ import annotations
 
+import itertools
+import math
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -132,6 +134,21 @@ class FMUDescription:
         raise SetupError(f"the FMU {self.path.name} has no variable '{name}'.", file=file,
                          element=where, variable=name, hint=did_you_mean(name, self.variables))
 
+    def shape(self, array: Variable, where: str, file: str) -> tuple[int, ...]:
+        """The extents of an FMI 3.0 array (() for a scalar): each Dimension's ``start``, or the start
+        of the structural parameter it names (FMI 3.0 §2.4.7.5; this master sets no structural
+        parameter, so the start is the extent of the whole run)."""
+        try:
+            shape = tuple(int(d) for d in array.dimensions)   # None (no start) raises TypeError
+        except (TypeError, ValueError):
+            shape = ()
+        if len(shape) != len(array.dimensions) or any(n < 0 for n in shape):
+            raise SetupError(f"the extents of the array {array.name} in {self.path.name} are "
+                             f"{', '.join(str(d) for d in array.dimensions)}: not all are known numbers (a Dimension's "
+                             "start, or the start of the structural parameter it names).",
+                             file=file, element=where, variable=array.name)
+        return shape
+
     def with_element(self, element: ArrayElement) -> FMUDescription:
         """This description knowing ``element`` (from `variable`) by its value reference, an input
         element among the inputs an output depends on where its array is, an output element
@@ -146,30 +163,55 @@ class FMUDescription:
                        output_dependencies=FrozenMap(deps))
 
     def _element(self, array: Variable, index_text: str, name: str, where: str, file: str) -> ArrayElement:
-        """One element of a one-dimensional FMI 3.0 array, 1-based as in Modelica and in the
-        FMI 2.0 structured names of scalarised arrays (``x[1]`` is the first element)."""
+        """One element of an FMI 3.0 array, named as fmpy and fmusim name it: 1-based indices as in
+        Modelica and in the FMI 2.0 structured names of scalarised arrays, one per dimension,
+        separated by commas (``x[1]`` is the first element, ``A[2,3]`` row 2, column 3)."""
         known = next((e for e in self.elements.values() if e.name == name), None)
         if known is not None:
             return known
-        if len(array.dimensions) != 1 or array.type in ("String", "Binary"):
-            raise SetupError(f"'{array.name}' is a {len(array.dimensions)}-dimensional {array.type} array; only "
-                             "elements of one-dimensional numeric and Boolean arrays can be connected.",
-                             file=file, element=where, variable=name)
-        size = int(array.dimensions[0])
-        if not index_text.strip().isdigit() or not 1 <= int(index_text) <= size:
-            raise SetupError(f"'{index_text}' is not an element of {array.name}, an array of {size} values in "
-                             f"{self.path.name}; elements are numbered {array.name}[1] .. {array.name}[{size}].",
-                             file=file, element=where, variable=name)
-        used = {v.vr for v in self.variables.values()} | set(self.elements)
-        vr = 0xFFFFFFFF
+        if array.type in ("String", "Binary"):
+            raise SetupError(f"'{array.name}' is a {array.type} array; only elements of numeric and Boolean "
+                             "arrays can be connected.", file=file, element=where, variable=name)
+        shape = self.shape(array, where, file)
+        index = tuple(int(i) for i in index_text.split(",")) if _INDEX.fullmatch(index_text) else ()
+        if element_name(array.name, index) != name or not all(1 <= i <= n for i, n in zip(index, shape)) \
+                or len(index) != len(shape):
+            bare = index_text.replace(" ", "")
+            hint = (f"Write it {array.name}[{','.join(str(int(i)) for i in bare.split(','))}], as fmpy and fmusim "
+                    "name it." if _INDEX.fullmatch(bare) and bare != index_text else None)
+            raise SetupError(f"'{index_text}' is not an element of {array.name}, {describe_shape(shape)} in "
+                             f"{self.path.name}; elements are numbered {element_name(array.name, (1,) * len(shape))} "
+                             f".. {element_name(array.name, shape)}.", file=file, element=where, variable=name,
+                             hint=hint)
+        vr = min([*self.elements, 0x100000000]) - 1
+        used = {v.vr for v in self.variables.values()}
         while vr in used:
             vr -= 1
+        position = 0
+        for i, n in zip(index, shape):   # row-major (FMI 3.0 §2.4.7.5)
+            position = position * n + i - 1
         return ArrayElement(name=name, vr=vr, type=array.type, description=array.description,
                             causality=array.causality, variability=array.variability, initial=array.initial,
                             declared_type=array.declared_type, unit=array.unit, min=array.min, max=array.max,
-                            array=array, index=int(index_text) - 1, size=size)
+                            array=array, index=position, size=math.prod(shape))
 
 
+def element_name(array: str, index: tuple[int, ...]) -> str:
+    """The name of one element of an FMI 3.0 array, as fmpy and fmusim name it: ``A[2,3]``."""
+    return f"{array}[{','.join(str(i) for i in index)}]"
+
+
+def element_names(array: str, shape: tuple[int, ...]) -> list[str]:
+    """Every element's `element_name`, in the order FMI 3.0 serialises the values (row-major, §2.4.7.5)."""
+    return [element_name(array, index) for index in itertools.product(*(range(1, n + 1) for n in shape))]
+
+
+def describe_shape(shape: tuple[int, ...]) -> str:
+    """``a scalar``, ``an array of 4 values``, ``an array of 2×3 values``."""
+    return f"an array of {'×'.join(str(n) for n in shape)} values" if shape else "a scalar"
+
+
+_INDEX = re.compile(r"\d+(,\d+)*")
 _ELEMENT = re.compile(r"(.+)\[([^\]]*)\]")
 
 #: The exchange types of the master (the FMI 2.0 type names) for the FMI types it connects.

@@ -32,6 +32,7 @@ from ..model.structure import (
 )
 from ..model.transforms import Affine
 from ..model.units import SystemUnits, fmu_units
+from .arrays import expand_arrays
 from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
 from .parameters import open_inputs, resolve_parameters
 from .routing import connector_unit, path_transform
@@ -50,13 +51,14 @@ def build_plan(structure: SystemStructure, fmus: Mapping[str, FMUDescription],
         raise SetupError(f"unknown loop handling '{loops}'; choose one of {', '.join(LOOP_MODES)}.",
                          element="--loops")
     check_model_exchange(structure, fmus)
+    structure = expand_arrays(structure, fmus)
     units = SystemUnits.of(structure.units, {name: fmu_units(desc.unit_definitions, desc.path.name)
                                              for name, desc in fmus.items()}, file)
     fmus, outputs, inputs = _check_connectors(structure, fmus, units)
     routes = _check_connections(structure, fmus, units)
     start_values = resolve_parameters(structure, fmus, list(extra_parameters), units)
     system_outputs = _system_outputs(structure, outputs, units, [*structure.parameters, *extra_parameters])
-    _warn_unrecorded(structure, outputs, inputs)
+    _warn_unrecorded(structure, fmus, outputs, inputs)
     recorded_units = _recorded_units(structure, outputs, inputs, system_outputs)
     dependencies = {name: desc.output_dependencies for name, desc in fmus.items()}
     output_names = {c: [v.name for v in vs] for c, vs in outputs.items()}
@@ -122,15 +124,16 @@ def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription
 
 def _check_exchangeable(desc: FMUDescription, var: Variable, where: str, file: str) -> None:
     """Refuse a connector the exchange cannot carry: a type without an exchange type
-    (`cosim.model.fmu.exchange_type`) or a whole FMI 3.0 array (SSP 1.0 connectors are scalars;
-    one element is named as ``vector[1]``, see `FMUDescription.variable`)."""
+    (`cosim.model.fmu.exchange_type`) or a String or Binary FMI 3.0 array (numeric and Boolean
+    ones are made element by element, `cosim.plan.arrays`)."""
     if exchange_type(var) is None:
         raise SetupError(f"{var.name} has the type {var.type} in {desc.path.name}; connectors of that type are "
                          "not supported (FMI 2.0 Real, Integer, Boolean, String, Enumeration and FMI 3.0 Float64, "
                          "Float32, Int8..UInt64, Enumeration, Boolean, String, Binary are).", file=file, element=where, variable=var.name)
     if var.dimensions:
-        raise SetupError(f"{var.name} is an array in {desc.path.name}; a connector carries one element, "
-                         f"named {var.name}[1] for the first one.", file=file, element=where, variable=var.name)
+        raise SetupError(f"{var.name} is a {var.type} array in {desc.path.name}; the master exchanges numeric and "
+                         "Boolean arrays (whole, or element by element), not String or Binary ones.",
+                         file=file, element=where, variable=var.name)
 
 
 def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
@@ -260,17 +263,34 @@ class NotRecorded(RuntimeWarning):
     """Variables a run exchanges and does not record (String, Binary): named once per plan."""
 
 
-def _warn_unrecorded(structure: SystemStructure, outputs: dict[str, list[Variable]],
-                     inputs: dict[str, list[Variable]]) -> None:
-    """One warning naming every connector whose values are exchanged and not recorded, and the root
-    output connectors they drive."""
+def _warn_unrecorded(structure: SystemStructure, fmus: Mapping[str, FMUDescription],
+                     outputs: dict[str, list[Variable]], inputs: dict[str, list[Variable]]) -> None:
+    """One warning naming every connector whose values are exchanged and not recorded, the root
+    output connectors they drive, and a single FMU's inputs and outputs that are no connector."""
     names = [f"{c}.{v.name} ({v.type})" for c in outputs for v in outputs[c] + inputs[c] if not recorded_type(v)]
     names += [f"root output '{out.name}'" for out in structure.system_outputs.values()
               if out.component is not None and any(v.name == out.connector and not recorded_type(v)
                                                    for v in outputs[out.component])]
-    if names:
-        warnings.warn(NotRecorded(f"{structure.display}: exchanged, not recorded (a result file holds numbers): "
-                                  f"{', '.join(names)}"), stacklevel=3)
+    left = _left_out(structure, fmus)
+    if names or left:
+        warnings.warn(NotRecorded(f"{structure.display}: " + "; ".join(
+            [f"exchanged, not recorded (a result file holds numbers): {', '.join(names)}"] * bool(names)
+            + [f"neither exchanged nor recorded: {', '.join(left)}"] * bool(left))), stacklevel=3)
+
+
+def _left_out(structure: SystemStructure, fmus: Mapping[str, FMUDescription]) -> list[str]:
+    """The inputs and outputs of a single FMU run as a system (`cosim.read.single`, which makes
+    every other one a connector) that are no connector: String and Binary arrays, FMI 3.0 Clocks."""
+    if structure.ssd_file.suffix.lower() != ".fmu":
+        return []
+    left = []
+    for name, comp in structure.components.items():
+        for v in fmus[name].variables.values():
+            if v.causality in ("input", "output") and v.name not in comp.connectors \
+                    and not any(c.startswith(v.name + "[") for c in comp.connectors):
+                shape = "×".join("?" if d is None else str(d) for d in v.dimensions)
+                left.append(f"{name}.{v.name} ({v.type}{f' array of {shape}' if shape else ''})")
+    return left
 
 
 def _columns(structure: SystemStructure, outputs: dict[str, list[Variable]],

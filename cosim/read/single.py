@@ -48,8 +48,11 @@ def fmu_structure(path: str | Path, implementation: str = "any") -> SystemStruct
     # checked as run loads it, named as given; its warnings come when the plan describes it
     desc = describe_fmu(fmu, "the FMU given", str(fmu), implementation, warn=False)
     name = desc.model_identifier
+    # a numeric or Boolean array is one connector, made one per element by the plan (cosim.plan.arrays);
+    # what is no connector (String and Binary arrays, Clocks) the plan names in a warning
     connectors = {v.name: Connector(v.name, v.causality, None, None, 0) for v in desc.variables.values()
-                  if v.causality in ("input", "output") and exchange_type(v) is not None and not v.dimensions}
+                  if v.causality in ("input", "output") and exchange_type(v) is not None
+                  and (not v.dimensions or recorded_type(v))}
     component = Component(name, fmu.name, 0, connectors, implementation=implementation)
     e = desc.default_experiment
     start = float(e.start_time) if e is not None and e.start_time is not None else None

@@ -3,6 +3,7 @@ name (`select`); `cosim.present.plots` draws them."""
 from __future__ import annotations
 
 import fnmatch
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -81,12 +82,24 @@ def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = No
     return path
 
 
+def matches(name: str, pattern: str) -> bool:
+    """Whether a signal name matches a glob: ``*`` and ``?`` as in `fnmatch`, brackets literal (they
+    index FMI 3.0 array elements: ``A[2,3]`` names one, ``A[*]`` them all)."""
+    return fnmatch.fnmatchcase(name, pattern.replace("[", "[[]"))
+
+
+def panel(text: str) -> list[str]:
+    """The globs of one ``--signals`` panel: ``a,b`` overlays a and b; a comma inside brackets
+    (``A[2,3]``) separates nothing."""
+    return re.split(r",(?![^\[]*\])", text)
+
+
 def select(names: Sequence[str], patterns: Sequence[str], option: str = "--signals") -> list[str]:
-    """Names matching any glob pattern, in the order of ``names``; an unmatched pattern is an error
-    naming the ``option`` it was given with."""
+    """Names matching any glob pattern (`matches`), in the order of ``names``; an unmatched pattern is
+    an error naming the ``option`` it was given with."""
     chosen = []
     for pattern in patterns:
-        matched = [n for n in names if fnmatch.fnmatchcase(n, pattern)]
+        matched = [n for n in names if matches(n, pattern)]
         if not matched:
             raise SetupError(f"no signal matches '{pattern}'.", element=option,
                              hint=did_you_mean(pattern, names) or f"Signals: {', '.join(names[:12])}.")
