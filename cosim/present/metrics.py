@@ -367,6 +367,27 @@ class Difference:
                 f"({self.tolerance}); {self.samples_out} sample(s) out, max |diff| {self.max_abs:.3g}")
 
 
+_ELEMENT = re.compile(r"(.+)\[(\d+(?:,\d+)*)\]")
+
+
+def _by_position(a: Sequence[str], b: Sequence[str]) -> dict[str, str]:
+    """For each name of ``a`` that ``b`` lacks, ``b``'s name of the same element of an array where
+    one result names its elements by position (``A[1]`` .. ``A[6]``: fmusim writes an array's values
+    without its shape, `cosim.record.results.read` numbers them) and the other by index (``A[1,1]``
+    .. ``A[2,3]``, row-major, as a run records them) and both have as many."""
+    def arrays(names: Sequence[str]) -> dict[str, list[str]]:
+        found: dict[str, list[str]] = {}
+        for name in names:
+            match = _ELEMENT.fullmatch(name)
+            if match is not None:
+                found.setdefault(match.group(1), []).append(name)
+        return found
+    theirs = arrays(b)
+    return {x: y for base, ours in arrays(a).items()
+            if len(theirs.get(base, ())) == len(ours) and any("," not in n for n in (ours[0], theirs[base][0]))
+            for x, y in zip(ours, theirs[base]) if x not in b}
+
+
 def compare(a: np.ndarray, b: np.ndarray, *, signals: Sequence[str] | None = None, rtol: float = 1e-6,
             atol: float = 1e-9, tolerances: Mapping[str, ToleranceSpec] | None = None) -> list[Difference]:
     """Signal-by-signal check that ``b`` (candidate) matches ``a`` (reference):
@@ -384,14 +405,15 @@ def compare(a: np.ndarray, b: np.ndarray, *, signals: Sequence[str] | None = Non
     tolerances = tolerances or {}
     check_tolerance_keys(tolerances, names)
     default = as_tolerance((rtol, atol), Tolerance(rtol, atol))
+    counterpart = _by_position(a.dtype.names, b.dtype.names)
     out = []
     for name in names:
-        for result, label in ((a, "the first result"), (b, "the second result")):
-            if name not in result.dtype.names:
-                raise SetupError(f"{label} has no signal '{name}'.", variable=name,
-                                 hint=did_you_mean(name, result.dtype.names))
+        for result, label, own in ((a, "the first result", name), (b, "the second result", counterpart.get(name, name))):
+            if own not in result.dtype.names:
+                raise SetupError(f"{label} has no signal '{own}'.", variable=own,
+                                 hint=did_you_mean(own, result.dtype.names))
         tol = tolerance_for(name, tolerances, default)
-        ref, cand = a[name], b[name]
+        ref, cand = a[name], b[counterpart.get(name, name)]
         with np.errstate(invalid="ignore"):
             diff = np.abs(ref - cand)
         scale = np.abs(ref)

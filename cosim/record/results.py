@@ -49,7 +49,10 @@ def _read_parquet(path: str | Path) -> np.ndarray:
 def _read_csv(path: str | Path) -> np.ndarray:
     """A CSV as ``fmpy.util.read_csv`` reads it (one float per field, or a space-separated
     vector of them, the first row giving each column's shape), with its header parsed as RFC
-    4180 says (`cosim.record.observers.csv_header`: quoted names may hold commas, ``""`` and line breaks)."""
+    4180 says (`cosim.record.observers.csv_header`: quoted names may hold commas, ``""`` and line
+    breaks).  A vector column (an FMI 3.0 array as fmusim and ``fmpy.util.write_csv`` write it)
+    is read as one column per value, ``y[1]`` .. ``y[n]``, the names a run records a
+    one-dimensional array's elements by (`cosim.model.fmu.element_names`)."""
     import csv
     import io
 
@@ -58,10 +61,10 @@ def _read_csv(path: str | Path) -> np.ndarray:
     lines = source.read().splitlines()
     if names is None or not lines:
         raise ValueError("no header and row")
-    columns = [(name, np.float64, (n,) if n > 1 else None)
-               for name, n in zip(names, (len(field.split(" ")) for field in lines[0].split(",")))]
-    rows = [tuple(tuple(map(float, field.split(" "))) if " " in field else float(field) for field in line.split(","))
-            for line in lines]
+    widths = [len(field.split(" ")) for field in lines[0].split(",")]
+    columns = [(element, np.float64) for name, n in zip(names, widths)
+               for element in ([f"{name}[{k}]" for k in range(1, n + 1)] if n > 1 else [name])]
+    rows = [tuple(float(v) for field in line.split(",") for v in field.split(" ")) for line in lines]
     return np.array(rows, dtype=np.dtype(columns))
 
 

@@ -176,3 +176,30 @@ def test_elements_outside_an_array_are_refused_with_its_shape(arrays3, tmp_path,
     with pytest.raises(SetupError) as error:
         cosim.prepare(_system(tmp_path, arrays3, comps, []))
     assert message in str(error.value) and connector in str(error.value)
+
+
+def test_fmusim_style_array_columns_in_input_tables_and_references(arrays3, tmp_path, capsys):
+    """A cell holding an array's values separated by spaces, as fmusim and fmpy.util.write_csv write
+    them: an input table column ``u`` = ``3 4`` drives u[1] and u[2]; an fmpy result written so is
+    a reference `cosim compare` matches element by element, A's values by position onto A[i,j]."""
+    table = tmp_path / "in.csv"
+    table.write_text("time,u\n0,3 4\n1,3 4\n")
+    assert main(["run", str(arrays3), "--input-file", str(table), "-o", str(tmp_path / "in.out.csv"), "-q"]) == 0
+    driven = read(tmp_path / "in.out.csv")
+    np.testing.assert_array_equal(driven["Arrays3.u[2]"], 4.0)
+    np.testing.assert_array_equal(driven["y"], 43.0)
+    table.write_text("time,u\n0,3 4 5\n1,3 4 5\n")
+    assert main(["run", str(arrays3), "--input-file", str(table), "-o", str(tmp_path / "bad.csv"), "-q"]) == 2
+    assert "the column 'u' holds 3 values per row; Arrays3.u is an array of 2 values" in capsys.readouterr().err
+
+    reference = tmp_path / "fmpy.csv"
+    fmpy.util.write_csv(str(reference), fmpy.simulate_fmu(str(arrays3), output_interval=0.25))
+    assert "11 12 13 21 22 23" in reference.read_text()
+    out = tmp_path / "o.csv"
+    assert main(["run", str(arrays3), "-o", str(out), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(reference), str(out), "--rtol", "0", "--atol", "0"]) == 0
+    assert "19 of 19 signals agree" in capsys.readouterr().out
+    assert main(["compare", str(out), str(reference), "--signals", "A[*]", "outputs[*]", "--rtol", "0",
+                 "--atol", "0"]) == 0
+    assert "10 of 10 signals agree" in capsys.readouterr().out
