@@ -112,7 +112,8 @@ def test_a_single_fmu_records_every_array_element_as_fmpy(arrays3, tmp_path, cap
 
 def test_array_element_names_work_in_signals_tolerances_and_input_tables(arrays3, tmp_path, capsys):
     """--signals with an element (a comma inside the brackets is no panel separator, brackets are
-    no glob class), an input table driving u[2], and compare with a tolerance key on A[*]."""
+    no glob class), an input table driving u[2], compare with a tolerance key on A[*], metrics of
+    an element."""
     table = tmp_path / "in.csv"
     table.write_text('time,"u[2]"\n0,5\n0.5,5\n0.5,7\n1,7\n')   # 5, then 7 from t = 0.5 on
     out = tmp_path / "o.csv"
@@ -130,6 +131,8 @@ def test_array_element_names_work_in_signals_tolerances_and_input_tables(arrays3
     write(shifted, read_back)
     assert main(["compare", str(out), str(read_back), "--tolerance", "A[*]=1e-2,0"]) == 0, capsys.readouterr()
     assert main(["compare", str(out), str(read_back), "--signals", "A[1,1]"]) == 1
+    assert main(["metrics", str(out), "--signal", "A[2,3]", "--setpoint", "y", "--t0", "0", "--t1", "1"]) == 0
+    assert "A[2,3] following y" in capsys.readouterr().out
 
 
 def _system(tmp_path, arrays3, components, connections):
