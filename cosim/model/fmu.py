@@ -58,8 +58,8 @@ class Variable:
     description: str | None = None
     declared_type: DeclaredType | None = None
     #: an FMI 3.0 array's extents, each the ``start`` of its Dimension or of the structural
-    #: parameter it names (§2.4.7.5); () for a scalar
-    dimensions: tuple[str | None, ...] = ()
+    #: parameter it names (§2.4.7.5; None: not a whole number); () for a scalar
+    dimensions: tuple[int | None, ...] = ()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -138,16 +138,12 @@ class FMUDescription:
         """The extents of an FMI 3.0 array (() for a scalar): each Dimension's ``start``, or the start
         of the structural parameter it names (FMI 3.0 §2.4.7.5; this master sets no structural
         parameter, so the start is the extent of the whole run)."""
-        try:
-            shape = tuple(int(d) for d in array.dimensions)   # None (no start) raises TypeError
-        except (TypeError, ValueError):
-            shape = ()
-        if len(shape) != len(array.dimensions) or any(n < 0 for n in shape):
+        if any(d is None or d < 0 for d in array.dimensions):
             raise SetupError(f"the extents of the array {array.name} in {self.path.name} are "
                              f"{', '.join(str(d) for d in array.dimensions)}: not all are known numbers (a Dimension's "
                              "start, or the start of the structural parameter it names).",
                              file=file, element=where, variable=array.name)
-        return shape
+        return tuple(array.dimensions)
 
     def with_element(self, element: ArrayElement) -> FMUDescription:
         """This description knowing ``element`` (from `variable`) by its value reference, an input

@@ -48,7 +48,7 @@ def _array(desc: FMUDescription, name: str) -> Variable | None:
 
 def _connection(structure: SystemStructure, fmus: Mapping[str, FMUDescription], c: Connection) -> list[Connection]:
     """One connection per element pair of two whole arrays of equal shape; ``c`` itself otherwise."""
-    ends = [(e, n) for e, n in ((c.start_element, c.start_connector), (c.end_element, c.end_connector))]
+    ends = ((c.start_element, c.start_connector), (c.end_element, c.end_connector))
     arrays = [_array(fmus[e], n) if e in fmus else None for e, n in ends]
     if not any(arrays):
         return [c]

@@ -271,11 +271,12 @@ def _warn_unrecorded(structure: SystemStructure, fmus: Mapping[str, FMUDescripti
     names += [f"root output '{out.name}'" for out in structure.system_outputs.values()
               if out.component is not None and any(v.name == out.connector and not recorded_type(v)
                                                    for v in outputs[out.component])]
+    parts = [f"exchanged, not recorded (a result file holds numbers): {', '.join(names)}"] if names else []
     left = _left_out(structure, fmus)
-    if names or left:
-        warnings.warn(NotRecorded(f"{structure.display}: " + "; ".join(
-            [f"exchanged, not recorded (a result file holds numbers): {', '.join(names)}"] * bool(names)
-            + [f"neither exchanged nor recorded: {', '.join(left)}"] * bool(left))), stacklevel=3)
+    if left:
+        parts.append(f"neither exchanged nor recorded: {', '.join(left)}")
+    if parts:
+        warnings.warn(NotRecorded(f"{structure.display}: {'; '.join(parts)}"), stacklevel=3)
 
 
 def _left_out(structure: SystemStructure, fmus: Mapping[str, FMUDescription]) -> list[str]:
@@ -288,7 +289,7 @@ def _left_out(structure: SystemStructure, fmus: Mapping[str, FMUDescription]) ->
         for v in fmus[name].variables.values():
             if v.causality in ("input", "output") and v.name not in comp.connectors \
                     and not any(c.startswith(v.name + "[") for c in comp.connectors):
-                shape = "×".join("?" if d is None else str(d) for d in v.dimensions)
+                shape = "×".join(str(d) for d in v.dimensions)
                 left.append(f"{name}.{v.name} ({v.type}{f' array of {shape}' if shape else ''})")
     return left
 

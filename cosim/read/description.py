@@ -27,9 +27,14 @@ SCHEMA_CHECK = "FMI schema"
 IMPLEMENTATIONS = ("any", "CoSimulation", "ModelExchange")
 
 
-def _extent(dimension) -> str | None:
-    """A Dimension's extent as text: its ``start``, or the start of the structural parameter it names."""
-    return dimension.start if dimension.start is not None else dimension.variable.start
+def _extent(dimension) -> int | None:
+    """A Dimension's extent: its ``start``, or the start of the structural parameter it names; None
+    where neither is a whole number (`cosim.model.fmu.FMUDescription.shape` refuses such an array)."""
+    start = dimension.start if dimension.start is not None else getattr(dimension.variable, "start", None)
+    try:
+        return int(start)
+    except (TypeError, ValueError):
+        return None
 
 
 def _variable(v: ModelVariable) -> Variable:

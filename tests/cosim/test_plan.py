@@ -176,7 +176,7 @@ def test_looking_up_an_array_element_leaves_the_description_as_it_was():
 
     from cosim.model.fmu import ArrayElement, FMUDescription, Variable
 
-    array = Variable("x", 7, "Float64", "input", "continuous", dimensions=("3",))
+    array = Variable("x", 7, "Float64", "input", "continuous", dimensions=(3,))
     out = Variable("y", 8, "Float64", "output", "continuous")
     desc = FMUDescription(Path("/nowhere/A.fmu"), "fmi3-cs", "3.0", "{g}", None, "A",
                           FrozenMap({"x": array, "y": out}), FrozenMap({"y": ("x",)}), (), None, (), False, 0, 0,
