@@ -18,6 +18,8 @@ import cosim
 from cfmus import build_c_fmu
 from cosim.cli import main
 from cosim.errors import SetupError
+from cosim.present.plots import default_panels, plotted
+from cosim.record.metadata import signal_info
 from cosim.record.results import read
 from ssdgen import ssd_text, write_system
 
@@ -108,6 +110,10 @@ def test_a_single_fmu_records_every_array_element_as_fmpy(arrays3, tmp_path, cap
     np.testing.assert_array_equal(ours["y"], theirs["y"])
     np.testing.assert_array_equal(ours["Arrays3.u[2]"], 2.0)
     assert ours["A[2,3]"][-1] == 23 + 4 and ours["x[3]"][-1] == 3 * 4 / 2   # k = 4 steps at t = 1
+    with cosim.prepare(arrays3) as prepared:   # the default plot: an array's elements in one panel
+        outputs, inputs = prepared.plan.recorded()
+        panels = default_panels(signal_info(prepared.plan), plotted(prepared.plan, outputs + inputs))
+    assert [len(p) for p in panels] == [4, 6, 3, 3, 2, 1, 2] and panels[1][-1] == "Arrays3.A[2,3]", panels
 
 
 def test_array_element_names_work_in_signals_tolerances_and_input_tables(arrays3, tmp_path, capsys):
