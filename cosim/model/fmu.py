@@ -14,6 +14,7 @@ import math
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from collections.abc import Sequence
 from typing import Literal
 
 from ..errors import SetupError, did_you_mean
@@ -93,7 +94,7 @@ class DefaultExperiment:
 @dataclass(frozen=True)
 class FMUDescription:
     """A checked model description, as values, and the interface the master drives it through.
-    Immutable: the elements of FMI 3.0 arrays that connectors name are added by `with_element`,
+    Immutable: the elements of FMI 3.0 arrays that connectors name are added by `with_elements`,
     which returns a new description (`cosim.plan.build` keeps the one with its connectors')."""
     path: Path
     kind: Kind
@@ -124,15 +125,35 @@ class FMUDescription:
 
     def variable(self, name: str, where: str, file: str) -> Variable:
         """The variable called ``name``, or the element ``name`` names of an FMI 3.0 array (one
-        `with_element` added, else a new one with the next free value reference)."""
-        var = self.variables.get(name)
-        if var is not None:
-            return var
-        match = _ELEMENT.fullmatch(name)
-        if match is not None and match.group(1) in self.variables and self.variables[match.group(1)].dimensions:
-            return self._element(self.variables[match.group(1)], match.group(2), name, where, file)
-        raise SetupError(f"the FMU {self.path.name} has no variable '{name}'.", file=file,
-                         element=where, variable=name, hint=did_you_mean(name, self.variables))
+        `with_elements` added, else a new one with the next free value reference)."""
+        return self.resolve([name], where, file)[1][0]
+
+    def resolve(self, names: Sequence[str], where: str | Sequence[str], file: str
+                ) -> tuple[FMUDescription, list[Variable]]:
+        """The variables ``names`` name (`variable`; ``where``: one place for all, or one per name) and
+        this description knowing the new array elements among them (`with_elements`), each with
+        a value reference of its own, in one pass however many (an array of 10 000 elements)."""
+        known = {e.name: e for e in self.elements.values()}
+        new: list[ArrayElement] = []
+        vr = min([*self.elements, 0x100000000]) - 1
+        used = {v.vr for v in self.variables.values()}
+        found = []
+        for i, name in enumerate(names):
+            place = where if isinstance(where, str) else where[i]
+            var = self.variables.get(name) or known.get(name)
+            if var is None:
+                match = _ELEMENT.fullmatch(name)
+                array = self.variables.get(match.group(1)) if match is not None else None
+                if array is None or not array.dimensions:
+                    raise SetupError(f"the FMU {self.path.name} has no variable '{name}'.", file=file,
+                                     element=place, variable=name, hint=did_you_mean(name, self.variables))
+                while vr in used:
+                    vr -= 1
+                var = known[name] = self._element(array, match.group(2), name, vr, place, file)
+                new.append(var)
+                vr -= 1
+            found.append(var)
+        return self.with_elements(new), found
 
     def shape(self, array: Variable, where: str, file: str) -> tuple[int, ...]:
         """The extents of an FMI 3.0 array (() for a scalar): each Dimension's ``start``, or the start
@@ -145,26 +166,27 @@ class FMUDescription:
                              file=file, element=where, variable=array.name)
         return tuple(array.dimensions)
 
-    def with_element(self, element: ArrayElement) -> FMUDescription:
-        """This description knowing ``element`` (from `variable`) by its value reference, an input
+    def with_elements(self, elements: Sequence[ArrayElement]) -> FMUDescription:
+        """This description knowing ``elements`` (from `resolve`) by their value references, an input
         element among the inputs an output depends on where its array is, an output element
-        depending on what its array depends on."""
-        if element.vr in self.elements:
+        depending on what its array depends on; itself when it knows them all."""
+        elements = [e for e in elements if e.vr not in self.elements]
+        if not elements:
             return self
-        array = element.array.name
-        deps = {out: ins + (element.name,) if array in ins else ins for out, ins in self.output_dependencies.items()}
-        if array in deps:
-            deps[element.name] = deps[array]
-        return replace(self, elements=FrozenMap({**self.elements, element.vr: element}),
+        inputs: dict[str, list[str]] = {}
+        for e in elements:
+            inputs.setdefault(e.array.name, []).append(e.name)
+        deps = {out: ins + tuple(n for name in ins for n in inputs.get(name, ()))
+                for out, ins in self.output_dependencies.items()}
+        deps.update({e.name: deps[e.array.name] for e in elements if e.array.name in deps})
+        return replace(self, elements=FrozenMap({**self.elements, **{e.vr: e for e in elements}}),
                        output_dependencies=FrozenMap(deps))
 
-    def _element(self, array: Variable, index_text: str, name: str, where: str, file: str) -> ArrayElement:
-        """One element of an FMI 3.0 array, named as fmpy and fmusim name it: 1-based indices as in
-        Modelica and in the FMI 2.0 structured names of scalarised arrays, one per dimension,
-        separated by commas (``x[1]`` is the first element, ``A[2,3]`` row 2, column 3)."""
-        known = next((e for e in self.elements.values() if e.name == name), None)
-        if known is not None:
-            return known
+    def _element(self, array: Variable, index_text: str, name: str, vr: int, where: str, file: str) -> ArrayElement:
+        """One element of an FMI 3.0 array with the value reference ``vr``, named as fmpy and fmusim
+        name it: 1-based indices as in Modelica and in the FMI 2.0 structured names of scalarised
+        arrays, one per dimension, separated by commas (``x[1]`` is the first element, ``A[2,3]``
+        row 2, column 3)."""
         if array.type in ("String", "Binary"):
             raise SetupError(f"'{array.name}' is a {array.type} array; only elements of numeric and Boolean "
                              "arrays can be connected.", file=file, element=where, variable=name)
@@ -179,10 +201,6 @@ class FMUDescription:
                              f"{self.path.name}; elements are numbered {element_name(array.name, (1,) * len(shape))} "
                              f".. {element_name(array.name, shape)}.", file=file, element=where, variable=name,
                              hint=hint)
-        vr = min([*self.elements, 0x100000000]) - 1
-        used = {v.vr for v in self.variables.values()}
-        while vr in used:
-            vr -= 1
         position = 0
         for i, n in zip(index, shape):   # row-major (FMI 3.0 §2.4.7.5)
             position = position * n + i - 1

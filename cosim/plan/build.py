@@ -14,7 +14,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 
 from ..errors import SetupError, did_you_mean
-from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, recorded_type, unit_of
+from ..model.fmu import FMUDescription, Variable, exchange_type, recorded_type, unit_of
 from ..model.frozen import FrozenMap
 from ..model.structure import (
     LOOP_MODES,
@@ -89,20 +89,18 @@ def build_plan(structure: SystemStructure, fmus: Mapping[str, FMUDescription],
 # --------------------------------------------------------------------------- connectors and connections
 
 def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
-    """The descriptions knowing the array elements connectors name (`FMUDescription.with_element`),
+    """The descriptions knowing the array elements connectors name (`FMUDescription.resolve`),
     and each component's output and input connectors' variables, checked."""
     file = structure.display
     outputs: dict[str, list[Variable]] = {}
     inputs: dict[str, list[Variable]] = {}
     described = {}
     for name, comp in structure.components.items():
-        desc = fmus[name]
         outputs[name], inputs[name] = [], []
-        for conn in comp.connectors.values():
-            where = f"ssd:Connector '{conn.name}' of component '{name}' (line {conn.line})"
-            var = desc.variable(conn.name, where, file)
-            if isinstance(var, ArrayElement):
-                desc = desc.with_element(var)
+        places = [f"ssd:Connector '{conn.name}' of component '{name}' (line {conn.line})"
+                  for conn in comp.connectors.values()]
+        desc, variables = fmus[name].resolve(list(comp.connectors), places, file)
+        for conn, var, where in zip(comp.connectors.values(), variables, places):
             if conn.kind in ("input", "output") and var.causality != conn.kind:
                 raise SetupError(f"declared kind='{conn.kind}' but the FMU {desc.path.name} declares it "
                                  f"causality='{var.causality}'.", file=file, element=where, variable=conn.name)
@@ -202,18 +200,20 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[Variable
     constant (`_undriven_output`)."""
     file = structure.display
     recorded: dict[str, RecordedOutput] = {}
+    by_name = {c: {v.name: v for v in vs} for c, vs in outputs.items()}
+    columns = {f"{c}.{v.name}" for c, vs in outputs.items() for v in vs}
     for out in structure.system_outputs.values():
         where = f"ssd:Connector '{out.name}' of the root system (line {out.line})"
         if out.component is None:
             recorded[out.name] = _undriven_output(structure, out, where, values)
             continue
-        var = next((v for v in outputs[out.component] if v.name == out.connector), None)
+        var = by_name[out.component].get(out.connector)
         if var is None:
             raise SetupError(f"it is driven by {out.component}.{out.connector}, which is not an output "
                              "connector of that component.", file=file, element=where, variable=out.name)
         if not recorded_type(var):  # exchanged, not recorded: named by _warn_unrecorded
             continue
-        if any(f"{c}.{v.name}" == out.name for c, vs in outputs.items() for v in vs):
+        if out.name in columns:
             raise SetupError(f"the name clashes with the component output {out.name} in the results.",
                              file=file, element=where, variable=out.name)
         transform = path_transform(structure, units, out.hops, (out.component, var), None, where)
@@ -268,9 +268,9 @@ def _warn_unrecorded(structure: SystemStructure, fmus: Mapping[str, FMUDescripti
     """One warning naming every connector whose values are exchanged and not recorded, the root
     output connectors they drive, and a single FMU's inputs and outputs that are no connector."""
     names = [f"{c}.{v.name} ({v.type})" for c in outputs for v in outputs[c] + inputs[c] if not recorded_type(v)]
+    unrecorded = {(c, v.name) for c in outputs for v in outputs[c] if not recorded_type(v)}
     names += [f"root output '{out.name}'" for out in structure.system_outputs.values()
-              if out.component is not None and any(v.name == out.connector and not recorded_type(v)
-                                                   for v in outputs[out.component])]
+              if (out.component, out.connector) in unrecorded]
     parts = [f"exchanged, not recorded (a result file holds numbers): {', '.join(names)}"] if names else []
     left = _left_out(structure, fmus)
     if left:
@@ -286,9 +286,9 @@ def _left_out(structure: SystemStructure, fmus: Mapping[str, FMUDescription]) ->
         return []
     left = []
     for name, comp in structure.components.items():
+        arrays = {c.partition("[")[0] for c in comp.connectors}   # made element by element (cosim.plan.arrays)
         for v in fmus[name].variables.values():
-            if v.causality in ("input", "output") and v.name not in comp.connectors \
-                    and not any(c.startswith(v.name + "[") for c in comp.connectors):
+            if v.causality in ("input", "output") and v.name not in comp.connectors and v.name not in arrays:
                 shape = "×".join(str(d) for d in v.dimensions)
                 left.append(f"{name}.{v.name} ({v.type}{f' array of {shape}' if shape else ''})")
     return left
