@@ -22,6 +22,7 @@ def expand_arrays(structure: SystemStructure, fmus: Mapping[str, FMUDescription]
     connection between a whole array and a scalar, or two arrays of different shapes, is refused
     naming both ends and their shapes."""
     file = structure.display
+    _check_open_connectors(structure, fmus)
     components = {}
     for name, comp in structure.components.items():
         connectors = {}
@@ -38,6 +39,20 @@ def expand_arrays(structure: SystemStructure, fmus: Mapping[str, FMUDescription]
             and len(connections) == len(structure.connections) and list(outputs) == list(structure.system_outputs):
         return structure
     return replace(structure, components=components, connections=connections, system_outputs=outputs)
+
+
+def _check_open_connectors(structure: SystemStructure, fmus: Mapping[str, FMUDescription]) -> None:
+    """Refuse an undriven system connector (one value, from a ParameterBinding or an input table
+    column: `cosim.model.structure.OpenConnector`) that feeds a whole array."""
+    for path, target in structure.open_connectors.items():
+        for comp, conn, _ in target.sinks:
+            array = _array(fmus[comp], conn)
+            if array is not None:
+                where = f"ssd:Connector '{path}' (line {target.line})"
+                shape = fmus[comp].shape(array, where, structure.display)
+                raise SetupError(f"system connector '{path}' holds one value and feeds {comp}.{conn}, "
+                                 f"{describe_shape(shape)}; connect it to one element ({element_names(conn, shape)[0]}).",
+                                 file=structure.display, element=where, variable=path)
 
 
 def _array(desc: FMUDescription, name: str) -> Variable | None:

@@ -176,6 +176,20 @@ def test_whole_arrays_of_different_shapes_are_refused(arrays3, tmp_path, connect
     assert message in str(error.value) and "line " in str(error.value)
 
 
+def test_a_system_connector_of_one_value_feeding_a_whole_array_is_refused(arrays3, tmp_path):
+    """An undriven root input connector r wired to b.u (2 values): an input table column or a
+    ParameterBinding gives r one value, which no element order can spread over u."""
+    text = ssd_text("arrays", {"b": ("Arrays3.fmu", {"u": "input"})}, [], stop=1.0, step=0.25)
+    text = text.replace('<ssd:System name="root">', '<ssd:System name="root"><ssd:Connectors>'
+                        '<ssd:Connector name="r" kind="input"/></ssd:Connectors>').replace(
+        "    </ssd:Elements>\n", '    </ssd:Elements>\n    <ssd:Connections><ssd:Connection startConnector="r" '
+        'endElement="b" endConnector="u"/></ssd:Connections>\n')
+    folder = write_system(tmp_path / "sys", {arrays3.name: arrays3}, text)
+    with pytest.raises(SetupError) as error:
+        cosim.prepare(folder)
+    assert "system connector 'r' holds one value and feeds b.u, an array of 2 values" in str(error.value)
+
+
 @pytest.mark.parametrize("connector, message", [
     ("A[3,1]", "A[1,1] .. A[2,3]"), ("A[2]", "A[1,1] .. A[2,3]"), ("x[4]", "x[1] .. x[3]"),
     ("A[2, 3]", "A[2,3]"),
