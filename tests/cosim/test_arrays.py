@@ -42,6 +42,8 @@ ARRAYS3 = """<?xml version="1.0" encoding="UTF-8"?>
       <Dimension start="3"/></Int32>
     <Float64 name="w" valueReference="45" causality="output" variability="continuous">
       <Dimension start="2"/></Float64>
+    <Boolean name="flags" valueReference="55" causality="output" variability="discrete">
+      <Dimension start="2"/></Boolean>
     <String name="labels" valueReference="50" causality="output" variability="discrete">
       <Dimension start="2"/></String>
     <Float64 name="y" valueReference="60" causality="output" variability="continuous"/>
@@ -50,31 +52,34 @@ ARRAYS3 = """<?xml version="1.0" encoding="UTF-8"?>
     <Output valueReference="10" dependencies="2"/><Output valueReference="20" dependencies=""/>
     <Output valueReference="30" dependencies=""/><Output valueReference="40" dependencies=""/>
     <Output valueReference="45" dependencies=""/><Output valueReference="50" dependencies=""/>
+    <Output valueReference="55" dependencies=""/>
     <Output valueReference="60" dependencies="2"/>
   </ModelStructure>
 </fmiModelDescription>
 """
 
 #: k = steps taken, t = time: outputs[e] = e·t + u[1] (e = 1..4), A[i,j] = 10 i + j + k,
-#: x[e] = e·k/2 (e = 1..n, n = 3), counts[e] = e·k, w = (t, -t), y = u[1] + 10 u[2]
+#: x[e] = e·k/2 (e = 1..n, n = 3), counts[e] = e·k, w = (t, -t), flags = (k odd, k even),
+#: y = u[1] + 10 u[2]
 ARRAYS3_BODY = r"""
 static void start(S *s) {
     s->l[1] = 3; s->extent[2] = 2; s->r[2] = 1; s->r[3] = 2; s->extent[10] = 4; s->extent[20] = 6;
-    s->extent[30] = (size_t) s->l[1]; s->extent[40] = 3; s->extent[45] = 2; }
+    s->extent[30] = (size_t) s->l[1]; s->extent[40] = 3; s->extent[45] = 2; s->extent[55] = 2; }
 static void calculate(S *s) {
     double k = (double) s->l[62], t = s->time;
     for (int e = 0; e < 4; e++) s->r[10 + e] = (e + 1) * t + s->r[2];
     for (int i = 0; i < 2; i++) for (int j = 0; j < 3; j++) s->r[20 + 3 * i + j] = 10 * (i + 1) + (j + 1) + k;
     for (int e = 0; e < (int) s->l[1]; e++) s->r[30 + e] = (e + 1) * k / 2;
     for (int e = 0; e < 3; e++) s->i[40 + e] = (e + 1) * (int) k;
-    s->r[45] = t; s->r[46] = -t; s->r[60] = s->r[2] + 10 * s->r[3]; }
+    s->r[45] = t; s->r[46] = -t; s->b[55] = (int) k % 2; s->b[56] = !s->b[55]; s->r[60] = s->r[2] + 10 * s->r[3]; }
 static int step(S *s, double t, double h) { s->l[62] += 1; return 0; }
 """
 
 #: the recorded element columns of each output array, as fmpy and fmusim name them
 ELEMENTS = {"outputs": [f"outputs[{e}]" for e in range(1, 5)],
             "A": [f"A[{i},{j}]" for i, j in itertools.product((1, 2), (1, 2, 3))],
-            "x": ["x[1]", "x[2]", "x[3]"], "counts": ["counts[1]", "counts[2]", "counts[3]"], "w": ["w[1]", "w[2]"]}
+            "x": ["x[1]", "x[2]", "x[3]"], "counts": ["counts[1]", "counts[2]", "counts[3]"], "w": ["w[1]", "w[2]"],
+            "flags": ["flags[1]", "flags[2]"]}
 
 
 @pytest.fixture(scope="module")
@@ -113,7 +118,7 @@ def test_a_single_fmu_records_every_array_element_as_fmpy(arrays3, tmp_path, cap
     with cosim.prepare(arrays3) as prepared:   # the default plot: an array's elements in one panel
         outputs, inputs = prepared.plan.recorded()
         panels = default_panels(signal_info(prepared.plan), plotted(prepared.plan, outputs + inputs))
-    assert [len(p) for p in panels] == [4, 6, 3, 3, 2, 1, 2] and panels[1][-1] == "Arrays3.A[2,3]", panels
+    assert [len(p) for p in panels] == [4, 6, 3, 3, 2, 2, 1, 2] and panels[1][-1] == "Arrays3.A[2,3]", panels
 
 
 def test_array_element_names_work_in_signals_tolerances_and_input_tables(arrays3, tmp_path, capsys):
@@ -222,7 +227,7 @@ def test_fmusim_style_array_columns_in_input_tables_and_references(arrays3, tmp_
     assert main(["run", str(arrays3), "-o", str(out), "-q"]) == 0
     capsys.readouterr()
     assert main(["compare", str(reference), str(out), "--rtol", "0", "--atol", "0"]) == 0
-    assert "19 of 19 signals agree" in capsys.readouterr().out
+    assert "21 of 21 signals agree" in capsys.readouterr().out
     assert main(["compare", str(out), str(reference), "--signals", "A[*]", "outputs[*]", "--rtol", "0",
                  "--atol", "0"]) == 0
     assert "10 of 10 signals agree" in capsys.readouterr().out
