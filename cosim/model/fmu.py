@@ -13,6 +13,7 @@ import itertools
 import math
 import re
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from collections.abc import Sequence
 from typing import Literal
@@ -125,15 +126,20 @@ class FMUDescription:
 
     def variable(self, name: str, where: str, file: str) -> Variable:
         """The variable called ``name``, or the element ``name`` names of an FMI 3.0 array (one
-        `with_elements` added, else a new one with the next free value reference)."""
-        return self.resolve([name], where, file)[1][0]
+        `with_elements` added, else a new one with the next free value reference: `resolve`)."""
+        known = self.variables.get(name) or self._elements_by_name.get(name)
+        return known if known is not None else self.resolve([name], where, file)[1][0]
+
+    @cached_property
+    def _elements_by_name(self) -> dict[str, ArrayElement]:
+        return {e.name: e for e in self.elements.values()}
 
     def resolve(self, names: Sequence[str], where: str | Sequence[str], file: str
                 ) -> tuple[FMUDescription, list[Variable]]:
         """The variables ``names`` name (`variable`; ``where``: one place for all, or one per name) and
         this description knowing the new array elements among them (`with_elements`), each with
         a value reference of its own, in one pass however many (an array of 10 000 elements)."""
-        known = {e.name: e for e in self.elements.values()}
+        known = dict(self._elements_by_name)
         new: list[ArrayElement] = []
         vr = min([*self.elements, 0x100000000]) - 1
         used = {v.vr for v in self.variables.values()}

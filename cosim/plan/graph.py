@@ -45,7 +45,7 @@ def _variable_graph(routes: Sequence[Route], outputs: Mapping[str, Sequence[str]
                 continue
             for dep in dependencies[comp].get(name, []):
                 source = ("in", comp, dep)
-                if dep in connected_in[comp] and not any(source in v and out in v for v in inside):
+                if dep in connected_in[comp] and not (inside and any(source in v and out in v for v in inside)):
                     edges[source].append(out)
     return list(dict.fromkeys(nodes)), edges
 
