@@ -231,3 +231,29 @@ def test_fmusim_style_array_columns_in_input_tables_and_references(arrays3, tmp_
     assert main(["compare", str(out), str(reference), "--signals", "A[*]", "outputs[*]", "--rtol", "0",
                  "--atol", "0"]) == 0
     assert "10 of 10 signals agree" in capsys.readouterr().out
+
+
+TICKS3 = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="Ticks" instantiationToken="{c10c0000-0000-4000-8000-000000000041}">
+  <CoSimulation modelIdentifier="Ticks" canHandleVariableCommunicationStepSize="true"/>
+  <DefaultExperiment startTime="0" stopTime="1" stepSize="0.25"/>
+  <ModelVariables>
+    <Float64 name="time" valueReference="63" causality="independent" variability="continuous"/>
+    <Clock name="tick" valueReference="7" causality="output" intervalVariability="constant" intervalDecimal="0.5"/>
+    <Float64 name="y" valueReference="8" causality="output" variability="continuous"/>
+  </ModelVariables>
+  <ModelStructure><Output valueReference="7"/><Output valueReference="8"/></ModelStructure>
+</fmiModelDescription>
+"""
+
+
+def test_a_single_fmus_clock_is_named_not_dropped(tmp_path, capsys):
+    """`cosim run X.fmu` skipped a Clock output without a word at 5dbfe07; it is named now (fmpy
+    does not record it either)."""
+    fmu = build_c_fmu(tmp_path, "Ticks", TICKS3, "static void start(S *s) {}\n"
+                      "static void calculate(S *s) { s->r[8] = s->time; }\n"
+                      "static int step(S *s, double t, double h) { return 0; }\n", fmi="3.0")
+    assert main(["run", str(fmu), "-o", str(tmp_path / "o.csv"), "-q"]) == 0
+    warned = _warnings(capsys.readouterr().err)
+    assert len(warned) == 1 and "neither exchanged nor recorded: Ticks.tick (Clock)" in warned[0], warned
+    np.testing.assert_array_equal(read(tmp_path / "o.csv")["y"], [0, 0.25, 0.5, 0.75, 1])
