@@ -260,7 +260,8 @@ def _undriven_output(structure: SystemStructure, out: SystemOutput, where: str,
 # --------------------------------------------------------------------------- recording
 
 class NotRecorded(RuntimeWarning):
-    """Variables a run exchanges and does not record (String, Binary): named once per plan."""
+    """Variables a run exchanges and does not record (String, Binary), and those of a single FMU it
+    neither exchanges nor records (String and Binary arrays, Clocks): named once per plan."""
 
 
 def _warn_unrecorded(structure: SystemStructure, fmus: Mapping[str, FMUDescription],
