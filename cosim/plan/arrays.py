@@ -51,8 +51,9 @@ def _check_open_connectors(structure: SystemStructure, fmus: Mapping[str, FMUDes
                 where = f"ssd:Connector '{path}' (line {target.line})"
                 shape = fmus[comp].shape(array, where, structure.display)
                 raise SetupError(f"system connector '{path}' holds one value and feeds {comp}.{conn}, "
-                                 f"{describe_shape(shape)}; connect it to one element ({element_names(conn, shape)[0]}).",
-                                 file=structure.display, element=where, variable=path)
+                                 f"{describe_shape(shape)}; connect it to one element "
+                                 f"({element_names(conn, shape)[0]}).", file=structure.display, element=where,
+                                 variable=path)
 
 
 def _array(desc: FMUDescription, name: str) -> Variable | None:

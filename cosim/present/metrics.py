@@ -408,12 +408,13 @@ def compare(a: np.ndarray, b: np.ndarray, *, signals: Sequence[str] | None = Non
     counterpart = _by_position(a.dtype.names, b.dtype.names)
     out = []
     for name in names:
-        for result, label, own in ((a, "the first result", name), (b, "the second result", counterpart.get(name, name))):
+        theirs = counterpart.get(name, name)
+        for result, label, own in ((a, "the first result", name), (b, "the second result", theirs)):
             if own not in result.dtype.names:
                 raise SetupError(f"{label} has no signal '{own}'.", variable=own,
                                  hint=did_you_mean(own, result.dtype.names))
         tol = tolerance_for(name, tolerances, default)
-        ref, cand = a[name], b[counterpart.get(name, name)]
+        ref, cand = a[name], b[theirs]
         with np.errstate(invalid="ignore"):
             diff = np.abs(ref - cand)
         scale = np.abs(ref)

@@ -5,8 +5,9 @@ The file is fmpy's format: a header row whose first column is ``time``, then one
 input, one row per sample, times non-decreasing.  A time written on two rows is an event: the
 first row is the value just before it, the last the value from then on.  A cell may hold an FMI
 3.0 array's values separated by spaces, as fmusim and ``fmpy.util.write_csv`` write them
-(``u`` = ``1 2``): the column is read as one column per value, in the array's order (row-major).  `cosim.plan.inputs`
-binds the columns to a plan's inputs and `cosim.run.feed` sets their values during a run.
+(``u`` = ``1 2``): the column is read as one column per value, in the array's order (row-major).
+`cosim.plan.inputs` binds the columns to a plan's inputs and `cosim.run.feed` sets their values
+during a run.
 """
 from __future__ import annotations
 
