@@ -23,12 +23,22 @@ from cosim.record.metadata import signal_info
 from cosim.record.results import read
 from ssdgen import ssd_text, write_system
 
-ARRAYS3 = """<?xml version="1.0" encoding="UTF-8"?>
-<fmiModelDescription fmiVersion="3.0" modelName="Arrays3" instantiationToken="{a7a70000-0000-4000-8000-000000000041}">
-  <CoSimulation modelIdentifier="Arrays3" canHandleVariableCommunicationStepSize="true"/>
+def _description(name: str, token: str, variables: str, structure: str) -> str:
+    """An FMI 3.0 Co-Simulation model description with ``time`` (value reference 63) and ``variables``,
+    run from 0 to 1 s by steps of 0.25 s."""
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="{name}" instantiationToken="{{{token}}}">
+  <CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="true"/>
   <DefaultExperiment startTime="0" stopTime="1" stepSize="0.25"/>
   <ModelVariables>
     <Float64 name="time" valueReference="63" causality="independent" variability="continuous"/>
+{variables}  </ModelVariables>
+  <ModelStructure>{structure}</ModelStructure>
+</fmiModelDescription>
+"""
+
+
+ARRAYS3 = _description("Arrays3", "a7a70000-0000-4000-8000-000000000041", """\
     <UInt64 name="n" valueReference="1" causality="structuralParameter" variability="fixed" start="3"/>
     <Float64 name="u" valueReference="2" causality="input" variability="continuous" start="1 2">
       <Dimension start="2"/></Float64>
@@ -47,16 +57,12 @@ ARRAYS3 = """<?xml version="1.0" encoding="UTF-8"?>
     <String name="labels" valueReference="50" causality="output" variability="discrete">
       <Dimension start="2"/></String>
     <Float64 name="y" valueReference="60" causality="output" variability="continuous"/>
-  </ModelVariables>
-  <ModelStructure>
+""", """
     <Output valueReference="10" dependencies="2"/><Output valueReference="20" dependencies=""/>
     <Output valueReference="30" dependencies=""/><Output valueReference="40" dependencies=""/>
     <Output valueReference="45" dependencies=""/><Output valueReference="50" dependencies=""/>
-    <Output valueReference="55" dependencies=""/>
-    <Output valueReference="60" dependencies="2"/>
-  </ModelStructure>
-</fmiModelDescription>
-"""
+    <Output valueReference="55" dependencies=""/><Output valueReference="60" dependencies="2"/>
+""")
 
 #: k = steps taken, t = time: outputs[e] = e·t + u[1] (e = 1..4), A[i,j] = 10 i + j + k,
 #: x[e] = e·k/2 (e = 1..n, n = 3), counts[e] = e·k, w = (t, -t), flags = (k odd, k even),
@@ -233,18 +239,10 @@ def test_fmusim_style_array_columns_in_input_tables_and_references(arrays3, tmp_
     assert "10 of 10 signals agree" in capsys.readouterr().out
 
 
-TICKS3 = """<?xml version="1.0" encoding="UTF-8"?>
-<fmiModelDescription fmiVersion="3.0" modelName="Ticks" instantiationToken="{c10c0000-0000-4000-8000-000000000041}">
-  <CoSimulation modelIdentifier="Ticks" canHandleVariableCommunicationStepSize="true"/>
-  <DefaultExperiment startTime="0" stopTime="1" stepSize="0.25"/>
-  <ModelVariables>
-    <Float64 name="time" valueReference="63" causality="independent" variability="continuous"/>
+TICKS3 = _description("Ticks", "c10c0000-0000-4000-8000-000000000041", """\
     <Clock name="tick" valueReference="7" causality="output" intervalVariability="constant" intervalDecimal="0.5"/>
     <Float64 name="y" valueReference="8" causality="output" variability="continuous"/>
-  </ModelVariables>
-  <ModelStructure><Output valueReference="7"/><Output valueReference="8"/></ModelStructure>
-</fmiModelDescription>
-"""
+""", '<Output valueReference="7"/><Output valueReference="8"/>')
 
 
 def test_a_single_fmus_clock_is_named_not_dropped(tmp_path, capsys):
