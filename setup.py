@@ -1,5 +1,6 @@
-"""The compiled stepping loop (cosim/kernel/kernel.c) and CSV row formatter (cosim/kernel/csvrows.c,
-with the vendored Ryu in cosim/kernel/ryu), built when greyfmu is installed.
+"""The compiled stepping loop (cosim/kernel/kernel.c), CSV row formatter (cosim/kernel/csvrows.c,
+with the vendored Ryu in cosim/kernel/ryu) and FMI 2.0 logger (cosim/kernel/fmulog.c), built when greyfmu
+is installed.
 
 An optional extension: without a C compiler the install still succeeds and cosim runs its
 Python loop (same results, one notice) and formats result CSVs in Python (same bytes, slower).
@@ -15,7 +16,8 @@ from setuptools import Extension, setup
 
 STRICT = os.environ.get("GREYFMU_WERROR") == "1"
 
-setup(ext_modules=[Extension("cosim.kernel._kernel", sources=["cosim/kernel/kernel.c", "cosim/kernel/csvrows.c"],
+setup(ext_modules=[Extension("cosim.kernel._kernel", sources=["cosim/kernel/kernel.c", "cosim/kernel/csvrows.c",
+                                                                      "cosim/kernel/fmulog.c"],
                              include_dirs=["cosim/kernel"], optional=not STRICT,
                              extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math", "-pthread", "-Wall",
                                                  "-Wextra", *(["-Werror"] if STRICT else [])],

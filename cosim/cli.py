@@ -200,7 +200,8 @@ def _parser() -> argparse.ArgumentParser:
 QUIET_HELP = "no progress bar and no informational lines: errors and warnings only"
 STRICT_HELP = ("turn cosim's warnings into errors (exit 2, nothing run): a master step that is longer than a sampled "
                "FMU's sample time or does not divide it, an input the FMU's law reads left unconnected, a sample "
-               "time left at the FMU's default that is not the master step")
+               "time left at the FMU's default that is not the master step, a model description that breaks a rule "
+               "other masters tolerate (cosim.read.conformance)")
 
 
 def _seconds(text: str) -> float:
@@ -379,12 +380,12 @@ def _execute(args, prepared, name: str, output: Path, progress: bool) -> int:
     from .present.plots import default_panels, plot
     from .present.plots import plotted
     from .record.metadata import signal_info
-    from .record.results import select
+    from .record.results import panel, select
     from .run.simulation import run
 
     plan = prepared.plan
     outputs, inputs = plan.recorded()
-    panels = ([select(outputs + inputs, g.split(",")) for g in args.signals] if args.signals
+    panels = ([select(outputs + inputs, panel(g)) for g in args.signals] if args.signals
               else default_panels(signal_info(plan), plotted(plan, outputs + inputs)))
     settings = LoopSettings(rtol=args.loop_tolerance[0], atol=args.loop_tolerance[1],
                             max_iterations=args.loop_iterations, relaxation=args.relaxation,
@@ -590,8 +591,7 @@ def _metrics(args) -> int:
 def _report(args) -> int:
     from .record.outputs import check_output
     from .present.report import write_report
-    from .record.results import read
-    from .record.results import select
+    from .record.results import panel, read, select
 
     result = Path(args.result)
     page = Path(args.output or result.with_suffix(".html"))
@@ -600,7 +600,7 @@ def _report(args) -> int:
     panels = None
     if args.signals:
         names = [n for n in read(args.result).dtype.names if n != "time"]
-        panels = [select(names, g.split(",")) for g in args.signals]
+        panels = [select(names, panel(g)) for g in args.signals]
     print(f"cosim: report: {write_report(result, page, panels=panels)}")
     return 0
 

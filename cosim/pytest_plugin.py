@@ -61,7 +61,6 @@ when the fixture is first called), since pytest loads it into every session.
 """
 from __future__ import annotations
 
-import fnmatch
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -259,7 +258,7 @@ def changes(path: Path, result: np.ndarray, chosen: list[str], rule: Mapping) ->
     signal out of tolerance"."""
     from .errors import CosimError
     from .regression.engine import compare
-    from .record.results import read
+    from .record.results import matches, read
 
     if not path.is_file():
         return "new"
@@ -272,7 +271,7 @@ def changes(path: Path, result: np.ndarray, chosen: list[str], rule: Mapping) ->
              (("added", [n for n in chosen if n not in names]), ("removed", [n for n in names if n not in chosen]))
              if group]
     kept = [n for n in names if n in chosen]
-    tolerances = {k: v for k, v in rule["tolerances"].items() if any(fnmatch.fnmatchcase(n, k) for n in kept)}
+    tolerances = {k: v for k, v in rule["tolerances"].items() if any(matches(n, k) for n in kept)}
     try:
         verdicts = compare(old, result, signals=kept, **{**rule, "tolerances": tolerances})
     except CosimError as e:

@@ -10,10 +10,16 @@ A test gives the model description and the model's C body; the body defines
   (0 OK, 2 Discard); it may set ``s->terminate`` and lower ``s->last`` (the last successful time, t + h
   unless it does).
 
+An FMI 2.0 body may log through the host's logger: ``s->callbacks`` is the
+fmi2CallbackFunctions given at instantiation (its first member the variadic logger, its last the
+componentEnvironment), ``s->name`` the instance name.
+
 Variables are addressed by value reference into ``s->r`` (Real/Float64), ``s->i``
 (Integer/Int32), ``s->b`` (Boolean) and, FMI 3.0 only, ``s->f`` (Float32) and ``s->l``
 (Int8..UInt64, Enumeration), 64 of each, and Binary values of up to 16 bytes in
-``s->bytes[vr]`` (length ``s->nbytes[vr]``); the model description's start values are
+``s->bytes[vr]`` (length ``s->nbytes[vr]``).  An FMI 3.0 array variable at ``vr`` with ``s->extent[vr]``
+values (set by the body; 0 is a scalar) holds them at ``vr``, ``vr + 1``, ... (row-major, as the
+FMI 3.0 functions pass them).  The model description's start values are
 the body's business (``static void start(S *s)``, called at instantiation).  Every other FMI
 function of the interface is a stub returning Error, so fmpy finds all the symbols it loads.
 """
@@ -32,16 +38,20 @@ COMMON = r"""
 #include <string.h>
 #include <stdbool.h>
 typedef struct { double r[64]; int i[64]; int b[64]; float f[64]; long long l[64];
-                 unsigned char bytes[64][16]; size_t nbytes[64]; double time; int terminate; double last; } S;
+                 unsigned char bytes[64][16]; size_t nbytes[64]; double time; int terminate; double last;
+                 const void *callbacks; char name[64]; size_t extent[64]; } S;
+/* FMI 3.0 arrays: the variable at vr has extent[vr] values (0: a scalar), at vr, vr + 1, ... */
+#define EXTENT(s, r) ((s)->extent[r] ? (s)->extent[r] : 1)
+#define EACH_VALUE(s, vr, n) for (size_t k = 0, j = 0; k < (n); k++) for (size_t e = 0; e < EXTENT(s, (vr)[k]); e++, j++)
 """
 
 #: the FMI 3.0 getters and setters of the other numeric types: Float32 in ``s->f``, the
 #: integer types (Int8..UInt64, and Enumeration, an Int64) in ``s->l``
 FMI3_OTHER_TYPES = "".join(
     f"int fmi3Get{t}(void *c, const VR vr[], size_t n, {ct} v[], size_t nv) {{\n"
-    f"    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = ({ct}) s->{a}[vr[k]]; return 0; }}\n"
+    f"    S *s = c; calculate(s); EACH_VALUE(s, vr, n) v[j] = ({ct}) s->{a}[vr[k] + e]; return 0; }}\n"
     f"int fmi3Set{t}(void *c, const VR vr[], size_t n, const {ct} v[], size_t nv) {{\n"
-    f"    S *s = c; for (size_t k = 0; k < n; k++) s->{a}[vr[k]] = v[k]; return 0; }}\n"
+    f"    S *s = c; EACH_VALUE(s, vr, n) s->{a}[vr[k] + e] = v[j]; return 0; }}\n"
     for t, ct, a in [("Float32", "float", "f"), ("Int8", "signed char", "l"), ("UInt8", "unsigned char", "l"),
                      ("Int16", "short", "l"), ("UInt16", "unsigned short", "l"), ("UInt32", "unsigned int", "l"),
                      ("Int64", "long long", "l"), ("UInt64", "unsigned long long", "l")])
@@ -56,7 +66,7 @@ static void start(S *s);
 static void calculate(S *s);
 static int step(S *s, double t, double h);
 void *fmi2Instantiate(const char *n, int type, const char *guid, const char *res, const void *cb, int vis, int log) {
-    S *s = calloc(1, sizeof(S)); start(s); return s; }
+    S *s = calloc(1, sizeof(S)); s->callbacks = cb; strncpy(s->name, n ? n : "", 63); start(s); return s; }
 void fmi2FreeInstance(void *c) { free(c); }
 int fmi2SetDebugLogging(void *c, int on, size_t n, const char *cats[]) { return 0; }
 int fmi2SetupExperiment(void *c, int tolDef, double tol, double t0, int stopDef, double stop) {
@@ -102,17 +112,17 @@ int fmi3ExitInitializationMode(void *c) { return 0; }
 int fmi3Terminate(void *c) { return 0; }
 int fmi3Reset(void *c) { return 3; }
 int fmi3GetFloat64(void *c, const VR vr[], size_t n, double v[], size_t nv) {
-    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = s->r[vr[k]]; return 0; }
+    S *s = c; calculate(s); EACH_VALUE(s, vr, n) v[j] = s->r[vr[k] + e]; return 0; }
 int fmi3GetInt32(void *c, const VR vr[], size_t n, int v[], size_t nv) {
-    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = s->i[vr[k]]; return 0; }
+    S *s = c; calculate(s); EACH_VALUE(s, vr, n) v[j] = s->i[vr[k] + e]; return 0; }
 int fmi3GetBoolean(void *c, const VR vr[], size_t n, bool v[], size_t nv) {
-    S *s = c; calculate(s); for (size_t k = 0; k < n; k++) v[k] = s->b[vr[k]]; return 0; }
+    S *s = c; calculate(s); EACH_VALUE(s, vr, n) v[j] = s->b[vr[k] + e]; return 0; }
 int fmi3SetFloat64(void *c, const VR vr[], size_t n, const double v[], size_t nv) {
-    S *s = c; for (size_t k = 0; k < n; k++) s->r[vr[k]] = v[k]; return 0; }
+    S *s = c; EACH_VALUE(s, vr, n) s->r[vr[k] + e] = v[j]; return 0; }
 int fmi3SetInt32(void *c, const VR vr[], size_t n, const int v[], size_t nv) {
-    S *s = c; for (size_t k = 0; k < n; k++) s->i[vr[k]] = v[k]; return 0; }
+    S *s = c; EACH_VALUE(s, vr, n) s->i[vr[k] + e] = v[j]; return 0; }
 int fmi3SetBoolean(void *c, const VR vr[], size_t n, const bool v[], size_t nv) {
-    S *s = c; for (size_t k = 0; k < n; k++) s->b[vr[k]] = v[k]; return 0; }
+    S *s = c; EACH_VALUE(s, vr, n) s->b[vr[k] + e] = v[j]; return 0; }
 int fmi3DoStep(void *c, double t, double h, bool noPrior, bool *event, bool *terminate, bool *early, double *last) {
     S *s = c; s->last = t + h; int status = step(s, t, h); s->time = s->last;
     *event = false; *early = false; *terminate = s->terminate; *last = s->last; return status; }

@@ -1,5 +1,6 @@
 """The compiled stepping loop (``kernel.c``) and its ctypes binding; the same library formats
-result CSV rows (``csvrows.c``, used by `cosim.record.csvformat`).
+result CSV rows (``csvrows.c``, used by `cosim.record.csvformat`) and FMI 2.0 log messages
+(``fmulog.c``, `fmi2_logger`, used by `cosim.run.instances.fmi2`).
 
 `cosim.run.program` compiles a communication step into one list of operations; an operation C can
 run carries its `NativeOp` (doSteps, gets, sets, affine routes and routes through mapping tables),
@@ -131,6 +132,24 @@ def library() -> tuple[ctypes.CDLL | None, str]:
     lib.cosim_format_rows.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_size_t, ctypes.c_void_p]
     lib.cosim_format_rows.restype = ctypes.c_size_t
     return lib, ""
+
+
+#: the Python side of `fmi2_logger`: (environment, instance name, status, category, message)
+LogTarget = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)
+
+
+def fmi2_logger(target: LogTarget) -> int | None:
+    """The C address of ``fmulog.c``'s FMI 2.0 logger (an fmi2CallbackLogger that formats a message
+    only where it safely can, else hands it over verbatim), made to hand each message to
+    ``target`` (the caller keeps ``target`` alive); None without the library or in one built
+    before ``fmulog.c`` (the caller then receives every message verbatim)."""
+    lib, _ = library()
+    if lib is None or not hasattr(lib, "cosim_fmi2_log"):
+        return None
+    lib.cosim_fmi2_log_target.argtypes = [LogTarget]
+    lib.cosim_fmi2_log_target.restype = None
+    lib.cosim_fmi2_log_target(target)
+    return ctypes.cast(lib.cosim_fmi2_log, ctypes.c_void_p).value
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 
 from ..errors import SetupError, did_you_mean
-from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
+from ..model.fmu import FMUDescription, Variable, exchange_type, recorded_type, unit_of
 from ..model.frozen import FrozenMap
 from ..model.structure import (
     LOOP_MODES,
@@ -32,6 +32,7 @@ from ..model.structure import (
 )
 from ..model.transforms import Affine
 from ..model.units import SystemUnits, fmu_units
+from .arrays import expand_arrays
 from .graph import algebraic_loops, feedthrough_sequence, gauss_seidel_order, settling_shortcuts, variable_order
 from .parameters import open_inputs, resolve_parameters
 from .routing import connector_unit, path_transform
@@ -50,12 +51,14 @@ def build_plan(structure: SystemStructure, fmus: Mapping[str, FMUDescription],
         raise SetupError(f"unknown loop handling '{loops}'; choose one of {', '.join(LOOP_MODES)}.",
                          element="--loops")
     check_model_exchange(structure, fmus)
+    structure = expand_arrays(structure, fmus)
     units = SystemUnits.of(structure.units, {name: fmu_units(desc.unit_definitions, desc.path.name)
                                              for name, desc in fmus.items()}, file)
     fmus, outputs, inputs = _check_connectors(structure, fmus, units)
     routes = _check_connections(structure, fmus, units)
     start_values = resolve_parameters(structure, fmus, list(extra_parameters), units)
     system_outputs = _system_outputs(structure, outputs, units, [*structure.parameters, *extra_parameters])
+    _warn_unrecorded(structure, fmus, outputs, inputs)
     recorded_units = _recorded_units(structure, outputs, inputs, system_outputs)
     dependencies = {name: desc.output_dependencies for name, desc in fmus.items()}
     output_names = {c: [v.name for v in vs] for c, vs in outputs.items()}
@@ -86,20 +89,18 @@ def build_plan(structure: SystemStructure, fmus: Mapping[str, FMUDescription],
 # --------------------------------------------------------------------------- connectors and connections
 
 def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
-    """The descriptions knowing the array elements connectors name (`FMUDescription.with_element`),
+    """The descriptions knowing the array elements connectors name (`FMUDescription.resolve`),
     and each component's output and input connectors' variables, checked."""
     file = structure.display
     outputs: dict[str, list[Variable]] = {}
     inputs: dict[str, list[Variable]] = {}
     described = {}
     for name, comp in structure.components.items():
-        desc = fmus[name]
         outputs[name], inputs[name] = [], []
-        for conn in comp.connectors.values():
-            where = f"ssd:Connector '{conn.name}' of component '{name}' (line {conn.line})"
-            var = desc.variable(conn.name, where, file)
-            if isinstance(var, ArrayElement):
-                desc = desc.with_element(var)
+        places = [f"ssd:Connector '{conn.name}' of component '{name}' (line {conn.line})"
+                  for conn in comp.connectors.values()]
+        desc, variables = fmus[name].resolve(list(comp.connectors), places, file)
+        for conn, var, where in zip(comp.connectors.values(), variables, places):
             if conn.kind in ("input", "output") and var.causality != conn.kind:
                 raise SetupError(f"declared kind='{conn.kind}' but the FMU {desc.path.name} declares it "
                                  f"causality='{var.causality}'.", file=file, element=where, variable=conn.name)
@@ -121,15 +122,16 @@ def _check_connectors(structure: SystemStructure, fmus: dict[str, FMUDescription
 
 def _check_exchangeable(desc: FMUDescription, var: Variable, where: str, file: str) -> None:
     """Refuse a connector the exchange cannot carry: a type without an exchange type
-    (`cosim.model.fmu.exchange_type`) or a whole FMI 3.0 array (SSP 1.0 connectors are scalars;
-    one element is named as ``vector[1]``, see `FMUDescription.variable`)."""
+    (`cosim.model.fmu.exchange_type`) or a String or Binary FMI 3.0 array (numeric and Boolean
+    ones are made element by element, `cosim.plan.arrays`)."""
     if exchange_type(var) is None:
         raise SetupError(f"{var.name} has the type {var.type} in {desc.path.name}; connectors of that type are "
                          "not supported (FMI 2.0 Real, Integer, Boolean, String, Enumeration and FMI 3.0 Float64, "
                          "Float32, Int8..UInt64, Enumeration, Boolean, String, Binary are).", file=file, element=where, variable=var.name)
     if var.dimensions:
-        raise SetupError(f"{var.name} is an array in {desc.path.name}; a connector carries one element, "
-                         f"named {var.name}[1] for the first one.", file=file, element=where, variable=var.name)
+        raise SetupError(f"{var.name} is a {var.type} array in {desc.path.name}; the master exchanges numeric and "
+                         "Boolean arrays (whole, or element by element), not String or Binary ones.",
+                         file=file, element=where, variable=var.name)
 
 
 def _check_connections(structure: SystemStructure, fmus: dict[str, FMUDescription], units: SystemUnits):
@@ -198,16 +200,20 @@ def _system_outputs(structure: SystemStructure, outputs: dict[str, list[Variable
     constant (`_undriven_output`)."""
     file = structure.display
     recorded: dict[str, RecordedOutput] = {}
+    by_name = {c: {v.name: v for v in vs} for c, vs in outputs.items()}
+    columns = {f"{c}.{v.name}" for c, vs in outputs.items() for v in vs}
     for out in structure.system_outputs.values():
         where = f"ssd:Connector '{out.name}' of the root system (line {out.line})"
         if out.component is None:
             recorded[out.name] = _undriven_output(structure, out, where, values)
             continue
-        var = next((v for v in outputs[out.component] if v.name == out.connector), None)
+        var = by_name[out.component].get(out.connector)
         if var is None:
             raise SetupError(f"it is driven by {out.component}.{out.connector}, which is not an output "
                              "connector of that component.", file=file, element=where, variable=out.name)
-        if any(f"{c}.{v.name}" == out.name for c, vs in outputs.items() for v in vs):
+        if not recorded_type(var):  # exchanged, not recorded: named by _warn_unrecorded
+            continue
+        if out.name in columns:
             raise SetupError(f"the name clashes with the component output {out.name} in the results.",
                              file=file, element=where, variable=out.name)
         transform = path_transform(structure, units, out.hops, (out.component, var), None, where)
@@ -253,13 +259,49 @@ def _undriven_output(structure: SystemStructure, out: SystemOutput, where: str,
 
 # --------------------------------------------------------------------------- recording
 
+class NotRecorded(RuntimeWarning):
+    """Variables a run exchanges and does not record (String, Binary), and those of a single FMU it
+    neither exchanges nor records (String and Binary arrays, Clocks): named once per plan."""
+
+
+def _warn_unrecorded(structure: SystemStructure, fmus: Mapping[str, FMUDescription],
+                     outputs: dict[str, list[Variable]], inputs: dict[str, list[Variable]]) -> None:
+    """One warning naming every connector whose values are exchanged and not recorded, the root
+    output connectors they drive, and a single FMU's inputs and outputs that are no connector."""
+    names = [f"{c}.{v.name} ({v.type})" for c in outputs for v in outputs[c] + inputs[c] if not recorded_type(v)]
+    unrecorded = {(c, v.name) for c in outputs for v in outputs[c] if not recorded_type(v)}
+    names += [f"root output '{out.name}'" for out in structure.system_outputs.values()
+              if (out.component, out.connector) in unrecorded]
+    parts = [f"exchanged, not recorded (a result file holds numbers): {', '.join(names)}"] if names else []
+    left = _left_out(structure, fmus)
+    if left:
+        parts.append(f"neither exchanged nor recorded: {', '.join(left)}")
+    if parts:
+        warnings.warn(NotRecorded(f"{structure.display}: {'; '.join(parts)}"), stacklevel=3)
+
+
+def _left_out(structure: SystemStructure, fmus: Mapping[str, FMUDescription]) -> list[str]:
+    """The inputs and outputs of a single FMU run as a system (`cosim.read.single`, which makes
+    every other one a connector) that are no connector: String and Binary arrays, FMI 3.0 Clocks."""
+    if structure.ssd_file.suffix.lower() != ".fmu":
+        return []
+    left = []
+    for name, comp in structure.components.items():
+        arrays = {c.partition("[")[0] for c in comp.connectors}   # made element by element (cosim.plan.arrays)
+        for v in fmus[name].variables.values():
+            if v.causality in ("input", "output") and v.name not in comp.connectors and v.name not in arrays:
+                shape = "×".join(str(d) for d in v.dimensions)
+                left.append(f"{name}.{v.name} ({v.type}{f' array of {shape}' if shape else ''})")
+    return left
+
+
 def _columns(structure: SystemStructure, outputs: dict[str, list[Variable]],
              inputs: dict[str, list[Variable]]) -> list[str]:
     """The recorded connectors component by component in SSD order, connectors as each component
     lists them: every output and input but String and Binary ones (exchanged, not recorded)."""
     columns = []
     for name, comp in structure.components.items():
-        recorded = {v.name for v in outputs[name] + inputs[name] if exchange_type(v) not in ("String", "Binary")}
+        recorded = {v.name for v in outputs[name] + inputs[name] if recorded_type(v)}
         columns += [f"{name}.{conn}" for conn in comp.connectors if conn in recorded]
     return columns
 

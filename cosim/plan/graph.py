@@ -41,9 +41,11 @@ def _variable_graph(routes: Sequence[Route], outputs: Mapping[str, Sequence[str]
         for name in names:
             out = ("out", comp, name)
             nodes.append(out)
+            if not connected_in[comp]:   # (a single FMU: every element of an output array on every input's)
+                continue
             for dep in dependencies[comp].get(name, []):
                 source = ("in", comp, dep)
-                if dep in connected_in[comp] and not any(source in v and out in v for v in inside):
+                if dep in connected_in[comp] and not (inside and any(source in v and out in v for v in inside)):
                     edges[source].append(out)
     return list(dict.fromkeys(nodes)), edges
 
@@ -166,7 +168,7 @@ def feedthrough_sequence(order: Sequence[Variable], routes: Sequence[Route],
     for kind, comp, var in order:
         if kind != "out":
             continue
-        if set(dependencies[comp].get(var, [])) & connected_in[comp]:
+        if connected_in[comp] and not connected_in[comp].isdisjoint(dependencies[comp].get(var, ())):
             if not sequence or sequence[-1] != comp:
                 sequence.append(comp)
     return sequence

@@ -10,12 +10,13 @@ input's value of the communication point before.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 
 from ..errors import SetupError, did_you_mean
-from ..model.fmu import Variable, exchange_type
+from ..model.fmu import Variable, describe_shape, element_names, exchange_type
 from ..model.structure import BoundTable, ParameterValue, Plan, SystemStructure, Target
 from ..read.inputs import InputTable
 
@@ -51,6 +52,7 @@ def bind_table(table: InputTable, plan: Plan, single: str | None = None) -> Boun
     targets: list[Target] = []
     for column, name in enumerate(table.names):
         where = dict(file=table.file, element=f"line {table.lines[0] - 1}, column '{name}'", variable=name)
+        name = _element_of_array_column(plan, table, name, single, where)
         found = inputs.get(f"{single}.{name}") if single is not None else None
         found = found or inputs.get(name)
         if found is not None:
@@ -75,6 +77,27 @@ def bind_table(table: InputTable, plan: Plan, single: str | None = None) -> Boun
                 raise SetupError(f"{comp}.{var.name} is driven by two columns.", **where)
             targets.append(Target(column, comp, var, tuple(values.tolist())))
     return BoundTable(table.file, tuple(table.time.tolist()), tuple(targets))
+
+
+def _element_of_array_column(plan: Plan, table: InputTable, name: str, single: str | None, where: dict) -> str:
+    """The element a value of a whole-array column drives (``u`` = ``1 2`` as fmusim writes it, read
+    as ``u[1]``, ``u[2]``: `cosim.read.inputs.InputTable.arrays`): the k-th in the array's order,
+    named as its shape names it (``A[2,1]``); ``name`` itself for any other column.  An array of
+    another size than the column's is refused."""
+    column, _, position = name.partition("[")
+    if column not in table.arrays:
+        return name
+    owners = [(single, "", column)] if single is not None else []
+    owners += [(c, c + ".", column[len(c) + 1:]) for c in plan.components if column.startswith(c + ".")]
+    for comp, prefix, array in owners:
+        var = plan.fmus[comp].variables.get(array)
+        if var is not None and var.dimensions:
+            shape = plan.fmus[comp].shape(var, where["element"], table.file)
+            if math.prod(shape) != table.arrays[column]:
+                raise SetupError(f"the column '{column}' holds {table.arrays[column]} values per row; {comp}.{array} "
+                                 f"is {describe_shape(shape)}.", **(where | {"variable": column}))
+            return prefix + element_names(array, shape)[int(position[:-1]) - 1]
+    return name
 
 
 def _not_a_connector(plan: Plan, name: str, where: dict) -> None:

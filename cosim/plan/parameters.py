@@ -11,12 +11,13 @@ variable's range.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Collection, Sequence
 from dataclasses import replace
 
 
 from ..model.fmu import ArrayElement, FMUDescription, Variable, exchange_type, unit_of
-from ..errors import SetupError, did_you_mean
+from ..errors import CosimWarning, SetupError, did_you_mean
 from .routing import hops_map, transformations, unit_step
 from ..model.structure import Hop, OpenConnector, ParameterValue, Plan, StartValue, SystemStructure
 from ..model.frozen import FrozenMap
@@ -246,10 +247,28 @@ def _convert_value(p: ParameterValue, var: Variable, comp: str, value: float, wh
     set in their own units (FMI 2.0 §2.2.7).  A value whose unit is not given, or a variable
     without a unit, is set as it is."""
     kw = {"file": p.file, "element": where, "variable": var.name}
-    given = units.for_value(comp, p.units, file=p.file, element=where).resolve(p.unit, **kw)
+    scope = units.for_value(comp, p.units, file=p.file, element=where)
+    if scope.find(p.unit) is None:
+        return _undefined_unit(p, var, comp, value, where)
+    given = scope.resolve(p.unit, **kw)
     own = units.for_variable(comp).resolve(unit_of(var), **kw)
     return conversion(given, own, f"the value is given in '{p.unit}' and {comp}.{var.name} is in "
                       f"'{unit_of(var)}': ", **kw).apply(value)
+
+
+class UndefinedValueUnit(CosimWarning):
+    """A parameter value is given in a unit nothing defines (`_undefined_unit`)."""
+
+
+def _undefined_unit(p: ParameterValue, var: Variable, comp: str, value: float, where: str) -> float:
+    """A value whose ``ssv:Real unit`` no ``ssv:Units``, SSD, FMU or built-in table defines (the
+    EMBRACE system's parameter set writes ``[m]`` and defines ``m``): set as given, in the
+    variable's unit, as OMSimulator sets it, with a warning naming the value (``--strict`` refuses)."""
+    warnings.warn(UndefinedValueUnit(
+        f"{p.file}, {where}, variable '{var.name}': the value {value:g} is given in unit '{p.unit}', which no "
+        f"ssv:Units, ssd:Units, FMU UnitDefinitions or built-in unit defines; set as given, in {comp}.{var.name}'s "
+        f"unit '{unit_of(var)}', as OMSimulator sets it (--strict refuses it)"), stacklevel=2)
+    return value
 
 
 def _coerce(p: ParameterValue, var: Variable, where: str):

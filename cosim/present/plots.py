@@ -33,6 +33,8 @@ _SETPOINT_INPUT = re.compile(r"r\d*")
 _MEASUREMENT_INPUT = re.compile(r"y\d*")
 _CONTROLLER_OUTPUT = re.compile(r"u\d*")
 _DISTURBANCE_INPUT = re.compile(r"d\d*")
+#: the index of an FMI 3.0 array element's name (``[2,3]`` of ``A[2,3]``)
+_ARRAY_INDEX = re.compile(r"\[\d+(,\d+)*\]$")
 #: blocks whose output has the unit of their inputs (a dimensionless gain, a sum)
 _UNIT_PRESERVING = {"Gain", "Sum"}
 
@@ -195,7 +197,8 @@ def limits(signal: str, metadata: Mapping) -> dict[str, float]:
 
 def default_panels(metadata: Mapping, names: Sequence[str]) -> list[list[str]]:
     """Set-point with controlled variable for each controller loop, then each controller's
-    outputs; every recorded output alone in its panel when no controller is found."""
+    outputs; every recorded output alone in its panel (an array's elements together) when no
+    controller is found."""
     recorded = set(names)
     sources = {dst: (src, identity) for src, dst, identity in connections(metadata)}
     loops, outputs = [], []
@@ -219,7 +222,15 @@ def default_panels(metadata: Mapping, names: Sequence[str]) -> list[list[str]]:
     if loops:
         return loops + outputs + ([load] if load else [])
     driven = {src for src, _, _ in connections(metadata)}
-    return [[n] for n in names if n in driven] or [[n] for n in names]
+    return _by_array([n for n in names if n in driven] or list(names))
+
+
+def _by_array(names: Sequence[str]) -> list[list[str]]:
+    """One panel per signal, the elements of one FMI 3.0 array (``A[1,1]`` .. ``A[2,3]``) in one."""
+    panels: dict[str, list[str]] = {}
+    for name in names:
+        panels.setdefault(_ARRAY_INDEX.sub("", name), []).append(name)
+    return list(panels.values())
 
 
 def title(metadata: Mapping, scenario: str) -> str:

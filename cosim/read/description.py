@@ -16,6 +16,7 @@ from ..model.structure import SystemStructure
 from ..model.fmu import MODEL_EXCHANGE, DeclaredType, DefaultExperiment, FMUDescription, Kind, UnitDefinition, Variable
 from ..model.frozen import FrozenMap
 from ..model.units import BASE_UNITS
+from . import conformance
 from .fmucache import passed, record_pass
 from .loadable import check_fmu_file, check_library
 
@@ -26,17 +27,24 @@ SCHEMA_CHECK = "FMI schema"
 IMPLEMENTATIONS = ("any", "CoSimulation", "ModelExchange")
 
 
-def _extent(dimension) -> str | None:
-    """A Dimension's extent as text: its ``start``, or the start of the structural parameter it names."""
-    return dimension.start if dimension.start is not None else dimension.variable.start
+def _extent(dimension) -> int | None:
+    """A Dimension's extent: its ``start``, or the start of the structural parameter it names; None
+    where neither is a whole number (`cosim.model.fmu.FMUDescription.shape` refuses such an array)."""
+    start = dimension.start if dimension.start is not None else getattr(dimension.variable, "start", None)
+    try:
+        return int(start)
+    except (TypeError, ValueError):
+        return None
 
 
 def _variable(v: ModelVariable) -> Variable:
     """fmpy's ``ModelVariable`` as our record."""
     t = v.declaredType
     declared = None if t is None else DeclaredType(t.name, t.unit, tuple((i.name, int(i.value)) for i in t.items))
+    variability = "discrete" if v.variability == "continuous" and v.type not in conformance.REAL_TYPES \
+        else v.variability   # tolerated (conformance: 'variability'), run as discrete
     return Variable(name=v.name, vr=v.valueReference, type=v.type, causality=v.causality,
-                    variability=v.variability, initial=v.initial, unit=v.unit, start=v.start, min=v.min,
+                    variability=variability, initial=v.initial, unit=v.unit, start=v.start, min=v.min,
                     max=v.max, description=v.description, declared_type=declared,
                     dimensions=tuple(_extent(d) for d in v.dimensions or ()))
 
@@ -61,12 +69,14 @@ def describe(path: Path, where: str, file: str, implementation: str = "any", val
     key = (path, implementation)
     if key in _cache and _cache[key].path.stat().st_mtime == path.stat().st_mtime:
         return _cache[key]
-    try:
-        md = fmpy.read_model_description(str(path), validate=validate)
-    except Exception as e:  # fmpy raises several types for unreadable or invalid FMUs
+    try:  # the standard's rules are checked by conformance, each tolerated or refused
+        md = fmpy.read_model_description(str(path), validate=False)
+    except Exception as e:  # fmpy raises several types for unreadable FMUs
         raise SetupError(f"cannot read the model description of {path.name}: {e}", file=file,
                          element=where) from None
     kind = _kind(md, path, implementation, where, file)
+    bends = conformance.check(md, path, schemas=Path(fmpy.__file__).parent / "schema" if validate else None,
+                              file=file, where=where)
     if not md.guid or not md.guid.strip():
         raise SetupError(f"{path.name} has an empty GUID in its modelDescription.xml; an FMU without a GUID "
                          "cannot be instantiated.", file=file, element=where)
@@ -95,7 +105,7 @@ def describe(path: Path, where: str, file: str, implementation: str = "any", val
         instantiated_once_per_process=bool(md.coSimulation is not None
                                            and md.coSimulation.canBeInstantiatedOnlyOncePerProcess),
         continuous_states=md.numberOfContinuousStates, event_indicators=md.numberOfEventIndicators,
-        needs_completed_integrator_step=bool(me is not None and me.needsCompletedIntegratorStep))
+        needs_completed_integrator_step=bool(me is not None and me.needsCompletedIntegratorStep), bends=bends)
     _cache[key] = desc
     return desc
 
@@ -129,16 +139,20 @@ def _kind(md: ModelDescription, path: Path, implementation: str, where: str, fil
 
 
 
-def describe_fmu(path: Path, where: str, file: str, implementation: str = "any") -> FMUDescription:
+def describe_fmu(path: Path, where: str, file: str, implementation: str = "any", warn: bool = True) -> FMUDescription:
     """`describe`, with the checks of what run loads (`cosim.read.loadable`): the archive and its
     entities before, the library after; the FMI schema validation made once per FMU content
-    (`cosim.read.fmucache.passed`)."""
+    (`cosim.read.fmucache.passed`: a valid one); then one warning per rule of the standard the
+    FMU bends (`cosim.read.conformance`), each time it is described (``warn``: False for a look
+    that is followed by the description the plan is built from, `cosim.read.single`)."""
     check_fmu_file(path, file=file, where=where)
     schema_checked = passed(path, SCHEMA_CHECK)
     desc = describe(path, where, file, implementation, validate=not schema_checked)
-    if not schema_checked:
+    if not schema_checked and not any(rule == "schema" for rule, _ in desc.bends):
         record_pass(path, SCHEMA_CHECK)
     check_library(desc.path, desc.model_identifier, desc.kind, file=file, where=where)
+    if warn:
+        conformance.warn(desc.bends)
     return desc
 
 

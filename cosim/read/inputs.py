@@ -3,14 +3,17 @@ reads it.
 
 The file is fmpy's format: a header row whose first column is ``time``, then one column per
 input, one row per sample, times non-decreasing.  A time written on two rows is an event: the
-first row is the value just before it, the last the value from then on.  `cosim.plan.inputs`
-binds the columns to a plan's inputs and `cosim.run.feed` sets their values during a run.
+first row is the value just before it, the last the value from then on.  A cell may hold an FMI
+3.0 array's values separated by spaces, as fmusim and ``fmpy.util.write_csv`` write them
+(``u`` = ``1 2``): the column is read as one column per value, in the array's order (row-major).
+`cosim.plan.inputs` binds the columns to a plan's inputs and `cosim.run.feed` sets their values
+during a run.
 """
 from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +31,9 @@ class InputTable:
     values: np.ndarray
     #: the line of the file each sample is on (for messages)
     lines: list[int]
+    #: the columns whose cells hold several values (an array's, `read_input_table`): each read as
+    #: columns ``name[1]`` .. ``name[n]`` numbered by position, n by name
+    arrays: dict[str, int] = field(default_factory=dict)
 
 
 def read_input_table(path: str | Path) -> InputTable:
@@ -58,20 +64,37 @@ def read_input_table(path: str | Path) -> InputTable:
                              file=file, element=f"line {header_line}", variable=name)
     if len(rows) < 2:
         raise SetupError("the input table has a header and no samples.", file=file, element="--input-file")
-    data = np.empty((len(rows) - 1, len(names)))
+    widths = [len(cell.split()) for cell in rows[1][1]] if len(rows[1][1]) == len(names) else []
+    arrays = {name: n for name, n in zip(names[1:], widths[1:]) if n > 1}
+    columns = [f"{name}[{k}]" for name in names[1:] for k in range(1, arrays.get(name, 1) + 1)
+               ] if arrays else names[1:]
+    twice = next((f"{a}[{k}]" for a, n in arrays.items() for k in range(1, n + 1) if f"{a}[{k}]" in names), None)
+    if twice is not None:   # 'u' with 2 values per row and a column 'u[1]'
+        raise SetupError(f"column '{twice}' is given twice (alone, and as a value of the array column "
+                         f"'{twice.partition('[')[0]}').", file=file, element=f"line {header_line}", variable=twice)
+    data = np.empty((len(rows) - 1, len(columns) + 1))
     lines = []
     for r, (line, row) in enumerate(rows[1:]):
         if len(row) != len(names):
             raise SetupError(f"{len(row)} cells; the header has {len(names)} columns.", file=file,
                              element=f"line {line}")
-        for c, cell in enumerate(row):
-            data[r, c] = _number(cell, file, line, names[c])
+        c = 0
+        for name, cell in zip(names, row):
+            width = arrays.get(name, 1)
+            values = cell.split() if name in arrays else [cell]
+            if len(values) != width:
+                raise SetupError(f"{len(values)} values in the cell; the array column '{name}' has {width} per row "
+                                 f"(line {rows[1][0]}).", file=file, element=f"line {line}, column '{name}'",
+                                 variable=name)
+            for value in values:
+                data[r, c] = _number(value, file, line, name)
+                c += 1
         if r and data[r, 0] < data[r - 1, 0]:
             raise SetupError(f"time {data[r, 0]:.17g} is before the time of the row before ({data[r - 1, 0]:.17g}); "
                              "times must not decrease (a time given twice is an event).", file=file,
                              element=f"line {line}, column 'time'")
         lines.append(line)
-    return InputTable(file, names[1:], data[:, 0].copy(), data[:, 1:].T.copy(), lines)
+    return InputTable(file, columns, data[:, 0].copy(), data[:, 1:].T.copy(), lines, arrays)
 
 
 def _number(cell: str, file: str, line: int, column: str) -> float:

@@ -17,7 +17,7 @@ from pathlib import Path
 from fmpy.util import auto_interval
 
 from ..errors import SetupError
-from ..model.fmu import exchange_type
+from ..model.fmu import exchange_type, recorded_type
 from ..model.structure import (
     Component,
     Connection,
@@ -45,16 +45,20 @@ def fmu_structure(path: str | Path, implementation: str = "any") -> SystemStruct
     fmu = Path(path)
     if not fmu.is_file():
         raise SetupError("no such FMU file.", file=str(fmu), element="cosim run X.fmu")
-    desc = describe_fmu(fmu, "the FMU given", str(fmu), implementation)  # checked as run loads it, named as given
+    # checked as run loads it, named as given; its warnings come when the plan describes it
+    desc = describe_fmu(fmu, "the FMU given", str(fmu), implementation, warn=False)
     name = desc.model_identifier
+    # a numeric or Boolean array is one connector, made one per element by the plan (cosim.plan.arrays);
+    # what is no connector (String and Binary arrays, Clocks) the plan names in a warning
     connectors = {v.name: Connector(v.name, v.causality, None, None, 0) for v in desc.variables.values()
-                  if v.causality in ("input", "output") and exchange_type(v) is not None and not v.dimensions}
+                  if v.causality in ("input", "output") and exchange_type(v) is not None
+                  and (not v.dimensions or recorded_type(v))}
     component = Component(name, fmu.name, 0, connectors, implementation=implementation)
     e = desc.default_experiment
     start = float(e.start_time) if e is not None and e.start_time is not None else None
     stop = float(e.stop_time) if e is not None and e.stop_time is not None else None
     step = float(e.step_size) if e is not None and e.step_size is not None else None
-    outputs = [c for c in connectors.values() if c.kind == "output"]
+    outputs = [c for c in connectors.values() if c.kind == "output" and recorded_type(desc.variables[c.name])]
     aliases = {c.name: Connector(c.name, "output", None, None, 0) for c in outputs}
     wires = [Connection(name, c.name, None, c.name, None, False, 0) for c in outputs]
     root = RawSystem(name, 0, aliases, {name: component}, {}, wires, [], [name])

@@ -3,6 +3,7 @@ name (`select`); `cosim.present.plots` draws them."""
 from __future__ import annotations
 
 import fnmatch
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -48,7 +49,10 @@ def _read_parquet(path: str | Path) -> np.ndarray:
 def _read_csv(path: str | Path) -> np.ndarray:
     """A CSV as ``fmpy.util.read_csv`` reads it (one float per field, or a space-separated
     vector of them, the first row giving each column's shape), with its header parsed as RFC
-    4180 says (`cosim.record.observers.csv_header`: quoted names may hold commas, ``""`` and line breaks)."""
+    4180 says (`cosim.record.observers.csv_header`: quoted names may hold commas, ``""`` and line
+    breaks).  A vector column (an FMI 3.0 array as fmusim and ``fmpy.util.write_csv`` write it)
+    is read as one column per value, ``y[1]`` .. ``y[n]``, the names a run records a
+    one-dimensional array's elements by (`cosim.model.fmu.element_names`)."""
     import csv
     import io
 
@@ -57,10 +61,10 @@ def _read_csv(path: str | Path) -> np.ndarray:
     lines = source.read().splitlines()
     if names is None or not lines:
         raise ValueError("no header and row")
-    columns = [(name, np.float64, (n,) if n > 1 else None)
-               for name, n in zip(names, (len(field.split(" ")) for field in lines[0].split(",")))]
-    rows = [tuple(tuple(map(float, field.split(" "))) if " " in field else float(field) for field in line.split(","))
-            for line in lines]
+    widths = [len(field.split(" ")) for field in lines[0].split(",")]
+    columns = [(element, np.float64) for name, n in zip(names, widths)
+               for element in ([f"{name}[{k}]" for k in range(1, n + 1)] if n > 1 else [name])]
+    rows = [tuple(float(v) for field in line.split(",") for v in field.split(" ")) for line in lines]
     return np.array(rows, dtype=np.dtype(columns))
 
 
@@ -81,12 +85,24 @@ def write(result: np.ndarray, path: str | Path, names: Sequence[str] | None = No
     return path
 
 
+def matches(name: str, pattern: str) -> bool:
+    """Whether a signal name matches a glob: ``*`` and ``?`` as in `fnmatch`, brackets literal (they
+    index FMI 3.0 array elements: ``A[2,3]`` names one, ``A[*]`` them all)."""
+    return fnmatch.fnmatchcase(name, pattern.replace("[", "[[]"))
+
+
+def panel(text: str) -> list[str]:
+    """The globs of one ``--signals`` panel: ``a,b`` overlays a and b; a comma inside brackets
+    (``A[2,3]``) separates nothing."""
+    return re.split(r",(?![^\[]*\])", text)
+
+
 def select(names: Sequence[str], patterns: Sequence[str], option: str = "--signals") -> list[str]:
-    """Names matching any glob pattern, in the order of ``names``; an unmatched pattern is an error
-    naming the ``option`` it was given with."""
+    """Names matching any glob pattern (`matches`), in the order of ``names``; an unmatched pattern is
+    an error naming the ``option`` it was given with."""
     chosen = []
     for pattern in patterns:
-        matched = [n for n in names if fnmatch.fnmatchcase(n, pattern)]
+        matched = [n for n in names if matches(n, pattern)]
         if not matched:
             raise SetupError(f"no signal matches '{pattern}'.", element=option,
                              hint=did_you_mean(pattern, names) or f"Signals: {', '.join(names[:12])}.")

@@ -23,6 +23,7 @@ points themselves (`Trace`) for the difference report (`cosim.regression.report`
 """
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -172,6 +173,27 @@ def _column(result: np.ndarray, name: str, label: str) -> np.ndarray:
     return np.asarray(column, dtype=float)
 
 
+_ELEMENT = re.compile(r"(.+)\[(\d+(?:,\d+)*)\]")
+
+
+def _by_position(a: Sequence[str], b: Sequence[str]) -> dict[str, str]:
+    """For each name of ``a`` that ``b`` lacks, ``b``'s name of the same element of an array where
+    one result names its elements by position (``A[1]`` .. ``A[6]``: fmusim writes an array's values
+    without its shape, `cosim.record.results.read` numbers them) and the other by index (``A[1,1]``
+    .. ``A[2,3]``, row-major, as a run records them) and both have as many."""
+    def arrays(names: Sequence[str]) -> dict[str, list[str]]:
+        found: dict[str, list[str]] = {}
+        for name in names:
+            match = _ELEMENT.fullmatch(name)
+            if match is not None:
+                found.setdefault(match.group(1), []).append(name)
+        return found
+    theirs = arrays(b)
+    return {x: y for base, ours in arrays(a).items()
+            if len(theirs.get(base, ())) == len(ours) and any("," not in n for n in (ours[0], theirs[base][0]))
+            for x, y in zip(ours, theirs[base]) if x not in b}
+
+
 def compare(reference: np.ndarray, candidate: np.ndarray, *, signals: Sequence[str] | None = None,
             tolerances: Mapping[str, ToleranceSpec] | None = None, rtol: float = 1e-6, atol: float = 1e-9,
             time: float = 0.0, mode: str = "tube", on: str | None = None,
@@ -198,9 +220,10 @@ def compare(reference: np.ndarray, candidate: np.ndarray, *, signals: Sequence[s
     t_ref, t_run = np.asarray(reference["time"], dtype=float), np.asarray(candidate["time"], dtype=float)
     if not len(t_ref):
         raise SetupError("the reference has no samples.", element="time")
+    counterpart = _by_position(reference.dtype.names, candidate.dtype.names)
     verdicts = []
     for name in names:
-        y_ref, y_run = _column(reference, name, "the reference"), _column(candidate, name, "the run")
+        y_ref, y_run = _column(reference, name, "the reference"), _column(candidate, counterpart.get(name, name), "the run")
         if mode == "fmi-cross-check":
             verdicts.append(_cross_check(name, t_ref, y_ref, t_run, y_run))
             continue

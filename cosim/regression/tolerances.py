@@ -8,7 +8,6 @@ reference point (github:lbl-srg/funnel, src/tubeSize.c ``set_tube_size``): an ab
 """
 from __future__ import annotations
 
-import fnmatch
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -16,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SetupError, did_you_mean
+from ..record.results import matches
 
 
 @dataclass(frozen=True)
@@ -74,8 +74,9 @@ def parse_tolerance(text: str) -> tuple[str, Tolerance]:
 
 
 def _literal_length(pattern: str) -> int:
-    """How much of a glob is fixed text: the measure of how specific a tolerance key is."""
-    return len(re.sub(r"\[[^\]]*\]|[*?]", "", pattern))
+    """How much of a glob is fixed text: the measure of how specific a tolerance key is (brackets
+    are literal, `cosim.record.results.matches`)."""
+    return len(re.sub(r"[*?]", "", pattern))
 
 
 def tolerance_for(signal: str, tolerances: Mapping[str, ToleranceSpec], default: Tolerance) -> Tolerance:
@@ -84,16 +85,16 @@ def tolerance_for(signal: str, tolerances: Mapping[str, ToleranceSpec], default:
     first given), else ``default``."""
     if signal in tolerances:
         return as_tolerance(tolerances[signal], default, signal)
-    matches = [k for k in tolerances if fnmatch.fnmatchcase(signal, k)]
-    if not matches:
+    keys = [k for k in tolerances if matches(signal, k)]
+    if not keys:
         return default
-    best = max(matches, key=_literal_length)   # max keeps the first of equals
+    best = max(keys, key=_literal_length)   # max keeps the first of equals
     return as_tolerance(tolerances[best], default, best)
 
 
 def check_tolerance_keys(tolerances: Mapping[str, ToleranceSpec], names: Sequence[str]) -> None:
     """Refuse a tolerance key that matches none of ``names`` (a misspelt key must not go unnoticed)."""
     for key in tolerances:
-        if not any(key == n or fnmatch.fnmatchcase(n, key) for n in names):
+        if not any(key == n or matches(n, key) for n in names):
             raise SetupError("this tolerance key matches no compared signal.", variable=key,
                              hint=did_you_mean(key, names))

@@ -170,13 +170,13 @@ def test_check_values_gives_the_masters_messages_without_a_second_plan(chain):
 def test_looking_up_an_array_element_leaves_the_description_as_it_was():
     """Issue 40: `FMUDescription.variable` added an FMI 3.0 array element to the description's own
     dicts (and to its output dependencies), on the copy a module cache shared with every later
-    plan.  Now the lookup returns the element and changes nothing; `with_element` returns a new
+    plan.  Now the lookup returns the element and changes nothing; `with_elements` returns a new
     description that knows it."""
     from pathlib import Path
 
     from cosim.model.fmu import ArrayElement, FMUDescription, Variable
 
-    array = Variable("x", 7, "Float64", "input", "continuous", dimensions=("3",))
+    array = Variable("x", 7, "Float64", "input", "continuous", dimensions=(3,))
     out = Variable("y", 8, "Float64", "output", "continuous")
     desc = FMUDescription(Path("/nowhere/A.fmu"), "fmi3-cs", "3.0", "{g}", None, "A",
                           FrozenMap({"x": array, "y": out}), FrozenMap({"y": ("x",)}), (), None, (), False, 0, 0,
@@ -184,10 +184,33 @@ def test_looking_up_an_array_element_leaves_the_description_as_it_was():
     element = desc.variable("x[2]", "here", "x.ssd")
     assert isinstance(element, ArrayElement) and (element.index, element.vr) == (1, 0xFFFFFFFF)
     assert desc.elements == {} and desc.output_dependencies == {"y": ("x",)} and isinstance(hash(desc), int)
-    known = desc.with_element(element)
+    known = desc.with_elements([element])
     assert known.elements == {0xFFFFFFFF: element} and known.output_dependencies == {"y": ("x", "x[2]")}
     assert known.variable("x[2]", "here", "x.ssd") is element and desc.elements == {}
     assert known.variable("x[3]", "here", "x.ssd").vr == 0xFFFFFFFE   # the next free reference
+
+
+def test_the_elements_of_a_large_array_resolve_in_one_pass():
+    """Issue 41: a whole array's connector resolves all its elements at once (`FMUDescription.resolve`):
+    one by one, 4000 elements took 9.7 s (each lookup and each new description copied all the
+    elements before it; 10 000 about a minute), 10 000 now take 0.3 s.  Value references are
+    distinct and free, an input element joins the inputs an output depends on, an output element
+    gets its array's."""
+    from pathlib import Path
+
+    from cosim.model.fmu import FMUDescription, Variable, element_names
+
+    u = Variable("u", 1, "Float64", "input", "continuous", dimensions=(100, 100))
+    y = Variable("y", 0xFFFFFFFF - 5, "Float64", "output", "continuous", dimensions=(2,))
+    desc = FMUDescription(Path("/nowhere/A.fmu"), "fmi3-cs", "3.0", "{g}", None, "A",
+                          FrozenMap({"u": u, "y": y}), FrozenMap({"y": ("u",)}), (), None, (), False, 0, 0, False)
+    names = element_names("u", (100, 100)) + ["y[2]"]
+    known, variables = desc.resolve(names, "here", "x.ssd")
+    vrs = [v.vr for v in variables]
+    assert len(set(vrs)) == len(names) == len(known.elements) and y.vr not in vrs and 1 not in vrs
+    assert variables[101].name == "u[2,2]" and variables[101].index == 101
+    assert known.output_dependencies["y[2]"] == known.output_dependencies["y"] == ("u", *names[:-1])
+    assert known.resolve(["u[2,2]"], "here", "x.ssd")[1][0] is variables[101]
 
 
 def test_start_values_are_typed_before_the_plan_which_is_built_once(chain, monkeypatch):

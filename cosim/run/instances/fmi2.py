@@ -9,16 +9,17 @@ import fmpy
 from fmpy.fmi2 import (FMU2Slave, printLogMessage, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
+from ...kernel import LogTarget, fmi2_logger
 from ...model.fmu import ExchangeType, FMUDescription, Variable
 from ...errors import SetupError
 from .base import InstanceBase, NativeStep, address, end_instance, log_line, serial_reason
 from .loading import quick
 
-#: Log messages by instance name.  fmpy's native logger proxy (which formats the printf
-#: arguments) keeps one Python logger for the whole process, so one logger dispatches, and
-#: passes messages of instances that are not ours to fmpy's default printer.
+#: Log messages by instance name.  One logger serves the whole process (`cosim.kernel.fmi2_logger`
+#: keeps one target), so it dispatches, and passes messages of instances that are not ours to
+#: fmpy's default printer.
 _LOG_TARGETS: dict[str, collections.deque] = {}
-_CALLBACKS: list[fmi2CallbackFunctions] = []
+_CALLBACKS: list = []
 
 
 def _log(env, instance_name, status, category, message) -> None:
@@ -31,18 +32,20 @@ def _log(env, instance_name, status, category, message) -> None:
 
 
 def _callbacks() -> fmi2CallbackFunctions:
-    """The process-wide FMI callbacks, created once and kept alive for every instance."""
+    """The process-wide FMI callbacks, created once and kept alive for every instance.  The logger
+    is `cosim.kernel`'s C logger, which formats a message's printf arguments only where it can
+    safely (never a %n, never a %s argument that is not readable text: issue 41) and hands the
+    text to `_log`; without the compiled library `_log` itself, which receives every message
+    verbatim (ctypes cannot read variadic arguments).  Not fmpy's logger proxy: its vsnprintf
+    dies of SIGSEGV on "%s%n" sent without arguments."""
     if not _CALLBACKS:
+        target = LogTarget(_log)
+        native = fmi2_logger(target)
         callbacks = fmi2CallbackFunctions()
-        callbacks.logger = fmi2CallbackLoggerTYPE(_log)
+        callbacks.logger = fmi2CallbackLoggerTYPE(native if native is not None else _log)
         callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
         callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-        try:
-            from fmpy.logging import addLoggerProxy
-            addLoggerProxy(ctypes.byref(callbacks))
-        except OSError:  # no native proxy for this platform: messages arrive unformatted
-            pass
-        _CALLBACKS.append(callbacks)
+        _CALLBACKS.extend([callbacks, target])
     return _CALLBACKS[0]
 
 

@@ -213,9 +213,14 @@ def test_fmi3_int64_and_enumeration_connectors_are_accepted(tmp_path, fmus, conn
     cosim.prepare(folder).close()
 
 
-def test_whole_array_connector_is_refused(tmp_path, fmus):
-    err = _refused(tmp_path, fmus, {"m": ("FMU3Model.fmu", {"vector": "output"})})
-    assert "vector is an array in FMU3Model.fmu" in err and "vector[1]" in err
+def test_whole_array_connector_is_one_connector_per_element(tmp_path, fmus):
+    """Refused before issue 41; now made element by element (tests/cosim/test_arrays.py)."""
+    folder = _system(tmp_path, fmus, {"m": ("FMU3Model.fmu", {"vector": "output"})}, [])
+    prepared = cosim.prepare(folder)
+    try:
+        assert prepared.plan.columns == tuple(f"m.vector[{i}]" for i in range(1, 6))
+    finally:
+        prepared.close()
 
 
 @pytest.mark.parametrize("connector", ["vector[0]", "vector[6]", "vector[x]"])
