@@ -87,6 +87,28 @@ def test_scheduled_gains_are_recorded_for_the_figure_2_3_curves():
     np.testing.assert_allclose(itae["controller.Kc"][1:], 0.2961 / itae["plant.Kp"][:-1], rtol=1e-3)
 
 
+@pytest.mark.parametrize("law", ["mfgs", "fgs1", "fgs2"])
+def test_scheduled_ti_and_td_follow_their_law_where_the_table_changes_them(law):
+    """Figures 2.10(b),(c): in Sim. 2.5 the table changes all three gains, (0.76: 8.0346, 7.1713, 1.5363) to
+    (7: 1.75, 23.52, 7.62), so Ti and Td show the law too (in Sim. 2.3 only Kc moves).  The recorded Kc, Ti, Td
+    against (2.6), (2.7), (2.9) written out with numpy.interp on the output one sample earlier: MFGS 1/Kc, Ti, Td
+    linear; FGS2 Kc, Ti, Td linear; FGS1 Kc, Kc/Ti and Kc·Td linear."""
+    result = run("gs_sim2_5", "case1", law, stop_time=400.0)
+    y = result["plant.y"][:-1]
+    ends, kc, ti, td = [0.76, 7.0], [8.0346, 1.75], [7.1713, 23.52], [1.5363, 7.62]
+    def linear(values):
+        return np.interp(y, ends, values)
+    Kc = 1.0 / linear([1.0 / k for k in kc]) if law == "mfgs" else linear(kc)
+    if law == "fgs1":
+        Ti = Kc / linear([k / t for k, t in zip(kc, ti)])
+        Td = linear([k * d for k, d in zip(kc, td)]) / Kc
+    else:
+        Ti, Td = linear(ti), linear(td)
+    for name, expected in (("Kc", Kc), ("Ti", Ti), ("Td", Td)):
+        np.testing.assert_allclose(result[f"controller.{name}"][1:], expected, rtol=1e-12, err_msg=name)
+    assert np.ptp(Ti) > 3.0  # the run crosses enough of the table for Ti's law to matter (FGS1: 7.2 … 11.0 s)
+
+
 # --- Simulation 2.1 (Figure 2.1): process gain varies, Kc = 1.6069/Kp(y) -------------------------------------
 
 
