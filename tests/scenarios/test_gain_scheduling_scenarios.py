@@ -152,15 +152,20 @@ def test_sim_2_1_reversed_gain_mode_2_10_is_the_more_damped():
     assert m[1]["rise_time"] < 1.5 * m[3]["rise_time"]  # not "greatly over damped"
 
 
+def one_value(folder: Path, name: str, value: float) -> Path:
+    """A parameter set in `folder` giving the Real `name` (component.variable) the value `value`."""
+    path = folder / "value.ssv"
+    path.write_text('<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/'
+                    'SystemStructureParameterValues" version="1.0" name="value"><ssv:Parameters><ssv:Parameter '
+                    f'name="{name}"><ssv:Real value="{value!r}"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>\n')
+    return path
+
+
 def sim_2_1_to(target: float, *sets: str, stop_time: float) -> dict[str, float]:
     """Sim. 2.1's set-point step 0.5 → target (the thesis gives none; docs/gain_scheduling_ranges_tables.md)."""
     folder = SSP / "gs_sim2_1"
     with tempfile.TemporaryDirectory() as temp:
-        end = Path(temp) / "end.ssv"
-        end.write_text('<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/'
-                       'SystemStructureParameterValues" version="1.0" name="end"><ssv:Parameters><ssv:Parameter '
-                       f'name="setpoint.final"><ssv:Real value="{target!r}"/></ssv:Parameter></ssv:Parameters>'
-                       '</ssv:ParameterSet>\n')
+        end = one_value(Path(temp), "setpoint.final", target)
         r = cosim.simulate(folder, stop_time=stop_time, parameter_sets=[*(folder / f"{n}.ssv" for n in sets), end])
     return step_metrics(r["time"], r["plant.y"], r["setpoint.y"], t0=10.0)
 
@@ -495,11 +500,7 @@ def large_disturbance_dies_out(schedule: str, mode: int, d: float) -> bool:
     swing over 300-450 s (docs/gain_scheduling_ranges_report.py's rule)."""
     folder = SSP / "gs_ch5_large_disturbance"
     with tempfile.TemporaryDirectory() as temp:
-        load = Path(temp) / "load.ssv"
-        load.write_text('<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/'
-                        'SystemStructureParameterValues" version="1.0" name="load"><ssv:Parameters><ssv:Parameter '
-                        f'name="load.amplitude"><ssv:Real value="{d!r}"/></ssv:Parameter></ssv:Parameters>'
-                        '</ssv:ParameterSet>\n')
+        load = one_value(Path(temp), "load.amplitude", d)
         result = cosim.simulate(folder / schedule, parameter_sets=[folder / f"mode{mode}.ssv", load])
     t, y = result["time"], result["plant.y"]
     if not np.all(np.isfinite(y)):
