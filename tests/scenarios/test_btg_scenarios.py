@@ -263,7 +263,7 @@ def test_sim_4_2_stability_verdict_over_noise_seeds(case):
 
 STUDY_FULL = os.environ.get("GREYFMU_STUDY") == "full"
 """GREYFMU_STUDY=full re-runs the stability verdict of docs/btg_spacing_tables.md over the data spacing m (20 seeds
-per setting and case: about 250 runs of 1500 s)."""
+per setting and case: 320 grey and 80 PI runs of 1500 s)."""
 SPACING_HELD = {(1, 5): 0, (1, 7): 0, (1, 8): 0, (1, 9): 0, (5, 5): 11, (5, 7): 15, (5, 8): 12, (5, 9): 2,
                 (10, 5): 20, (10, 7): 20, (10, 8): 20, (10, 9): 20, (25, 5): 0, (25, 7): 11, (25, 8): 13, (25, 9): 20}
 """(m, CASE): seeds of 20 in which "PI unstable, grey PI stable" holds (|a| > 0.035, n = 4; docs/btg_spacing_tables.md)."""
