@@ -268,7 +268,7 @@ SPACING_HELD = {(1, 5): 0, (1, 7): 0, (1, 8): 0, (1, 9): 0, (5, 5): 11, (5, 7): 
                 (10, 5): 20, (10, 7): 20, (10, 8): 20, (10, 9): 20, (25, 5): 0, (25, 7): 11, (25, 8): 13, (25, 9): 20}
 """(m, CASE): seeds of 20 in which "PI unstable, grey PI stable" holds (|a| > 0.035, n = 4; docs/btg_spacing_tables.md)."""
 SPACING_LIVE = {(1, 5): 0, (10, 5): 2, (25, 5): 0, (10, 9): 2}
-"""The default run: CASE 5, seeds 1 and 2 — the claim fails at both ends of the range of m and holds at m = 10 — and
+"""The default run: CASE 5, seeds 23341 and 1 — the claim fails at both ends of the range of m and holds at m = 10 — and
 CASE 9 (34 MW/min, "stable for wide ranges") at m = 10."""
 
 
@@ -281,9 +281,9 @@ def test_sim_4_2_stability_verdict_over_the_data_spacing(m, case):
     m = 25: the claim holds in a band of m.  m·Ts scales the development coefficient a of an error trend, so m decides
     when the threshold lets the grey PI predict (median share of predicting samples in CASE 8: docs/btg_spacing_tables.md).
     CASE 9 (34 MW/min, where the thesis says the grey PI "can keep stable for wide ranges"): 0 / 2 / 20 / 20 of 20 at
-    m = 1 / 5 / 10 / 25.  Default: CASE 5 at m = 1, 10, 25 and CASE 9 at m = 10, seeds 1 and 2; GREYFMU_STUDY=full: the
-    16 (m, CASE) of the table over 20 seeds."""
-    seeds = SEEDS_20 if STUDY_FULL else (1, 2)
+    m = 1 / 5 / 10 / 25.  Default: CASE 5 at m = 1, 10, 25 and CASE 9 at m = 10, the case file's seed 23341 (its PI runs
+    are the magnitude-rule test's) and seed 1; GREYFMU_STUDY=full: the 16 (m, CASE) of the table over 20 seeds."""
+    seeds = SEEDS_20 if STUDY_FULL else SEEDS_20[:2]
     held = sum(not settled(run(f"sim42_case{case}", "pi", 1500.0, form="thesis", seed=seed))
                and settled(run(f"sim42_case{case}", "grey", 1500.0, form="thesis |a|", seed=seed,
                                values=(("fuel_grey.m", m), ("fuel_grey.n", 4))))
