@@ -23,6 +23,7 @@ from greyfmu.control.digital_pi import (
     split_delay,
     static_decoupling,
     static_gain,
+    stationary_variances,
 )
 from greyfmu.control.digital_pi.companion import block_companion
 from greyfmu.control.digital_pi.examples import UNIT_DISC, ch47, cement_kiln, wood_berry
@@ -414,3 +415,52 @@ def test_els_convergence_condition_fails_for_both_plants(make, margin):
     D = companion.Go_blocks + companion.to_companion(discrete.Gamma).reshape(2, 2, 2)
     assert els_convergence_margin(D) == pytest.approx(margin, abs=0.01)
     assert els_convergence_margin(np.array([[[0.3]]])) > 0.0                  # the SISO example above: converges
+
+
+# --- the paper's own printed numbers (issue 46, claims with no row before) ----------------------------------------
+
+
+def test_example_1_printed_poles_disagree_with_its_printed_characteristic_equation():
+    """Example 1 prints the characteristic equation (z − 0.17)(z − 0.7002)(z − 0.6984)(z² − 1.604 z + 0.6442) = 0 of the
+    "6 × 6 digital system" and says it "gives the poles {0.71, 0.7002, 0.6984, 0.6768, 0.8020 ± 0.0316i}".  The equation
+    has degree 5; its roots are 0.17, 0.7002, 0.6984, 0.802 ± 0.0316i: the quadratic and two real factors agree, 0.17 is
+    the list's 0.71 with its digits swapped (0.17 lies outside the disc |z − 0.7| < 0.2 the design guarantees, 0.71
+    inside), and 0.6768 has no factor.  The pole list is the one consistent with the disc."""
+    roots = np.sort_complex(np.roots(np.polymul(np.poly([0.17, 0.7002, 0.6984]), [1.0, -1.604, 0.6442])))
+    printed = np.sort_complex(np.array([0.71, 0.7002, 0.6984, 0.6768, 0.8020 + 0.0316j, 0.8020 - 0.0316j]))
+    assert len(roots) == 5 < len(printed) == 6
+    pair = roots[np.abs(roots.imag) > 0]
+    np.testing.assert_allclose(np.sort(pair.imag), [-0.0316, 0.0316], atol=5e-5)
+    np.testing.assert_allclose(pair.real, 0.802, atol=1e-9)
+    common = [r for r in roots if np.min(np.abs(printed - r)) < 1e-3]
+    assert len(common) == 4  # 0.7002, 0.6984 and the complex pair
+    assert abs(0.17 - 0.7) > 0.2 > abs(0.71 - 0.7) and abs(0.6768 - 0.7) < 0.2
+    assert all(abs(z - 0.7) < 0.2 for z in printed)
+
+
+def test_printed_variances_41_42_alike_on_one_output_and_less_input_variance_on_one_input():
+    """(41) Huang & Huang and (42) ours: "almost the same regulation effects on output variables ... Huang's method
+    gives less variance in control inputs".  By the printed numbers, alike (within 10 %) on y2 only (0.0306 against
+    0.0279, +9.7 %; y1 0.0051 against 0.0079, −35 %); Huang's input variance is less on u1 (0.0002 < 0.0005) and MORE
+    on u2 (0.0946 > 0.05232, 1.8 ×): each statement holds for one of its two variables."""
+    huang = {"y1": 0.0079, "y2": 0.0279, "u1": 0.0002, "u2": 0.0946}
+    ours = {"y1": 0.0051, "y2": 0.0306, "u1": 0.0005, "u2": 0.05232}
+    alike = {k: abs(ours[k] - huang[k]) <= 0.1 * huang[k] for k in ("y1", "y2")}
+    assert alike == {"y1": False, "y2": True}
+    assert [huang[k] < ours[k] for k in ("u1", "u2")] == [True, False]
+
+
+@pytest.mark.parametrize("example", ["ch47", "wood_berry"])
+def test_weights_move_the_input_variances_not_the_output_variances(example):
+    """Paper, after (42): "Changing the weighting matrices Q and R may further adjust the variances of input and output
+    variables".  Q scaled by 0.1 … 100 (the same as R scaled by 10 … 0.01), stationary variances of the loop with the
+    Kalman observer (CH-47 at α = 1, β = 0; Wood–Berry in the unit disc): the inputs' variances move by 36 % / 31 %
+    (CH-47) and 9 % / 7 % (Wood–Berry), the outputs' by 2 % / 4 % and 0.3 % / 0.9 %.  Partly: the weights adjust the
+    inputs' variances, hardly the outputs'."""
+    ex = ch47() if example == "ch47" else wood_berry()
+    alpha, beta = (ex.alpha, ex.beta) if example == "ch47" else (1.0, 0.0)
+    rows = [stationary_variances(design_digital_pi(ex.plant, ex.Ts, ex.tau, alpha, beta, ex.q * scale, ex.r), ex.Q_eta)
+            for scale in (0.1, 100.0)]
+    (y_low, u_low), (y_high, u_high) = rows
+    assert np.all(np.abs(y_high / y_low - 1) < 0.05)
+    assert np.max(u_high / u_low - 1) > 0.05

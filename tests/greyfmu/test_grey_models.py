@@ -304,3 +304,49 @@ def test_second_order_plant_is_exact():
     wd = wn * math.sqrt(1 - zeta**2)
     exact = 1 - math.exp(-zeta * wn * t) * (math.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * math.sin(wd * t))
     assert coarse.y == pytest.approx(exact, rel=1e-12) and fine.y == pytest.approx(exact, rel=1e-12)
+
+
+def test_simulation_3_3_a_is_not_the_reciprocal_of_the_time_constant():
+    """Sim. 3.3: "a(i) for each case is not equal to the reciprocal of process time constant".  The process 1/(40s + 1)
+    with u = 2·1(t) + 1(t − 250) − 1(t − 470), sampled every second, GM(1,1) on n = 4 samples (m = 1): after each step
+    |a| stays below 0.013 (1/T = 0.025 per sample), falling to 0 as the output settles.  REPRODUCED.  a is 1/T only for
+    a pure exponential (the output's distance from its final value): 2·tanh(1/80) = 0.024999, the bilinear (3.5a)."""
+    T = 40.0
+    t = np.arange(0.0, 700.0)
+    u = 2.0 * (t >= 0) + (t >= 250) - (t >= 470)
+    y = np.zeros_like(t)
+    for k in range(1, len(t)):  # exact zero-order-hold step of 1/(40 s + 1)
+        y[k] = y[k - 1] * math.exp(-1 / T) + u[k - 1] * (1 - math.exp(-1 / T))
+    predictor = GreyPredictor(n=4, m=1, horizon=20)
+    a = []
+    for value in y:
+        predictor.update(value)
+        a.append(predictor.a)
+    a = np.array(a, dtype=float)
+    after_steps = ((t >= 252) & (t < 470)) | (t >= 472)
+    assert np.nanmax(np.abs(a[after_steps])) < 0.013 < 0.6 / T
+    assert abs(a[-1]) < 1e-4
+    decay = GreyPredictor(n=4, m=1, horizon=20)
+    for value in 2.0 * np.exp(-np.arange(8.0) / T):
+        decay.update(value)
+    assert decay.a == pytest.approx(2.0 * math.tanh(0.5 / T), rel=1e-9) == pytest.approx(1.0 / T, rel=1e-3)
+
+
+def test_chapter_5_a_large_bias_makes_the_prediction_symmetric():
+    """Ch. 5: "the bias B should be large enough to reduce the different predictive effects for the process output
+    increase and decrease".  A rise and a fall of the same first-order shape (±(1 − e^{−t/20})), n = 4, m = 1, 10
+    samples ahead: how far the prediction runs ahead of the signal, rise over fall, is 1.61 at B = 1.2, 1.33 at B = 2,
+    1.06 at B = 10, 1.011 at B = 50 (the thesis's ch. 4 value), 1.001 at B = 1000.  REPRODUCED."""
+    t = np.arange(0.0, 200.0)
+    shape = np.where(t >= 20, 1 - np.exp(-(t - 20) / 20.0), 0.0)
+
+    def asymmetry(B: float) -> float:
+        leads = []
+        for sign in (1.0, -1.0):
+            predictor = GreyPredictor(n=4, m=1, horizon=10, bias=B)
+            predicted = np.array([predictor.update(v) for v in sign * shape])
+            leads.append(float(np.max(sign * (predicted - sign * shape)[20:60])))
+        return leads[0] / leads[1]
+    ratios = [asymmetry(B) for B in (1.2, 2.0, 10.0, 50.0, 1000.0)]
+    assert ratios == sorted(ratios, reverse=True) and ratios[0] > 1.5
+    assert abs(ratios[3] - 1.0) < 0.02 and abs(ratios[4] - 1.0) < 0.002

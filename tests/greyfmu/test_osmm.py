@@ -90,6 +90,31 @@ def test_osmm_picks_most_efficient_pair_holds_the_other_and_respects_bounds():
     assert np.allclose(history[-1][0], 8.75, atol=1e-3)  # the disturbance is rejected
 
 
+@pytest.mark.parametrize("form, best, worst", [("printed", 2, 1), ("gain", 1, 2)])
+def test_osmm_schedules_the_group_of_largest_efficiency_in_either_form_never_the_smallest(form, best, worst):
+    """(32) picks the group of LARGEST η.  On the exact models the two forms of (31) disagree, so the printed form's
+    choice is not a by-product of the gain form's: printed η = Σ_j A_j(1)/Σ_l B_jl(1) is 0.917 / 0.686 / 1.000 for
+    (1,2) / (1,3) / (2,3) (the weakest pair has the largest), gain η = Σ_j Σ_l B_jl(1)/A_j(1) is 5.5 / 6.0 / 4.5.
+    A scheduler that takes the smallest η (or maximises the other form) holds another pair."""
+    groups = boiler_groups(3, 2)
+    controller = OSMMGPC(groups, exact_models(groups), ARXStructure(1, 1), [0.75] * 3, bounds=Bounds(0.5, 1.0, -0.02, 0.02),
+                         adapt=False, efficiency_form=form)
+    history = simulate(controller, steps=120)
+    printed = [0.1 / 0.4 + 0.1 / 0.15, 0.1 / 0.35 + 0.1 / 0.25, 0.1 / 0.15 + 0.1 / 0.30]  # A(1) = 1 − 0.9, ΣB(1) by hand
+    gain = [(0.4 + 0.15) / 0.1, (0.35 + 0.25) / 0.1, (0.15 + 0.30) / 0.1]
+    np.testing.assert_allclose(controller.efficiencies, printed if form == "printed" else gain, rtol=1e-9)
+    assert {h[2] for h in history} == {best}
+    held = [i for i in range(3) if i not in groups[best]][0]
+    assert np.all(np.array([h[1] for h in history])[:, held] == 0.75)  # the boiler outside the chosen pair holds
+    assert best != worst and choose_group(controller.efficiencies, previous=worst) == best
+
+
+def test_choice_is_the_largest_finite_value():
+    assert choose_group([0.3, 0.9, 0.5], previous=0) == 1
+    assert choose_group([-2.0, -1.0, -3.0], previous=0) == 1
+    assert choose_group([np.inf, 0.2, 0.1], previous=0) == 1  # a non-finite η is excluded, not the largest
+
+
 def test_osmm_with_fixed_pair_and_adaptation_stays_finite():
     groups = boiler_groups(3, 2)
     controller = OSMMGPC(groups, exact_models(groups), ARXStructure(1, 1), [0.75] * 3, bounds=Bounds(0.5, 1.0, -0.02, 0.02),

@@ -37,6 +37,20 @@ def test_worked_example_methods_2_and_3_follow_the_equations_not_the_printed_num
     assert integral_step(IntegralMode.METHOD3, **EXAMPLE) - 67.15 == pytest.approx(1.0 / 60.0, abs=1e-12)
 
 
+@pytest.mark.parametrize("Ts", ["0.5", "2", "0.1"])
+def test_worked_example_with_a_sample_time_other_than_1(Ts):
+    """The worked example has Ts = 1, where a law that forgets the sample time gives the same numbers.  With Ts the
+    rectangle of the new error sample is Ts·e in every mode: (2.10) 60 + 5·Ts/10, (2.11) (5/10)·(200 + Ts),
+    (2.12) 5·(40/3 + Ts/10), in exact fractions (Ts = 0.5: 60.25, 100.25, 66.9167)."""
+    T = Fraction(Ts)
+    I_prev, e, Kc, Ti, Kc_prev, Ti_prev = (Fraction(v) for v in ("60", "1", "5", "10", "4.5", "15"))
+    expected = {IntegralMode.METHOD1: I_prev + Kc * T / Ti * e,
+                IntegralMode.METHOD2: (Kc / Ti) * (I_prev / (Kc_prev / Ti_prev) + T * e),
+                IntegralMode.METHOD3: Kc * (I_prev / Kc_prev + T * e / Ti)}
+    for mode, value in expected.items():
+        assert integral_step(mode, **{**EXAMPLE, "Ts": float(T)}) == pytest.approx(float(value), rel=1e-14)
+
+
 def test_integral_step_accepts_plain_integers_and_rejects_unknown_modes():
     assert integral_step(3, **EXAMPLE) == integral_step(IntegralMode.METHOD3, **EXAMPLE)
     with pytest.raises(ValueError):

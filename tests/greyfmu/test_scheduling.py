@@ -217,6 +217,17 @@ def test_scheduled_pid_uses_the_pid_integral_modes_worked_example():
         assert pid.step(1.0, 0.0, W=None) == pytest.approx(5.0 + expected + 0.5, abs=1e-12)
 
 
+@pytest.mark.parametrize("mode, expected", [(1, 60.0 + 0.25), (2, 0.5 * 200.5), (3, 5.0 * (40.0 / 3.0 + 0.05))])
+def test_scheduled_pid_worked_example_at_a_sample_time_of_half_a_second(mode, expected):
+    """The same example at Ts = 0.5 s: each mode adds the rectangle Ts·e = 0.5 of the new error sample, (2.10)
+    60 + 5·0.5/10, (2.11) (5/10)·(200 + 0.5), (2.12) 5·(40/3 + 0.5/10); a law that drops Ts (the worked example's
+    Ts = 1 hides it) gives 60.5, 100.5, 67.1667."""
+    gains = iter([Gains(4.5, 15.0, 0.0), Gains(5.0, 10.0, 0.0)])
+    pid = GainScheduledPID(lambda _: next(gains), 0.5, integral_mode=mode, u0=60.0)
+    assert pid.step(0.0, 0.0, W=None) == 60.0
+    assert pid.step(1.0, 0.0, W=None) == pytest.approx(5.0 + expected, abs=1e-12)
+
+
 def test_scheduled_pid_equals_a_pid_with_the_same_gain_sequence():
     rng = np.random.default_rng(4)
     schedule = GainSchedule(SIM23_POINTS, Interpolation.MFGS)

@@ -288,6 +288,24 @@ def test_loop_is_offset_free_after_a_load_step():
     assert abs(y[-1] - 1.0) < 1e-3  # incremental form (9): integral action
 
 
+def test_non_minimum_phase_zero_needs_a_larger_X_k_and_the_loop_dips_first():
+    """Fig. 11 on the process with T4 = 60 s, 1.2 (1 − 60 s) e^{−90 s}/Π(T_i s + 1), a right-half-plane zero at +1/60:
+    the loop of the defaults (X_k = 1.5) diverges (|e| 1.15 over 1000-2000 s, 7.2 after 7000 s) where the same loop on
+    T4 = 0 and on the left-half-plane zero of T4 = −60 s settles; X_k = 4 stabilises it, and its first move makes the
+    output dip below 0 (−0.019) before it rises.  The other tests of this file run T4 = 0, where the zero's sign
+    cannot show."""
+    def errors(T4: float, X_k: float) -> tuple[float, float, float]:
+        t, y = closed_loop(stop=8000.0, T4=T4, X_k=X_k)
+        e = np.abs(1.0 - y)
+        return float(e[(t > 1000.0) & (t < 2000.0)].max()), float(e[t > 7000.0].max()), float(y[(t > 130.0) & (t < 300.0)].min())
+    early, late, _ = errors(60.0, 1.5)
+    assert late > 5.0 * early > 1.0
+    for T4 in (0.0, -60.0):
+        assert errors(T4, 1.5)[1] < 1e-3
+    _, late, dip = errors(60.0, 4.0)
+    assert late < 1e-3 and dip < -0.01
+
+
 # --- the test process ----------------------------------------------------------------------------
 
 

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import cosim
+from cosim.metrics import step_metrics
 from greyfmu.plants.boiler_turbine import equilibrium
 
 SCENARIO = Path(__file__).resolve().parents[2] / "ssp" / "btg_boiler_following"
@@ -27,12 +28,17 @@ LEVEL_SETPOINT_MODEL_MM = 100.0
 
 FORMS = {"ours": (), "thesis": ("thesis.ssv",), "thesis |a|": ("thesis.ssv", "magnitude.ssv"),
          "thesis always": ("thesis.ssv", "grey_always.ssv"), "always": ("grey_always.ssv",),
-         "parallel": ("thesis.ssv", "parallel.ssv"), "parallel |a|": ("thesis.ssv", "magnitude.ssv", "parallel.ssv")}
+         "parallel": ("thesis.ssv", "parallel.ssv"), "parallel |a|": ("thesis.ssv", "magnitude.ssv", "parallel.ssv"),
+         "turbine FGS1": ("turbine_fgs1.ssv",), "thesis slow valve": ("thesis.ssv", "slow_fuel_valve.ssv"),
+         "thesis |a| slow valve": ("thesis.ssv", "magnitude.ssv", "slow_fuel_valve.ssv"),
+         "thesis always slow valve": ("thesis.ssv", "grey_always.ssv", "slow_fuel_valve.ssv")}
 """Controller forms (docs/btg.md): ours (anti-windup, outputs 0-100 %, |a| > a_min); the thesis's as printed
 (no anti-windup, no output limits, a > a_min) with the ISA PI Kc[e + (1/Ti)∫e]; the thesis's PI form with our |a|
 rule; the same predicting whenever |a| > 0 (a corner of docs/btg_sensitivity_tables.md); ours predicting whenever
 |a| > 0 ("always": the grey PI with its predictor active, where ours never predicts and is the PI on the GM(1,1)
-estimate); the two thesis forms with §4.2's printed parallel PI Kc·e + (1/Ti)∫e (parallel.ssv)."""
+estimate); the two thesis forms with §4.2's printed parallel PI Kc·e + (1/Ti)∫e (parallel.ssv); ours with the
+turbine PI scheduled by FGS1 instead of MFGS (turbine_fgs1.ssv); the thesis's forms with the fuel valve at 0.15 %/s
+instead of (4.2b)'s 0.7 (slow_fuel_valve.ssv)."""
 LEVEL_LIMIT_MM = 100.0
 """§4.2: the drum level stays within ±100 mm of its set-point even in transients."""
 SEEDS_FULL = os.environ.get("GREYFMU_SEEDS") == "full"
@@ -46,18 +52,21 @@ def predicting(r: np.ndarray) -> float:
 
 @lru_cache(maxsize=None)
 def run(case: str, controller: str, stop: float, step: float = 0.5, noise: bool = True, form: str = "ours",
-        seed: int | None = None) -> np.ndarray:
-    """One run of a case with a controller and form; `seed` replaces the case file's noise seed."""
+        seed: int | None = None, values: tuple[tuple[str, int | float], ...] = ()) -> np.ndarray:
+    """One run of a case with a controller and form; `seed` replaces the case file's noise seed; `values` are
+    (component.variable, value) pairs set last (an int is an SSV Integer)."""
     sets = [SCENARIO / f"{case}.ssv", SCENARIO / f"{controller}.ssv", *(SCENARIO / name for name in FORMS[form])]
     if not noise:
         sets.append(SCENARIO / "noise_free.ssv")
+    pairs = (*values, *((("noise.seed", seed),) if seed is not None else ()))
     with tempfile.TemporaryDirectory() as folder:
-        if seed is not None:
-            sets.append(Path(folder) / "seed.ssv")
-            sets[-1].write_text(
-                '<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/'
-                'SystemStructureParameterValues" version="1.0" name="seed"><ssv:Parameters><ssv:Parameter '
-                f'name="noise.seed"><ssv:Integer value="{seed}"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>\n')
+        if pairs:
+            sets.append(Path(folder) / "values.ssv")
+            rows = "".join(f'<ssv:Parameter name="{name}"><ssv:{"Integer" if isinstance(value, int) else "Real"} '
+                           f'value="{value!r}"/></ssv:Parameter>' for name, value in pairs)
+            sets[-1].write_text('<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/'
+                                f'SSP1/SystemStructureParameterValues" version="1.0" name="values"><ssv:Parameters>{rows}'
+                                '</ssv:Parameters></ssv:ParameterSet>\n')
         return cosim.simulate(SCENARIO, stop_time=stop, step_size=step, parameter_sets=sets)
 
 
@@ -111,20 +120,48 @@ def test_mfgs_turbine_gain_at_76_MW_is_4_555():
     assert r["turbine.Kc"][50] == pytest.approx(4.555, abs=5e-4)
 
 
+def step_response(r: np.ndarray) -> dict[str, float]:
+    """Overshoot %, rise time (10-90 %) and settling time (±2 %) of the pressure after the set-point step at 100 s."""
+    m = step_metrics(r["time"], r["plant.P"], r["pressure_sp.y"], t0=100.0)
+    return {key: m[key] for key in ("overshoot", "rise_time", "settling_time")}
+
+
+def alike(value: float, reference: float) -> bool:
+    """docs/judging.md: "almost the same" = within ±10 % of the reference."""
+    return bool(abs(value - reference) <= 0.1 * abs(reference))
+
+
 @pytest.mark.parametrize("load", [58, 76, 101])
 def test_sim_4_1_grey_pi_and_pi_step_responses_alike(load):
-    """Sim. 4.1 (Figures 4.5-4.7): overshoots of the pressure step alike.  HOLDS ONLY WHILE THE GREY PI DOES NOT
-    PREDICT: at the thesis's a_min = 0.035 it predicts in no sample (the PI on the GM(1,1) estimate, Δ 0.19-0.22 pp,
-    asserted < 0.5 pp: a 25 % gain error in the grey PI gives 0.6-1.4 pp); with its predictor active (|a| > 0, 98 % of the samples) it overshoots 2.4-2.9 pp
-    less than the PI (10.3/10.7/12.7 % against 12.7/13.3/15.7 %): outside the 2-pp criterion.
-    The PI's 12-16 % is above the thesis's 10 % design criterion (docs/btg.md)."""
+    """Sim. 4.1 (Figures 4.5-4.7): "Both controllers have almost the same overshoots, rise time and settling time"
+    (alike = within ±10 %, docs/judging.md).  Two readings of "the grey PI":
+    - at the thesis's a_min = 0.035 (B = 50, m = 5) it predicts in no sample, the PI on the GM(1,1) estimate:
+      overshoot 12.44 / 13.13 / 15.46 % against 12.66 / 13.34 / 15.65 %, rise 19 / 19 / 18.5 s and settling
+      286 / 305.5 / 395.5 s equal to the PI's: 9 of 9 alike, REPRODUCED;
+    - with its predictor active (|a| > 0, 98 % of the samples): overshoot 10.27 / 10.67 / 12.74 % (−19 … −20 %), rise
+      37 / 37 / 36.5 s (1.95 ×), settling 339 / 353 / 432.5 s (+18, +16, +9 %): 1 of 9 alike, NOT REPRODUCED.
+    Over the data spacing m (docs/btg_spacing_tables.md) the grey PI stays alike while it does not predict.  The PI's
+    12.7-15.7 % is above the thesis's 10 % design criterion (docs/btg.md)."""
     pi, grey = run(f"sim41_{load}", "pi", 800.0), run(f"sim41_{load}", "grey", 800.0)
-    assert abs(overshoot(grey) - overshoot(pi)) < 0.5 and predicting(grey) == 0.0
-    assert 10.0 < overshoot(pi) < 17.0
+    reference = step_response(pi)
+    assert predicting(grey) == 0.0 and all(alike(v, reference[k]) for k, v in step_response(grey).items())
+    assert 10.0 < reference["overshoot"] < 17.0
     assert settled(pi) and settled(grey)
     active = run(f"sim41_{load}", "grey", 800.0, form="always")
     assert predicting(active) > 0.9 and settled(active)
-    assert 2.0 < overshoot(pi) - overshoot(active) < 3.5
+    held = {k: alike(v, reference[k]) for k, v in step_response(active).items()}
+    assert held == {"overshoot": False, "rise_time": False, "settling_time": load == 101}
+
+
+def test_section_4_2_step_responses_at_58_and_101_MW_almost_those_at_76():
+    """§4.2: with (4.4)/(4.5) "we get the almost same step responses as Figure 4.2 and 4.3 at N = 58 MW and N = 101
+    MW".  The pressure set-point steps (Fig. 4.3's kind; Sim. 4.1's runs), PI, against 76 MW (overshoot 13.34 %, rise
+    19 s, settling 305.5 s): at 58 MW 12.66 % / 19 s / 286 s, alike in 3 of 3; at 101 MW 15.65 % (+17 %) / 18.5 s /
+    395.5 s (+29 %), alike in 1 of 3.  REPRODUCED at 58 MW, NOT at 101 MW (the power steps of Fig. 4.2 at 58 and 101
+    MW are not run)."""
+    reference = step_response(run("sim41_76", "pi", 800.0))
+    for load, expected in ((58, 3), (101, 1)):
+        assert sum(alike(v, reference[k]) for k, v in step_response(run(f"sim41_{load}", "pi", 800.0)).items()) == expected
 
 
 def test_figures_4_2_4_3_design_criterion_10_percent_overshoot():
@@ -137,6 +174,21 @@ def test_figures_4_2_4_3_design_criterion_10_percent_overshoot():
         power = run(f"fig42_{direction}", "pi", 800.0)
         assert overshoot(power, "plant.E", "demand.y") < 1.0
         assert 12.5 < overshoot(power, "plant.P", "pressure_sp.y") < 14.0
+
+
+def test_section_4_2_fgs_turbine_controller_does_not_overshoot_more_than_mfgs():
+    """§4.2: MFGS is suggested for the turbine PI "for FGS1 PI and FGS2 PI, after all, may lead to higher over-shoot, and
+    tend to cause the system unstable for time-varying process gains" (Kc(109) = 4.802 against MFGS's 4.555).  NOT
+    REPRODUCED on this unit: the power overshoots less with FGS1 — 0.052 % against 0.073 % (+1 MW step, Fig. 4.2) and
+    1.45 % against 1.71 % (Sim. 4.2 CASE 8, 17 MW/min) — and both settle; FGS's larger gain gives a larger power error
+    during the ramp (0.97 against 0.72 MW), not a larger overshoot."""
+    def power_overshoot(r: np.ndarray) -> float:
+        change = r["demand.y"][-1] - r["demand.y"][0]
+        return float(max(0.0, np.max(np.sign(change) * (r["plant.E"] - r["demand.y"][-1]))) / abs(change) * 100)
+    for case, stop in (("fig42_up", 800.0), ("sim42_case8", 1500.0)):
+        mfgs, fgs = run(case, "pi", stop), run(case, "pi", stop, form="turbine FGS1")
+        assert np.max(fgs["turbine.Kc"] - mfgs["turbine.Kc"]) > 0.2  # FGS's gain is larger between the points
+        assert power_overshoot(fgs) < power_overshoot(mfgs) and settled(fgs) and settled(mfgs)
 
 
 def test_sim_4_2_drum_level_criterion_steady_met_transient_exceeded():
@@ -188,7 +240,9 @@ def test_sim_4_2_printed_parallel_pi_settles_so_the_claim_fails_in_the_papers_re
     assert not settled(run(f"sim42_case{case}", "pi", 1500.0, form="thesis"))  # the same case in the ISA reading
 
 
-SEEDS = (None, *range(1, 20)) if SEEDS_FULL else (None, 1, 2)
+SEEDS_20 = (None, *range(1, 20))
+"""The case file's seed 23341 (the thesis's) and 19 more: the 20 seeds of docs/btg_readings_report.py."""
+SEEDS = SEEDS_20 if SEEDS_FULL else (None, 1, 2)
 """Noise seeds: None = the case file's 23341 (the thesis's); 1-19 more with GREYFMU_SEEDS=full."""
 CLAIM_HELD = {5: 11, 7: 15, 8: 12} if SEEDS_FULL else {7: 3}
 """Seeds (of SEEDS) in which "PI unstable, grey PI stable" holds, per CASE: docs/btg_readings_tables.md (full)."""
@@ -205,6 +259,36 @@ def test_sim_4_2_stability_verdict_over_noise_seeds(case):
     held = sum(not settled(run(f"sim42_case{case}", "pi", 1500.0, form="thesis", seed=seed))
                and settled(run(f"sim42_case{case}", "grey", 1500.0, form="thesis |a|", seed=seed)) for seed in SEEDS)
     assert held == CLAIM_HELD[case]
+
+
+STUDY_FULL = os.environ.get("GREYFMU_STUDY") == "full"
+"""GREYFMU_STUDY=full re-runs the stability verdict of docs/btg_spacing_tables.md over the data spacing m (20 seeds
+per setting and case: 320 grey and 80 PI runs of 1500 s)."""
+SPACING_HELD = {(1, 5): 0, (1, 7): 0, (1, 8): 0, (1, 9): 0, (5, 5): 11, (5, 7): 15, (5, 8): 12, (5, 9): 2,
+                (10, 5): 20, (10, 7): 20, (10, 8): 20, (10, 9): 20, (25, 5): 0, (25, 7): 11, (25, 8): 13, (25, 9): 20}
+"""(m, CASE): seeds of 20 in which "PI unstable, grey PI stable" holds (|a| > 0.035, n = 4; docs/btg_spacing_tables.md)."""
+SPACING_LIVE = {(1, 5): 0, (10, 5): 2, (25, 5): 0, (10, 9): 2}
+"""The default run: CASE 5, seeds 23341 and 1 — the claim fails at both ends of the range of m and holds at m = 10 — and
+CASE 9 (34 MW/min, "stable for wide ranges") at m = 10."""
+
+
+@pytest.mark.parametrize("m, case", sorted(SPACING_HELD if STUDY_FULL else SPACING_LIVE))
+def test_sim_4_2_stability_verdict_over_the_data_spacing(m, case):
+    """Sim. 4.2 CASES 5-8 "PI unstable, grey PI stable" over the grey predictor's data spacing m, which the thesis does
+    not give for ch. 4 (docs/btg.md borrowed Sim. 3.7's m = 5).  ISA PI without anti-windup, grey PI with |a| > 0.035,
+    n = 4; of 20 seeds: m = 1 0 / 0 / 0 (CASES 5 / 7 / 8), m = 5 11 / 15 / 12, m = 10 20 / 20 / 20, m = 25 0 / 11 / 13.
+    REPRODUCED at m = 10 (at least 16 of 20 in every case), seed-dependent at m = 5, not at m = 1 nor (CASE 5) at
+    m = 25: the claim holds in a band of m.  m·Ts scales the development coefficient a of an error trend, so m decides
+    when the threshold lets the grey PI predict (median share of predicting samples in CASE 8: docs/btg_spacing_tables.md).
+    CASE 9 (34 MW/min, where the thesis says the grey PI "can keep stable for wide ranges"): 0 / 2 / 20 / 20 of 20 at
+    m = 1 / 5 / 10 / 25.  Default: CASE 5 at m = 1, 10, 25 and CASE 9 at m = 10, the case file's seed 23341 (its PI runs
+    are the magnitude-rule test's) and seed 1; GREYFMU_STUDY=full: the 16 (m, CASE) of the table over 20 seeds."""
+    seeds = SEEDS_20 if STUDY_FULL else SEEDS_20[:2]
+    held = sum(not settled(run(f"sim42_case{case}", "pi", 1500.0, form="thesis", seed=seed))
+               and settled(run(f"sim42_case{case}", "grey", 1500.0, form="thesis |a|", seed=seed,
+                               values=(("fuel_grey.m", m), ("fuel_grey.n", 4))))
+               for seed in seeds)
+    assert held == (SPACING_HELD if STUDY_FULL else SPACING_LIVE)[m, case]
 
 
 PI_STABLE_FALLING = {6: 20, 10: 20} if SEEDS_FULL else {6: 3, 10: 3}
@@ -225,17 +309,18 @@ def test_sim_4_2_cases_6_10_falling_ramps_thesis_pi_settles(case):
 
 @pytest.mark.parametrize("case", [1, 2, 3, 4])
 def test_sim_4_2_slow_ramps_same_overshoot(case):
-    """Sim. 4.2 CASES 1-4 (9 MW/min): "the overshoots for both systems ... are almost the same".  REPRODUCED: peak
-    |e_P| within 0.15 kgf/cm2 of the PI's (2.69/2.78, 2.83/2.73, 3.02/2.92, 2.86/2.95 in the full runs) where the
-    grey PI never predicts (the PI acting on the GM(1,1) estimate of the error), and with its predictor active
-    (97 % of the samples) within 0.35 kgf/cm2, about 10 % (2.41, 3.08, 3.31, 2.58 against 2.69, 2.83, 3.02, 2.86)."""
+    """Sim. 4.2 CASES 1-4 (9 MW/min): "the overshoots for both systems ... are almost the same" (alike = peak |e_P|
+    within ±10 % of the PI's, docs/judging.md).  At the thesis's a_min the grey PI never predicts (the PI acting on
+    the GM(1,1) estimate of the error): 2.78 / 2.73 / 2.92 / 2.95 against 2.69 / 2.83 / 3.02 / 2.86, alike in 4 of 4,
+    REPRODUCED.  With its predictor active (97 % of the samples): 2.41 / 3.08 / 3.31 / 2.58, alike in 3 of 4 (CASE 1:
+    −10.4 %)."""
     pi, grey = run(f"sim42_case{case}", "pi", 600.0), run(f"sim42_case{case}", "grey", 600.0)
     peak_pi = np.max(np.abs(pressure_error(pi)))
-    assert abs(np.max(np.abs(pressure_error(grey))) - peak_pi) < 0.15
+    assert alike(np.max(np.abs(pressure_error(grey))), peak_pi)
     assert predicting(grey) == 0.0
     active = run(f"sim42_case{case}", "grey", 600.0, form="always")
     assert predicting(active) > 0.9
-    assert 0.15 < abs(np.max(np.abs(pressure_error(active))) - peak_pi) < 0.35
+    assert alike(np.max(np.abs(pressure_error(active))), peak_pi) is (case != 1)
 
 
 def test_sim_4_2_grey_error_8_to_10_only_in_case_5():
@@ -288,8 +373,7 @@ def test_ch5_actuators_near_saturation_grey_pi_is_the_pi_at_the_thesis_settings(
     0 %, with 28 % (sim43_58_28.ssv) it sits there 31 s.  NOT REPRODUCED at the thesis's settings: the grey PI
     predicts in no sample and saturates alike (35 s, peak |e_P| 3.23 against the PI's 3.18).  With the predictor
     active (|a| > 0) it never reaches 0 % and peaks at 1.99, but the PI hardly suffers from the limit either: 3.18
-    against 2.89 · 28/26 = 3.11 for the unsaturated 26 % pulse scaled.  The "low actuator speed" reading cannot be
-    run: the BoilerTurbine FMU does not expose the valves' rate limits (4.2b)."""
+    against 2.89 · 28/26 = 3.11 for the unsaturated 26 % pulse scaled.  The "low actuator speed" reading: next test."""
     def at_limit_s(r: np.ndarray, controller: str) -> float:
         return float(np.sum(r[FUEL[controller]] <= 0.05) * 0.5)
     pi, grey = run("sim43_58_28", "pi", 700.0, noise=False), run("sim43_58_28", "grey", 700.0, noise=False)
@@ -302,14 +386,37 @@ def test_ch5_actuators_near_saturation_grey_pi_is_the_pi_at_the_thesis_settings(
     assert peak["pi"] < 1.05 * unsaturated
 
 
+@pytest.mark.parametrize("case", ["sim43_case1", "sim43_58_28"])
+def test_ch5_low_actuator_speed_grey_pi_helps_only_when_it_predicts(case):
+    """Ch. 5 (3): "if the speeds of actuators are low ... gray predictive PI can still achieve good control quality, while
+    PI may not".  The fuel valve at 0.15 %/s instead of 0.7 (plant.rate_fuel; slow_fuel_valve.ssv), thesis's PI form,
+    noise-free first pulse of Sim. 4.3 CASE 1 (76 MW, 26 %) and at 58 MW (28 %): the PI may not — its peak |e_P| grows
+    from 2.92 to 9.06 kgf/cm² (3.20 to 7.33 at 58 MW).  At the thesis's settings (a_min = 0.035, m = 5) the grey PI
+    predicts in no sample and suffers alike: 8.89 (ratio 0.98) and 6.76 (0.92), NOT "much better" (≤ 0.8): NOT
+    REPRODUCED; predicting (|a| > 0) it keeps 2.13 and 2.32 (ratios 0.24, 0.32): REPRODUCED for a grey PI that predicts.
+    Over m and the valve speeds: docs/btg_spacing_tables.md."""
+    def peak(r: np.ndarray) -> float:
+        return float(np.max(np.abs(pressure_error(r))))
+    fast = peak(run(case, "pi", 700.0, noise=False, form="thesis"))
+    pi = peak(run(case, "pi", 700.0, noise=False, form="thesis slow valve"))
+    grey = run(case, "grey", 700.0, noise=False, form="thesis |a| slow valve")
+    active = run(case, "grey", 700.0, noise=False, form="thesis always slow valve")
+    assert pi > 2.0 * fast
+    assert predicting(grey) == 0.0 and 0.8 < peak(grey) / pi < 1.0
+    assert predicting(active) > 0.9 and peak(active) / pi < 0.4
+
+
 @pytest.mark.parametrize("case, active_ratio", [(2, (0.55, 0.75)), (3, (0.6, 0.8))])
 def test_sim_4_3_cases_2_3_first_pulse_alike(case, active_ratio):
-    """Sim. 4.3 CASE 2 (400 s period): "still much better" with the grey PI; CASE 3 (13 % pulse): "almost the same".
-    At the thesis's a_min = 0.035 the grey PI never predicts and both are alike: first-pulse peak |e_P| and fuel range
-    within 10 % of the PI's (CASE 2: 1.02 and 1.05; full runs with noise: peak ratios 1.02 and 0.99) — CASE 2 NOT
-    REPRODUCED, CASE 3 reproduced only as the PI against itself.  With the predictor active (|a| > 0, 97 % of the
-    samples) the peak ratio is 0.64 (CASE 2, fuel range 0.85: "much better" REPRODUCED) and 0.70 (CASE 3, fuel 0.99:
-    "almost the same" NOT REPRODUCED).  Noise-free, master step 0.5 s."""
+    """Sim. 4.3 CASE 2 (400 s period): "still much better" with the grey PI; CASE 3 (13 % pulse): "almost the same.
+    This is an expected result, since we do not desire to improve the disturbance rejection for a small disturbance at
+    the cost of quickly worn out actuator".  At the thesis's a_min = 0.035 the grey PI never predicts and both are
+    alike: first-pulse peak |e_P| and fuel range within 10 % of the PI's (CASE 2: 1.02 and 1.05; full runs with noise:
+    peak ratios 1.02 and 0.99) — CASE 2 NOT REPRODUCED; CASE 3 REPRODUCED, by the mechanism the thesis names (the
+    threshold keeps the grey PI from acting on a small disturbance; whether one threshold also lets it act on the 26 %
+    pulse, over the data spacing m: docs/btg_spacing_tables.md).  With the predictor always active (|a| > 0, 97 % of
+    the samples) the peak ratio is 0.64 (CASE 2, fuel range 0.85: "much better") and 0.70 (CASE 3, fuel 0.99) — a
+    setting the thesis's explanation of CASE 3 excludes, so it does not decide CASE 3.  Noise-free, step 0.5 s."""
     pi = run(f"sim43_case{case}", "pi", 500.0, noise=False)
     peak_pi, range_pi = np.max(np.abs(pressure_error(pi))), np.ptp(pi[FUEL["pi"]])
     grey = run(f"sim43_case{case}", "grey", 500.0, noise=False)
@@ -324,21 +431,22 @@ def test_sim_4_3_cases_2_3_first_pulse_alike(case, active_ratio):
 
 
 @pytest.mark.parametrize("case", [1, 2])
-def test_sim_4_4_noise_sensitivity_within_20_percent(case):
-    """Sim. 4.4 CASES 1-2 (white noise on the pressure): the variance of the fuel command's noise-induced part
-    (noisy minus noise-free run) of the grey PI within 20 % of the PI's.  HOLDS ONLY WHERE THE GREY PI DOES NOT
-    PREDICT: at a_min = 0.035 it predicts in 0 % of the samples (ratio 0.96, 1.03: the PI compared with itself on
-    the GM(1,1) estimate); with the predictor active (|a| > 0, 98 %) the ratio is 12.5 and 28.8 (std 3.5×, 5.4×):
-    NOT REPRODUCED for a grey PI that predicts."""
-    share, modes = {}, {}
+def test_sim_4_4_noise_sensitivity_alike(case):
+    """Sim. 4.4 CASES 1-2 (white noise on the pressure): the grey PI "has almost the same sensitivity to noises as PI":
+    the standard deviation of the fuel command's noise-induced part (noisy minus noise-free run) within ±10 % of the
+    PI's (docs/judging.md; ±10 % of std = −19 … +21 % of variance).  HOLDS ONLY WHERE THE GREY PI DOES NOT PREDICT: at
+    a_min = 0.035 it predicts in 0 % of the samples (std ratio 0.98, 1.01: the PI compared with itself on the GM(1,1)
+    estimate); with the predictor active (|a| > 0, 98 %) the std ratio is 3.5 and 5.4: NOT REPRODUCED for a grey PI
+    that predicts.  Over the data spacing m: docs/btg_spacing_tables.md."""
+    spread, modes = {}, {}
     for controller, form in (("pi", "ours"), ("grey", "ours"), ("grey", "always")):
         noisy = run(f"sim44_case{case}", controller, 700.0, form=form)
         clean = run(f"sim44_case{case}", controller, 700.0, noise=False, form=form)
-        share[controller, form] = np.var(noisy[FUEL[controller]] - clean[FUEL[controller]])
+        spread[controller, form] = np.std(noisy[FUEL[controller]] - clean[FUEL[controller]])
         modes[controller, form] = predicting(noisy) if controller == "grey" else None
-    assert 0.8 < share["grey", "ours"] / share["pi", "ours"] < 1.2 and modes["grey", "ours"] == 0.0
+    assert alike(spread["grey", "ours"], spread["pi", "ours"]) and modes["grey", "ours"] == 0.0
     assert modes["grey", "always"] > 0.9
-    assert share["grey", "always"] / share["pi", "ours"] > 10.0
+    assert spread["grey", "always"] / spread["pi", "ours"] > 3.0
 
 
 SIM44_CASES = (1, 2, 3, 4, 5) if SEEDS_FULL else (1,)
@@ -353,7 +461,7 @@ def test_sim_4_4_much_better_disturbance_rejection_in_no_seed(case):
     over 20 seeds the ratio has median 1.012 / 1.006 / 1.010 / 1.003 / 1.012 (min 0.93, max 1.10), below 1 in 6 / 8 /
     3 / 9 / 3 and below 0.8 ("much better") in 0 of 20 in every case, because at a_min = 0.035 the grey PI never
     predicts: the differences are the noise's.  (With the predictor active, CASE 1: 2.18,
-    ratio 0.62 — at 3.5 times the noise-induced fuel command, test_sim_4_4_noise_sensitivity_within_20_percent.)"""
+    ratio 0.62 — at 3.5 times the noise-induced fuel command, test_sim_4_4_noise_sensitivity_alike.)"""
     step = 0.1 if case == 3 else 0.5  # CASE 3's noise is sampled every 0.1 s
     ratios = []
     for seed in SEEDS:

@@ -12,7 +12,7 @@ import cosim
 from greyfmu.control.digital_pi import c2d, closed_loop, design_digital_pi, stationary_variances, stored_design
 from greyfmu.control.digital_pi.augment import augment_delay
 from greyfmu.control.digital_pi.companion import block_companion
-from greyfmu.control.digital_pi.gain_study import closed_loop_records, innovation_predictions
+from greyfmu.control.digital_pi.gain_study import closed_loop_records, innovation_predictions, prediction_excess
 from greyfmu.control.digital_pi.identification import (
     armax_observer,
     els_convergence_margin,
@@ -112,6 +112,19 @@ def test_decentralised_pi_comparison_settles(built_fmus):
     decentral = np.abs(result["plant.y2"][result["time"] < 200]).max()
     assert np.abs(ours["plant.y2"][first]).max() < 0.1 < decentral
     assert np.abs(ours["plant.y1"][first]).max() < 1.1
+    # Paper, after (40): "our proposed PI control gives much better tracking response for both step set-point change
+    # and disturbance rejection" than the decentralised PI.  On the substitute (Wood–Berry, BLT PIs): IAE of
+    # |e1| + |e2| over each event's 200 min, r1 step / r2 step / −1 on y1 / −1 on y2: 5.9 / 6.7 / 7.5 / 11.1 against
+    # 23.9 / 34.1 / 23.4 / 35.1 (ratio 0.20-0.32, "much better" = at most 0.8), within 2 % after 11-17 min against
+    # 135-172 min.
+    for start in (0, 200, 400, 600):
+        references = (1.0, 0.0 if start == 0 else 1.0)  # r1 steps at 0, r2 at 200 min
+
+        def iae(r: np.ndarray) -> float:
+            window = (r["time"] >= start) & (r["time"] < start + 200)
+            return float(sum(np.sum(np.abs(r[f"plant.y{i + 1}"][window] - references[i])) for i in (0, 1)))
+        totals = (iae(ours), iae(result))
+        assert totals[0] <= 0.8 * totals[1], (start, totals)
 
 
 def test_paper_disc_on_wood_berry_has_a_huge_transient(built_fmus):
@@ -193,14 +206,29 @@ def els_against_truth(seed: int, N: int = 4000) -> tuple[float, float]:
     return els, true
 
 
-def test_els_reaches_the_data_fit_of_the_true_parameters_so_spr_is_not_what_fails():
-    """The doc's ‖ΔK‖/‖K‖ ≈ 0.85 is not ELS failing to converge: on its own record (N = 4000) the ELS model
-    predicts better than the true parameters do (seed 3: 4.849e-3 against 4.871e-3) — on every seed, 20/20 with
-    GREYFMU_SEEDS=full (gap median −0.49 %, range −0.96 … −0.37 %).  The criterion is flat along directions that move
-    K_o; a better data fit with a far gain is identifiability, not divergence."""
+def test_els_fits_its_own_record_better_than_the_true_parameters():
+    """On its own record (N = 4000) the ELS model predicts better than the true parameters do (seed 3: 4.849e-3
+    against 4.871e-3), on every seed (20/20 with GREYFMU_SEEDS=full).  Any least-squares fit that has converged does
+    this, so it does not tell an ELS held off the optimum from a flat criterion: the out-of-sample test below does."""
     pairs = [els_against_truth(seed) for seed in ELS_SEEDS]
     better = sum(els < true for els, true in pairs)
     assert better == len(ELS_SEEDS), pairs
+
+
+def test_els_predicts_fresh_data_as_an_efficient_estimator_so_the_gain_is_not_identifiable():
+    """The discriminating test (issue 46) between "ELS does not converge (its SPR condition fails)" and "the criterion
+    is flat in the directions that move K_o": on 20 000 FRESH samples the ELS model's one-step prediction-error variance
+    exceeds the true Kalman predictor's by about d/N, the excess of an efficient estimator (Akaike's FPE; d = 28
+    parameters per output), and falls as 1/N: Wood–Berry seed 1, 0.63 / 0.63 % at N = 4000 (d/N = 0.70 %), 0.16 / 0.19 %
+    at N = 16 000 (0.18 %).  An estimator held away from the optimum keeps a floor: least-squares ARX of the same
+    orders (no noise model) 1.25 % → 0.77 % on y1.  So ELS reaches the prediction-error optimum, and the gain it reads
+    there is 0.75-0.95 from the Kalman gain because many gains predict alike (docs/digital_pi.md: ‖ΔK‖/‖K‖ 0.85 at
+    N = 4000)."""
+    short, long = (prediction_excess(wood_berry(), N, seed=1) for N in (4000, 16000))
+    for run in (short, long):
+        assert np.all(run.els < 2.0 * run.efficient) and np.all(run.els > 0.3 * run.efficient), run
+    assert np.all(short.els > 2.5 * long.els)  # 1/N: 4x
+    assert long.arx[0] > 3.0 * long.efficient and short.arx[0] < 2.0 * long.arx[0]  # a floor, not 1/N
 
 
 def siso_els_error(c: tuple[float, float], N: int, seed: int) -> float:

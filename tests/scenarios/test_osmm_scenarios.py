@@ -32,6 +32,7 @@ from osmm_report import (  # noqa: E402
     unbounded_pair_fuel,
     yearly_saving,
 )
+from osmm_settings_report import SETTINGS, fig_5d, merits, transients_won  # noqa: E402
 
 sys.path.remove(str(DOCS))
 
@@ -231,6 +232,41 @@ def test_fig_5d_over_identification_seeds(tmp_path):
     assert boiler_1 == tuple(s for s in BOILER_1_SEEDS if s in SCHEDULING_SEEDS)
     if FULL_SEEDS:
         assert len(one) == 1 and len(boiler_1) == 8
+
+
+STUDY_FULL = os.environ.get("GREYFMU_STUDY") == "full"
+"""GREYFMU_STUDY=full re-runs docs/osmm_settings_tables.md: 7 controller settings × 10 identification seeds (+ the fixed
+pairs on 3), 112 runs of 4500 s."""
+FIG_5D_HELD = {setting: (1 if setting.startswith("Ts = 10 s") else 0) for setting in SETTINGS}
+"""Seeds of 0 … 9 with Fig. 5(d)'s pattern per setting (docs/osmm_settings_tables.md): seed 0 at the docs' default only."""
+
+
+def test_fig_5d_single_switch_on_seed_0_depends_on_the_controller_settings(header_runs, tmp_path):
+    """Fig. 5(d): one switch, (1,3) → (1,2), boiler 1 throughout.  The paper gives no sample time, weights or horizon;
+    on identification seed 0 the pattern appears at docs/osmm_gpc.md's Ts = 10 s, Q = 1, N2 = 20 (one switch at 3721 s)
+    and in none of the six settings one step away: Ts = 5 s 2 switches, Ts = 20 s none, Q = 0.1 4, Q = 10 2, N2 = 10 3,
+    N2 = 40 8 (docs/osmm_settings_tables.md).  Over seeds 0 … 9 of each setting: 1 of 70.  NOT REPRODUCED over seeds or settings;
+    "the paper evidently used (31) as printed" does not follow from seed 0.  Default: the scenario and Ts = 20 s on
+    seed 0; GREYFMU_STUDY=full: every setting over seeds 0 … 9."""
+    assert fig_5d(merits(header_runs["osmm"]))
+    if not STUDY_FULL:
+        assert switching(run_with(HEADER_SCENARIO, {"controller.Ts": 20.0}, tmp_path, stop_time=4500))[0] == 0
+        return
+    for setting, held in FIG_5D_HELD.items():
+        runs = [merits(run_with(HEADER_SCENARIO, {**SETTINGS[setting], "controller.identification_seed": s}, tmp_path,
+                                stop_time=4500)) for s in range(10)]
+        assert sum(fig_5d(m) for m in runs) == held, setting
+
+
+def test_section_5_2_new_stable_state_long_before_700_steps(header_runs):
+    """§5.2: "after about 700 steps running under the pressure control, the PUUH arrived at a new stable state" (after
+    the valve-1 step at 2050 s).  Settling of P_m2 and P_m4 into ±0.02 MPa (the docs' band) and ±1 % (0.0875 MPa): at
+    the docs' settings, seed 0, 259-401 s and 230-295 s over the three controls; over the seven settings and seeds 0 … 2
+    at most 554 s and 435 s (docs/osmm_settings_tables.md).  "About 700" = within ±10 % (630-770 steps, docs/judging.md):
+    NOT REPRODUCED — every loop settles in 60 % of the time or less."""
+    settle = [merits(run)[f"{name} step 1 band {band}"][1] for run in header_runs.values()
+              for name in ("P_m2", "P_m4") for band in (0.02, 0.0875)]
+    assert max(settle) < 0.9 * 700 and min(settle) > 150.0
 
 
 def test_fig_5bc_osmm_transient_against_the_fixed_pairs(header_runs):

@@ -193,15 +193,31 @@ def test_itae_pid_comparison_uses_the_rule_2_8():
 
 def test_fig_5_reference_trajectory_has_no_important_impact_only_for_T_ref_up_to_T(tmp_path):
     """Fig. 5 / §3: "the introduction of the reference trajectory has not an important impact on the loop dynamics".
-    The paper gives no T_ref.  w_{t+i} = r − α^i (r − Y_t) acts from i = m on, α^m = e^{−mT/T_ref}: up to
-    T_ref = T = 40 s (α^m = 0.135) the setpoint response is unchanged (overshoot 25.8 → 25.4 %, IAE 423.4 → 421.6);
-    from 100 s on it is not (21.5 %), at 200 s the overshoot falls to 9.9 % and the load IAE by 21 % (81.6 → 64.8);
-    the loop's poles move little (ρ 0.940 → 0.925).  Verdict: reproduced only for T_ref ≤ T."""
+    The paper gives no T_ref; studied 0 … 400 s (α^m = e^{−mT/T_ref}, m = 2; docs/sopdt_tables.md).  "No important
+    impact" = alike (docs/judging.md: within ±10 %), in both readings of "loop dynamics":
+    - the set-point response (overshoot, rise, settling, IAE): up to T_ref = T = 40 s (25.8 → 25.4 %, IAE 423.4 →
+      421.6); from 80 s the overshoot falls by more than 10 % (23.2 %), at 200 s to 9.9 % (load IAE −21 %);
+    - the loop itself, its slowest mode's time constant −T/ln ρ: 644 s without, 598 s at 100 s (−7 %), 551 s at 150 s
+      (−14 %), 510 s at 200 s (−21 %): up to T_ref = 100 s (2.5 T).
+    Verdict: reproduced for T_ref ≤ T (response) and ≤ 2.5 T (poles); not beyond."""
     none, short, long = (loop_metrics(run(REPORT_NOMINAL, {"controller.T_ref": T_ref}, tmp_path)) for T_ref in (0.0, 40.0, 200.0))
-    assert abs(short["overshoot"] - none["overshoot"]) < 1.0 and short["IAE"] == pytest.approx(none["IAE"], rel=0.01)
+    for key in ("overshoot", "rise_time", "settling_time", "IAE"):
+        assert short[key] == pytest.approx(none[key], rel=0.1)
     assert long["overshoot"] < 0.5 * none["overshoot"] and long["IAE"] < 0.9 * none["IAE"]
     assert long["load_IAE"] < 0.85 * none["load_IAE"]
-    assert spectral_radius({"T_ref": 200.0}) == pytest.approx(spectral_radius({}), abs=0.02)
+    constant = {T_ref: -40.0 / math.log(spectral_radius({"T_ref": T_ref})) for T_ref in (0.0, 100.0, 150.0)}
+    assert constant[100.0] == pytest.approx(constant[0.0], rel=0.1) and constant[150.0] < 0.9 * constant[0.0]
+
+
+def test_fig_9_xi_changes_the_response_by_more_than_a_tenth_over_the_papers_range():
+    """Fig. 9: "The change of the time constants allocation coefficient ξ does not reveal major effects upon the system
+    response form"; the conclusion recommends ξ in 0.6 … 1.0.  From ξ = 0.6 to 1.0 (docs/sopdt_tables.md) the set-point
+    IAE falls 8.7 % (423.4 → 386.7), the rise time grows 2 % (188 → 192 s), but the overshoot falls 14 % (25.8 → 22.1 %)
+    and the settling time 18 % (2180 → 1798 s); over 0.2 … 1.0 the IAE falls 36 %.  "No major effect" = alike
+    (docs/judging.md, ±10 %): 2 of 4 quantities over the recommended range — PARTLY REPRODUCED; not over 0.2 … 1.0."""
+    low, high = setpoint_metrics(simulate(NOMINAL)), setpoint_metrics(simulate(NOMINAL, "fig09_xi_1.0.ssv"))
+    alike = {key: abs(high[key] - low[key]) <= 0.1 * low[key] for key in ("IAE", "rise_time", "overshoot", "settling_time")}
+    assert alike == {"IAE": True, "rise_time": True, "overshoot": False, "settling_time": False}
 
 
 def test_section_3_X_p_in_0_5_to_0_8_is_near_best_only_from_the_default_X_k_on(tmp_path):
