@@ -24,7 +24,7 @@ machine is shared):
 
 Hosts: ``c`` (benchmarks/step_host.c, a C program with no Python of its own: our loader starts it;
 FMI 2.0 only), ``cosim`` (cosim's compiled loop over the FMU wired to a C peer FMU that feeds its
-inputs and reads its outputs, only time kept; the CPU time of `Execution.run`, the peer's share
+inputs and reads its outputs, only time kept; the CPU time of `cosim.run.execution.Execution.run`, the peer's share
 in every figure), ``fmpy`` (a Python loop over fmpy's ``FMU2Slave``/``FMU3Slave``
 ``setReal``/``doStep``/``getReal``).  The law alone is ``advance(t, h)`` called in a Python loop
 on an instance of the slave class (fmus/, default parameters, the same inputs), in the same rounds.
@@ -409,10 +409,10 @@ class CosimRun:
 
 
 def loop_cpu(prepared) -> float:
-    """The CPU seconds of the stepping loop (`Execution.run`) of one cosim run of ``prepared``, only
+    """The CPU seconds of the stepping loop (`cosim.run.execution.Execution.run`) of one cosim run of ``prepared``, only
     time kept; RuntimeError unless every operation ran in the compiled loop."""
-    from cosim.execution import Execution
-    from cosim.simulation import run
+    from cosim.run.execution import Execution
+    from cosim.run.simulation import run
 
     spent = []
     original = Execution.run

@@ -83,7 +83,7 @@ def parallelism(workers: int, n: int = 3_000_000) -> float:
 def one_run(stop: float, runs: int = 20) -> tuple[float, float]:
     """Median loop seconds of ``runs`` runs on reused instances, and the median CPU seconds of one
     run with its preparation (what a worker does for an evaluation)."""
-    from cosim.instances.reuse import InstancePool
+    from cosim.run.instances.reuse import InstancePool
     from cosim.run.simulation import run
     from cosim.plan.prepare import load_scenario, prepare_scenario
 

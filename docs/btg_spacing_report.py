@@ -57,7 +57,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import cosim  # noqa: E402
-from cosim.metrics import step_metrics  # noqa: E402
+from cosim.present.metrics import step_metrics  # noqa: E402
 from figure_files import save_figure  # noqa: E402
 from studies import NotMeasured, StudyCache, parameter_set  # noqa: E402
 

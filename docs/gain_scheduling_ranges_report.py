@@ -18,7 +18,7 @@ of each.  Here the verdicts are taken over a range of them:
   case's ITAE rule (``ssp/gs_sim2_3/third_point_case*.ssv``).
 
 Settled: after a load step (ch. 5) the oscillation dies out (the last 150 s swing under 0.01 or under 0.9 × that of the
-150 s before); after a set-point step, into ±2 % of the step by the end of the run (cosim.metrics).
+150 s before); after a set-point step, into ±2 % of the step by the end of the run (cosim.present.metrics).
 Runs are kept in build/studies/gain_scheduling_ranges.jsonl (docs/studies.py).  Writes
 docs/gain_scheduling_ranges_tables.md.
 """
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 import cosim
-from cosim.metrics import step_metrics
+from cosim.present.metrics import step_metrics
 from studies import StudyCache, parameter_set
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import cosim
-from cosim.metrics import step_metrics
+from cosim.present.metrics import step_metrics
 from greyfmu.plants.boiler_turbine import equilibrium
 
 SCENARIO = Path(__file__).resolve().parents[2] / "ssp" / "btg_boiler_following"
