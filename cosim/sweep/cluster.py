@@ -119,7 +119,7 @@ def _connect(address: str):
         return Client(address, timeout=10)
     except OSError as e:
         raise SetupError(f"cannot reach the Dask scheduler ({e}).", element="--scheduler",
-                         hint="Start one with TLS as the README's \"Whom a cluster obeys\" shows ('dask scheduler' "
+                         hint="Start one with TLS as docs/sweeps.md's \"Whom a cluster obeys\" shows ('dask scheduler' "
                               "and 'dask worker' with --tls-ca-file, --tls-cert, --tls-key), or use --scheduler "
                               "local:N.") from None
     except TypeError as e:
@@ -177,7 +177,7 @@ def warn_if_open(address: str) -> None:
     """A RuntimeWarning naming ``address`` when it is an open scheduler (`is_open`)."""
     if is_open(address):
         warnings.warn(f"the Dask scheduler {address} is neither TLS nor on loopback: anyone who can reach it "
-                      "can run code on its workers, as their user (see the README's TLS recipe).",
+                      "can run code on its workers, as their user (see the TLS recipe in docs/sweeps.md).",
                       RuntimeWarning, stacklevel=3)
 
 

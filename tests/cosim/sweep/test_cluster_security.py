@@ -211,7 +211,7 @@ def test_a_sweep_on_an_open_scheduler_warns_once_naming_it(tmp_path, capsys, whe
     if where == "outside":
         assert warnings == [f"cosim: warning: the Dask scheduler {address} is neither TLS nor on loopback: "
                             "anyone who can reach it can run code on its workers, as their user (see the "
-                            "README's TLS recipe)."]
+                            "TLS recipe in docs/sweeps.md)."]
     else:
         assert warnings == []
     assert os.path.isfile(tmp_path / "out" / "sweep.parquet")
