@@ -79,11 +79,13 @@ typedef struct {
     void *Y, *U;
 } Op;
 
-/* One exchange buffer copied into every row: n doubles or (integer) C ints. */
+/* One exchange buffer copied into every row: n doubles or (integer) C ints, value j into the
+ * row's column columns[j] (the result's column order, cosim.record.observers.Recorder). */
 typedef struct {
     void *values;
     size_t n;
     int integer;
+    const int *columns;
 } Source;
 
 struct Pool;
@@ -106,7 +108,8 @@ typedef struct {
 
 /* What one call does: steps k .. k_end - 1 (k advances past every completed step; step k
  * begins at operation ``first``, the others at 0), rows into ``rows`` (row-major, ``columns``
- * doubles each) up to ``free_rows``; ``samples`` counts every row of the run and is stored into
+ * doubles each: the time, then each source's values in their columns; a column no source names,
+ * a root output's, is left to Python) up to ``free_rows``; ``samples`` counts every row of the run and is stored into
  * ``count`` after each row (the journal's row counter).  On KERNEL_STATUS, KERNEL_UNMADE and
  * KERNEL_YIELD: ``op`` (and ``status``) of the operation, in step k (not completed). */
 typedef struct {
@@ -124,7 +127,7 @@ typedef struct {
  * with any change to Op, Source, Program or Run (their sizes are checked too, so a stale
  * library built before an edit is refused rather than read out of step). */
 #ifndef KERNEL_ABI_VERSION
-#define KERNEL_ABI_VERSION 3
+#define KERNEL_ABI_VERSION 4
 #endif
 enum { KERNEL_ABI_STRUCTS = 5 };
 
@@ -253,14 +256,14 @@ int cosim_run(const Program *p, Run *r) {
             }
         }
         double *row = r->rows + r->rows_done * p->columns;
-        int col = 1;
         row[0] = t_next;
         for (int i = 0; i < p->n_sources; i++) {
             const Source *src = &p->sources[i];
+            const int *columns = src->columns;
             if (src->integer)
-                for (size_t j = 0; j < src->n; j++) row[col++] = (double)((const int *)src->values)[j];
+                for (size_t j = 0; j < src->n; j++) row[columns[j]] = (double)((const int *)src->values)[j];
             else
-                for (size_t j = 0; j < src->n; j++) row[col++] = ((const double *)src->values)[j];
+                for (size_t j = 0; j < src->n; j++) row[columns[j]] = ((const double *)src->values)[j];
         }
         r->rows_done++;
         r->samples++;

@@ -74,9 +74,11 @@ class Journal:
         start = self.offset + self._windows * nbytes
         self._reserve(start, nbytes)
         self._windows += 1
-        # a plain ndarray on the mapping (np.memmap's Python-level indexing would cost ~20 % of a step)
-        window = mmap.mmap(self._file.fileno(), nbytes, offset=start)
-        return np.frombuffer(window, dtype="<f8").reshape(self.chunk_rows, self.columns)
+        # a plain ndarray on the mapping (np.memmap's Python-level indexing would cost ~20 % of a step),
+        # mapped from the page the window begins in (a window need not be a whole number of pages)
+        skip = start % mmap.ALLOCATIONGRANULARITY
+        window = mmap.mmap(self._file.fileno(), skip + nbytes, offset=start - skip)
+        return np.frombuffer(window, dtype="<f8", offset=skip).reshape(self.chunk_rows, self.columns)
 
     def _reserve(self, start: int, nbytes: int) -> None:
         try:
@@ -103,29 +105,29 @@ class RunJournal:
     creates ``<output>.journal`` with the header `recover` needs without the plan (the result's
     ``names``, time first, the permutation to them, the ``derived`` columns, the run's
     ``metadata`` so far, the ``temporary`` FMU extraction folders), `window` hands the
-    recorder its next block of ``chunk_rows`` rows, `count` is the row counter it stores after
-    every row, and `close` deletes the journal."""
+    recorder its next block of ``chunk_rows`` rows (default: `cosim.record.observers.rows_per_chunk`
+    of the row's width), `count` is the row counter it stores after every row, and `close`
+    deletes the journal."""
 
     def __init__(self, output: str | Path, names: Sequence[str], derived: DerivedColumns, metadata: dict,
                  temporary: Sequence[str] = (), chunk_rows: int | None = None):
-        from .observers import CHUNK_ROWS
-
         self.output = Path(output)
         self.names = list(names)
         self.derived = derived
         self.metadata = metadata
         self.temporary = list(temporary)
-        self.chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
+        self.chunk_rows = chunk_rows
         self._journal: Journal | None = None
 
     def open(self, names: list[str]) -> None:
         """Create the journal for buffer rows laid out as ``names`` (OSError if it cannot be written)."""
-        from .observers import column_order
+        from .observers import column_order, rows_per_chunk
 
         permutation = column_order(names[1:], self.names[1:]).tolist()
         header = {"output": str(self.output.resolve()), "names": self.names, "permutation": permutation,
                   "derived": self.derived.header(), "metadata": self.metadata, "temporary": self.temporary}
-        self._journal = Journal(journal_path(self.output), header, len(names), self.chunk_rows)
+        self._journal = Journal(journal_path(self.output), header, len(names),
+                                self.chunk_rows or rows_per_chunk(len(names)))
 
     @property
     def count(self) -> np.ndarray:

@@ -91,10 +91,13 @@ class TypedBuffers:
 
     @staticmethod
     def _slices(pairs, order):
+        """Each component's (first position, count, value references) in ``pairs`` (in ``order``)."""
+        by_component: dict[str, list[int]] = {comp: [] for comp in order}
+        for c, v in pairs:
+            by_component[c].append(v.vr)
         slices = {}
         i = 0
-        for comp in order:
-            vrs = [v.vr for c, v in pairs if c == comp]
+        for comp, vrs in by_component.items():
             slices[comp] = (i, len(vrs), (ctypes.c_uint * max(1, len(vrs)))(*vrs))
             i += len(vrs)
         return slices

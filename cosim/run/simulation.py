@@ -22,7 +22,7 @@ from ..model.structure import LoopMode, Plan
 from ..plan.prepare import Prepared, prepare
 from ..record.journal import RunJournal
 from ..record.metadata import signal_info
-from ..record.observers import DerivedColumns, MemorySink, Recorder, SystemOutputColumns, file_sink
+from ..record.observers import DerivedColumns, MemorySink, Recorder, file_sink, rows_per_chunk
 from ..safeio import lock_output
 from .execution import Execution
 from .program import compile as compile_program
@@ -115,9 +115,10 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     """
     isolation = isolation_of(isolate, call_timeout)
     plan = prepared.plan
-    memory = MemorySink(keep)
+    rows = prepared.grid.steps + 1
+    memory = MemorySink(keep, rows)
     derived = DerivedColumns.of(list(plan.system_outputs.values()), ["time", *plan.columns])
-    observers = [SystemOutputColumns(derived, [memory] + ([file_sink(output)] if output is not None else []))]
+    observers = [memory] + ([file_sink(output)] if output is not None else [])
     execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, isolation,
                           kernel, threads, pool)
     program = compile_program(plan, prepared.algorithm)   # from the plan alone
@@ -127,8 +128,9 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
         execution.instantiate()
         names, arrays = execution.link(program).recorder_sources()
         journaled = output is not None and journal
-        recorder = Recorder(names, arrays, plan.columns, observers,
-                            journal=_journal(output, plan, derived, _metadata(prepared, execution)) if journaled else None)
+        recorder = Recorder(names, arrays, plan.columns, observers, derived=derived, rows=rows,
+                            journal=_journal(output, plan, derived, _metadata(prepared, execution), rows)
+                            if journaled else None)
         execution.initialize()
         if progress:
             from tqdm import tqdm
@@ -186,7 +188,7 @@ def _out_of_memory(e: BaseException, output: str | Path | None, execution: Execu
     if not isinstance(e, (MemoryError, OutOfMemory)):
         return e
     if output is not None:
-        memory.chunks.clear()
+        memory.clear()
     rows = recorder.samples if recorder is not None else 0
     return OutOfMemory(f"the process ran out of memory (its address space: see ulimit -v) at t = "
                        f"{execution.last_time:g}; the {rows} rows recorded before are kept"
@@ -202,11 +204,13 @@ def isolation_of(isolate: bool, call_timeout: float | None) -> Isolation | None:
     return Isolation(call_timeout) if isolate else None
 
 
-def _journal(output: str | Path, plan: Plan, derived: DerivedColumns, metadata: dict) -> RunJournal:
-    """The journal of a run writing ``output`` (`cosim.record.journal.RunJournal`): its header holds what
-    `cosim.record.journal.recover` needs to write the result files without the plan."""
+def _journal(output: str | Path, plan: Plan, derived: DerivedColumns, metadata: dict, rows: int) -> RunJournal:
+    """The journal of a run of ``rows`` rows writing ``output`` (`cosim.record.journal.RunJournal`):
+    its header holds what `cosim.record.journal.recover` needs to write the result files without the
+    plan; its windows are chunks (`cosim.record.observers.rows_per_chunk`) of the run's rows."""
     return RunJournal(output, ["time", *plan.columns], derived, metadata,
-                      temporary=[Unzipped.folder()] if Unzipped.folder() else [])
+                      temporary=[Unzipped.folder()] if Unzipped.folder() else [],
+                      chunk_rows=rows_per_chunk(1 + len(plan.columns) + len(derived.names), rows))
 
 
 def _portable(path: str | Path, *bases: Path) -> str:

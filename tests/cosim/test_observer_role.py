@@ -17,8 +17,7 @@ import pytest
 from cfmus import build_c_fmu, fmi2_description
 from cosim.errors import Errc, RunError
 from cosim.record.journal import RunJournal, journal_path, recover
-from cosim.record.observers import (CsvSink, DerivedColumns, MemorySink, Observer, ParquetSink, Recorder,
-                             SystemOutputColumns, file_sink)
+from cosim.record.observers import CsvSink, DerivedColumns, MemorySink, Observer, ParquetSink, Recorder, file_sink
 from cosim.run.outcome import RunOutcome
 from cosim.record.results import read
 from cosim.plan.prepare import prepare
@@ -59,7 +58,7 @@ def _record(recorder: Recorder, values: np.ndarray, rows: int) -> None:
 def test_every_recording_class_is_an_observer(tmp_path):
     derived = DerivedColumns.of([], ["time"])
     for observer in (CsvSink(tmp_path / "r.csv"), ParquetSink(tmp_path / "r.parquet"), MemorySink(),
-                     SystemOutputColumns(derived, []), RunJournal(tmp_path / "r.csv", ["time"], derived, {})):
+                     RunJournal(tmp_path / "r.csv", ["time"], derived, {})):
         assert isinstance(observer, Observer), type(observer)
 
 
@@ -71,7 +70,7 @@ def test_the_memory_and_file_observers_receive_the_same_rows(tmp_path, suffix):
     names = ["a.y", "b.u"]
     memory, path = MemorySink(), tmp_path / f"r{suffix}"
     derived = DerivedColumns.of(_outputs(), ["time"] + names)
-    recorder = Recorder(["b.u", "a.y"], [values], names, [SystemOutputColumns(derived, [memory, file_sink(path)])])
+    recorder = Recorder(["b.u", "a.y"], [values], names, [memory, file_sink(path)], derived=derived)
     _record(recorder, values, 10000)
     recorder.close({"status": "completed"})
     kept, written = memory.array(), read(path)
@@ -88,7 +87,7 @@ def test_a_recovered_journal_is_the_live_result_byte_for_byte(tmp_path):
     names = ["a.y", "b.u"]
     live = tmp_path / "live" / "r.csv"
     derived = DerivedColumns.of(_outputs(), ["time"] + names)
-    recorder = Recorder(["a.y", "b.u"], [values], names, [SystemOutputColumns(derived, [file_sink(live)])],
+    recorder = Recorder(["a.y", "b.u"], [values], names, [file_sink(live)], derived=derived,
                         journal=RunJournal(live, ["time"] + names, derived, {"scenario": "s"}))
     _record(recorder, values, 5000)
     crashed = tmp_path / "crashed" / "r.csv"
