@@ -37,7 +37,7 @@ KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS, KERNEL_UNMADE
     1, 2, 4, 8, 16, 32, 64
 LIBRARY_ENV = "COSIM_KERNEL_LIBRARY"
 #: KERNEL_ABI_VERSION of kernel.c: the layout of the structures mirrored below
-ABI_VERSION = 4
+ABI_VERSION = 5
 
 
 class _Op(ctypes.Structure):
@@ -57,7 +57,7 @@ class _Table(ctypes.Structure):
 
 class _Source(ctypes.Structure):
     _fields_ = [("values", ctypes.c_void_p), ("n", ctypes.c_size_t), ("integer", ctypes.c_int),
-                ("columns", ctypes.c_void_p)]
+                ("consecutive", ctypes.c_int), ("columns", ctypes.c_void_p)]
 
 
 class _Program(ctypes.Structure):
@@ -226,6 +226,7 @@ class Kernel:
         srcs = (_Source * max(1, len(sources)))()
         for s, (values, n, integer, where) in zip(srcs, sources):
             s.values, s.n, s.integer, s.columns = values, n, int(integer), where.ctypes.data
+            s.consecutive = int(n > 0 and bool(np.all(np.diff(where) == 1)))
         self._sources = srcs
         self.program.sources, self.program.n_sources, self.program.columns = srcs, len(sources), columns
 

@@ -40,6 +40,10 @@ SUFFIX = ".journal"
 UNZIP_PREFIX = "cosim-fmu-"
 
 
+#: Linux's MAP_POPULATE (Python 3.10+), else nothing
+_POPULATE = getattr(mmap, "MAP_POPULATE", 0)
+
+
 def journal_path(output: str | Path) -> Path:
     """The journal of a result file: ``<output>.journal`` beside it."""
     output = Path(output)
@@ -75,9 +79,11 @@ class Journal:
         self._reserve(start, nbytes)
         self._windows += 1
         # a plain ndarray on the mapping (np.memmap's Python-level indexing would cost ~20 % of a step),
-        # mapped from the page the window begins in (a window need not be a whole number of pages)
+        # mapped from the page the window begins in (a window need not be a whole number of pages),
+        # its pages mapped in one call (MAP_POPULATE) rather than faulted in one by one as rows come
         skip = start % mmap.ALLOCATIONGRANULARITY
-        window = mmap.mmap(self._file.fileno(), skip + nbytes, offset=start - skip)
+        window = mmap.mmap(self._file.fileno(), skip + nbytes, flags=mmap.MAP_SHARED | _POPULATE,
+                           offset=start - skip)
         return np.frombuffer(window, dtype="<f8", offset=skip).reshape(self.chunk_rows, self.columns)
 
     def _reserve(self, start: int, nbytes: int) -> None:

@@ -481,7 +481,8 @@ class Recorder:
         """`sources` and the Python loop's copies: each run of consecutive values of an array
         that ``names`` records, with their columns (a value ``names`` leaves out is not recorded)."""
         column = {n: i + 1 for i, n in enumerate(names)}
-        unknown = [n for n in names if n not in set(source_names)]
+        known = set(source_names)
+        unknown = [n for n in names if n not in known]
         if unknown:
             raise ValueError(f"Recorder: no source for {', '.join(unknown)}")
         offset = 0

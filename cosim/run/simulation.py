@@ -117,7 +117,8 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     plan = prepared.plan
     rows = prepared.grid.steps + 1
     memory = MemorySink(keep, rows)
-    derived = DerivedColumns.of(list(plan.system_outputs.values()), ["time", *plan.columns])
+    recorded, outputs = _recorded(plan, keep if output is None else None)
+    derived = DerivedColumns.of(outputs, ["time", *recorded])
     observers = [memory] + ([file_sink(output)] if output is not None else [])
     execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, isolation,
                           kernel, threads, pool)
@@ -128,7 +129,7 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
         execution.instantiate()
         names, arrays = execution.link(program).recorder_sources()
         journaled = output is not None and journal
-        recorder = Recorder(names, arrays, plan.columns, observers, derived=derived, rows=rows,
+        recorder = Recorder(names, arrays, recorded, observers, derived=derived, rows=rows,
                             journal=_journal(output, plan, derived, _metadata(prepared, execution), rows)
                             if journaled else None)
         execution.initialize()
@@ -149,6 +150,18 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     metadata = _metadata(prepared, execution)
     recorder.close(metadata)
     return RunOutcome.of(metadata, memory.array(), output)
+
+
+def _recorded(plan: Plan, keep: Sequence[str] | None) -> tuple[list[str], list]:
+    """The component columns a run records and its root output connectors (`DerivedColumns`):
+    all of them, or with ``keep`` (a run writing no file) those it keeps and what the root
+    outputs it keeps are computed from, so a run keeping only ``time`` records only the time."""
+    outputs = list(plan.system_outputs.values())
+    if keep is None:
+        return list(plan.columns), outputs
+    outputs = [o for o in outputs if o.name in keep]
+    needed = set(keep) | {o.source for o in outputs}
+    return [c for c in plan.columns if c in needed], outputs
 
 
 def _failed(e: BaseException, prepared: Prepared, execution: Execution, recorder: Recorder | None,

@@ -208,13 +208,16 @@ def _python_peak(folder: Path, **kw) -> tuple[int, int]:
 def test_a_run_holds_its_samples_once_and_a_csv_run_holds_less(tmp_path, wide_system):
     """Issue 42: a run recording in memory holds its samples once (one preallocated array the rows
     are written into, returned as a view: at most 1.5x their bytes at the peak, not a chunk list,
-    its concatenation and a structured copy, 3x), and writing them to a CSV (only time kept, as
-    ``cosim run -o``) holds less than that (a chunk, then one text buffer)."""
+    its concatenation and a structured copy, 3x), writing them to a CSV (only time kept, as
+    ``cosim run -o``) holds less than that (a chunk, then one text buffer), and a run that keeps
+    only the time and writes no file records only the time (not every column into a chunk)."""
     memory, samples = _python_peak(wide_system)
     assert memory <= 1.5 * samples, (memory, samples)
     written, _ = _python_peak(wide_system, output=tmp_path / "r.csv", keep=[])
     assert written <= memory, (written, memory)
     assert read(tmp_path / "r.csv")["b.y31"][-1] == 32 * 0.8
+    only_time, _ = _python_peak(wide_system, keep=[])
+    assert only_time <= 0.1 * samples, (only_time, samples)
 
 
 # --------------------------------------------------------------------------- on our FMUs (pythonfmu)
