@@ -229,5 +229,18 @@ def end_instance(inst: InstanceBase, free_instance: Callable[[], None]) -> None:
         release_pythonfmu_state(inst.slave.dll)
         inst.slave.freeLibrary()
     inst.component = None
-    resources = os.path.join(inst.slave.unzipDirectory, "resources")
-    sys.path[:] = [entry for entry in sys.path if os.path.normpath(entry) != os.path.normpath(resources)]
+    _forget_path(os.path.normpath(os.path.join(inst.slave.unzipDirectory, "resources")))
+
+
+#: sys.path as last seen by `_forget_path`, and its entries normalised
+_seen_path: tuple[list[str], list[str]] = ([], [])
+
+
+def _forget_path(folder: str) -> None:
+    """Take the normalised ``folder`` off ``sys.path`` (each entry normalised once while sys.path
+    does not change: 1000 instances freed read it 1000 times)."""
+    global _seen_path
+    if _seen_path[0] != sys.path:
+        _seen_path = (list(sys.path), [os.path.normpath(entry) for entry in sys.path])
+    if folder in _seen_path[1]:
+        sys.path[:] = [entry for entry, norm in zip(*_seen_path) if norm != folder]
