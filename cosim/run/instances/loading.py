@@ -14,10 +14,14 @@ from __future__ import annotations
 
 import ctypes
 import inspect
+import os
 import threading
 import types
 import typing
 from functools import cache
+
+from fmpy import platform, sharedLibraryExtension
+from fmpy.fmi1 import _FMU
 
 #: (method name, argument names, argument types, result type) of an fmpy FMU class
 Table = tuple[tuple[str, tuple[str, ...], tuple, object], ...]
@@ -44,41 +48,78 @@ def _table(cls: type) -> Table:
     return tuple(rows)
 
 
-#: per (fmpy class, library path): its FMI functions and how many instances hold the library
-_shared: dict[tuple[type, str], tuple[dict[str, object], list[int]]] = {}
+#: per `quick` class and library path: the library (loaded once), its FMI functions, how many
+#: instances hold it, and which other symbols it was asked for (`exports`)
+_shared: dict[tuple[type, str], tuple[ctypes.CDLL, dict[str, object], list[int], dict[str, bool]]] = {}
 _shared_lock = threading.Lock()
+
+
+class _SharedLibrary(_FMU):
+    """fmpy's ``_FMU`` whose library is loaded by the first instance of a path (fmpy's own
+    ``__init__``: the library's folder as working folder while it loads, `_table`'s look-ups) and
+    shared by the instances after it, until the last of them frees it: a ctypes library made per
+    instance (a class and a dlopen each) and 36 look-ups were most of an instance's 1 ms."""
+
+    def __init__(self, guid, modelIdentifier, unzipDirectory, instanceName=None, libraryPath=None,
+                 fmiCallLogger=None, requireFunctions=True):
+        if libraryPath is None:   # as fmpy makes it (an FMI 3.0 class gives it)
+            libraryPath = os.path.join(os.path.abspath(os.path.join(unzipDirectory, "binaries", platform)),
+                                       modelIdentifier + sharedLibraryExtension)
+        key = (type(self), str(libraryPath))
+        with _shared_lock:
+            entry = _shared.get(key)
+            if entry is None:
+                _FMU.__init__(self, guid=guid, modelIdentifier=modelIdentifier, unzipDirectory=unzipDirectory,
+                              instanceName=instanceName, libraryPath=libraryPath, fmiCallLogger=fmiCallLogger,
+                              requireFunctions=requireFunctions)
+                entry = _shared[key] = (self.dll, dict(self._functions), [0], {})
+            else:
+                self.guid, self.modelIdentifier, self.unzipDirectory = guid, modelIdentifier, unzipDirectory
+                self.instanceName = instanceName if instanceName is not None else modelIdentifier
+                self.fmiCallLogger, self.requireFunctions = fmiCallLogger, requireFunctions
+                self.dll, self._functions = entry[0], dict(entry[1])
+                self.component, self.callbacks = None, None
+            entry[2][0] += 1
+            self._shared_key = key
+
+    def _loadFunctions(self) -> None:
+        for name, argnames, argtypes, restype in _table(type(self).__mro__[1]):
+            c_fun = getattr(self.dll, name)
+            c_fun.argnames = list(argnames)
+            c_fun.argtypes = list(argtypes)
+            c_fun.restype = restype
+            self._functions[name] = c_fun
+
+    def freeLibrary(self) -> None:
+        """Unload the library with the last instance holding it (an instance freed twice frees once)."""
+        with _shared_lock:
+            key = getattr(self, "_shared_key", None)
+            if key is None:
+                return
+            self._shared_key = None
+            entry = _shared[key]
+            entry[2][0] -= 1
+            if entry[2][0] == 0:
+                del _shared[key]
+                _FMU.freeLibrary(self)
 
 
 @cache
 def quick(cls: type) -> type:
     """``cls`` (an fmpy FMU2/FMU3 class) whose instances load their FMI functions from `_table`,
-    once per loaded library (`_shared`)."""
-    def _loadFunctions(self) -> None:
-        key = (cls, self.dll._name)
-        with _shared_lock:
-            if key not in _shared:
-                functions = {}
-                for name, argnames, argtypes, restype in _table(cls):
-                    c_fun = getattr(self.dll, name)
-                    c_fun.argnames = list(argnames)
-                    c_fun.argtypes = list(argtypes)
-                    c_fun.restype = restype
-                    functions[name] = c_fun
-                _shared[key] = (functions, [0])
-            functions, holders = _shared[key]
-            holders[0] += 1
-        self._functions.update(functions)
-        self._shared_key = key
+    sharing one load of each library (`_SharedLibrary`)."""
+    return type(cls.__name__, (cls, _SharedLibrary), {"__module__": __name__,
+                                                      "__doc__": f"{cls.__name__} with `quick` loading."})
 
-    def freeLibrary(self) -> None:
-        with _shared_lock:
-            entry = _shared.get(getattr(self, "_shared_key", None))
-            if entry is not None:
-                entry[1][0] -= 1
-                if entry[1][0] == 0:
-                    del _shared[self._shared_key]
-            self._shared_key = None
-            cls.freeLibrary(self)
 
-    return type(cls.__name__, (cls,), {"_loadFunctions": _loadFunctions, "freeLibrary": freeLibrary,
-                                       "__module__": __name__, "__doc__": f"{cls.__name__} with `quick` loading."})
+def exports(slave, symbol: str) -> bool:
+    """Whether the library of ``slave`` (an fmpy FMU instance) exports ``symbol``: looked up once
+    per loaded library for a `quick` class's instances (a symbol it lacks costs a failed dlsym and
+    an exception each time), else each time."""
+    entry = _shared.get(getattr(slave, "_shared_key", None))
+    if entry is None:
+        return hasattr(slave.dll, symbol)
+    found = entry[3]
+    if symbol not in found:
+        found[symbol] = hasattr(slave.dll, symbol)
+    return found[symbol]
