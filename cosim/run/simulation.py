@@ -276,8 +276,9 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
     meta["step_size_source"] = prepared.step_source
     meta["units"] = dict(plan.units)
     meta["parameter_sets"] = [_portable(p, *named) for p in prepared.parameter_sets]
+    fmu_bases = (scenario, Path.cwd())
     for component in meta.get("components", {}).values():
-        component["fmu"] = _portable(component["fmu"], scenario, Path.cwd())
+        component["fmu"] = _portable(component["fmu"], *fmu_bases)
     meta["parameter_origins"] = {f"{sv.component}.{sv.variable.name}": _portable_origin(sv.origin, named)
                                  for sv in plan.start_values}
     meta.update(signal_info(plan))
