@@ -36,15 +36,19 @@ def _prefix(cls: type) -> str:
 def _table(cls: type) -> Table:
     """What fmpy's ``_loadFunctions`` derives from the methods of ``cls`` (FMI 2.0 and 3.0 classes)."""
     rows = []
-    for name, method in inspect.getmembers(cls, inspect.isfunction):
-        if not name.startswith(_prefix(cls)):
+    prefix = _prefix(cls)
+    for name in sorted(n for n in dir(cls) if n.startswith(prefix)):
+        method = getattr(cls, name)
+        if not inspect.isfunction(method):
             continue
-        params = list(inspect.signature(method).parameters.values())[1:]   # without self
-        argtypes = tuple(typing.get_args(p.annotation)[0] if isinstance(p.annotation, types.UnionType)
-                         else p.annotation for p in params)
-        restype = inspect.signature(method).return_annotation
+        # the signature from the code object and annotations (inspect.signature: 1.5 ms a class)
+        code, annotations = method.__code__, method.__annotations__
+        params = code.co_varnames[1:code.co_argcount]   # without self
+        argtypes = tuple(typing.get_args(a)[0] if isinstance(a, types.UnionType) else a
+                         for a in (annotations.get(p, inspect.Parameter.empty) for p in params))
+        restype = annotations.get("return", inspect.Signature.empty)
         restype = ctypes.c_char_p if restype is bytes else ctypes.c_int if restype is int else restype
-        rows.append((name, tuple(p.name for p in params), argtypes, restype))
+        rows.append((name, tuple(params), argtypes, restype))
     return tuple(rows)
 
 
