@@ -83,6 +83,18 @@ class WindowedObserver(Observer, Protocol):
         """The next block of buffer rows (rows x columns, float64, C-contiguous)."""
 
 
+class JournalObserver(WindowedObserver, Protocol):
+    """The run journal's role for the `Recorder` (`cosim.record.journal.RunJournal`): a
+    `WindowedObserver` whose row counter ``count`` the recorder stores after every row, told
+    after each flush how many rows the other observers hold (`synced`)."""
+
+    #: the row counter (one int64)
+    count: np.ndarray
+
+    def synced(self, rows: int) -> None:
+        """The other observers hold the first ``rows`` rows."""
+
+
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
     """The sink for a result file: Parquet for a ``.parquet`` suffix (a `SetupError` naming the
     extra to install without pyarrow), else CSV."""
@@ -196,6 +208,25 @@ class CsvSink(_FileSink):
         self._names = names
         if not self._arrow:
             self._text = RowText(len(names))
+
+    @_naming_the_file
+    def resume(self, names: list[str], part_bytes: int) -> None:
+        """Go on writing the part file a run left (its first ``part_bytes`` bytes kept: the header
+        and whole rows, `cosim.record.journal.recover`) with rows laid out as ``names``."""
+        os.truncate(self.part, part_bytes)
+        if self._arrow:
+            import pyarrow as pa
+
+            self._file = pa.OSFile(str(self.part), "ab")
+        else:
+            self._file = open(self.part, "ab", buffering=0)
+        self._names = names
+        if not self._arrow:
+            self._text = RowText(len(names))
+
+    def position(self) -> int:
+        """The bytes written to the part file (header and whole rows)."""
+        return self._file.tell()
 
     @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
@@ -429,8 +460,9 @@ class Recorder:
     component as the SSD lists them), then the ``derived`` columns (the root system's output
     connectors), which are computed per chunk when the rows are handed on.  The rows are filled
     in that order where they are kept (the buffer): the ``journal``'s mapped window (a
-    `WindowedObserver`: `cosim.record.journal.RunJournal`, whose row counter `count` is stored
-    after every row, so a crash loses no row), else a `MemorySink` observer that keeps every
+    `JournalObserver`: `cosim.record.journal.RunJournal`, whose row counter `count` is stored
+    after every row, so a crash loses no row, and which is told after each flush how many rows
+    the observers hold), else a `MemorySink` observer that keeps every
     column and knows the ``rows`` of the run (its array: no copy at all), else a chunk of
     ``chunk_rows`` rows (default `rows_per_chunk`).  The rows go out when the buffer is full or ``flush_seconds`` have passed
     (the clock is read at every row, so a slow run is flushed on time).  The interface
@@ -440,7 +472,7 @@ class Recorder:
 
     def __init__(self, source_names: list[str], sources: list[np.ndarray], names: list[str],
                  observers: Sequence[Observer], chunk_rows: int | None = None, flush_seconds: float = 1.0,
-                 journal: WindowedObserver | None = None, *, derived: DerivedColumns | None = None,
+                 journal: JournalObserver | None = None, *, derived: DerivedColumns | None = None,
                  rows: int | None = None):
         self.derived = derived if derived is not None else DerivedColumns((), (), ())
         self.names = ["time", *names, *self.derived.names]
@@ -460,6 +492,8 @@ class Recorder:
                 journal.open(list(self.names))
             for observer in self.observers:
                 observer.open(list(self.names))
+            if journal is not None:
+                journal.synced(0)
             self.buffer = owner.window() if owner is not None else \
                 np.empty((chunk_rows or rows_per_chunk(self.width, rows), self.width))
         except OSError as e:
@@ -566,6 +600,8 @@ class Recorder:
                     self.journal.write(new)
                 for observer in self.observers:
                     observer.write(new)
+                if self.journal is not None:
+                    self.journal.synced(self.samples)
                 self._written = self.rows
         except OSError as e:
             raise self._broken_by(e) from None

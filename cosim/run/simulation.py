@@ -22,7 +22,7 @@ from ..model.structure import LoopMode, Plan
 from ..plan.prepare import Prepared, prepare
 from ..record.journal import RunJournal
 from ..record.metadata import signal_info
-from ..record.observers import DerivedColumns, MemorySink, Recorder, file_sink, rows_per_chunk
+from ..record.observers import CsvSink, DerivedColumns, MemorySink, ParquetSink, Recorder, file_sink, rows_per_chunk
 from ..safeio import lock_output
 from .execution import Execution
 from .program import compile as compile_program
@@ -130,8 +130,8 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
         names, arrays = execution.link(program).recorder_sources()
         journaled = output is not None and journal
         recorder = Recorder(names, arrays, recorded, observers, derived=derived, rows=rows,
-                            journal=_journal(output, plan, derived, _metadata(prepared, execution), rows)
-                            if journaled else None)
+                            journal=_journal(output, plan, derived, _metadata(prepared, execution), rows,
+                                             observers[-1]) if journaled else None)
         execution.initialize()
         if progress:
             from tqdm import tqdm
@@ -217,13 +217,17 @@ def isolation_of(isolate: bool, call_timeout: float | None) -> Isolation | None:
     return Isolation(call_timeout) if isolate else None
 
 
-def _journal(output: str | Path, plan: Plan, derived: DerivedColumns, metadata: dict, rows: int) -> RunJournal:
-    """The journal of a run of ``rows`` rows writing ``output`` (`cosim.record.journal.RunJournal`):
-    its header holds what `cosim.record.journal.recover` needs to write the result files without the
-    plan; its windows are chunks (`cosim.record.observers.rows_per_chunk`) of the run's rows."""
+def _journal(output: str | Path, plan: Plan, derived: DerivedColumns, metadata: dict, rows: int,
+             sink: CsvSink | ParquetSink) -> RunJournal:
+    """The journal of a run of ``rows`` rows writing ``output`` through ``sink``
+    (`cosim.record.journal.RunJournal`): its header holds what `cosim.record.journal.recover` needs
+    to write the result files without the plan; its windows are chunks
+    (`cosim.record.observers.rows_per_chunk`) of the run's rows, one written over and over beside
+    a CSV, whose part file keeps the rows flushed."""
     return RunJournal(output, ["time", *plan.columns], derived, metadata,
                       temporary=[Unzipped.folder()] if Unzipped.folder() else [],
-                      chunk_rows=rows_per_chunk(1 + len(plan.columns) + len(derived.names), rows))
+                      chunk_rows=rows_per_chunk(1 + len(plan.columns) + len(derived.names), rows),
+                      durable=sink if isinstance(sink, CsvSink) else None)
 
 
 def _portable(path: str | Path, *bases: Path) -> str:

@@ -101,6 +101,33 @@ def test_a_recovered_journal_is_the_live_result_byte_for_byte(tmp_path):
     assert (meta["status"], meta["error"], meta["samples"], meta["scenario"]) == ("crashed", "run_process_lost", 5000, "s")
 
 
+@pytest.mark.parametrize("rows", [5000, 5120, 7])
+def test_a_csv_journal_is_one_window_and_recovers_with_the_part_file(tmp_path, rows):
+    """Issue 42: beside a CSV the journal is a ring of one window (256 rows here) written over once
+    the part file holds its rows, not a copy of every row; the part file and the journal a crash
+    leaves (copied after ``rows`` rows: mid-window, at a window's end, before any flush) recover
+    to the live result's bytes."""
+    from cosim.safeio import partial_path
+
+    values = np.zeros(2)
+    names = ["a.y", "b.u"]
+    live = tmp_path / "live" / "r.csv"
+    derived = DerivedColumns.of(_outputs(), ["time"] + names)
+    sink = file_sink(live)
+    recorder = Recorder(["a.y", "b.u"], [values], names, [sink], derived=derived, chunk_rows=256,
+                        journal=RunJournal(live, ["time"] + names, derived, {"scenario": "s"}, chunk_rows=256,
+                                           durable=sink))
+    _record(recorder, values, rows)
+    assert journal_path(live).stat().st_size < 64 * 1024   # one window of 256 x 6 doubles, and the header
+    crashed = tmp_path / "crashed" / "r.csv"
+    crashed.parent.mkdir()
+    shutil.copy(journal_path(live), journal_path(crashed))
+    shutil.copy(partial_path(live), partial_path(crashed))
+    recorder.close({"status": "completed"})
+    assert recover(journal_path(crashed)) == (crashed.resolve(), rows)
+    assert crashed.read_bytes() == live.read_bytes() and len(read(crashed)) == rows
+
+
 def test_a_completed_run_returns_a_frozen_outcome(tmp_path, ramp):
     out = tmp_path / "ok.csv"
     prepared = prepare(_system(tmp_path, ramp, stop=0.5))
