@@ -226,6 +226,8 @@ def recover(path: str | Path, status: str = "crashed", message: str = "") -> tup
     sink = file_sink(output)
     first, kept = header["first_row"], header.get("part_bytes", 0)
     if kept:   # a ring: the part file's marked bytes hold the rows before part_rows
+        if not sink.part.exists() and output.exists():   # killed after its result was in place
+            shutil.copyfile(output, sink.part)
         sink.resume(names, kept)
         new = rows[header["part_rows"] - first:]
     else:

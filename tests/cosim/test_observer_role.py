@@ -106,7 +106,7 @@ def test_a_csv_journal_is_one_window_and_recovers_with_the_part_file(tmp_path, r
     """Issue 42: beside a CSV the journal is a ring of one window (256 rows here) written over once
     the part file holds its rows, not a copy of every row; the part file and the journal a crash
     leaves (copied after ``rows`` rows: mid-window, at a window's end, before any flush) recover
-    to the live result's bytes."""
+    to the live result's bytes, and so does a journal left after the result was put in place."""
     from cosim.safeio import partial_path
 
     values = np.zeros(2)
@@ -123,9 +123,15 @@ def test_a_csv_journal_is_one_window_and_recovers_with_the_part_file(tmp_path, r
     crashed.parent.mkdir()
     shutil.copy(journal_path(live), journal_path(crashed))
     shutil.copy(partial_path(live), partial_path(crashed))
+    recorder.flush()
+    late = tmp_path / "late.journal"   # as a process killed after its result was in place would leave it
+    shutil.copy(journal_path(live), late)
     recorder.close({"status": "completed"})
     assert recover(journal_path(crashed)) == (crashed.resolve(), rows)
     assert crashed.read_bytes() == live.read_bytes() and len(read(crashed)) == rows
+    published = live.read_bytes()
+    shutil.copy(late, journal_path(live))
+    assert recover(journal_path(live)) == (live.resolve(), rows) and live.read_bytes() == published
 
 
 def test_a_completed_run_returns_a_frozen_outcome(tmp_path, ramp):
