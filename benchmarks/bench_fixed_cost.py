@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -58,8 +59,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
-STAGES = ("read", "locate", "check/plan", "unpack", "load", "instantiate", "exec set-up", "record set-up",
-          "initialise", "write", "free", "other")
+STAGES = ("read", "locate", "describe", "plan", "unpack", "load", "instantiate", "compile", "link",
+          "record set-up", "initialise", "write", "free", "other")
 NATIVE_STEP = 1e-3
 
 
@@ -74,13 +75,13 @@ class Timers:
 
     def wrap(self, stage: str, function):
         def timed(*args, **kwargs):
-            frame = [time.perf_counter(), 0.0]
+            frame = [time.process_time(), 0.0]
             self._stack.append(frame)
             try:
                 return function(*args, **kwargs)
             finally:
                 self._stack.pop()
-                elapsed = time.perf_counter() - frame[0]
+                elapsed = time.process_time() - frame[0]
                 self.totals[stage] = self.totals.get(stage, 0.0) + elapsed - frame[1]
                 if self._stack:
                     self._stack[-1][1] += elapsed
@@ -88,24 +89,26 @@ class Timers:
 
 
 def install(timers: Timers) -> None:
-    """Wrap the functions of each stage (the table of the module docstring)."""
+    """Wrap the functions of each stage (the table of the module docstring); a function a tree
+    does not have (an older one, ``--tree``) is left out."""
     import cosim.plan.prepare
     import cosim.read.ssp
     import cosim.run.execution
+    import cosim.run.simulation
     from cosim.run.execution import Execution
     from cosim.run.instances import FMI2Instance, FMI3Instance, ME3Instance, MEInstance, Unzipped
     from cosim.record.observers import Recorder
 
-    cosim.read.ssp.load = timers.wrap("read", cosim.read.ssp.load)
-    cosim.plan.prepare.locate_fmus = timers.wrap("locate", cosim.plan.prepare.locate_fmus)
-    cosim.plan.prepare.describe_fmus = timers.wrap("check/plan", cosim.plan.prepare.describe_fmus)
-    cosim.plan.prepare.build_plan = timers.wrap("check/plan", cosim.plan.prepare.build_plan)
-    cosim.run.execution.open_instance = timers.wrap("load", cosim.run.execution.open_instance)
-    for owner, name, stage in ((Unzipped, "__call__", "unpack"), (Execution, "__init__", "exec set-up"),
-                               (Execution, "_compile_calls", "exec set-up"), (Recorder, "__init__", "record set-up"),
-                               (Execution, "initialize", "initialise"), (Execution, "run", "steps"),
-                               (Recorder, "close", "write"), (Execution, "close", "free")):
-        setattr(owner, name, timers.wrap(stage, getattr(owner, name)))
+    for module, name, stage in ((cosim.read.ssp, "load", "read"), (cosim.plan.prepare, "locate_fmus", "locate"),
+                                (cosim.plan.prepare, "describe_fmus", "describe"),
+                                (cosim.plan.prepare, "build_plan", "plan"),
+                                (cosim.run.execution, "open_instance", "load"),
+                                (cosim.run.simulation, "compile_program", "compile"),
+                                (Unzipped, "__call__", "unpack"), (Execution, "link", "link"),
+                                (Recorder, "__init__", "record set-up"), (Execution, "initialize", "initialise"),
+                                (Execution, "run", "steps"), (Recorder, "close", "write"), (Execution, "close", "free")):
+        if hasattr(module, name):
+            setattr(module, name, timers.wrap(stage, getattr(module, name)))
     for cls in (FMI2Instance, FMI3Instance, MEInstance, ME3Instance):
         if "instantiate" in cls.__dict__:
             setattr(cls, "instantiate", timers.wrap("instantiate", cls.__dict__["instantiate"]))
@@ -182,17 +185,17 @@ def libcosim_runs(ssp: str, stop: float, step: float, warm: int) -> dict:
                            restype=ctypes.POINTER(CosimExecution))
 
     def once() -> dict[str, float]:
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         ptr = create(str(Path(ssp).resolve()).encode(), True, 0, round(step * 1e9))
         if not ptr:
             raise RuntimeError(f"libcosim could not load {ssp}: {get_last_error_message()}")
         execution = CosimExecution(CosimExecution._CosimExecution__create_key, ptr)
-        t1 = time.perf_counter()
+        t1 = time.process_time()
         if not execution.step(round(stop / step)):
             raise RuntimeError(f"libcosim step failed: {get_last_error_message()}")
-        t2 = time.perf_counter()
+        t2 = time.process_time()
         del execution
-        t3 = time.perf_counter()
+        t3 = time.process_time()
         return {"create": t1 - t0, "init+steps": t2 - t1, "free": t3 - t2}
 
     first = once()
@@ -204,9 +207,9 @@ def fmpy_runs(ssp: str, stop: float, step: float, warm: int) -> dict:
     from fmpy.ssp.simulation import simulate_ssp
 
     def once() -> dict[str, float]:
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         simulate_ssp(ssp, stop_time=stop, step_size=step)
-        return {"simulate_ssp": time.perf_counter() - t0}
+        return {"simulate_ssp": time.process_time() - t0}
 
     first = once()
     warm_runs = [once() for _ in range(warm)]
@@ -219,6 +222,8 @@ def fixed(stages: dict[str, float]) -> float:
 
 
 def child(args: argparse.Namespace) -> None:
+    if args.tree:   # another tree's cosim (--baseline): first on sys.path, before anything imports cosim
+        sys.path.insert(0, args.tree)
     runner = {"cosim": lambda: cosim_runs(args.path, args.stop, args.step, args.warm, args.profile),
               "cosim-reused": lambda: reused_runs(args.path, args.stop, args.step, args.warm),
               "libcosim": lambda: libcosim_runs(args.path, args.stop, args.step, args.warm),
@@ -253,9 +258,11 @@ def systems(folder: Path) -> dict[str, dict]:
     return out
 
 
-def spawn(kind: str, path: Path, stop: float, step: float, warm: int, env: dict, profile: bool = False) -> dict:
+def spawn(kind: str, path: Path, stop: float, step: float, warm: int, env: dict, profile: bool = False,
+          tree: str | None = None) -> dict:
     argv = [sys.executable, __file__, "--child", kind, "--path", str(path), "--stop", repr(stop),
-            "--step", repr(step), "--warm", str(warm)] + (["--profile"] if profile else [])
+            "--step", repr(step), "--warm", str(warm)] + (["--profile"] if profile else []) \
+        + (["--tree", tree] if tree else [])
     done = subprocess.run(argv, capture_output=True, text=True, env=env, cwd=ROOT)
     if profile:
         print(done.stderr)
@@ -272,13 +279,19 @@ def best(results: list[dict]) -> dict:
     return {"first": min((r["first"] for r in good), key=fixed), "warm": min((r["warm"] for r in good), key=fixed)}
 
 
-def measure(system: dict, repeat: int, warm: int, folder: Path, profile: bool) -> dict[str, dict]:
+def measure(system: dict, repeat: int, warm: int, folder: Path, profile: bool,
+            baseline: str | None = None) -> dict[str, dict]:
     cache = folder / "cache"
     base = dict(os.environ, COSIM_FMU_CACHE=str(cache))
     cases: dict[str, list] = {"cosim, FMUs not unpacked": [], "cosim, FMUs unpacked": [],
                               "cosim, instances reused": [], "libcosim": [], "fmpy": []}
+    if baseline:
+        cases["cosim, before, FMUs unpacked"] = []
     spawn("cosim", system["path"], system["stop"], system["step"], 0, base)   # the cache populated
     for k in range(repeat):
+        if baseline:
+            cases["cosim, before, FMUs unpacked"].append(
+                spawn("cosim", system["path"], system["stop"], system["step"], warm, base, tree=baseline))
         empty = folder / f"empty{k}-{time.monotonic_ns()}"
         cases["cosim, FMUs not unpacked"].append(
             spawn("cosim", system["path"], system["stop"], system["step"], warm, dict(base, COSIM_FMU_CACHE=str(empty))))
@@ -291,6 +304,66 @@ def measure(system: dict, repeat: int, warm: int, folder: Path, profile: bool) -
     if profile:
         spawn("cosim", system["path"], system["stop"], system["step"], 0, base, profile=True)
     return {name: best(results) for name, results in cases.items()}
+
+
+def scale(sizes: list[int], repeat: int, warm: int, folder: Path, baseline: str | None,
+          libcosim_max: int) -> str:
+    """The fixed cost of a 2-step run of ``chained N`` (C family) for each of ``sizes``: stages,
+    CPU ms per FMU, the exponent of the growth between sizes (1: linear, 2: quadratic), libcosim's
+    first run beside it; each size in fresh processes, the sizes (and trees) interleaved in every round."""
+    from native_systems import FAMILIES, build_family, native_system, write_native_system
+    from cosim.cli import main as cosim_main
+
+    fmus = build_family("c", folder / "fmus")
+    env = dict(os.environ, COSIM_FMU_CACHE=str(folder / "cache"))
+    trees = {"now": None} | ({"before": baseline} if baseline else {})
+    paths, results = {}, {}
+    for n in sizes:
+        paths[n] = write_native_system(native_system(FAMILIES["c"], "chained", n), fmus, folder / f"chained{n}",
+                                       2 * NATIVE_STEP, NATIVE_STEP)
+        packed = folder / f"chained{n}.ssp"
+        if n <= libcosim_max and cosim_main(["pack", str(paths[n]), "-o", str(packed)]) != 0:
+            raise RuntimeError(f"cosim pack failed on {paths[n]}")
+        spawn("cosim", paths[n], 2 * NATIVE_STEP, NATIVE_STEP, 0, env)   # the cache populated
+    for round_ in range(repeat):
+        for n in sizes:
+            print(f"round {round_ + 1}/{repeat}: N = {n}", file=sys.stderr, flush=True)
+            for name, tree in trees.items():
+                results.setdefault((name, n), []).append(
+                    spawn("cosim", paths[n], 2 * NATIVE_STEP, NATIVE_STEP, warm, env, tree=tree))
+            if n <= libcosim_max:
+                results.setdefault(("libcosim", n), []).append(
+                    spawn("libcosim", folder / f"chained{n}.ssp", 2 * NATIVE_STEP, NATIVE_STEP, 0, env))
+    found = {key: best(runs) for key, runs in results.items()}
+    lines = [f"chained N (C FMUs): fixed cost of a 2-step run, CPU ms, first run of a fresh process "
+             f"(FMUs unpacked), best of {repeat}"]
+    for name in trees:
+        lines.append(f"\n  cosim {name}:")
+        lines.append(f"  {'stage':<14}" + "".join(f"{'N = ' + str(n):>12}" for n in sizes))
+        for stage in STAGES:
+            lines.append(f"  {stage:<14}" + "".join(
+                f"{1e3 * found[(name, n)]['first'].get(stage, 0.0):>12.2f}" if "error" not in found[(name, n)]
+                else f"{'—':>12}" for n in sizes))
+        totals = {n: fixed(found[(name, n)]["first"]) for n in sizes if "error" not in found[(name, n)]}
+        lines.append(f"  {'= fixed':<14}" + "".join(f"{1e3 * totals[n]:>12.2f}" if n in totals else f"{'—':>12}"
+                                                   for n in sizes))
+        lines.append(f"  {'ms per FMU':<14}" + "".join(f"{1e3 * totals[n] / n:>12.3f}" if n in totals
+                                                       else f"{'—':>12}" for n in sizes))
+        lines.append(f"  {'growth exp.':<14}{'':>12}" + "".join(
+            f"{math.log(totals[b] / totals[a]) / math.log(b / a):>12.2f}" if a in totals and b in totals
+            else f"{'—':>12}" for a, b in zip(sizes, sizes[1:])))
+        if name == "now" and "before" in trees:
+            lines.append(f"  {'now / before':<14}" + "".join(
+                f"{totals[n] / fixed(found[('before', n)]['first']):>12.2f}"
+                if n in totals and "error" not in found[("before", n)] else f"{'—':>12}" for n in sizes))
+    lines.append(f"\n  {'libcosim':<14}" + "".join(
+        f"{1e3 * fixed(found[('libcosim', n)]['first']):>12.2f}" if ("libcosim", n) in found
+        and "error" not in found[("libcosim", n)] else f"{'—':>12}" for n in sizes))
+    lines.append(f"  {'now/libcosim':<14}" + "".join(
+        f"{fixed(found[('now', n)]['first']) / fixed(found[('libcosim', n)]['first']):>12.2f}"
+        if ("libcosim", n) in found and "error" not in found[("libcosim", n)] and "error" not in found[("now", n)]
+        else f"{'—':>12}" for n in sizes))
+    return "\n".join(lines)
 
 
 def table(name: str, measured: dict[str, dict]) -> str:
@@ -326,6 +399,12 @@ def main() -> None:
     parser.add_argument("--warm", type=int, default=5, help="runs after the first in each process (best taken)")
     parser.add_argument("--systems", nargs="+", default=["native", "pid_fopdt"], choices=["native", "pid_fopdt"])
     parser.add_argument("--profile", action="store_true", help="print the cProfile of a first run, FMUs unpacked")
+    parser.add_argument("--scale", type=int, nargs="+", metavar="N",
+                        help="the fixed cost of chained N C FMUs for each N (e.g. 10 100 1000 3000) instead")
+    parser.add_argument("--libcosim-max", type=int, default=1000, help="largest N libcosim runs in --scale")
+    parser.add_argument("--baseline", metavar="TREE",
+                        help="also run cosim from this tree (a checkout with its kernel built), interleaved")
+    parser.add_argument("--tree", help=argparse.SUPPRESS)
     parser.add_argument("--child", choices=["cosim", "cosim-reused", "libcosim", "fmpy"], help=argparse.SUPPRESS)
     parser.add_argument("--path", help=argparse.SUPPRESS)
     parser.add_argument("--stop", type=float, help=argparse.SUPPRESS)
@@ -336,9 +415,15 @@ def main() -> None:
         return
     with tempfile.TemporaryDirectory(prefix="bench-fixed-cost-") as tmp:
         folder = Path(tmp)
-        built = systems(folder)
-        for name in args.systems:
-            print(table(name, measure(built[name], args.repeat, args.warm, folder / name, args.profile)), flush=True)
+        load = os.getloadavg()[0]
+        if args.scale:
+            print(scale(args.scale, args.repeat, args.warm, folder, args.baseline, args.libcosim_max))
+        else:
+            built = systems(folder)
+            for name in args.systems:
+                print(table(name, measure(built[name], args.repeat, args.warm, folder / name, args.profile,
+                                          args.baseline)), flush=True)
+        print(f"load average {load:.1f} before, {os.getloadavg()[0]:.1f} after, {os.cpu_count()} cores")
 
 
 if __name__ == "__main__":

@@ -6,8 +6,9 @@ as cosim loads them).
     seconds, results = run_c_floor(library, fmus, outputs, connections, feedthrough, start, stop, step)
 
 Python instantiates, sets the start values and initialises; the step loop (fmi2DoStep, one
-batched fmi2GetReal and fmi2SetReal per instance, the routing, the record of every output and
-input into a C array) runs in C and times itself.  ``settle=True`` is cosim's exchange (direct
+batched fmi2GetReal and fmi2SetReal per instance, the routing, the record of the time and every
+output and input: into a C array, ``csv=PATH`` as CSV lines written by cosim's C formatter,
+``record=False`` nowhere) runs in C and times itself.  ``settle=True`` is cosim's exchange (direct
 feedthrough settled in dependency order within the instant, cosim/run/execution.py), ``False`` plain
 Jacobi (libcosim, the fmu-manipulation-toolbox container).  Initialisation is cosim's: the
 exchange once in initialization mode and once after it; row 0 of the results is the state after
@@ -28,6 +29,8 @@ from floor import instantiated
 __all__ = ["compile_floor", "run_c_floor"]
 
 SOURCE = Path(__file__).resolve().parent / "native_floor.c"
+#: cosim's compiled CSV formatter (and the Ryu it includes), compiled into the floor
+KERNEL = Path(__file__).resolve().parents[1] / "cosim" / "kernel"
 
 _p = ctypes.POINTER
 
@@ -46,13 +49,14 @@ class _Failure(ctypes.Structure):
 
 
 def compile_floor(folder: Path) -> Path:
-    """native_floor.c compiled (-O2) with the system C compiler into ``folder``: the library's path."""
+    """native_floor.c (with cosim's csvrows.c) compiled (-O2, as setup.py builds the kernel) with the
+    system C compiler into ``folder``: the library's path."""
     compiler = shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
         raise RuntimeError("no C compiler (cc or gcc) on PATH: benchmarks/native_floor.c cannot be built")
     library = Path(folder) / "native_floor.so"
-    subprocess.run([compiler, "-O2", "-Wall", "-Werror", "-shared", "-fPIC", "-o", str(library), str(SOURCE)],
-                   check=True, capture_output=True, text=True)
+    subprocess.run([compiler, "-O2", "-Wall", "-Werror", "-shared", "-fPIC", f"-I{KERNEL}", "-o", str(library),
+                    str(SOURCE), str(KERNEL / "csvrows.c")], check=True, capture_output=True, text=True)
     return library
 
 
@@ -60,7 +64,7 @@ def _load(library: Path) -> ctypes.CDLL:
     lib = ctypes.CDLL(str(library))   # loaded once per process: dlopen of the same path shares it
     lib.floor_exchange.argtypes = [_p(_Floor), _p(_Failure)]
     lib.floor_run.argtypes = [_p(_Floor), ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_long,
-                              _p(ctypes.c_double), _p(ctypes.c_double), _p(_Failure)]
+                              _p(ctypes.c_double), ctypes.c_int, _p(ctypes.c_double), _p(_Failure)]
     return lib
 
 
@@ -79,6 +83,9 @@ def run_c_floor(
     step: float,
     *,
     settle: bool = True,
+    record: bool = True,
+    csv: Path | None = None,
+    clock=None,
 ) -> tuple[float, np.ndarray]:
     """Run ``fmus`` [(name, fmu_path, {variable: start value})] from ``start`` to ``stop``.
 
@@ -88,6 +95,11 @@ def run_c_floor(
     feedthrough:  the instances whose outputs depend on their inputs, in dependency order.
     Returns (the loop's seconds, a structured array: ``time`` and ``comp.var`` for every output
     and every connected input, one row per communication point).  ``library``: `compile_floor`'s.
+    ``csv``: the rows written to that file instead (a quoted header as cosim's, then one line per
+    step after the first row; the array returned is then empty); ``record`` False: the rows
+    recorded nowhere (the array is empty).  ``clock``: a function of no arguments (e.g.
+    ``time.process_time``) whose difference across the loop is returned instead of the loop's
+    wall time, the array or file recording included (its pages are touched in the loop).
     """
     lib = _load(library)
     names = [name for name, _, _ in fmus]
@@ -144,17 +156,27 @@ def run_c_floor(
         for slave in slaves:
             slave.exitInitializationMode()
         check(lib.floor_exchange(ctypes.byref(floor), ctypes.byref(failure)), "the exchange")
-        record = np.empty((n_steps + 1, len(y_names) + len(u_names)))
-        record[0] = np.concatenate([y, u])
+        names = ["time"] + y_names + u_names
         seconds = ctypes.c_double()
-        check(lib.floor_run(ctypes.byref(floor), start, stop, step, n_steps, _pointer(record[1:], ctypes.c_double),
+        began = clock() if clock is not None else 0.0
+        if csv is not None:
+            with open(csv, "wb") as file:
+                file.write((",".join('"' + n + '"' for n in names) + "\n").encode())
+                file.flush()
+                check(lib.floor_run(ctypes.byref(floor), start, stop, step, n_steps, None, file.fileno(),
+                                    ctypes.byref(seconds), ctypes.byref(failure)), "a call (or the write)")
+            rows = np.empty((0, len(names)))
+        else:
+            rows = np.empty((n_steps + 1 if record else 0, len(names)))
+            if record:
+                rows[0] = np.concatenate([[start], y, u])
+            check(lib.floor_run(ctypes.byref(floor), start, stop, step, n_steps,
+                                _pointer(rows[1:], ctypes.c_double) if record else None, -1,
                                 ctypes.byref(seconds), ctypes.byref(failure)), "a call")
+        if clock is not None:
+            seconds.value = clock() - began
         for slave in slaves:
             slave.terminate()
 
-    time = np.array([stop if k >= n_steps else start + k * step for k in range(n_steps + 1)])
-    results = np.empty(n_steps + 1, dtype=[("time", "f8")] + [(name, "f8") for name in y_names + u_names])
-    results["time"] = time
-    for j, name in enumerate(y_names + u_names):
-        results[name] = record[:, j]
+    results = rows.view(np.dtype([(name, "f8") for name in names]))[:, 0]
     return seconds.value, results

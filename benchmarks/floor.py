@@ -52,9 +52,10 @@ def instantiated(fmus: Sequence[tuple[str, str, Mapping[str, float]]], start: fl
 
     slaves, unzipdirs, variables = [], [], []
     extracted: dict[str, str] = {}
+    described: dict[str, object] = {}
     try:
         for name, path, params in fmus:
-            md = read_model_description(path, validate=False)
+            md = described.get(path) or described.setdefault(path, read_model_description(path, validate=False))
             if md.fmiVersion != "2.0" or md.coSimulation is None:
                 raise ValueError(f"{name}: {path} is not an FMI 2.0 Co-Simulation FMU")
             unzipdir = extracted.get(path) if shared_library else None

@@ -2,8 +2,10 @@
  * Co-Simulation instances that Python has instantiated and initialised (benchmarks/c_floor.py
  * compiles this file into a shared library and calls it through ctypes).
  *
- * Per step: fmi2DoStep on every instance, then the exchange, then the record (every output and
- * every input value, appended to a C array).  The exchange is one batched fmi2GetReal and one
+ * Per step: fmi2DoStep on every instance, then the exchange, then the record of the row (the time,
+ * every output and every input value): appended to a C array, or formatted as a CSV line
+ * (cosim/kernel/csvrows.c, the bytes cosim's CSV sink writes, compiled in) into a 1 MiB buffer
+ * written to a file descriptor whenever the next line might not fit, or not recorded at all.  The exchange is one batched fmi2GetReal and one
  * batched fmi2SetReal per instance, with the routing an index array (u[j] = y[source[j]]):
  *
  *   settle = 1  cosim's exchange (cosim/run/execution.py): read the outputs of the instances without
@@ -21,6 +23,10 @@
 #include <stddef.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
+
+size_t cosim_format_rows(const double *values, size_t rows, size_t columns, char *out);
+int cosim_csv_value_max(void);
 
 typedef int (*DoStep)(void *, double, double, int);
 typedef int (*GetReal)(void *, const unsigned *, size_t, double *);
@@ -86,25 +92,56 @@ static double grid(double start, double stop, double h, long n_steps, long k) {
     return k >= n_steps ? stop : start + (double)k * h;
 }
 
-/* n_steps steps of h from start to stop; record: (n_steps) rows of ny + nu values, the outputs then the
- * inputs after each step; *seconds: the loop's wall time.  0 on success. */
-int floor_run(const Floor *f, double start, double stop, double h, long n_steps, double *record, double *seconds,
-              Failure *failure) {
-    size_t ny = (size_t)f->get_off[f->n], nu = (size_t)f->set_off[f->n];
+/* Write all n bytes of text to fd; 0 on success. */
+static int write_all(int fd, const char *text, size_t n) {
+    while (n) {
+        ssize_t done = write(fd, text, n);
+        if (done <= 0) return 1;
+        text += done;
+        n -= (size_t)done;
+    }
+    return 0;
+}
+
+enum { CSV_BUFFER = 1 << 20 };
+
+/* n_steps steps of h from start to stop, each step's row (t_{k+1}, the outputs, the inputs) recorded:
+ * into ``record`` (n_steps rows of 1 + ny + nu doubles) when it is not NULL, as CSV lines written to
+ * ``csv_fd`` when it is not negative, else nowhere; *seconds: the loop's wall time.  0 on success
+ * (a failed write: status -1 of instance -1). */
+int floor_run(const Floor *f, double start, double stop, double h, long n_steps, double *record, int csv_fd,
+              double *seconds, Failure *failure) {
+    size_t ny = (size_t)f->get_off[f->n], nu = (size_t)f->set_off[f->n], width = 1 + ny + nu;
     struct timespec t0, t1;
     int failed = 0;
+    double row[width];
+    static char text[CSV_BUFFER];
+    size_t used = 0, line_max = width * (size_t)cosim_csv_value_max();
     clock_gettime(CLOCK_MONOTONIC, &t0);
     for (long k = 0; k < n_steps && !failed; k++) {
-        double t = grid(start, stop, h, n_steps, k), step = grid(start, stop, h, n_steps, k + 1) - t;
+        double t = grid(start, stop, h, n_steps, k), t_next = grid(start, stop, h, n_steps, k + 1), step = t_next - t;
         for (int i = 0; i < f->n; i++) {
             int s = f->do_step[i](f->component[i], t, step, 1);
             if (s > 1) { failed = fail(failure, i, k, s); break; }
         }
         if (failed || (failed = exchange(f, k, failure))) break;
-        memcpy(record, f->y, ny * sizeof(double));
-        memcpy(record + ny, f->u, nu * sizeof(double));
-        record += ny + nu;
+        if (record != NULL) {
+            record[0] = t_next;
+            memcpy(record + 1, f->y, ny * sizeof(double));
+            memcpy(record + 1 + ny, f->u, nu * sizeof(double));
+            record += width;
+        } else if (csv_fd >= 0) {
+            if (used + line_max > sizeof text) {
+                if (write_all(csv_fd, text, used)) { failed = fail(failure, -1, k, -1); break; }
+                used = 0;
+            }
+            row[0] = t_next;
+            memcpy(row + 1, f->y, ny * sizeof(double));
+            memcpy(row + 1 + ny, f->u, nu * sizeof(double));
+            used += cosim_format_rows(row, 1, width, text + used);
+        }
     }
+    if (!failed && used && write_all(csv_fd, text, used)) failed = fail(failure, -1, n_steps, -1);
     clock_gettime(CLOCK_MONOTONIC, &t1);
     *seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
     return failed;

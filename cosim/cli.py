@@ -626,7 +626,8 @@ def _sweep(args) -> int:
                            parameter_sets=args.param_set, start_time=args.start, stop_time=args.stop,
                            step_size=args.step, fmu_dirs=args.fmu_dir, start_values=args.start_values,
                            input_file=args.input_file, output=output, run_files=args.run_files, reuse=args.reuse,
-                           executor=args.scheduler or "process", workers=args.workers, progress=_progress(args))
+                           executor=args.scheduler or "process", workers=args.workers, force=args.force,
+                           progress=_progress(args))
     except KeyboardInterrupt:
         table = output / "sweep.csv"
         kept = len(read_table(table)) if table.is_file() else 0

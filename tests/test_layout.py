@@ -42,6 +42,7 @@ def test_a_provider_that_cannot_be_imported_is_named_not_raised(tmp_path, twin_f
 #: folder names; single: its automatic output interval, as `fmpy simulate` picks it; ssp: the SSP
 #: XSDs it ships); every other module reads our own records (cosim.read.description)
 FMPY_USERS = {"cosim/read/description.py", "cosim/run/instances/fmi2.py", "cosim/run/instances/fmi3.py", "cosim/run/instances/me.py",
+              "cosim/run/instances/loading.py",
               "cosim/read/loadable.py", "cosim/read/single.py", "cosim/read/ssp.py"}
 
 

@@ -38,7 +38,7 @@ KERNEL_END, KERNEL_FULL, KERNEL_FLUSH, KERNEL_STOP, KERNEL_STATUS, KERNEL_UNMADE
     1, 2, 4, 8, 16, 32, 64
 LIBRARY_ENV = "COSIM_KERNEL_LIBRARY"
 #: KERNEL_ABI_VERSION of kernel.c: the layout of the structures mirrored below
-ABI_VERSION = 3
+ABI_VERSION = 5
 
 
 class _Op(ctypes.Structure):
@@ -57,7 +57,8 @@ class _Table(ctypes.Structure):
 
 
 class _Source(ctypes.Structure):
-    _fields_ = [("values", ctypes.c_void_p), ("n", ctypes.c_size_t), ("integer", ctypes.c_int)]
+    _fields_ = [("values", ctypes.c_void_p), ("n", ctypes.c_size_t), ("integer", ctypes.c_int),
+                ("consecutive", ctypes.c_int), ("columns", ctypes.c_void_p)]
 
 
 class _Program(ctypes.Structure):
@@ -186,13 +187,11 @@ class NativeOp:
 
 class Kernel:
     """The compiled loop over one step's operations (their `NativeOp`, None for one Python runs:
-    the loop returns at it), recording ``sources`` (exchange buffer addresses, lengths and
-    whether they hold C ints) after each step on ``grid``; with ``threads`` > 1, the first
-    ``parallel`` operations (doSteps) run concurrently, each on its ``thread`` (`close` ends
-    the threads)."""
+    the loop returns at it) on ``grid``, recording a row after each step (what goes where:
+    `record`); with ``threads`` > 1, the first ``parallel`` operations (doSteps) run
+    concurrently, each on its ``thread`` (`close` ends the threads)."""
 
-    def __init__(self, operations: Sequence[NativeOp | None], sources: list[tuple[int, int, bool]], grid,
-                 columns: int, threads: int = 1, parallel: int = 0):
+    def __init__(self, operations: Sequence[NativeOp | None], grid, threads: int = 1, parallel: int = 0):
         self.lib, reason = library()
         if self.lib is None:
             raise RuntimeError(reason)
@@ -225,10 +224,7 @@ class Kernel:
                 self._keep.append(arrays)
                 o.src, o.dst, o.factor, o.offset = (a.ctypes.data for a in arrays)
                 o.identity, o.n, o.Y, o.U = int(identity), len(arrays[0]), op.Y, op.U
-        srcs = (_Source * max(1, len(sources)))()
-        for s, (values, n, integer) in zip(srcs, sources):
-            s.values, s.n, s.integer = values, n, int(integer)
-        self._ops, self._sources = ops, srcs
+        self._ops = ops
         #: with threads: the statuses of the parallel doSteps of the last step
         self.statuses = (ctypes.c_int * max(1, len(operations)))()
         self.pool = None
@@ -237,10 +233,21 @@ class Kernel:
             if not self.pool:
                 raise RuntimeError(f"the kernel could not start {threads - 1} threads")
         self.program = _Program(ops, len(operations), self.pool, parallel if self.pool else 0, self.statuses,
-                                srcs, len(sources), columns, grid.start, grid.step, grid.stop, grid.steps)
+                                None, 0, 1, grid.start, grid.step, grid.stop, grid.steps)
         self.state = _Run()
         self.stop_flag = ctypes.c_int(0)
         self.state.stop = ctypes.addressof(self.stop_flag)
+
+    def record(self, sources: Sequence[tuple[int, int, bool, np.ndarray]], columns: int) -> None:
+        """What each row holds: rows of ``columns`` doubles, the time in column 0, then per source
+        (an exchange buffer's address, its length, whether it holds C ints, and the column of each
+        of its values: int32, kept alive by the caller) its values in their columns."""
+        srcs = (_Source * max(1, len(sources)))()
+        for s, (values, n, integer, where) in zip(srcs, sources):
+            s.values, s.n, s.integer, s.columns = values, n, int(integer), where.ctypes.data
+            s.consecutive = int(n > 0 and bool(np.all(np.diff(where) == 1)))
+        self._sources = srcs
+        self.program.sources, self.program.n_sources, self.program.columns = srcs, len(sources), columns
 
     def run(self, k: int, k_end: int, first: int, rows: int, free_rows: int, count: int, samples: int,
             flush_at: float) -> int:

@@ -79,11 +79,15 @@ typedef struct {
     void *Y, *U;
 } Op;
 
-/* One exchange buffer copied into every row: n doubles or (integer) C ints. */
+/* One exchange buffer copied into every row: n doubles or (integer) C ints, value j into the
+ * row's column columns[j] (the result's column order, cosim.record.observers.Recorder);
+ * ``consecutive``: columns[j] = columns[0] + j (doubles then copied with one memcpy). */
 typedef struct {
     void *values;
     size_t n;
     int integer;
+    int consecutive;
+    const int *columns;
 } Source;
 
 struct Pool;
@@ -106,7 +110,8 @@ typedef struct {
 
 /* What one call does: steps k .. k_end - 1 (k advances past every completed step; step k
  * begins at operation ``first``, the others at 0), rows into ``rows`` (row-major, ``columns``
- * doubles each) up to ``free_rows``; ``samples`` counts every row of the run and is stored into
+ * doubles each: the time, then each source's values in their columns; a column no source names,
+ * a root output's, is left to Python) up to ``free_rows``; ``samples`` counts every row of the run and is stored into
  * ``count`` after each row (the journal's row counter).  On KERNEL_STATUS, KERNEL_UNMADE and
  * KERNEL_YIELD: ``op`` (and ``status``) of the operation, in step k (not completed). */
 typedef struct {
@@ -124,7 +129,7 @@ typedef struct {
  * with any change to Op, Source, Program or Run (their sizes are checked too, so a stale
  * library built before an edit is refused rather than read out of step). */
 #ifndef KERNEL_ABI_VERSION
-#define KERNEL_ABI_VERSION 3
+#define KERNEL_ABI_VERSION 5
 #endif
 enum { KERNEL_ABI_STRUCTS = 5 };
 
@@ -143,10 +148,24 @@ static double grid_time(const Program *p, long long k) {
     return k >= p->steps ? p->stop : p->start + (double)k * p->step;
 }
 
-static double monotonic(void) {
+static double seconds(clockid_t clock) {
     struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
+    clock_gettime(clock, &ts);
     return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+}
+
+/* How far the coarse clock may lag CLOCK_MONOTONIC (it is updated at the scheduler's tick, a few
+ * ms; never ahead of it). */
+#define COARSE_LAG 0.05
+
+/* Whether CLOCK_MONOTONIC (Python's time.monotonic) has passed ``deadline``, asked at every row:
+ * where there is a coarse form of the clock (a few ns a read rather than ~20), the precise clock
+ * is read only within COARSE_LAG of the deadline. */
+static int passed(double deadline) {
+#ifdef CLOCK_MONOTONIC_COARSE
+    if (seconds(CLOCK_MONOTONIC_COARSE) + COARSE_LAG < deadline) return 0;
+#endif
+    return seconds(CLOCK_MONOTONIC) > deadline;
 }
 
 /* Route; -1, or the index of the first route whose factor and offset made a finite value
@@ -253,21 +272,23 @@ int cosim_run(const Program *p, Run *r) {
             }
         }
         double *row = r->rows + r->rows_done * p->columns;
-        int col = 1;
         row[0] = t_next;
         for (int i = 0; i < p->n_sources; i++) {
             const Source *src = &p->sources[i];
+            const int *columns = src->columns;
             if (src->integer)
-                for (size_t j = 0; j < src->n; j++) row[col++] = (double)((const int *)src->values)[j];
+                for (size_t j = 0; j < src->n; j++) row[columns[j]] = (double)((const int *)src->values)[j];
+            else if (src->consecutive)
+                memcpy(row + columns[0], src->values, src->n * sizeof(double));
             else
-                for (size_t j = 0; j < src->n; j++) row[col++] = ((const double *)src->values)[j];
+                for (size_t j = 0; j < src->n; j++) row[columns[j]] = ((const double *)src->values)[j];
         }
         r->rows_done++;
         r->samples++;
         *r->count = r->samples;
         r->k++;
         if (r->rows_done == r->free_rows) reason |= KERNEL_FULL;
-        if (monotonic() > r->flush_at) reason |= KERNEL_FLUSH;
+        if (passed(r->flush_at)) reason |= KERNEL_FLUSH;
         if (*r->stop) reason |= KERNEL_STOP;
         if (reason) return reason;
     }

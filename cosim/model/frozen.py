@@ -16,7 +16,7 @@ class FrozenMap(Mapping[K, V]):
     __slots__ = ("_items", "_hash")
 
     def __init__(self, items: Mapping[K, V] | Iterable[tuple[K, V]] = ()):
-        self._items: dict[K, V] = dict(items)
+        self._items: dict[K, V] = dict(items._items if isinstance(items, FrozenMap) else items)
         self._hash: int | None = None
 
     def __getitem__(self, key: K) -> V:

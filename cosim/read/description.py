@@ -158,7 +158,15 @@ def describe_fmu(path: Path, where: str, file: str, implementation: str = "any",
 
 def describe_fmus(structure: SystemStructure, fmu_paths: Mapping[str, Path]) -> dict[str, FMUDescription]:
     """Every component's FMU (``fmu_paths``: `cosim.read.resources.locate_fmus`) described and
-    checked (`describe_fmu`), by component in SSD order."""
-    return {name: describe_fmu(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})", structure.display,
-                               comp.implementation)
-            for name, comp in structure.components.items()}
+    checked (`describe_fmu`), by component in SSD order: each FMU file once per interface asked
+    for (the first component naming it in the errors), so a system of 1000 copies of one FMU
+    checks it once, not 1000 times (issue 42: 1.2 ms a component)."""
+    found: dict[tuple[Path, str], FMUDescription] = {}
+    described = {}
+    for name, comp in structure.components.items():
+        key = (fmu_paths[name], comp.implementation)
+        if key not in found:
+            found[key] = describe_fmu(fmu_paths[name], f"ssd:Component '{name}' (line {comp.line})",
+                                      structure.display, comp.implementation)
+        described[name] = found[key]
+    return described

@@ -163,12 +163,13 @@ class _Walker:
                 raise SetupError(f"two components flatten to the same path '{full}'.", file=self.file,
                                  element=f"ssd:Component '{name}' of {label} (line {comp.line})",
                                  hint="Rename one of them; dots in names clash with subsystem paths.")
-            self.components[full] = replace(comp, name=full)
+            self.components[full] = replace(comp, name=full) if full != comp.name else comp
             for cname, conn in comp.connectors.items():
                 self.component_kinds[("c", full, cname)] = conn.kind
         for c in system.connections:
             self._connection(system, path, label, c)
-        self.parameters.append((depth, [replace(p, name=prefix + p.name) for p in system.parameters]))
+        self.parameters.append((depth, [replace(p, name=prefix + p.name) for p in system.parameters] if prefix
+                                else list(system.parameters)))
         return SystemNode(system.name, path, system.line, tuple(system.connectors.values()),
                           tuple(prefix + n for n in system.components), tuple(children))
 
@@ -180,7 +181,7 @@ class _Walker:
         if all(node[0] == "c" for node, _ in ends):
             # component to component: cosim.plan.build directs and checks it against the FMUs
             self.direct.append(replace(c, start_element=prefix + c.start_element,
-                                       end_element=prefix + c.end_element))
+                                       end_element=prefix + c.end_element) if prefix else c)
             return
         (a, a_sends), (b, b_sends) = ends
         if a_sends is None and b_sends is None:

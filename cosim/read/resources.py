@@ -48,9 +48,16 @@ def providers() -> tuple[list[Provider], list[str]]:
 
 def locate_fmus(structure: SystemStructure, fmu_dirs: Sequence[Path] = (),
                 use_providers: bool = True) -> dict[str, Path]:
-    """The FMU file of every component, by component path, or raise naming what was looked at."""
+    """The FMU file of every component, by component path, or raise naming what was looked at;
+    each ``source`` located once (a system of 1000 copies of one FMU looks for it once)."""
     asked = _Providers(use_providers)
-    return {name: _locate(comp, structure, fmu_dirs, asked) for name, comp in structure.components.items()}
+    found: dict[str, Path] = {}
+    located = {}
+    for name, comp in structure.components.items():
+        if not comp.source or comp.source not in found:
+            found[comp.source] = _locate(comp, structure, fmu_dirs, asked)
+        located[name] = found[comp.source]
+    return located
 
 
 class _Providers:

@@ -9,7 +9,8 @@ trailing ``.0``), else exponential with a signed exponent of no leading zero (``
 `format_rows` formats them in C (``cosim/kernel/csvrows.c``: Ryu's shortest digits, laid out as
 here) when the compiled kernel library was built with greyfmu (`cosim.kernel.library`), else with
 `format_rows_python`, the same bytes at about 9x the cost per value (benchmarks/bench_csv.py:
-C 0.53x Arrow's writer, Python 5x).
+C 0.53x Arrow's writer, Python 5x); `RowText` makes the same text block by block into a buffer
+it keeps (a result file's chunks, `cosim.record.observers.CsvSink`).
 
 `format_rows_python` makes the row text by one ``%`` formatting of the whole chunk (``repr`` of
 every value, in C); the values of the two ranges where ``repr`` and Arrow choose different notations (about 1e-6 and
@@ -20,6 +21,7 @@ exponent (``e-07``).
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -76,17 +78,37 @@ def _layout(digits: str, point: int) -> str:
     return f"{digits[0]}{tail}e{'+' if exponent >= 0 else '-'}{abs(exponent)}"
 
 
+#: bytes of text `RowText` formats at a time, into one buffer it keeps
+TEXT_BLOCK = 1 << 20
+
+
+class RowText:
+    """The lines of 2-D float64 arrays of ``columns`` columns, made block by block into one
+    buffer kept across calls (a result file's chunks: no text the size of a chunk, and no new
+    buffer per chunk); in C if the kernel library is built, else by `format_rows_python`."""
+
+    def __init__(self, columns: int):
+        self._lib, _ = kernel.library()
+        if self._lib is not None:
+            per_row = max(1, columns) * self._lib.cosim_csv_value_max()
+            self._rows = max(1, TEXT_BLOCK // per_row)
+            self._out = np.empty(self._rows * per_row, dtype=np.uint8)
+
+    def blocks(self, rows: np.ndarray) -> Iterator[bytes | memoryview]:
+        """The text of ``rows`` in blocks (a block is valid until the next one is asked for)."""
+        if self._lib is None:
+            yield format_rows_python(rows).encode()
+            return
+        for start in range(0, len(rows), self._rows):
+            part = np.ascontiguousarray(rows[start:start + self._rows], dtype=np.float64)
+            length = self._lib.cosim_format_rows(part.ctypes.data, len(part), part.shape[1], self._out.ctypes.data)
+            yield memoryview(self._out)[:length]
+
+
 def format_rows(rows: np.ndarray) -> bytes:
     """The lines of a 2-D float64 array, comma-separated, each ending in ``\\n`` (none for no
     rows), formatted in C if the kernel library is built, else by `format_rows_python`."""
-    lib, _ = kernel.library()
-    if lib is None:
-        return format_rows_python(rows).encode()
-    values = np.ascontiguousarray(rows, dtype=np.float64)
-    count, columns = values.shape
-    out = np.empty(values.size * lib.cosim_csv_value_max(), dtype=np.uint8)
-    length = lib.cosim_format_rows(values.ctypes.data, count, columns, out.ctypes.data)
-    return out[:length].tobytes()
+    return b"".join(bytes(block) for block in RowText(rows.shape[1]).blocks(rows))
 
 
 def format_rows_python(rows: np.ndarray) -> str:

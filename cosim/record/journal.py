@@ -10,11 +10,20 @@ its JSON with status ``crashed`` (or the status given, e.g. ``timeout``); `cosim
 that for `cosim run` after its child process ended without finishing.  A run that ends
 normally, fails or is interrupted writes its files itself and deletes the journal.
 
-File layout (little-endian): ``COSIMJ01``; int64 row count; int64 columns; int64 offset of
-the rows; int64 length of the JSON header; the JSON header (result path, column names in
+File layout (little-endian): ``COSIMJ02``; int64 row count; int64 columns; int64 offset of
+the rows; int64 length of the JSON header; int64 ring rows; int64 which of the next two pairs
+holds (the other is written, then this flips: one store); two pairs of int64 (rows in the
+result's part file, bytes of it holding them); the JSON header (result path, column names in
 journal order, the permutation to the result's order, derived columns, metadata so far);
 then the rows, float64, in windows of ``chunk_rows`` reserved with ``posix_fallocate`` (a
 full disk is an ``OSError`` when a window is reserved, never a SIGBUS when a row is written).
+A journal beside a CSV is a ring of one window (ring rows: its ``chunk_rows``): the CSV's
+``.part`` file holds every row flushed, and the recorder marks after each flush how many rows
+and bytes it holds (`Journal.mark`), so the window is written over by the next rows and the
+journal is one window, not every row (the journal was 20–28 % of a CSV run's recording
+against a C loop writing the same CSV, issue 42); `recover` then keeps the ``.part``'s marked
+bytes and appends the rows after them.  Beside a Parquet file (whose ``.part`` is unreadable
+without its footer) every row stays in the journal.  ``COSIMJ01`` (no ring, no marks) is read.
 """
 from __future__ import annotations
 
@@ -33,11 +42,17 @@ from ..errors import Errc
 if TYPE_CHECKING:
     from .observers import DerivedColumns
 
-MAGIC = b"COSIMJ01"
-_HEADER = 40
+MAGIC = b"COSIMJ02"
+_HEADER = 88
+#: the layout before the ring (a journal a crashed older cosim left): 4 fields, no marks
+_MAGIC_01, _HEADER_01 = b"COSIMJ01", 40
 SUFFIX = ".journal"
 #: the prefix of the FMU extraction folders (`cosim.run.instances.Unzipped`) a recovery removes
 UNZIP_PREFIX = "cosim-fmu-"
+
+
+#: Linux's MAP_POPULATE (Python 3.10+), else nothing
+_POPULATE = getattr(mmap, "MAP_POPULATE", 0)
 
 
 def journal_path(output: str | Path) -> Path:
@@ -48,15 +63,17 @@ def journal_path(output: str | Path) -> Path:
 
 class Journal:
     """A journal being written: `window` hands out the next ``chunk_rows`` x ``columns``
-    float64 block mapped onto the file; `count` is the header's row counter."""
+    float64 block mapped onto the file (with ``ring``, the same block again: its rows are kept
+    elsewhere by then, `mark`); `count` is the header's row counter."""
 
-    def __init__(self, path: str | Path, header: dict, columns: int, chunk_rows: int):
+    def __init__(self, path: str | Path, header: dict, columns: int, chunk_rows: int, ring: bool = False):
         self.path = Path(path)
         text = json.dumps(header, default=str).encode()
         self.offset = -(-(_HEADER + len(text)) // mmap.ALLOCATIONGRANULARITY) * mmap.ALLOCATIONGRANULARITY
-        self.columns, self.chunk_rows = columns, chunk_rows
+        self.columns, self.chunk_rows, self.ring = columns, chunk_rows, ring
         self._file = open(self.path, "w+b")
-        head = MAGIC + np.array([0, columns, self.offset, len(text)], dtype="<i8").tobytes() + text
+        fields = [0, columns, self.offset, len(text), chunk_rows if ring else 0, 0, 0, 0, 0, 0]
+        head = MAGIC + np.array(fields, dtype="<i8").tobytes() + text
         try:
             self._file.write(head)
             self._file.flush()
@@ -66,17 +83,35 @@ class Journal:
         self._head = mmap.mmap(self._file.fileno(), _HEADER)
         #: the row counter in the mapped header (the recorder stores the rows done after each row)
         self.count = np.frombuffer(self._head, dtype="<i8", count=1, offset=8)
+        #: which pair of the marks holds, and the two pairs (rows, bytes of the result's part file)
+        self._marks = np.frombuffer(self._head, dtype="<i8", count=5, offset=48)
         self._windows = 0
+        self._window: np.ndarray | None = None
+
+    def mark(self, rows: int, part_bytes: int) -> None:
+        """The result's part file holds the first ``rows`` rows in its first ``part_bytes`` bytes:
+        written into the pair not in use, then that pair made the one (a process killed between
+        two stores leaves a pair that holds)."""
+        spare = 1 - int(self._marks[0])
+        self._marks[1 + 2 * spare], self._marks[2 + 2 * spare] = rows, part_bytes
+        self._marks[0] = spare
 
     def window(self) -> np.ndarray:
         """The next block of rows, reserved on disk (OSError ENOSPC if the disk is full)."""
+        if self.ring and self._window is not None:
+            return self._window
         nbytes = self.chunk_rows * self.columns * 8
         start = self.offset + self._windows * nbytes
         self._reserve(start, nbytes)
         self._windows += 1
-        # a plain ndarray on the mapping (np.memmap's Python-level indexing would cost ~20 % of a step)
-        window = mmap.mmap(self._file.fileno(), nbytes, offset=start)
-        return np.frombuffer(window, dtype="<f8").reshape(self.chunk_rows, self.columns)
+        # a plain ndarray on the mapping (np.memmap's Python-level indexing would cost ~20 % of a step),
+        # mapped from the page the window begins in (a window need not be a whole number of pages),
+        # its pages mapped in one call (MAP_POPULATE) rather than faulted in one by one as rows come
+        skip = start % mmap.ALLOCATIONGRANULARITY
+        window = mmap.mmap(self._file.fileno(), skip + nbytes, flags=mmap.MAP_SHARED | _POPULATE,
+                           offset=start - skip)
+        self._window = np.frombuffer(window, dtype="<f8", offset=skip).reshape(self.chunk_rows, self.columns)
+        return self._window
 
     def _reserve(self, start: int, nbytes: int) -> None:
         try:
@@ -103,29 +138,32 @@ class RunJournal:
     creates ``<output>.journal`` with the header `recover` needs without the plan (the result's
     ``names``, time first, the permutation to them, the ``derived`` columns, the run's
     ``metadata`` so far, the ``temporary`` FMU extraction folders), `window` hands the
-    recorder its next block of ``chunk_rows`` rows, `count` is the row counter it stores after
-    every row, and `close` deletes the journal."""
+    recorder its next block of ``chunk_rows`` rows (default: `cosim.record.observers.rows_per_chunk`
+    of the row's width), `count` is the row counter it stores after every row, and `close`
+    deletes the journal."""
 
     def __init__(self, output: str | Path, names: Sequence[str], derived: DerivedColumns, metadata: dict,
-                 temporary: Sequence[str] = (), chunk_rows: int | None = None):
-        from .observers import CHUNK_ROWS
-
+                 temporary: Sequence[str] = (), chunk_rows: int | None = None, durable=None):
+        #: the CSV sink whose part file keeps the rows flushed (`cosim.record.observers.CsvSink`):
+        #: the journal is then a ring of one window (see the module docstring)
+        self.durable = durable
         self.output = Path(output)
         self.names = list(names)
         self.derived = derived
         self.metadata = metadata
         self.temporary = list(temporary)
-        self.chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
+        self.chunk_rows = chunk_rows
         self._journal: Journal | None = None
 
     def open(self, names: list[str]) -> None:
         """Create the journal for buffer rows laid out as ``names`` (OSError if it cannot be written)."""
-        from .observers import column_order
+        from .observers import column_order, rows_per_chunk
 
         permutation = column_order(names[1:], self.names[1:]).tolist()
         header = {"output": str(self.output.resolve()), "names": self.names, "permutation": permutation,
                   "derived": self.derived.header(), "metadata": self.metadata, "temporary": self.temporary}
-        self._journal = Journal(journal_path(self.output), header, len(names), self.chunk_rows)
+        self._journal = Journal(journal_path(self.output), header, len(names),
+                                self.chunk_rows or rows_per_chunk(len(names)), ring=self.durable is not None)
 
     @property
     def count(self) -> np.ndarray:
@@ -140,6 +178,11 @@ class RunJournal:
         """Nothing to copy: ``rows`` are the journal's own mapped window, filled in place and
         counted row by row, so they are in the kernel's page cache already."""
 
+    def synced(self, rows: int) -> None:
+        """The observers hold the first ``rows`` rows: marked with the durable sink's bytes."""
+        if self.durable is not None and self._journal is not None:
+            self._journal.mark(rows, self.durable.position())
+
     def close(self, metadata: dict) -> None:
         """Delete the journal: the run's own observers hold its rows and ``metadata`` now."""
         if self._journal is not None:
@@ -150,12 +193,21 @@ class RunJournal:
 def read_journal(path: str | Path) -> tuple[dict, np.ndarray]:
     """The header and the rows (journal column order) of a journal file."""
     data = Path(path).read_bytes()
-    if data[:8] != MAGIC:
+    if data[:8] not in (MAGIC, _MAGIC_01):
         raise ValueError(f"{path}: not a cosim journal")
-    rows, columns, offset, length = np.frombuffer(data, dtype="<i8", count=4, offset=8)
-    header = json.loads(data[_HEADER:_HEADER + length])
+    rows, columns, offset, length = (int(v) for v in np.frombuffer(data, dtype="<i8", count=4, offset=8))
+    ring = 0
+    if data[:8] == MAGIC:
+        ring, which, *pairs = (int(v) for v in np.frombuffer(data, dtype="<i8", count=6, offset=40))
+        header = json.loads(data[_HEADER:_HEADER + length])
+        header["part_rows"], header["part_bytes"] = pairs[2 * which], pairs[2 * which + 1]
+    else:
+        header = json.loads(data[_HEADER_01:_HEADER_01 + length])
+    # a ring holds rows first .. count - 1 (the window of the last row), a journal every row
+    first = (rows - 1) // ring * ring if ring and rows else 0
     available = max(0, (len(data) - offset) // (8 * columns))
-    rows = min(int(rows), int(available))
+    rows = min(rows - first, available)
+    header["first_row"] = first
     table = np.frombuffer(data, dtype="<f8", count=rows * columns, offset=offset).reshape(rows, columns)
     return header, table
 
@@ -172,18 +224,27 @@ def recover(path: str | Path, status: str = "crashed", message: str = "") -> tup
     names = header["names"] + list(derived.names)
     output = result_of(Path(path))
     sink = file_sink(output)
-    sink.open(names)
-    if len(rows):
-        sink.write(rows)
+    first, kept = header["first_row"], header.get("part_bytes", 0)
+    if kept:   # a ring: the part file's marked bytes hold the rows before part_rows
+        if not sink.part.exists() and output.exists():   # killed after its result was in place
+            shutil.copyfile(output, sink.part)
+        sink.resume(names, kept)
+        new = rows[header["part_rows"] - first:]
+    else:
+        sink.open(names)
+        new = rows
+    if len(new):
+        sink.write(new)
     metadata = dict(header.get("metadata", {}))
-    metadata.update(status=status, message=message, error=Errc.run_process_lost.value, samples=len(rows),
+    samples = first + len(rows)
+    metadata.update(status=status, message=message, error=Errc.run_process_lost.value, samples=samples,
                     last_time=float(rows[-1, 0]) if len(rows) else None)
     sink.close(metadata)
     Path(path).unlink()
     for folder in header.get("temporary", []):
         if _extraction_folder(Path(folder)):
             shutil.rmtree(folder, ignore_errors=True)
-    return output, len(rows)
+    return output, samples
 
 
 def result_of(journal: Path) -> Path:

@@ -3,12 +3,15 @@
 Recording is one role, `Observer` (``open(names)``, ``write(rows)``, ``close(metadata)``),
 implemented by `CsvSink` (a CSV readable by ``fmpy.util.read_csv``) and `ParquetSink`, each
 with a JSON metadata file beside it (`file_sink` picks one by the file's suffix), `MemorySink`
-(for the Python API), `SystemOutputColumns` (the root system's output connectors appended,
-`DerivedColumns`, then the rows handed on) and the run journal (`cosim.record.journal.RunJournal`).
-`Recorder` fills a preallocated NumPy chunk (the journal's mapped window, with one) in the hot
-loop and hands the new rows to its observers, so a run that fails half way has every flushed
-sample on disk, and the recorder's memory is one chunk whatever the run's length.  Data flows
-one way: execution -> recorder -> observers; no observer calls back.
+(for the Python API) and the run journal (`cosim.record.journal.RunJournal`).  `Recorder`
+fills rows in the result's column order (time, the components' connectors, then the root
+system's output connectors, `DerivedColumns`, computed per chunk) straight into the memory they
+are kept in: the journal's mapped window when there is one, else the `MemorySink`'s one
+preallocated array when it keeps every column, else a chunk of at most `CHUNK_BYTES`; it hands
+the new rows to its observers as views of that memory (no copy for the owner of the buffer,
+one for the others), so a run that fails half way has every flushed sample on disk, and a file
+sink's memory is one chunk whatever the run's length.  Data flows one way: execution ->
+recorder -> observers; no observer calls back.
 
 A file sink writes to ``<name>.part`` beside the result (`cosim.safeio.partial_path`) and
 renames it onto the result when it closes, then writes the JSON the same way: a reader sees
@@ -31,7 +34,8 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
-from .csvformat import format_rows
+from .. import kernel
+from .csvformat import RowText
 from ..model.transforms import Transform, from_json
 from ..errors import OutOfMemory, OutputError
 from ..extras import has_pyarrow, require_pyarrow
@@ -40,8 +44,18 @@ from ..safeio import partial_path, write_atomic
 if TYPE_CHECKING:
     from ..model.structure import RecordedOutput
 
-#: rows the recorder's buffer (and each journal window) holds; a full one is flushed
+#: rows the recorder's chunk (and each journal window) holds at most; a full one is flushed
 CHUNK_ROWS = 4096
+#: bytes a chunk holds at most: a wide row (a system of 1000 FMUs records 2001 columns, 16 kB a
+#: row) makes a chunk of fewer rows
+CHUNK_BYTES = 4 << 20
+
+
+def rows_per_chunk(columns: int, rows: int | None = None) -> int:
+    """The rows of a chunk of ``columns`` float64 columns: `CHUNK_ROWS`, fewer for rows so wide
+    that a chunk would pass `CHUNK_BYTES`, and no more than the ``rows`` a run records."""
+    fitting = max(1, min(CHUNK_ROWS, CHUNK_BYTES // (8 * max(1, columns))))
+    return fitting if rows is None else max(1, min(fitting, rows))
 
 
 @runtime_checkable
@@ -61,15 +75,24 @@ class Observer(Protocol):
 
 
 class WindowedObserver(Observer, Protocol):
-    """An `Observer` that is also the `Recorder`'s buffer (the journal, `cosim.record.journal.RunJournal`):
-    its ``write`` gets the rows as the buffer holds them, in place, and the recorder stores the
-    number of rows recorded in `count` after every row."""
+    """An `Observer` that is also the `Recorder`'s buffer (the journal, `cosim.record.journal.RunJournal`;
+    a `MemorySink` that keeps every column): its ``write`` gets the rows as the buffer holds them,
+    in place."""
+
+    def window(self) -> np.ndarray:
+        """The next block of buffer rows (rows x columns, float64, C-contiguous)."""
+
+
+class JournalObserver(WindowedObserver, Protocol):
+    """The run journal's role for the `Recorder` (`cosim.record.journal.RunJournal`): a
+    `WindowedObserver` whose row counter ``count`` the recorder stores after every row, told
+    after each flush how many rows the other observers hold (`synced`)."""
 
     #: the row counter (one int64)
     count: np.ndarray
 
-    def window(self) -> np.ndarray:
-        """The next block of buffer rows (rows x columns, float64)."""
+    def synced(self, rows: int) -> None:
+        """The other observers hold the first ``rows`` rows."""
 
 
 def file_sink(path: str | Path) -> CsvSink | ParquetSink:
@@ -134,8 +157,16 @@ class _FileSink:
         return json.dumps(metadata, indent=2, default=str) + "\n"
 
 
-#: whether result CSVs are formatted by Arrow's C++ writer (pyarrow installed) or by `cosim.record.csvformat`
-ARROW_CSV = has_pyarrow()
+#: whether result CSVs are formatted by Arrow's C++ writer (True) or by `cosim.record.csvformat`
+#: (False); None: by `cosim.record.csvformat` where the kernel library is built (in C, about half
+#: Arrow's time per value, and no transposed copy of the chunk), else by Arrow if pyarrow is installed
+ARROW_CSV: bool | None = None
+
+
+def _arrow_csv() -> bool:
+    if ARROW_CSV is not None:
+        return ARROW_CSV
+    return kernel.library()[0] is None and has_pyarrow()
 
 
 def csv_header(names: Sequence[str]) -> str:
@@ -150,18 +181,19 @@ class CsvSink(_FileSink):
 
     A quoted header (`csv_header`), then one line per sample: each float64 in the shortest
     decimal form that reads back to the same bits (``-0``, ``inf``, ``nan`` included), laid out
-    as Arrow's CSV writer lays it out, which ``fmpy.util.read_csv`` reads.  With pyarrow
-    installed (``greyfmu[parquet]``) Arrow's C++ writer formats each chunk (without the GIL);
-    without it `cosim.record.csvformat.format_rows` writes the same bytes (in C, about half Arrow's
-    time per value; in Python without the compiled kernel library, about 5 times it:
-    benchmarks/bench_csv.py).
+    as Arrow's CSV writer lays it out, which ``fmpy.util.read_csv`` reads: by
+    `cosim.record.csvformat.RowText` (in C, about half Arrow's time per value, block by block into
+    one buffer), or, without the compiled kernel library, by Arrow's C++ writer where pyarrow is
+    installed (``greyfmu[parquet]``), else in Python (about 5 times Arrow's time:
+    benchmarks/bench_csv.py); all three write the same bytes (`ARROW_CSV`).
     """
 
     def __init__(self, path: str | Path):
         super().__init__(path)
         self._file = None
-        self._arrow = ARROW_CSV
+        self._arrow = _arrow_csv()
         self._names: list[str] = []
+        self._text: RowText | None = None
 
     @_naming_the_file
     def open(self, names: list[str]) -> None:
@@ -174,6 +206,27 @@ class CsvSink(_FileSink):
         self._write_all(csv_header(names).encode())
         self._file.flush()
         self._names = names
+        if not self._arrow:
+            self._text = RowText(len(names))
+
+    @_naming_the_file
+    def resume(self, names: list[str], part_bytes: int) -> None:
+        """Go on writing the part file a run left (its first ``part_bytes`` bytes kept: the header
+        and whole rows, `cosim.record.journal.recover`) with rows laid out as ``names``."""
+        os.truncate(self.part, part_bytes)
+        if self._arrow:
+            import pyarrow as pa
+
+            self._file = pa.OSFile(str(self.part), "ab")
+        else:
+            self._file = open(self.part, "ab", buffering=0)
+        self._names = names
+        if not self._arrow:
+            self._text = RowText(len(names))
+
+    def position(self) -> int:
+        """The bytes written to the part file (header and whole rows)."""
+        return self._file.tell()
 
     @_naming_the_file
     def write(self, rows: np.ndarray) -> None:
@@ -182,13 +235,14 @@ class CsvSink(_FileSink):
             if self._arrow:
                 self._write_arrow(rows)
             else:
-                self._write_all(format_rows(rows))
+                for block in self._text.blocks(rows):
+                    self._write_all(block)
             self._file.flush()
         except OSError:  # a full disk: drop the partly written chunk, so every line left is whole
             os.truncate(self.part, end)
             raise
 
-    def _write_all(self, data: bytes) -> None:
+    def _write_all(self, data: bytes | memoryview) -> None:
         """Write every byte (an unbuffered write may take part of them)."""
         view = memoryview(data)
         while view:
@@ -263,18 +317,30 @@ class ParquetSink(_FileSink):
 
 
 class MemorySink:
-    """Keeps the chunks; `array()` joins them into a structured array like fmpy.simulate_fmu's.
+    """Keeps the rows in one array, preallocated for ``rows`` rows when the run says how many it
+    records (grown by doubling when not); `array()` is a structured array like
+    fmpy.simulate_fmu's, a view of that array (no copy).
 
     ``keep``: the columns to keep besides ``time`` (None: all), so a long run written to a
-    file need not also hold every signal in memory.
+    file need not also hold every signal in memory.  Keeping all of them with ``rows`` known,
+    it is `windowed`: the `Recorder` writes the rows straight into its array (`window`).
     """
 
-    def __init__(self, keep: Sequence[str] | None = None) -> None:
+    def __init__(self, keep: Sequence[str] | None = None, rows: int | None = None) -> None:
         self.keep = None if keep is None else set(keep)
+        self.capacity = rows
         self.names: list[str] = []
-        self.chunks: list[np.ndarray] = []
         self.metadata: dict = {}
+        #: the rows kept so far
+        self.rows = 0
         self._columns: np.ndarray | None = None
+        self._data: np.ndarray | None = None
+        self._lent = self._dropped = False
+
+    @property
+    def windowed(self) -> bool:
+        """Whether the recorder may fill this sink's array itself (`window`)."""
+        return self.keep is None and self.capacity is not None
 
     def open(self, names: list[str]) -> None:
         if self.keep is None:
@@ -286,18 +352,46 @@ class MemorySink:
         self._columns = np.array([i for i, name in enumerate(names) if i == 0 or name in self.keep], dtype=np.intp)
         self.names = [names[i] for i in self._columns]
 
+    def _room(self, rows: int) -> np.ndarray:
+        """The array with room for ``rows`` more rows (allocated, or grown by doubling)."""
+        need = self.rows + rows
+        if self._data is None or len(self._data) < need:
+            size = max(need, self.capacity or 0) if self._data is None else max(need, 2 * len(self._data))
+            grown = np.empty((size, len(self.names)))
+            if self._data is not None:
+                grown[:self.rows] = self._data[:self.rows]
+            self._data = grown
+        return self._data
+
+    def window(self) -> np.ndarray:
+        """The free rows of the array (the recorder writes there; ``write`` then counts them)."""
+        self._lent = True
+        return self._room(1)[self.rows:]
+
     def write(self, rows: np.ndarray) -> None:
-        self.chunks.append(rows.copy() if self._columns is None else rows[:, self._columns])
+        if self._dropped:
+            return
+        if self._lent:   # the rows of `window`, in place
+            self.rows += len(rows)
+            return
+        data = self._room(len(rows))[self.rows:self.rows + len(rows)]
+        if self._columns is None:
+            data[...] = rows
+        else:
+            np.take(rows, self._columns, axis=1, out=data)
+        self.rows += len(rows)
 
     def close(self, metadata: dict) -> None:
         self.metadata = metadata
 
+    def clear(self) -> None:
+        """Drop the rows kept, and keep no more (the process ran out of memory and a result file has them)."""
+        self._data, self.rows, self._dropped = None, 0, True
+
     def array(self) -> np.ndarray:
-        data = np.concatenate(self.chunks) if self.chunks else np.empty((0, len(self.names)))
-        result = np.empty(len(data), dtype=[(n, np.float64) for n in self.names])
-        for i, n in enumerate(self.names):
-            result[n] = data[:, i]
-        return result
+        """The rows kept, as a structured array (a field per column) viewing the sink's array."""
+        data = self._data[:self.rows] if self._data is not None else np.empty((0, len(self.names)))
+        return data.view(np.dtype([(n, np.float64) for n in self.names]))[:, 0]
 
 
 def column_order(source_names: Sequence[str], names: Sequence[str]) -> np.ndarray:
@@ -312,7 +406,7 @@ class DerivedColumns:
     """The root system's output connectors, each its ``transform`` of ``rows[:, column]``
     (`cosim.model.structure.RecordedOutput`: the composed unit conversions and transformations
     of SSP 1.0, sec. 5.3.4 and 5.3.5, `cosim.model.transforms`; an undriven one is
-    ``Affine(0, its constant)`` of time): the one formula of the live run (`SystemOutputColumns`)
+    ``Affine(0, its constant)`` of time): the one formula of the live run (`Recorder`, in place)
     and of a journal's recovery (`cosim.record.journal.recover`), computed per chunk, never in the
     stepping loop.  A value a mapping table on the way names no target for is NaN in the column,
     with a `RuntimeWarning` naming the connector (the column records; it drives no FMU)."""
@@ -340,79 +434,73 @@ class DerivedColumns:
         return [{"name": n, "column": c, "transform": t.as_json()}
                 for n, c, t in zip(self.names, self.columns, self.transforms)]
 
+    def fill(self, rows: np.ndarray, first: int) -> None:
+        """Compute the derived columns of ``rows`` into its columns ``first``, ``first + 1``, ..."""
+        for k, (name, column, transform) in enumerate(zip(self.names, self.columns, self.transforms)):
+            rows[:, first + k] = transform.apply_array(rows[:, column])
+            if transform.partial and np.isnan(rows[:, first + k]).any():
+                warnings.warn(f"root output connector '{name}': {transform.text()} names no target for some of "
+                              "its source's values; its column holds NaN there.", RuntimeWarning, stacklevel=3)
+
     def extend(self, rows: np.ndarray) -> np.ndarray:
         """``rows`` with the derived columns appended (``rows`` itself when there are none)."""
         if not self.names:
             return rows
-        derived = np.empty((len(rows), len(self.names)))
-        for k, (name, column, transform) in enumerate(zip(self.names, self.columns, self.transforms)):
-            derived[:, k] = transform.apply_array(rows[:, column])
-            if transform.partial and np.isnan(derived[:, k]).any():
-                warnings.warn(f"root output connector '{name}': {transform.text()} names no target for some of "
-                              "its source's values; its column holds NaN there.", RuntimeWarning, stacklevel=2)
-        return np.hstack([rows, derived])
-
-
-class SystemOutputColumns:
-    """An `Observer` that appends the `DerivedColumns` to every chunk and hands it on to its own
-    observers (``derived`` laid out on the names this one is opened with)."""
-
-    def __init__(self, derived: DerivedColumns, observers: Sequence[Observer]):
-        self.derived = derived
-        self.observers = list(observers)
-
-    def open(self, names: list[str]) -> None:
-        for observer in self.observers:
-            observer.open(names + list(self.derived.names))
-
-    def write(self, rows: np.ndarray) -> None:
-        rows = self.derived.extend(rows)
-        for observer in self.observers:
-            observer.write(rows)
-
-    def close(self, metadata: dict) -> None:
-        for observer in self.observers:
-            observer.close(metadata)
+        extended = np.empty((len(rows), rows.shape[1] + len(self.names)))
+        extended[:, :rows.shape[1]] = rows
+        self.fill(extended, rows.shape[1])
+        return extended
 
 
 class Recorder:
-    """Sample buffer fed from the execution's value arrays, fanning the rows out to observers.
+    """The rows of a run, filled from the execution's value arrays and handed to the observers.
 
-    ``sources`` are the arrays (outputs and inputs of each type) copied into a
-    row in the order of ``source_names``; rows are handed to the ``observers`` in ``names``
-    order (time first, then component by component as the SSD lists them).
-    The rows go out when ``chunk_rows`` are filled or ``flush_seconds``
-    have passed (the clock is read at every row, so a slow run is flushed on time).
-    With ``journal`` (a `WindowedObserver`: `cosim.record.journal.RunJournal`) the buffer is the
-    journal's mapped window and the row counter is stored after every row, so a crash loses
-    no row.  The interface `cosim.run.execution.Execution` feeds: `record`
-    (the Python loop), `window` and `filled` (the compiled one), `samples`.
+    ``sources`` are the arrays (outputs and inputs of each type) whose values, named
+    ``source_names`` in order, make a row; a row is the time, then ``names`` (component by
+    component as the SSD lists them), then the ``derived`` columns (the root system's output
+    connectors), which are computed per chunk when the rows are handed on.  The rows are filled
+    in that order where they are kept (the buffer): the ``journal``'s mapped window (a
+    `JournalObserver`: `cosim.record.journal.RunJournal`, whose row counter `count` is stored
+    after every row, so a crash loses no row, and which is told after each flush how many rows
+    the observers hold), else a `MemorySink` observer that keeps every
+    column and knows the ``rows`` of the run (its array: no copy at all), else a chunk of
+    ``chunk_rows`` rows (default `rows_per_chunk`).  The rows go out when the buffer is full or ``flush_seconds`` have passed
+    (the clock is read at every row, so a slow run is flushed on time).  The interface
+    `cosim.run.execution.Execution` feeds: `record` (the Python loop), `sources`, `width`,
+    `window` and `filled` (the compiled one), `samples`.
     """
 
     def __init__(self, source_names: list[str], sources: list[np.ndarray], names: list[str],
-                 observers: Sequence[Observer], chunk_rows: int = CHUNK_ROWS, flush_seconds: float = 1.0,
-                 journal: WindowedObserver | None = None):
-        self.sources = []
-        col = 1
-        for arr in sources:
-            self.sources.append((col, col + len(arr), arr))
-            col += len(arr)
-        self.names = ["time", *names]
-        self.permutation = column_order(source_names, names)
+                 observers: Sequence[Observer], chunk_rows: int | None = None, flush_seconds: float = 1.0,
+                 journal: JournalObserver | None = None, *, derived: DerivedColumns | None = None,
+                 rows: int | None = None):
+        self.derived = derived if derived is not None else DerivedColumns((), (), ())
+        self.names = ["time", *names, *self.derived.names]
+        #: the columns of a row, and the first derived one
+        self.width, self._first_derived = len(self.names), 1 + len(names)
+        #: per source (a run of an array's values recorded): its address, length, whether it holds C
+        #: ints and the column of each value (the compiled loop's, `cosim.kernel.Kernel.record`)
+        self.sources: list[tuple[int, int, bool, np.ndarray]] = []
+        self._copies: list[tuple[slice | np.ndarray, np.ndarray]] = []   # the Python loop's: columns, values
+        self._layout(source_names, sources, names)
         self.observers = list(observers)
         self.journal = journal
+        owner = journal if journal is not None else \
+            next((o for o in self.observers if getattr(o, "windowed", False)), None)
         try:
             if journal is not None:
-                journal.open(["time"] + list(source_names))
-                self.buffer = journal.window()
-            else:
-                self.buffer = np.empty((chunk_rows, col))
+                journal.open(list(self.names))
             for observer in self.observers:
-                observer.open(self.names)
+                observer.open(list(self.names))
+            if journal is not None:
+                journal.synced(0)
+            self.buffer = owner.window() if owner is not None else \
+                np.empty((chunk_rows or rows_per_chunk(self.width, rows), self.width))
         except OSError as e:
             if journal is not None:
                 journal.close({})
             raise _write_error("the results cannot be written: {}.", e) from None
+        self._owner = owner
         self._count = journal.count if journal is not None else np.zeros(1, dtype=np.int64)
         self._count_address = self._count.ctypes.data
         self._base = self.buffer.ctypes.data   # the addresses `window` hands out, found once a buffer
@@ -423,11 +511,40 @@ class Recorder:
         self.samples = 0
         self.broken: OSError | None = None
 
+    def _layout(self, source_names: list[str], sources: list[np.ndarray], names: list[str]) -> None:
+        """`sources` and the Python loop's copies: each run of consecutive values of an array
+        that ``names`` records, with their columns (a value ``names`` leaves out is not recorded)."""
+        column = {n: i + 1 for i, n in enumerate(names)}
+        known = set(source_names)
+        unknown = [n for n in names if n not in known]
+        if unknown:
+            raise ValueError(f"Recorder: no source for {', '.join(unknown)}")
+        offset = 0
+        for array in sources:
+            where = [column.get(n, 0) for n in source_names[offset:offset + len(array)]]
+            offset += len(array)
+            j = 0
+            while j < len(where):
+                if not where[j]:
+                    j += 1
+                    continue
+                end = j
+                while end < len(where) and where[end]:
+                    end += 1
+                values, columns = array[j:end], np.array(where[j:end], dtype=np.intc)
+                self.sources.append((values.ctypes.data, len(values), values.dtype.kind in "iub", columns))
+                consecutive = bool(np.all(np.diff(columns) == 1))
+                self._copies.append((slice(int(columns[0]), int(columns[-1]) + 1) if consecutive
+                                     else columns.astype(np.intp), values))
+                j = end
+
     def record(self, t: float) -> None:
+        if self.rows == len(self.buffer):
+            self._next_buffer()
         row = self.buffer[self.rows]
         row[0] = t
-        for a, b, arr in self.sources:
-            row[a:b] = arr
+        for columns, values in self._copies:
+            row[columns] = values
         self.rows += 1
         self.samples += 1
         self._count[0] = self.samples
@@ -438,6 +555,8 @@ class Recorder:
         """Where the compiled loop (`cosim.kernel`) writes the next rows: the address of the
         first free row of the buffer, how many rows are free, the address of the row counter
         (int64) it stores after each row, and the monotonic time after which to flush."""
+        if self.rows == len(self.buffer):
+            self._next_buffer()
         free = len(self.buffer) - self.rows
         return self._base + self.rows * self.buffer.strides[0], free, self._count_address, self._flush_at
 
@@ -449,30 +568,43 @@ class Recorder:
         if self.rows == len(self.buffer) or due:
             self.flush()
 
+    def _next_buffer(self) -> None:
+        """The buffer after a full one (flushed), taken when a row is to be written, not when the
+        last one filled it: a run that fills its `MemorySink`'s array exactly, or its journal's last
+        window, asks for no more.  A journal that cannot grow (a full disk) is an `OutputError`."""
+        if self._owner is not None:
+            try:
+                self.buffer = self._owner.window()
+            except OSError as e:
+                raise self._broken_by(e) from None
+            self._base = self.buffer.ctypes.data
+        self.rows = self._written = 0
+
+    def _broken_by(self, e: OSError) -> OutputError:
+        """The error of a write that failed (``e``), after which no flush is tried."""
+        self.broken = e
+        return _write_error(f"writing the results failed after {self.samples} rows: {{}}; the rows written "
+                            "before are kept.", e)
+
     def flush(self) -> None:
-        """Hand the new rows to the observers (the journal as the buffer holds them, the others
-        in result order); an observer (or the journal) that cannot write (a full disk) is an
-        `OutputError`, and no later flush is tried."""
+        """Compute the new rows' derived columns and hand the rows to the observers (and the
+        journal) as a view of the buffer; an observer (or the journal) that cannot write (a full
+        disk) is an `OutputError`, and no later flush is tried."""
         if self.broken is not None:
             return
         try:
             if self.rows > self._written:
                 new = self.buffer[self._written:self.rows]
+                self.derived.fill(new, self._first_derived)
                 if self.journal is not None:
                     self.journal.write(new)
-                chunk = new[:, self.permutation]
                 for observer in self.observers:
-                    observer.write(chunk)
-                self._written = self.rows
-            if self.rows == len(self.buffer):
+                    observer.write(new)
                 if self.journal is not None:
-                    self.buffer = self.journal.window()
-                    self._base = self.buffer.ctypes.data
-                self.rows = self._written = 0
+                    self.journal.synced(self.samples)
+                self._written = self.rows
         except OSError as e:
-            self.broken = e
-            raise _write_error(f"writing the results failed after {self.samples} rows: {{}}; the rows written "
-                               "before are kept.", e) from None
+            raise self._broken_by(e) from None
         self._flush_at = time.monotonic() + self.flush_seconds
 
     def close(self, metadata: dict) -> None:

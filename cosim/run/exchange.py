@@ -91,10 +91,13 @@ class TypedBuffers:
 
     @staticmethod
     def _slices(pairs, order):
+        """Each component's (first position, count, value references) in ``pairs`` (in ``order``)."""
+        by_component: dict[str, list[int]] = {comp: [] for comp in order}
+        for c, v in pairs:
+            by_component[c].append(v.vr)
         slices = {}
         i = 0
-        for comp in order:
-            vrs = [v.vr for c, v in pairs if c == comp]
+        for comp, vrs in by_component.items():
             slices[comp] = (i, len(vrs), (ctypes.c_uint * max(1, len(vrs)))(*vrs))
             i += len(vrs)
         return slices
@@ -103,9 +106,9 @@ class TypedBuffers:
         """``routes`` (of this type, their transformations `cosim.model.transforms.Affine`) as a group."""
         src = np.array([self.out_index[(r.src, r.src_var.name)] for r in routes], dtype=np.intp)
         dst = np.array([self.in_index[(r.dst, r.dst_var.name)] for r in routes], dtype=np.intp)
-        factor = np.array([r.transform.factor for r in routes], dtype=np.float64)
-        offset = np.array([r.transform.offset for r in routes], dtype=np.float64)
-        identity = bool(np.all(factor == 1.0) and np.all(offset == 0.0))
+        factors, offsets = [r.transform.factor for r in routes], [r.transform.offset for r in routes]
+        factor, offset = np.array(factors, dtype=np.float64), np.array(offsets, dtype=np.float64)
+        identity = all(f == 1.0 for f in factors) and all(o == 0.0 for o in offsets)
         return Routing(src, dst, factor, offset, identity, tuple(routes))
 
     def mapped(self, routes: Sequence[Route]) -> Mapped:

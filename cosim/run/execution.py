@@ -101,7 +101,9 @@ class Execution:
     # ----------------------------------------------------------------- set-up
 
     def instantiate(self) -> None:
-        """Instantiate every component (or take it from the pool)."""
+        """Instantiate every component (or take it from the pool); each FMU file's folder is looked
+        up once."""
+        folders: dict[Path, str] = {}
         for name in self.plan.components:
             desc = self.plan.fmus[name]
             kept = self.pool.take(name, desc, self.fmu_log) if self.pool is not None else None
@@ -110,7 +112,9 @@ class Execution:
                 self.reused.append(name)
                 continue
             opened = open_instance if self.isolation is None else self.isolation.open
-            inst = opened(name, desc, self._unzipped(desc.path), self.plan.solvers.get(name))
+            if desc.path not in folders:
+                folders[desc.path] = self._unzipped(desc.path)
+            inst = opened(name, desc, folders[desc.path], self.plan.solvers.get(name))
             self.instances[name] = inst
             inst.instantiate(self.fmu_log)
 

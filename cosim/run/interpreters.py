@@ -146,11 +146,9 @@ class NativeInterpreter:
 
     name = "native"
 
-    def __init__(self, program: LinkedProgram, grid: Grid, python: PythonInterpreter,
-                 sources: list[tuple[int, int, bool]], threads: int = 1):
+    def __init__(self, program: LinkedProgram, grid: Grid, python: PythonInterpreter, threads: int = 1):
         self.program, self.grid, self.python = program, grid, python
-        self.kernel = native.Kernel([op.native for op in program.operations], sources, grid,
-                                    1 + sum(n for _, n, _ in sources), threads, program.parallel)
+        self.kernel = native.Kernel([op.native for op in program.operations], grid, threads, program.parallel)
         self.k = 0
         self._recorder: Recorder | None = None
         self._stop: StopRequest | None = None
@@ -158,6 +156,7 @@ class NativeInterpreter:
 
     def start(self, recorder: Recorder, stop: StopRequest) -> None:
         self._recorder, self._stop = recorder, stop
+        self.kernel.record(recorder.sources, recorder.width)
         self._watching = bool(stop.signals)
         if self._watching:
             self.kernel.watch_signals()
@@ -251,9 +250,7 @@ def choose_interpreter(program: LinkedProgram, grid: Grid, kernel: str = "auto",
     in_python = program.python_operations()
     if kernel == "auto" and sum(in_python.values()) == len(program.top_level()):
         return Choice(python, python, "python", "no operation of the step has a C form: " + "; ".join(in_python))
-    sources = [(ty.address(buf, 0), n, ty.integer) for ty in program.buffers if not ty.strings
-               for buf, n in ((ty.Ybuf, len(ty.Y)), (ty.Ubuf, len(ty.U)))]
-    return Choice(NativeInterpreter(program, grid, python, sources, threads), python, "native")
+    return Choice(NativeInterpreter(program, grid, python, threads), python, "native")
 
 
 def _notice_once(reason: str) -> None:

@@ -119,32 +119,42 @@ def compile(plan: Plan, algorithm: str = "jacobi") -> StepProgram:
 
 
 class _Compiler:
-    """Appends the operations of one component or route group (`compile`)."""
+    """Appends the operations of one component or route group (`compile`).  What it looks up per
+    component (its exchange types, the routes into it by type) is grouped once, so compiling a
+    plan is linear in its components and routes."""
 
     def __init__(self, plan: Plan):
         self.plan = plan
         self.ops: list[Op] = []
+        #: each component's exchange types of its outputs and of its inputs
+        self._out_types = {c: {exchange_type(v) for v in plan.outputs[c]} for c in plan.components}
+        self._in_types = {c: {exchange_type(v) for v in plan.inputs[c]} for c in plan.components}
         #: the exchange types the plan's components connect or record, in `EXCHANGE_TYPES` order
-        self.types = [t for t in EXCHANGE_TYPES if any(exchange_type(v) == t for c in plan.components
-                                                       for v in plan.outputs[c] + plan.inputs[c])]
+        present = set().union(*self._out_types.values(), *self._in_types.values())
+        self.types = [t for t in EXCHANGE_TYPES if t in present]
+        #: the routes (indices of plan.routes) by (destination, exchange type), and by type
+        self._into: dict[tuple[str | None, str], list[int]] = {}
+        for i, r in enumerate(plan.routes):
+            ty = exchange_type(r.src_var)
+            self._into.setdefault((r.dst, ty), []).append(i)
+            self._into.setdefault((None, ty), []).append(i)
 
     def append(self, kind: int, component: str | None = None, **kw) -> None:
         self.ops.append(Op(kind, component, next=len(self.ops) + 1, **kw))
 
     def calls(self, kind: int, comp: str, at_step_end: bool = True) -> None:
         """The batched gets (or sets) of ``comp``, one per exchange type it has connectors of."""
-        variables = self.plan.outputs[comp] if kind == OP_GET else self.plan.inputs[comp]
+        present = self._out_types[comp] if kind == OP_GET else self._in_types[comp]
         for ty in self.types:
-            if any(exchange_type(v) == ty for v in variables):
+            if ty in present:
                 self.append(kind, comp, type_name=ty, at_step_end=at_step_end)
 
     def routes(self, comp: str | None, at_step_end: bool = True) -> None:
         """The routes into ``comp`` (None: all) of each exchange type: the affine ones, then the others."""
         for ty in self.types:
-            into = [i for i, r in enumerate(self.plan.routes)
-                    if exchange_type(r.src_var) == ty and (comp is None or r.dst == comp)]
+            into = self._into.get((comp, ty), ())
             affine = tuple(i for i in into if isinstance(self.plan.routes[i].transform, Affine))
-            others = tuple(i for i in into if i not in affine)
+            others = tuple(i for i in into if not isinstance(self.plan.routes[i].transform, Affine))
             for kind, routes in ((OP_ROUTE, affine), (OP_MAP, others)):
                 if routes:
                     self.append(kind, comp, type_name=ty, at_step_end=at_step_end, routes=routes)

@@ -22,7 +22,7 @@ from ..model.structure import LoopMode, Plan
 from ..plan.prepare import Prepared, prepare
 from ..record.journal import RunJournal
 from ..record.metadata import signal_info
-from ..record.observers import DerivedColumns, MemorySink, Recorder, SystemOutputColumns, file_sink
+from ..record.observers import CsvSink, DerivedColumns, MemorySink, ParquetSink, Recorder, file_sink, rows_per_chunk
 from ..safeio import lock_output
 from .execution import Execution
 from .program import compile as compile_program
@@ -115,9 +115,11 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     """
     isolation = isolation_of(isolate, call_timeout)
     plan = prepared.plan
-    memory = MemorySink(keep)
-    derived = DerivedColumns.of(list(plan.system_outputs.values()), ["time", *plan.columns])
-    observers = [SystemOutputColumns(derived, [memory] + ([file_sink(output)] if output is not None else []))]
+    rows = prepared.grid.steps + 1
+    memory = MemorySink(keep, rows)
+    recorded, outputs = _recorded(plan, keep if output is None else None)
+    derived = DerivedColumns.of(outputs, ["time", *recorded])
+    observers = [memory] + ([file_sink(output)] if output is not None else [])
     execution = Execution(plan, prepared.grid, prepared.algorithm, fmu_log, loop_settings, isolation,
                           kernel, threads, pool)
     program = compile_program(plan, prepared.algorithm)   # from the plan alone
@@ -127,8 +129,9 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
         execution.instantiate()
         names, arrays = execution.link(program).recorder_sources()
         journaled = output is not None and journal
-        recorder = Recorder(names, arrays, plan.columns, observers,
-                            journal=_journal(output, plan, derived, _metadata(prepared, execution)) if journaled else None)
+        recorder = Recorder(names, arrays, recorded, observers, derived=derived, rows=rows,
+                            journal=_journal(output, plan, derived, _metadata(prepared, execution), rows,
+                                             observers[-1]) if journaled else None)
         execution.initialize()
         if progress:
             from tqdm import tqdm
@@ -147,6 +150,18 @@ def run(prepared: Prepared, *, output: str | Path | None = None, progress: bool 
     metadata = _metadata(prepared, execution)
     recorder.close(metadata)
     return RunOutcome.of(metadata, memory.array(), output)
+
+
+def _recorded(plan: Plan, keep: Sequence[str] | None) -> tuple[list[str], list]:
+    """The component columns a run records and its root output connectors (`DerivedColumns`):
+    all of them, or with ``keep`` (a run writing no file) those it keeps and what the root
+    outputs it keeps are computed from, so a run keeping only ``time`` records only the time."""
+    outputs = list(plan.system_outputs.values())
+    if keep is None:
+        return list(plan.columns), outputs
+    outputs = [o for o in outputs if o.name in keep]
+    needed = set(keep) | {o.source for o in outputs}
+    return [c for c in plan.columns if c in needed], outputs
 
 
 def _failed(e: BaseException, prepared: Prepared, execution: Execution, recorder: Recorder | None,
@@ -186,7 +201,7 @@ def _out_of_memory(e: BaseException, output: str | Path | None, execution: Execu
     if not isinstance(e, (MemoryError, OutOfMemory)):
         return e
     if output is not None:
-        memory.chunks.clear()
+        memory.clear()
     rows = recorder.samples if recorder is not None else 0
     return OutOfMemory(f"the process ran out of memory (its address space: see ulimit -v) at t = "
                        f"{execution.last_time:g}; the {rows} rows recorded before are kept"
@@ -202,11 +217,17 @@ def isolation_of(isolate: bool, call_timeout: float | None) -> Isolation | None:
     return Isolation(call_timeout) if isolate else None
 
 
-def _journal(output: str | Path, plan: Plan, derived: DerivedColumns, metadata: dict) -> RunJournal:
-    """The journal of a run writing ``output`` (`cosim.record.journal.RunJournal`): its header holds what
-    `cosim.record.journal.recover` needs to write the result files without the plan."""
+def _journal(output: str | Path, plan: Plan, derived: DerivedColumns, metadata: dict, rows: int,
+             sink: CsvSink | ParquetSink) -> RunJournal:
+    """The journal of a run of ``rows`` rows writing ``output`` through ``sink``
+    (`cosim.record.journal.RunJournal`): its header holds what `cosim.record.journal.recover` needs
+    to write the result files without the plan; its windows are chunks
+    (`cosim.record.observers.rows_per_chunk`) of the run's rows, one written over and over beside
+    a CSV, whose part file keeps the rows flushed."""
     return RunJournal(output, ["time", *plan.columns], derived, metadata,
-                      temporary=[Unzipped.folder()] if Unzipped.folder() else [])
+                      temporary=[Unzipped.folder()] if Unzipped.folder() else [],
+                      chunk_rows=rows_per_chunk(1 + len(plan.columns) + len(derived.names), rows),
+                      durable=sink if isinstance(sink, CsvSink) else None)
 
 
 def _portable(path: str | Path, *bases: Path) -> str:
@@ -259,8 +280,9 @@ def _metadata(prepared: Prepared, execution: Execution) -> dict:
     meta["step_size_source"] = prepared.step_source
     meta["units"] = dict(plan.units)
     meta["parameter_sets"] = [_portable(p, *named) for p in prepared.parameter_sets]
+    fmu_bases = (scenario, Path.cwd())
     for component in meta.get("components", {}).values():
-        component["fmu"] = _portable(component["fmu"], scenario, Path.cwd())
+        component["fmu"] = _portable(component["fmu"], *fmu_bases)
     meta["parameter_origins"] = {f"{sv.component}.{sv.variable.name}": _portable_origin(sv.origin, named)
                                  for sv in plan.start_values}
     meta.update(signal_info(plan))

@@ -17,8 +17,7 @@ import pytest
 from cfmus import build_c_fmu, fmi2_description
 from cosim.errors import Errc, RunError
 from cosim.record.journal import RunJournal, journal_path, recover
-from cosim.record.observers import (CsvSink, DerivedColumns, MemorySink, Observer, ParquetSink, Recorder,
-                             SystemOutputColumns, file_sink)
+from cosim.record.observers import CsvSink, DerivedColumns, MemorySink, Observer, ParquetSink, Recorder, file_sink
 from cosim.run.outcome import RunOutcome
 from cosim.record.results import read
 from cosim.plan.prepare import prepare
@@ -59,7 +58,7 @@ def _record(recorder: Recorder, values: np.ndarray, rows: int) -> None:
 def test_every_recording_class_is_an_observer(tmp_path):
     derived = DerivedColumns.of([], ["time"])
     for observer in (CsvSink(tmp_path / "r.csv"), ParquetSink(tmp_path / "r.parquet"), MemorySink(),
-                     SystemOutputColumns(derived, []), RunJournal(tmp_path / "r.csv", ["time"], derived, {})):
+                     RunJournal(tmp_path / "r.csv", ["time"], derived, {})):
         assert isinstance(observer, Observer), type(observer)
 
 
@@ -71,7 +70,7 @@ def test_the_memory_and_file_observers_receive_the_same_rows(tmp_path, suffix):
     names = ["a.y", "b.u"]
     memory, path = MemorySink(), tmp_path / f"r{suffix}"
     derived = DerivedColumns.of(_outputs(), ["time"] + names)
-    recorder = Recorder(["b.u", "a.y"], [values], names, [SystemOutputColumns(derived, [memory, file_sink(path)])])
+    recorder = Recorder(["b.u", "a.y"], [values], names, [memory, file_sink(path)], derived=derived)
     _record(recorder, values, 10000)
     recorder.close({"status": "completed"})
     kept, written = memory.array(), read(path)
@@ -88,7 +87,7 @@ def test_a_recovered_journal_is_the_live_result_byte_for_byte(tmp_path):
     names = ["a.y", "b.u"]
     live = tmp_path / "live" / "r.csv"
     derived = DerivedColumns.of(_outputs(), ["time"] + names)
-    recorder = Recorder(["a.y", "b.u"], [values], names, [SystemOutputColumns(derived, [file_sink(live)])],
+    recorder = Recorder(["a.y", "b.u"], [values], names, [file_sink(live)], derived=derived,
                         journal=RunJournal(live, ["time"] + names, derived, {"scenario": "s"}))
     _record(recorder, values, 5000)
     crashed = tmp_path / "crashed" / "r.csv"
@@ -100,6 +99,39 @@ def test_a_recovered_journal_is_the_live_result_byte_for_byte(tmp_path):
     assert crashed.read_bytes() == live.read_bytes()
     meta = json.loads(crashed.with_suffix(".json").read_text())
     assert (meta["status"], meta["error"], meta["samples"], meta["scenario"]) == ("crashed", "run_process_lost", 5000, "s")
+
+
+@pytest.mark.parametrize("rows", [5000, 5120, 7])
+def test_a_csv_journal_is_one_window_and_recovers_with_the_part_file(tmp_path, rows):
+    """Issue 42: beside a CSV the journal is a ring of one window (256 rows here) written over once
+    the part file holds its rows, not a copy of every row; the part file and the journal a crash
+    leaves (copied after ``rows`` rows: mid-window, at a window's end, before any flush) recover
+    to the live result's bytes, and so does a journal left after the result was put in place."""
+    from cosim.safeio import partial_path
+
+    values = np.zeros(2)
+    names = ["a.y", "b.u"]
+    live = tmp_path / "live" / "r.csv"
+    derived = DerivedColumns.of(_outputs(), ["time"] + names)
+    sink = file_sink(live)
+    recorder = Recorder(["a.y", "b.u"], [values], names, [sink], derived=derived, chunk_rows=256,
+                        journal=RunJournal(live, ["time"] + names, derived, {"scenario": "s"}, chunk_rows=256,
+                                           durable=sink))
+    _record(recorder, values, rows)
+    assert journal_path(live).stat().st_size < 64 * 1024   # one window of 256 x 6 doubles, and the header
+    crashed = tmp_path / "crashed" / "r.csv"
+    crashed.parent.mkdir()
+    shutil.copy(journal_path(live), journal_path(crashed))
+    shutil.copy(partial_path(live), partial_path(crashed))
+    recorder.flush()
+    late = tmp_path / "late.journal"   # as a process killed after its result was in place would leave it
+    shutil.copy(journal_path(live), late)
+    recorder.close({"status": "completed"})
+    assert recover(journal_path(crashed)) == (crashed.resolve(), rows)
+    assert crashed.read_bytes() == live.read_bytes() and len(read(crashed)) == rows
+    published = live.read_bytes()
+    shutil.copy(late, journal_path(live))
+    assert recover(journal_path(live)) == (live.resolve(), rows) and live.read_bytes() == published
 
 
 def test_a_completed_run_returns_a_frozen_outcome(tmp_path, ramp):

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import json
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
 import cosim
+from cfmus import build_c_fmu, fmi2_description
 from cosim.cli import main
 from cosim.record.observers import CsvSink, MemorySink, ParquetSink, Recorder, file_sink
 from cosim.record.results import read
@@ -166,7 +168,56 @@ def test_recorder_reads_the_clock_at_every_row():
     recorder.record(0.0)
     _t.sleep(0.06)
     recorder.record(1.0)
-    assert sum(len(c) for c in sink.chunks) == 2  # flushed after the second row, not the 256th
+    assert sink.rows == 2  # flushed after the second row, not the 256th
+
+
+WIDE_BODY = ("static void start(S *s) {}\n"
+             "static void calculate(S *s) { for (int k = 0; k < 32; k++) s->r[k] = (k + 1) * s->time; }\n"
+             "static int step(S *s, double t, double h) { s->time = t + h; return 0; }\n")
+
+
+@pytest.fixture(scope="module")
+def wide_system(tmp_path_factory) -> Path:
+    """Two C FMUs of 32 outputs each (y_k = (k + 1) t), 8000 steps: 65 columns of 8001 rows."""
+    folder = tmp_path_factory.mktemp("wide")
+    outputs = [(f"y{k}", k, "output", None) for k in range(32)]
+    fmu = build_c_fmu(folder, "Wide", fmi2_description("Wide", outputs, {}, "{7a3e0000-0000-4000-8000-000000000042}"),
+                      WIDE_BODY)
+    connectors = {name: "output" for name, *_ in outputs}
+    return write_system(folder / "sys", {"Wide.fmu": fmu},
+                        ssd_text("wide", {"a": ("Wide.fmu", connectors), "b": ("Wide.fmu", connectors)}, [],
+                                 stop=0.8, step=1e-4))
+
+
+def _python_peak(folder: Path, **kw) -> tuple[int, int]:
+    """The peak of the Python (and NumPy) allocations of one compiled-loop run of ``folder``, and
+    the bytes of its samples (rows x columns x 8)."""
+    from cosim.run.simulation import run
+
+    with cosim.prepare(folder, use_providers=False) as prepared:
+        tracemalloc.start()
+        try:
+            outcome = run(prepared, kernel="native", **kw)
+            _, peak = tracemalloc.get_traced_memory()
+        finally:
+            tracemalloc.stop()
+    assert outcome.status == "completed" and outcome.samples == 8001
+    return peak, outcome.samples * (1 + len(prepared.plan.columns)) * 8
+
+
+def test_a_run_holds_its_samples_once_and_a_csv_run_holds_less(tmp_path, wide_system):
+    """Issue 42: a run recording in memory holds its samples once (one preallocated array the rows
+    are written into, returned as a view: at most 1.5x their bytes at the peak, not a chunk list,
+    its concatenation and a structured copy, 3x), writing them to a CSV (only time kept, as
+    ``cosim run -o``) holds less than that (a chunk, then one text buffer), and a run that keeps
+    only the time and writes no file records only the time (not every column into a chunk)."""
+    memory, samples = _python_peak(wide_system)
+    assert memory <= 1.5 * samples, (memory, samples)
+    written, _ = _python_peak(wide_system, output=tmp_path / "r.csv", keep=[])
+    assert written <= memory, (written, memory)
+    assert read(tmp_path / "r.csv")["b.y31"][-1] == 32 * 0.8
+    only_time, _ = _python_peak(wide_system, keep=[])
+    assert only_time <= 0.1 * samples, (only_time, samples)
 
 
 # --------------------------------------------------------------------------- on our FMUs (pythonfmu)

@@ -20,6 +20,7 @@ from typing import Literal, Protocol, runtime_checkable
 
 from ...model.fmu import ExchangeType, FMUDescription, Variable
 from ...errors import RunError, SetupError
+from .loading import exports
 from .pythonfmu_state import release_pythonfmu_state
 
 FMU_LOG_LEVELS = ("errors", "all", "off")
@@ -125,7 +126,7 @@ def serial_reason(inst: InstanceBase) -> str:
     PythonFMU), whose Python do_step holds the GIL: nothing to gain."""
     if inst.desc.instantiated_once_per_process:
         return f"component '{inst.name}' says canBeInstantiatedOnlyOncePerProcess"
-    if hasattr(inst.slave.dll, "finalizePythonInterpreter") \
+    if exports(inst.slave, "finalizePythonInterpreter") \
             or (inst.desc.generation_tool or "").lower().startswith("pythonfmu"):
         return f"component '{inst.name}' is a pythonfmu FMU (its Python do_step holds the GIL)"
     return ""
@@ -158,8 +159,13 @@ def fmi_failure(inst: Instance, what: str, status: int, t: float) -> RunError:
 
 
 def address(function) -> int:
-    """The C address of a ctypes foreign function."""
-    return ctypes.cast(function, ctypes.c_void_p).value
+    """The C address of a ctypes foreign function (kept on it: the instances of one library share
+    their function objects, `cosim.run.instances.loading`)."""
+    try:
+        return function.c_address
+    except AttributeError:
+        function.c_address = ctypes.cast(function, ctypes.c_void_p).value
+        return function.c_address
 
 
 def log_line(status: int, category: bytes | None, message: bytes | None) -> str:
@@ -226,8 +232,22 @@ def end_instance(inst: InstanceBase, free_instance: Callable[[], None]) -> None:
             except Exception:  # terminate refused: the instance is still freed
                 pass
         free_instance()
-        release_pythonfmu_state(inst.slave.dll)
+        if exports(inst.slave, "finalizePythonInterpreter"):
+            release_pythonfmu_state(inst.slave.dll)
         inst.slave.freeLibrary()
     inst.component = None
-    resources = os.path.join(inst.slave.unzipDirectory, "resources")
-    sys.path[:] = [entry for entry in sys.path if os.path.normpath(entry) != os.path.normpath(resources)]
+    _forget_path(os.path.normpath(os.path.join(inst.slave.unzipDirectory, "resources")))
+
+
+#: sys.path as last seen by `_forget_path`, and its entries normalised
+_seen_path: tuple[list[str], list[str]] = ([], [])
+
+
+def _forget_path(folder: str) -> None:
+    """Take the normalised ``folder`` off ``sys.path`` (each entry normalised once while sys.path
+    does not change: 1000 instances freed read it 1000 times)."""
+    global _seen_path
+    if _seen_path[0] != sys.path:
+        _seen_path = (list(sys.path), [os.path.normpath(entry) for entry in sys.path])
+    if folder in _seen_path[1]:
+        sys.path[:] = [entry for entry, norm in zip(*_seen_path) if norm != folder]

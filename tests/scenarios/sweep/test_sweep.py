@@ -140,6 +140,15 @@ def test_rerun_skips_finished_runs_and_runs_only_new_values(pool_sweep, scenario
     assert len(read_table(out / "sweep.parquet")) == 12
 
 
+def test_force_reruns_the_runs_already_done(scenario, tmp_path, capsys):
+    """Issue 42 item 4: ``cosim sweep --force`` reruns every run (the CLI passed it on to no executor)."""
+    argv = ["sweep", str(scenario), "--set", "plant.T=15,20", "--output", str(tmp_path), "--workers", "1"]
+    for extra, summary in (([], "2 ran now, 0 already done"), ([], "0 ran now, 2 already done"),
+                           (["--force"], "2 ran now, 0 already done")):
+        assert main(argv + extra) == 0
+        assert summary in capsys.readouterr().out, extra
+
+
 def test_same_table_on_a_dask_local_cluster(pool_sweep, scenario, tmp_path):
     distributed = pytest.importorskip("distributed")
     result, _ = pool_sweep
