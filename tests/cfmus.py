@@ -43,15 +43,18 @@ typedef struct { double r[64]; int i[64]; int b[64]; float f[64]; long long l[64
 /* FMI 3.0 arrays: the variable at vr has extent[vr] values (0: a scalar), at vr, vr + 1, ... */
 #define EXTENT(s, r) ((s)->extent[r] ? (s)->extent[r] : 1)
 #define EACH_VALUE(s, vr, n) for (size_t k = 0, j = 0; k < (n); k++) for (size_t e = 0; e < EXTENT(s, (vr)[k]); e++, j++)
+/* FMI 3.0 §2.2.6.2: nValues is the number of values behind the value references; another count is an error */
+#define COUNT_OK(s, vr, n, nv) do { size_t t_ = 0; for (size_t k_ = 0; k_ < (n); k_++) t_ += EXTENT(s, (vr)[k_]); \
+                                    if (t_ != (nv)) return 3; } while (0)
 """
 
 #: the FMI 3.0 getters and setters of the other numeric types: Float32 in ``s->f``, the
 #: integer types (Int8..UInt64, and Enumeration, an Int64) in ``s->l``
 FMI3_OTHER_TYPES = "".join(
     f"int fmi3Get{t}(void *c, const VR vr[], size_t n, {ct} v[], size_t nv) {{\n"
-    f"    S *s = c; calculate(s); EACH_VALUE(s, vr, n) v[j] = ({ct}) s->{a}[vr[k] + e]; return 0; }}\n"
+    f"    S *s = c; COUNT_OK(s, vr, n, nv); calculate(s); EACH_VALUE(s, vr, n) v[j] = ({ct}) s->{a}[vr[k] + e]; return 0; }}\n"
     f"int fmi3Set{t}(void *c, const VR vr[], size_t n, const {ct} v[], size_t nv) {{\n"
-    f"    S *s = c; EACH_VALUE(s, vr, n) s->{a}[vr[k] + e] = v[j]; return 0; }}\n"
+    f"    S *s = c; COUNT_OK(s, vr, n, nv); EACH_VALUE(s, vr, n) s->{a}[vr[k] + e] = v[j]; return 0; }}\n"
     for t, ct, a in [("Float32", "float", "f"), ("Int8", "signed char", "l"), ("UInt8", "unsigned char", "l"),
                      ("Int16", "short", "l"), ("UInt16", "unsigned short", "l"), ("UInt32", "unsigned int", "l"),
                      ("Int64", "long long", "l"), ("UInt64", "unsigned long long", "l")])
@@ -112,17 +115,17 @@ int fmi3ExitInitializationMode(void *c) { return 0; }
 int fmi3Terminate(void *c) { return 0; }
 int fmi3Reset(void *c) { return 3; }
 int fmi3GetFloat64(void *c, const VR vr[], size_t n, double v[], size_t nv) {
-    S *s = c; calculate(s); EACH_VALUE(s, vr, n) v[j] = s->r[vr[k] + e]; return 0; }
+    S *s = c; COUNT_OK(s, vr, n, nv); calculate(s); EACH_VALUE(s, vr, n) v[j] = s->r[vr[k] + e]; return 0; }
 int fmi3GetInt32(void *c, const VR vr[], size_t n, int v[], size_t nv) {
-    S *s = c; calculate(s); EACH_VALUE(s, vr, n) v[j] = s->i[vr[k] + e]; return 0; }
+    S *s = c; COUNT_OK(s, vr, n, nv); calculate(s); EACH_VALUE(s, vr, n) v[j] = s->i[vr[k] + e]; return 0; }
 int fmi3GetBoolean(void *c, const VR vr[], size_t n, bool v[], size_t nv) {
-    S *s = c; calculate(s); EACH_VALUE(s, vr, n) v[j] = s->b[vr[k] + e]; return 0; }
+    S *s = c; COUNT_OK(s, vr, n, nv); calculate(s); EACH_VALUE(s, vr, n) v[j] = s->b[vr[k] + e]; return 0; }
 int fmi3SetFloat64(void *c, const VR vr[], size_t n, const double v[], size_t nv) {
-    S *s = c; EACH_VALUE(s, vr, n) s->r[vr[k] + e] = v[j]; return 0; }
+    S *s = c; COUNT_OK(s, vr, n, nv); EACH_VALUE(s, vr, n) s->r[vr[k] + e] = v[j]; return 0; }
 int fmi3SetInt32(void *c, const VR vr[], size_t n, const int v[], size_t nv) {
-    S *s = c; EACH_VALUE(s, vr, n) s->i[vr[k] + e] = v[j]; return 0; }
+    S *s = c; COUNT_OK(s, vr, n, nv); EACH_VALUE(s, vr, n) s->i[vr[k] + e] = v[j]; return 0; }
 int fmi3SetBoolean(void *c, const VR vr[], size_t n, const bool v[], size_t nv) {
-    S *s = c; EACH_VALUE(s, vr, n) s->b[vr[k] + e] = v[j]; return 0; }
+    S *s = c; COUNT_OK(s, vr, n, nv); EACH_VALUE(s, vr, n) s->b[vr[k] + e] = v[j]; return 0; }
 int fmi3DoStep(void *c, double t, double h, bool noPrior, bool *event, bool *terminate, bool *early, double *last) {
     S *s = c; s->last = t + h; int status = step(s, t, h); s->time = s->last;
     *event = false; *early = false; *terminate = s->terminate; *last = s->last; return status; }

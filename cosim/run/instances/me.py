@@ -36,7 +36,8 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model, fmi2EventInfo, fmi2False
 from fmpy.fmi3 import FMU3Model
 
-from ...model.fmu import FMUDescription
+from ...errors import SetupError
+from ...model.fmu import FMUDescription, Variable
 from ...model.structure import SolverSettings
 from .base import STATUS
 from .loading import quick
@@ -76,10 +77,12 @@ class Integrated:
         self._nx = desc.continuous_states
         self._nz = desc.event_indicators
         self._needs_completed_step = desc.needs_completed_integrator_step
-        inputs = [v.vr for v in desc.variables.values() if v.causality == "input" and v.type in ("Real", "Float64")]
-        self._input_vrs = (ctypes.c_uint * max(1, len(inputs)))(*inputs)
+        inputs = [v for v in desc.variables.values() if v.causality == "input" and v.type in ("Real", "Float64")]
+        self._input_vrs = (ctypes.c_uint * max(1, len(inputs)))(*(v.vr for v in inputs))
         self._n_inputs = len(inputs)
-        self._inputs = (ctypes.c_double * max(1, len(inputs)))()
+        #: values behind them: an FMI 3.0 array input holds the product of its extents (§2.4.7.5)
+        self._n_input_values = sum(_values(v) for v in inputs)
+        self._inputs = (ctypes.c_double * max(1, self._n_input_values))()
         self._held = b""
         self._solver = None
         self._max_step = math.inf
@@ -295,10 +298,19 @@ class ME3Instance(Integrated, FMI3Instance):
         if not self._n_inputs:
             return b""
         status = self._raw["fmi3GetFloat64"](self.component, self._input_vrs, self._n_inputs, self._inputs,
-                                             self._n_inputs)
+                                             self._n_input_values)
         if status > 1:
             raise FMICallException(function="fmi3GetFloat64", status=status)
         return bytes(self._inputs)
+
+
+def _values(variable: Variable) -> int:
+    """How many values ``variable`` holds: 1, or an FMI 3.0 array's product of extents."""
+    if any(extent is None for extent in variable.dimensions):
+        raise SetupError(f"the Model Exchange input {variable.name} is an array whose extent is not a whole number "
+                         "(its Dimension's start or structural parameter): its values cannot be read.",
+                         variable=variable.name)
+    return math.prod(variable.dimensions)
 
 
 def _reached(time: float, target: float) -> bool:
