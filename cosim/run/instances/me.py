@@ -88,6 +88,7 @@ class Integrated:
         self._max_step = math.inf
         self._start = 0.0
         self._next_event: float | None = None
+        self._ended_at: float | None = None  # where the FMU asked to terminate (`step_end`)
         self._callback_failure: tuple[int, str] | None = None
         self._events = {"input": 0, "time": 0, "state": 0, "step": 0}
         self._event_time = 0.0  # the time of the Event Mode under way, for `_not_converging`
@@ -217,7 +218,14 @@ class Integrated:
 
     def _terminated(self, time: float) -> int:
         self.messages.append(f"[Discard] the FMU requested terminateSimulation at t = {time:g}")
+        self._ended_at = time
         return FMI_DISCARD
+
+    def step_end(self, t: float, h: float) -> tuple[float | None, str]:
+        """After ``do_step`` ended the run: the FMU asked to terminate at the time its states and
+        outputs had reached (an event at t + h leaves the step's outputs valid: that point is
+        recorded, as fmpy records it)."""
+        return self._ended_at, "it requested terminateSimulation (Model Exchange)"
 
 class MEInstance(Integrated, FMI2Instance):
     """One FMI 2.0 Model Exchange instance stepped like a Co-Simulation slave.

@@ -124,3 +124,23 @@ def test_a_discrete_iteration_that_never_ends_fails_naming_the_fmu_the_flag_and_
     message = str(err.value)
     assert f"component 'tick': {function} still sets {flag} after {MAX_DISCRETE_ITERATIONS} iterations" in message
     assert "at t = 0.3 " in message and err.value.time == pytest.approx(0.25)
+
+
+#: terminateSimulation at the time event of t = 0.3 (a grid point: H = 0.05)
+FMI2_TERMINATE = FMI2_UPDATE.replace("info->terminateSimulation = 0;", "info->terminateSimulation = s->time >= 0.3 - 1e-9;")
+FMI3_TERMINATE = FMI3_UPDATE.replace("*terminate = false;", "*terminate = s->time >= 0.3 - 1e-9;")
+
+
+@pytest.mark.parametrize("fmi", ["2.0", "3.0"])
+def test_an_fmu_that_terminates_at_a_time_event_on_the_grid_ends_the_run_there_with_that_point(tmp_path, fmi):
+    """A Model Exchange FMU asking to terminate in the Event Mode of a time event at a
+    communication point ends the run there, that point recorded (as a Co-Simulation FMU's
+    completed step is): the run ended at the last good time 0.25 before, and said 'fmi3DoStep
+    returned Discard' of a Model Exchange FMU (the Reference FMUs' Stair)."""
+    name = f"Stop{fmi[0]}"
+    description = (FMI2_DESCRIPTION if fmi == "2.0" else FMI3_DESCRIPTION).format(name=name)
+    body = "#define CHATTER 0\n" + COMMON_BODY + (FMI2_TERMINATE if fmi == "2.0" else FMI3_TERMINATE)
+    fmu = build_c_fmu(tmp_path, name, description, body, fmi, model_exchange=True)
+    ours = cosim.simulate(system(tmp_path, fmu))
+    assert ours["time"][-1] == pytest.approx(0.3)
+    np.testing.assert_allclose(ours["tick.x"], ours["time"], rtol=0, atol=1e-9)
