@@ -32,8 +32,8 @@ def solvers_of(structure: SystemStructure, fmus: dict[str, FMUDescription]) -> d
 def check_model_exchange(structure: SystemStructure, fmus: dict[str, FMUDescription]) -> None:
     """What can be checked before instantiation: an ``org.greyfmu.solver`` annotation only on a
     component the master integrates (a Co-Simulation FMU integrates itself: refused rather than
-    ignored), and no discrete-time inputs on one, which FMI 2.0 lets an importer set only in
-    Event Mode (§3.2.3) while this master sets inputs at communication points in
+    ignored), and no discrete-time inputs on one, which FMI 2.0 (§3.2.3) and FMI 3.0 (§3.1) let an
+    importer set only in Event Mode while this master sets inputs at communication points in
     Continuous-Time Mode."""
     file = structure.display
     for name, comp in structure.components.items():
@@ -48,7 +48,10 @@ def check_model_exchange(structure: SystemStructure, fmus: dict[str, FMUDescript
         discrete = [v.name for v in desc.variables.values() if v.causality == "input" and v.variability != "continuous"]
         if discrete:
             raise SetupError(f"{desc.path.name} runs through its Model Exchange interface and has discrete-time "
-                             f"inputs ({', '.join(discrete)}), which FMI 2.0 lets an importer set only in Event Mode "
-                             "(§3.2.3); this master sets inputs at communication points in Continuous-Time Mode.",
+                             f"inputs ({', '.join(discrete)}), which "
+                             + ("FMI 2.0 lets an importer set only in Event Mode (§3.2.3)" if desc.kind == "fmi2-me"
+                                else "FMI 3.0 lets an importer set only in Event Mode (§3.1, Model Exchange's "
+                                     "state machine)")
+                             + "; this master sets inputs at communication points in Continuous-Time Mode.",
                              file=file, element=f"ssd:Component '{name}' (line {comp.line})", variable=discrete[0],
                              hint='Use its Co-Simulation interface (implementation="CoSimulation") if it has one.')
