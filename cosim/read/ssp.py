@@ -583,13 +583,18 @@ def _read_parameter_set(pset: etree._Element, display: str) -> list[ParameterVal
     values = []
     units = read_units(pset.find("ssv:Units", NS), display)
     for p in pset.iterfind("ssv:Parameters/ssv:Parameter", NS):
-        v = next(t for t in p if isinstance(t.tag, str) and etree.QName(t).localname in VALUE_TYPES)
+        where = {"file": display, "element": f"ssv:Parameter (line {p.sourceline})", "variable": p.get("name")}
+        v = next((t for t in p if isinstance(t.tag, str) and etree.QName(t).localname in VALUE_TYPES), None)
+        if v is None:
+            raise SetupError(f"the parameter has no value element (one of {', '.join(VALUE_TYPES)}).", **where)
         kind = etree.QName(v).localname
         text = v.get("value")
-        if kind == "Real":
-            value: float | int | bool | str = float(text)
-        elif kind == "Integer":
-            value = int(text)
+        if kind in ("Real", "Integer"):
+            # an inline ssv:ParameterSet of an SSD is not held to the SSV schema's xs:double / xs:int
+            try:
+                value: float | int | bool | str = float(text) if kind == "Real" else int(text)
+            except (TypeError, ValueError):
+                raise SetupError(f"ssv:{kind} value {text!r} is not a number.", **where) from None
         elif kind == "Boolean":
             value = text in ("true", "1")
         elif kind in ("String", "Enumeration"):  # an Enumeration value is an item name (SSP 1.0 ssv)

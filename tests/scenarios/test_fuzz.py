@@ -19,6 +19,7 @@ rarely build: billion laughs, external entities, zip bombs, lying sizes, travers
 from __future__ import annotations
 
 import copy
+import shutil
 import io
 import stat
 import struct
@@ -580,3 +581,17 @@ def test_fmus_inside_an_archive_are_checked_too(tmp_path, built_fmus):
         z.writestr(zipfile.ZipInfo(sources[0]), bomb.read_bytes())     # stored: the outer ratio is 1
     message = _refused(ssp.load, nested)
     assert f"nested.ssp!{sources[0]}" in message and "'modelDescription.xml'" in message and "zip bomb" in message
+
+
+@pytest.mark.parametrize("text", ["1e", "2.5E", "-1e+"])
+def test_a_real_value_the_schema_passes_and_python_cannot_read_is_one_setup_error(tmp_path, text):
+    """libxml2's xs:double takes '1e' (and the other texts here), Python's float() does not: an inline
+    ssv:Real of '1e' raised ValueError from cosim.read.ssp (found by COSIM_FUZZ=nightly, 10 000 cases)."""
+    value, message = f'<ssv:Real value="{text}"/>', f"ssv:Real value '{text}' is not a number."
+    source = Path(__file__).resolve().parents[2] / "ssp" / "btg_boiler_following"
+    shutil.copytree(source, tmp_path / "s")
+    ssd = tmp_path / "s" / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace('<ssv:Real value="0.15"/>', value, 1))
+    with pytest.raises(SetupError) as caught:
+        ssp.load(tmp_path / "s").close()
+    assert message in str(caught.value) and "slope" in str(caught.value) and "SystemStructure.ssd" in str(caught.value)
