@@ -279,6 +279,9 @@ def _open(path: Path, display: str) -> zipfile.ZipFile:
         raise SetupError(f"not a zip archive ({e}).", file=display) from None
     except OSError as e:
         raise SetupError(f"cannot read the archive ({e.strerror or e}).", file=display) from None
+    except UnicodeDecodeError as e:   # a member name flagged UTF-8 (general purpose bit 11) that is not
+        raise SetupError(f"a member name in the archive's central directory is flagged UTF-8 and is not ({e.reason} "
+                         f"at byte {e.start}).", file=display) from None
 
 
 def _target(dest: Path, name: str) -> Path:

@@ -87,7 +87,7 @@ def _refuse_entities(path: Path, file: str, where: str) -> None:
         else:
             with zipfile.ZipFile(path) as archive:
                 data = archive.read("modelDescription.xml")
-    except (OSError, KeyError, zipfile.BadZipFile):
+    except (OSError, KeyError, zipfile.BadZipFile, UnicodeDecodeError):
         return  # fmpy reports the missing or unreadable description, with its own words
     if any(mark in data for mark in DOCTYPE_MARKS):
         try:

@@ -595,3 +595,19 @@ def test_a_real_value_the_schema_passes_and_python_cannot_read_is_one_setup_erro
     with pytest.raises(SetupError) as caught:
         ssp.load(tmp_path / "s").close()
     assert message in str(caught.value) and "slope" in str(caught.value) and "SystemStructure.ssd" in str(caught.value)
+
+
+def test_a_member_name_flagged_utf8_that_is_not_is_one_setup_error(tmp_path):
+    """A zip member name with the UTF-8 flag (general purpose bit 11) and bytes that are not UTF-8:
+    zipfile raised UnicodeDecodeError out of cosim.read.ssp.load (found by COSIM_FUZZ=nightly)."""
+    path = tmp_path / "bad.ssp"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("SystemStructure.ssd", "<x/>")
+        z.writestr("zz__name.txt", "data")
+    data = bytearray(path.read_bytes().replace(b"zz__name", b"\xf4\x90\x80\x80name"))
+    central = data.rindex(b"PK\x01\x02")            # the last member's central directory header
+    data[central + 9] |= 0x08                         # general purpose flags, bit 11: the name is UTF-8
+    path.write_bytes(bytes(data))
+    with pytest.raises(SetupError, match="flagged UTF-8 and is not") as caught:
+        ssp.load(path).close()
+    assert "bad.ssp" in str(caught.value)
